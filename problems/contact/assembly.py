@@ -1,0 +1,202 @@
+"""Discrete contact operators: min 1/2 u'Ku - f'u  subject to  B u <= g.
+
+The pairing (v_n, q)_Gc is approximated by nodal quadrature, sum_i mc_i v_n(x_i) q_i,
+over the contact nodes x_i (vertices, and for P2 also edge midpoints, of Gamma_C
+that are not clamped). All matrices act on the free (non-Dirichlet) dofs.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import ngsolve as ng
+import numpy as np
+import scipy.sparse as sp
+
+from .mesh import geometry_mesh, structured_rectangle, unstructured_rectangle
+from .scene import Scene
+
+
+@dataclass
+class ContactOperators:
+    """K, f, B, mc, g on the free dofs, with the NGSolve handles to map back."""
+
+    K: sp.csr_matrix          # (n_free, n_free) stiffness, SPD
+    f: np.ndarray             # (n_free,) load
+    B: sp.csr_matrix          # (n_c, n_free): u_free -> u.n at the contact nodes
+    mc: np.ndarray            # (n_c,) lumped boundary mass (quadrature weights) on Gamma_C
+    g: np.ndarray             # (n_c,) gap at the contact nodes
+    xc: np.ndarray            # (n_c, 2) contact node coordinates
+    normals: np.ndarray       # (n_c, 2) outward unit normals at the contact nodes
+    free: np.ndarray          # (n_free,) indices of the free dofs in the full dof vector
+    mesh: ng.Mesh
+    fes: ng.comp.FESpace
+    scene: Scene
+
+    @property
+    def n_free(self) -> int:
+        """Number of free dofs."""
+        return self.K.shape[0]
+
+    @property
+    def n_c(self) -> int:
+        """Number of contact nodes."""
+        return self.B.shape[0]
+
+    @property
+    def h(self) -> float:
+        """Mesh size of the scene."""
+        return self.scene.h
+
+    def full_vector(self, u_free: np.ndarray) -> np.ndarray:
+        """All dofs (zero on the clamped boundary) from the free ones."""
+        u = np.zeros(self.fes.ndof)
+        u[self.free] = u_free
+        return u
+
+    def to_gridfunction(self, u_free: np.ndarray) -> ng.GridFunction:
+        """NGSolve GridFunction of the displacement given by the free dofs."""
+        gf = ng.GridFunction(self.fes)
+        gf.vec.FV().NumPy()[:] = self.full_vector(u_free)
+        return gf
+
+
+def lame(E: float, nu: float) -> tuple[float, float]:
+    """Lame parameters (mu, lambda) for plane strain."""
+    return E / (2 * (1 + nu)), E * nu / ((1 + nu) * (1 - 2 * nu))
+
+
+def build_mesh(scene: Scene) -> ng.Mesh:
+    """The NGSolve mesh described by the scene."""
+    if scene.geometry is not None:
+        return geometry_mesh(scene.geometry, scene.h)
+    if scene.mesh_kind == "structured":
+        return structured_rectangle(scene.L, scene.H, scene.h)
+    return unstructured_rectangle(scene.L, scene.H, scene.h)
+
+
+def _csr(mat) -> sp.csr_matrix:
+    vals, cols, rows = mat.CSR()
+    return sp.csr_matrix((np.array(vals), np.array(cols), np.array(rows)), shape=(mat.height, mat.width))
+
+
+def _vector_cf(t):
+    """Constant pair or callable (x, y) -> pair  ->  NGSolve vector CoefficientFunction."""
+    if callable(t):
+        try:
+            t = t(ng.x, ng.y)
+        except Exception as err:
+            raise ValueError("a traction/body-force callable must accept NGSolve coefficient functions "
+                             f"(write it with arithmetic and ngsolve.sin/exp/...): {err}") from None
+    return ng.CF(tuple(t))
+
+
+def contact_nodes(mesh: ng.Mesh, scene: Scene):
+    """Contact nodes of Gamma_C without the clamped ones.
+
+    Returns (nodes, xc, mc, normals): nodes[i] = ("V", vertex) or ("E", edge) for a
+    P2 midpoint; mc = trapezoid (P1) or Simpson (P2) weights; normals = length-weighted
+    average of the outward normals of the adjacent contact edges, normalised.
+    """
+    clamped = {v.nr for el in mesh.Elements(ng.BND) if el.mat in scene.dirichlet for v in el.vertices}
+    point = lambda v: np.array(mesh[v].point[:2])  # noqa: E731
+    weight, nsum, coords = {}, {}, {}
+    for el in mesh.Elements(ng.BND):
+        if el.mat != scene.contact:
+            continue
+        va, vb = el.vertices
+        pa, pb = point(va), point(vb)
+        ell = np.linalg.norm(pb - pa)
+        (edge,) = el.edges
+        (vol,) = mesh[edge].elements               # the triangle beside this boundary edge
+        centre = np.mean([point(v) for v in mesh[vol].vertices], axis=0)
+        n = np.array([pb[1] - pa[1], pa[0] - pb[0]]) / ell
+        if n @ ((pa + pb) / 2 - centre) < 0:       # make it point out of the body
+            n = -n
+        ends = ell / 2 if scene.order == 1 else ell / 6
+        parts = [(("V", va.nr), pa, ends), (("V", vb.nr), pb, ends)]
+        if scene.order == 2:
+            parts.append((("E", edge.nr), (pa + pb) / 2, 2 * ell / 3))
+        for key, p, w in parts:
+            weight[key] = weight.get(key, 0.0) + w
+            nsum[key] = nsum.get(key, 0.0) + ell * n
+            coords[key] = p
+    keys = [k for k in weight if not (k[0] == "V" and k[1] in clamped)]
+    if not keys:
+        raise ValueError(f"contact: boundary {scene.contact!r} has no unclamped node on this mesh")
+    xc = np.array([coords[k] for k in keys])
+    order = np.lexsort((xc[:, 1], xc[:, 0]))
+    keys = [keys[i] for i in order]
+    normals = np.array([nsum[k] / np.linalg.norm(nsum[k]) for k in keys])
+    return keys, xc[order], np.array([weight[k] for k in keys]), normals
+
+
+def _point_evaluation(mesh: ng.Mesh, scalar: ng.comp.FESpace, points: np.ndarray) -> sp.csr_matrix:
+    """E[i, j] = phi_j(points[i]) for the scalar space's basis.
+
+    NGSolve 6.2.2608 has no nodal P2 basis (the H1 flag ``nodalp2`` is not
+    recognised), its P2 basis is hierarchical: vertex hat functions plus edge
+    bubbles.  So a midpoint value is (U_a + U_b)/2 + phi_e(mid) U_e; we get these
+    coefficients by evaluating the element's shape functions at the point (for P1 and
+    at vertices this just selects the vertex dof).
+    """
+    rows, cols, vals = [], [], []
+    for i, (x, y) in enumerate(points):
+        mp = mesh(x, y)
+        el = ng.ElementId(ng.VOL, mp.nr)
+        shape = np.array(scalar.GetFE(el).CalcShape(*mp.pnt[:2]))
+        for j, s in zip(scalar.GetDofNrs(el), shape):
+            if abs(s) > 1e-12:
+                rows.append(i); cols.append(j); vals.append(s)
+    return sp.csr_matrix((vals, (rows, cols)), shape=(len(points), scalar.ndof))
+
+
+def _stick_components(scene: Scene, normals: np.ndarray) -> dict:
+    """Component-wise Dirichlet flags for u.t = 0 on an axis-aligned straight Gamma_C."""
+    if np.allclose(np.abs(normals[:, 1]), 1, atol=1e-10):
+        return {"dirichletx": scene.contact}
+    if np.allclose(np.abs(normals[:, 0]), 1, atol=1e-10):
+        return {"dirichlety": scene.contact}
+    raise ValueError(f"tangential = 'stick' is supported only for a straight contact boundary parallel "
+                     f"to the x or y axis; {scene.contact!r} is not (use tangential = 'frictionless')")
+
+
+def assemble(scene: Scene) -> ContactOperators:
+    """Assemble K, f, B, mc, g of the scene on the free dofs (see ContactOperators)."""
+    mesh = build_mesh(scene)
+    known = set(mesh.GetBoundaries())
+    for label in (*scene.dirichlet, *scene.tractions, scene.contact):
+        if label not in known:
+            raise ValueError(f"unknown boundary label {label!r}; known labels: {', '.join(sorted(known))}")
+    nodes, xc, mc, normals = contact_nodes(mesh, scene)
+    g = np.array([scene.gap_at(x, y) for x, y in xc])
+    if not np.all(np.isfinite(g)):
+        raise ValueError(f"gap: not finite at the contact nodes {xc[~np.isfinite(g)].tolist()}")
+
+    flags = _stick_components(scene, normals) if scene.tangential == "stick" else {}
+    fes = ng.VectorH1(mesh, order=scene.order, dirichlet="|".join(scene.dirichlet), **flags)
+    u, v = fes.TnT()
+    mu, lam = lame(scene.E, scene.nu)
+    eps = lambda w: ng.Sym(ng.Grad(w))  # noqa: E731
+    div = lambda w: ng.Trace(ng.Grad(w))  # noqa: E731
+    a = ng.BilinearForm(fes)
+    a += (2 * mu * ng.InnerProduct(eps(u), eps(v)) + lam * div(u) * div(v)) * ng.dx
+    a.Assemble()
+    l = ng.LinearForm(fes)
+    for label, t in scene.tractions.items():
+        l += _vector_cf(t) * v * ng.ds(definedon=mesh.Boundaries(label), bonus_intorder=2 * callable(t))
+    if scene.body_force is not None:
+        l += _vector_cf(scene.body_force) * v * ng.dx(bonus_intorder=2 * callable(scene.body_force))
+    l.Assemble()
+
+    free = np.flatnonzero(np.array(fes.FreeDofs(), dtype=bool))
+    K = _csr(a.mat)[free][:, free].tocsr()
+    f = l.vec.FV().NumPy()[free].copy()
+
+    # u.n at x_i = n_x u_x(x_i) + n_y u_y(x_i); VectorH1 numbers the y-component dofs after all x ones
+    E = _point_evaluation(mesh, ng.H1(mesh, order=scene.order), xc)
+    Bfull = sp.hstack([sp.diags(normals[:, 0]) @ E, sp.diags(normals[:, 1]) @ E]).tocsc()
+    B = Bfull[:, free].tocsr()
+    B.eliminate_zeros()
+    return ContactOperators(K=K, f=f, B=B, mc=mc, g=g, xc=xc, normals=normals, free=free,
+                            mesh=mesh, fes=fes, scene=scene)

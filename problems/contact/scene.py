@@ -1,0 +1,299 @@
+"""Declarative description of a 2D plane-strain frictionless contact problem.
+
+A :class:`Scene` says *what* is solved (geometry, mesh, material, boundary
+conditions, gap); :func:`problems.contact.assembly.assemble` turns it into matrices.
+Every scene is validated when it is built, so bad input fails early with a
+``ValueError`` that names the parameter and the accepted range.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable, Mapping
+
+from .mesh import BOUNDARY_NAMES, grid_counts
+
+MESH_KINDS = ("structured", "unstructured")
+TANGENTIAL = ("frictionless", "stick")
+SCENES_DIR = Path(__file__).with_name("scenes")
+
+# ---------------------------------------------------------------- expressions
+_MATH_NAMES = ("sqrt", "sin", "cos", "tan", "exp", "log", "atan", "pi")
+
+
+def expression(text: str) -> Callable:
+    """Turn a string in x and y (e.g. ``"0.003*(x-1.5)**2 + 0.001"``) into f(x, y).
+
+    f works on floats and on NGSolve coefficient functions (ngsolve.x, ngsolve.y).
+    """
+    try:
+        code = compile(text, "<expression>", "eval")
+    except SyntaxError as err:
+        raise ValueError(f"expression {text!r} is not valid Python syntax: {err.msg}") from None
+    unknown = set(code.co_names) - set(_MATH_NAMES) - {"x", "y", "abs", "min", "max"}
+    if unknown:
+        raise ValueError(f"expression {text!r} uses unknown names {sorted(unknown)}; "
+                         f"allowed: x, y, abs, {', '.join(_MATH_NAMES)}")
+
+    def f(x, y):
+        if isinstance(x, (int, float)):
+            ns = {n: getattr(math, n) for n in _MATH_NAMES}
+        else:
+            import ngsolve
+            ns = {n: getattr(ngsolve, n) for n in _MATH_NAMES if n != "pi"} | {"pi": math.pi}
+        return eval(code, {"__builtins__": {"abs": abs, "min": min, "max": max}}, ns | {"x": x, "y": y})
+
+    f.expression = text
+    return f
+
+
+def _as_func(value, name: str):
+    """A number, a callable or an expression string -> a number or a callable."""
+    if isinstance(value, str):
+        return expression(value)
+    if callable(value):
+        return value
+    if isinstance(value, (int, float)) and not isinstance(value, bool):
+        return float(value)
+    raise ValueError(f"{name} must be a number, a callable f(x, y) or an expression string, got {value!r}")
+
+
+# ---------------------------------------------------------------- memory guard
+def available_memory() -> int:
+    """Bytes of available memory (MemAvailable in /proc/meminfo; 8 GiB if unreadable)."""
+    try:
+        for line in Path("/proc/meminfo").read_text().splitlines():
+            if line.startswith("MemAvailable:"):
+                return int(line.split()[1]) * 1024
+    except OSError:
+        pass
+    return 8 * 2**30
+
+
+def estimate_memory(area: float, perimeter: float, h: float, order: int, kind: str) -> int:
+    """Rough bytes for the assembled system (NGSolve + scipy copies) and a sparse LU.
+
+    Vertices ~ area/h^2 (structured) or ~1.2 area/h^2 (netgen), dofs = 2 * order^2 *
+    vertices; ~14 (P1) / ~26 (P2) nonzeros per row, 12 bytes each, 3 copies; fill of a
+    nested-dissection factor of a 2D problem ~ 8 n log2 n nonzeros.
+    """
+    vertices = (1.0 if kind == "structured" else 1.2) * area / h**2 + perimeter / h
+    n = 2 * order**2 * vertices
+    system = 3 * 12 * (14 if order == 1 else 26) * n
+    factor = 12 * 8 * n * math.log2(max(n, 2.0))
+    return int(system + factor)
+
+
+# ---------------------------------------------------------------- scene
+@dataclass(frozen=True)
+class Scene:
+    """Linear elastic body on a rigid foundation, plane strain, small deformations.
+
+    Geometry: the rectangle (0, L) x (0, H) with boundary labels bottom/right/top/left,
+    meshed ``"structured"`` (FreeFEM ``square``: L/h x H/h squares cut in two) or
+    ``"unstructured"`` (netgen, maxh = h); or, if ``geometry`` is a netgen geometry
+    object, that geometry meshed by netgen (labels are then its boundary names).
+
+    Boundary conditions: u = 0 on the ``dirichlet`` labels, sigma n = t on the labels
+    of ``tractions`` (a constant 2-vector or a pair/callable of (x, y)), unmentioned
+    labels are traction free; contact u.n <= g on ``contact``; tangentially either
+    sigma_t = 0 (``"frictionless"``) or u_t = 0 (``"stick"``, the paper's eq. (1)).
+    ``gap`` and ``body_force`` likewise accept numbers, callables or expressions in x, y.
+    """
+
+    L: float = 1.0
+    H: float = 1.0
+    h: float = 1 / 40
+    mesh_kind: str = "structured"
+    order: int = 1
+    E: float = 1.0
+    nu: float = 0.3
+    dirichlet: tuple[str, ...] = ("left",)
+    tractions: Mapping[str, Any] = field(default_factory=dict)
+    body_force: Any = None
+    contact: str = "bottom"
+    gap: Any = 0.0
+    tangential: str = "frictionless"
+    geometry: Any = None
+    name: str = ""
+
+    def __post_init__(self):
+        set_ = lambda k, v: object.__setattr__(self, k, v)  # noqa: E731 (frozen)
+        if isinstance(self.dirichlet, str):
+            set_("dirichlet", (self.dirichlet,))
+        set_("dirichlet", tuple(self.dirichlet))
+        set_("tractions", {k: _traction(v, f"tractions[{k!r}]") for k, v in dict(self.tractions).items()})
+        if self.body_force is not None:
+            set_("body_force", _traction(self.body_force, "body_force"))
+        set_("gap", _as_func(self.gap, "gap"))
+        self.validate()
+
+    # -- derived quantities
+    @property
+    def labels(self) -> tuple[str, ...]:
+        """Boundary labels of the geometry (None-free only for the built-in rectangle)."""
+        return BOUNDARY_NAMES if self.geometry is None else tuple(_geometry_labels(self.geometry))
+
+    def with_h(self, h: float) -> "Scene":
+        """The same scene with mesh size h."""
+        return dataclasses.replace(self, h=h)
+
+    def gap_at(self, x: float, y: float) -> float:
+        """The gap g(x, y)."""
+        return float(self.gap(x, y)) if callable(self.gap) else float(self.gap)
+
+    # -- validation
+    def validate(self) -> None:
+        """Raise ValueError naming the offending parameter and its accepted range."""
+        _finite_positive(self.E, "E", "E > 0")
+        if not (isinstance(self.nu, (int, float)) and -1.0 < self.nu < 0.5):
+            raise ValueError(f"nu = {self.nu!r} is outside the accepted range -1 < nu < 0.5")
+        if self.order not in (1, 2):
+            raise ValueError(f"order = {self.order!r}; accepted: 1 or 2")
+        if self.mesh_kind not in MESH_KINDS:
+            raise ValueError(f"mesh_kind = {self.mesh_kind!r}; accepted: {', '.join(MESH_KINDS)}")
+        if self.tangential not in TANGENTIAL:
+            raise ValueError(f"tangential = {self.tangential!r}; accepted: {', '.join(TANGENTIAL)}")
+        _finite_positive(self.h, "h", "0 < h (finite)")
+        if self.geometry is None:
+            _finite_positive(self.L, "L", "L > 0")
+            _finite_positive(self.H, "H", "H > 0")
+            if self.h > min(self.L, self.H):
+                raise ValueError(f"h = {self.h} is larger than the rectangle; accepted 0 < h <= "
+                                 f"min(L, H) = {min(self.L, self.H)}")
+            if self.mesh_kind == "structured":
+                nx, ny = grid_counts(self.L, self.H, self.h)
+                area, perim = nx * ny * self.h**2, 2 * (nx + ny) * self.h
+            else:
+                area, perim = self.L * self.H, 2 * (self.L + self.H)
+            need, have = estimate_memory(area, perim, self.h, self.order, self.mesh_kind), available_memory()
+            if need > have:
+                raise ValueError(f"h = {self.h} is too small: the system and its sparse factorisation "
+                                 f"need about {need / 2**30:.3g} GiB, only {have / 2**30:.3g} GiB available; "
+                                 f"choose a larger h")
+        elif self.mesh_kind != "unstructured":
+            raise ValueError("mesh_kind = 'structured' needs the built-in rectangle; "
+                             "with a netgen geometry use mesh_kind = 'unstructured'")
+        labels = self.labels
+        for name, used in [("dirichlet", self.dirichlet), ("tractions", tuple(self.tractions)),
+                           ("contact", (self.contact,))]:
+            for label in used:
+                if label not in labels:
+                    raise ValueError(f"{name}: unknown boundary label {label!r}; known labels: {', '.join(labels)}")
+        if not self.dirichlet:
+            raise ValueError("dirichlet: no clamped boundary; at least one label is needed "
+                             "(otherwise the stiffness matrix K is singular)")
+        if not self.contact:
+            raise ValueError(f"contact: empty contact boundary; give one of {', '.join(labels)}")
+        if self.contact in self.dirichlet:
+            raise ValueError(f"contact: label {self.contact!r} is also clamped (dirichlet); "
+                             f"the contact boundary would have no free node")
+        if self.contact in self.tractions:
+            raise ValueError(f"tractions: label {self.contact!r} is the contact boundary")
+        if not callable(self.gap) and not math.isfinite(self.gap):
+            raise ValueError(f"gap = {self.gap!r} is not finite; accepted: a finite number or function")
+
+
+def _finite_positive(value, name: str, accepted: str) -> None:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value <= 0:
+        raise ValueError(f"{name} = {value!r} is outside the accepted range {accepted}")
+
+
+def _traction(value, name: str):
+    """A constant 2-vector (tuple of floats) or a callable (x, y) -> 2-vector."""
+    if callable(value):
+        return value
+    if isinstance(value, (list, tuple)) and len(value) == 2:
+        parts = tuple(_as_func(v, name) for v in value)
+        if all(isinstance(p, float) for p in parts):
+            if not all(math.isfinite(p) for p in parts):
+                raise ValueError(f"{name} = {value!r} is not finite")
+            return parts
+        return lambda x, y: tuple(p(x, y) if callable(p) else p for p in parts)
+    raise ValueError(f"{name} must be a pair (tx, ty) of numbers/expressions or a callable, got {value!r}")
+
+
+def _geometry_labels(geometry) -> list[str]:
+    """Boundary names of a netgen geometry (OCCGeometry in 2D or SplineGeometry)."""
+    if hasattr(geometry, "shape"):  # netgen.occ.OCCGeometry
+        return sorted({e.name for e in geometry.shape.edges if e.name})
+    if hasattr(geometry, "GetBCName"):  # netgen.geom2d.SplineGeometry
+        names, i = [], 1
+        while True:
+            try:
+                names.append(geometry.GetBCName(i))
+            except Exception:
+                return sorted(set(names))
+            i += 1
+    raise ValueError(f"geometry: unsupported object {type(geometry).__name__}; "
+                     "accepted: None (rectangle), netgen.occ.OCCGeometry, netgen.geom2d.SplineGeometry")
+
+
+# ---------------------------------------------------------------- the paper's examples
+def example1(h: float = 1 / 40, **changes) -> Scene:
+    """Paper's Example 1: (0,2)x(0,1), clamped at x=0, top traction (0,-10), g = 0.01."""
+    return Scene(L=2.0, H=1.0, h=h, E=2000.0, nu=0.3, dirichlet=("left",),
+                 tractions={"top": (0.0, -10.0), "right": (0.0, 0.0)}, contact="bottom",
+                 gap=0.01, name="example1", **changes)
+
+
+def example2(h: float = 1 / 40, **changes) -> Scene:
+    """Paper's Example 2: (0,3)x(0,1), clamped at x=0, right traction (0,-2),
+    g(x) = 0.003 (x - 1.5)^2 + 0.001, E = 5000, nu = 0.49."""
+    return Scene(L=3.0, H=1.0, h=h, E=5000.0, nu=0.49, dirichlet=("left",),
+                 tractions={"right": (0.0, -2.0), "top": (0.0, 0.0)}, contact="bottom",
+                 gap=expression("0.003*(x - 1.5)**2 + 0.001"), name="example2", **changes)
+
+
+# ---------------------------------------------------------------- TOML
+_TOML_KEYS = {  # key: (accepted types, description)
+    "name": ((str,), "a string"),
+    "L": ((int, float), "a number"), "H": ((int, float), "a number"),
+    "h": ((int, float), "a number"),
+    "mesh_kind": ((str,), "a string"), "order": ((int,), "an integer"),
+    "E": ((int, float), "a number"), "nu": ((int, float), "a number"),
+    "dirichlet": ((list, str), "a list of labels"),
+    "tractions": ((dict,), "a table label = [tx, ty]"),
+    "body_force": ((list,), "a pair [fx, fy]"),
+    "contact": ((str,), "a label"),
+    "gap": ((int, float, str), "a number or an expression in x, y"),
+    "tangential": ((str,), "'frictionless' or 'stick'"),
+}
+_REQUIRED = ("L", "H", "E", "nu", "dirichlet", "contact", "gap")
+
+
+def load_scene(path, **changes) -> Scene:
+    """Read a Scene from a TOML file (keys = Scene fields; see scenes/ex1.toml).
+
+    A bare name such as ``"ex1"`` refers to problems/contact/scenes/ex1.toml.
+    ``changes`` override file values (e.g. ``h=1/80``).
+    """
+    path = Path(path)
+    if not path.exists() and (SCENES_DIR / f"{path.name}.toml").exists():
+        path = SCENES_DIR / f"{path.name}.toml"
+    try:
+        data = tomllib.loads(path.read_text())
+    except tomllib.TOMLDecodeError as err:
+        raise ValueError(f"{path}: malformed TOML: {err}") from None
+    data = data.get("scene", data)
+    for key, value in data.items():
+        if key not in _TOML_KEYS:
+            raise ValueError(f"{path}: unknown key {key!r}; known keys: {', '.join(_TOML_KEYS)}")
+        types, what = _TOML_KEYS[key]
+        if isinstance(value, bool) or not isinstance(value, types):
+            raise ValueError(f"{path}: key {key!r} must be {what}, got {value!r}")
+    missing = [k for k in _REQUIRED if k not in data]
+    if missing:
+        raise ValueError(f"{path}: missing key(s) {', '.join(map(repr, missing))}")
+    for label, t in data.get("tractions", {}).items():
+        if not (isinstance(t, list) and len(t) == 2 and all(isinstance(c, (int, float, str)) for c in t)):
+            raise ValueError(f"{path}: key 'tractions.{label}' must be a pair [tx, ty], got {t!r}")
+    if "dirichlet" in data and isinstance(data["dirichlet"], list):
+        data["dirichlet"] = tuple(data["dirichlet"])
+    try:
+        return Scene(**(data | changes))
+    except ValueError as err:
+        raise ValueError(f"{path}: {err}") from None
