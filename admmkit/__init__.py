@@ -1,0 +1,23 @@
+"""admmkit: ADMM with adaptive penalty parameters.
+
+The framework core: the problem protocol (:class:`Problem`), one loop
+(:func:`solve`) for both orders, the penalty-policy protocol (:class:`Policy`),
+composable stopping rules, the per-iteration history and the result.  Penalty
+rules live in the ``policies`` package and plug-ins in ``problems``; this
+package imports neither.
+"""
+from .history import History
+from .policy import Policy, make_policy, policy_names, register_policy
+from .problem import Problem
+from .record import IterationRecord
+from .result import Result, Status
+from .solver import solve
+from .stopping import AllOf, AnyOf, RelativeChange, ResidualTolerance, StoppingRule
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "solve", "Problem", "Policy", "IterationRecord", "Result", "Status", "History",
+    "StoppingRule", "RelativeChange", "ResidualTolerance", "AnyOf", "AllOf",
+    "register_policy", "make_policy", "policy_names", "__version__",
+]

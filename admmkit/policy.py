@@ -1,0 +1,68 @@
+"""The penalty-policy protocol and the name registry.
+
+A policy is a small stateful object.  :func:`admmkit.solve` calls
+``policy.reset(rho0)`` once at the start of a run and ``policy.update(record)``
+after every iteration; ``update`` returns rho_{k+1}.  Policies must be
+deterministic functions of the iteration history (never of wall time), and
+they never rescale the multiplier: admmkit stores it unscaled, so a change of
+rho needs nothing else.
+
+Writing a rule takes a few lines::
+
+    class Halve(Policy):
+        def update(self, rec):
+            return rec.rho / 2 if rec.k % 10 == 9 else rec.rho
+"""
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from typing import Callable
+
+from .record import IterationRecord
+
+_REGISTRY: dict[str, Callable[..., "Policy"]] = {}
+
+
+class Policy(ABC):
+    """Base class of penalty rules."""
+
+    #: record fields the rule reads that a problem might not provide
+    #: (only "dual_residual" can be missing: order "xz" needs ``adjoint_norm``)
+    requires: tuple[str, ...] = ()
+
+    def reset(self, rho0: float) -> None:
+        """Start a new run from rho0 (clear any state)."""
+        self.rho0 = rho0
+
+    @abstractmethod
+    def update(self, rec: IterationRecord) -> float:
+        """Return rho_{k+1} from the record of iteration k (``rec.rho`` is rho_k)."""
+
+    def __repr__(self) -> str:
+        params = ", ".join(f"{k}={v!r}" for k, v in vars(self).items() if not k.startswith("_") and k != "rho0")
+        return f"{type(self).__name__}({params})"
+
+
+def register_policy(name: str):
+    """Class decorator: make a policy constructible by name (``make_policy(name)``)."""
+
+    def deco(cls):
+        _REGISTRY[name] = cls
+        cls.registered_name = name
+        return cls
+
+    return deco
+
+
+def policy_names() -> list[str]:
+    """Names of the registered policies (the built-in ones register when ``policies`` is imported)."""
+    return sorted(_REGISTRY)
+
+
+def make_policy(name: str, **params) -> Policy:
+    """Construct a registered policy by name with its parameters."""
+    key = name.strip().lower().replace("-", "_")
+    if key not in _REGISTRY:
+        known = ", ".join(policy_names()) or "none registered (import policies)"
+        raise ValueError(f"unknown policy {name!r}; known policies: {known}")
+    return _REGISTRY[key](**params)

@@ -1,0 +1,91 @@
+"""The result of a run: the solution, how and why the run stopped, and what it cost."""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from enum import Enum
+
+import numpy as np
+
+from .history import History
+
+
+class Status(str, Enum):
+    """How a run ended."""
+
+    CONVERGED = "converged"    # a stopping rule fired
+    MAX_ITER = "max_iter"      # the iteration cap was reached first
+    DIVERGED = "diverged"      # an iterate, a norm or rho became non-finite (or a solve failed)
+    STALLED = "stalled"        # the iterates stopped changing before any rule fired
+    TIME_LIMIT = "time_limit"  # the wall-time limit was reached (benchmarks only)
+    STOPPED = "stopped"        # the callback asked to stop
+
+    def __str__(self) -> str:
+        return self.value
+
+
+@dataclass
+class Result:
+    """What :func:`admmkit.solve` returns (in the spirit of scipy's OptimizeResult).
+
+    ``x`` is the problem's solution (after ``problem.finalize``), ``z`` and
+    ``lam`` the last auxiliary variable and (unscaled) multiplier.  ``timings``
+    splits the wall time into x_step, z_step, policy, residuals and total
+    seconds.  ``kkt`` holds the problem's KKT residuals at the stop, when the
+    plug-in provides them.
+    """
+
+    x: np.ndarray
+    z: np.ndarray
+    lam: np.ndarray
+    status: Status
+    message: str
+    stopped_by: str | None
+    iterations: int
+    rho: float
+    history: History
+    timings: dict[str, float]
+    rho_changes: int
+    counters: dict[str, int] = field(default_factory=dict)
+    kkt: dict[str, float] | None = None
+    objective: float | None = None
+    order: str = "xz"
+    policy: str = "fixed"
+
+    @property
+    def converged(self) -> bool:
+        """True when a stopping rule fired."""
+        return self.status is Status.CONVERGED
+
+    @property
+    def factorizations(self) -> int | None:
+        """Factorisations the plug-in computed during this run (None if not counted)."""
+        return self.counters.get("factorizations")
+
+    def summary(self) -> str:
+        """A few lines for people: status, iterations, rho, residuals, time."""
+        h = self.history
+        lines = [
+            f"status       {self.status.value}  ({self.message})",
+            f"method       order={self.order}  policy={self.policy}",
+            f"iterations   {self.iterations}   rho: final {self.rho:.4g}, {self.rho_changes} changes",
+        ]
+        if len(h):
+            lines.append(
+                f"residuals    primal {h['primal_residual'][-1]:.3e}   dual {h['dual_residual'][-1]:.3e}"
+                f"   rel. change {h['rel_change'][-1]:.3e}"
+            )
+        if self.objective is not None:
+            lines.append(f"objective    {self.objective:.10g}")
+        if self.kkt:
+            lines.append("KKT          " + "   ".join(f"{k} {v:.3e}" for k, v in self.kkt.items()))
+        if self.counters:
+            lines.append("work         " + "   ".join(f"{k} {v}" for k, v in self.counters.items()))
+        t = self.timings
+        lines.append(
+            f"time         {t['total']:.4f} s  (x-step {t['x_step']:.4f}, z-step {t['z_step']:.4f},"
+            f" policy {t['policy']:.4f}, residuals {t['residuals']:.4f})"
+        )
+        return "\n".join(lines)
+
+    def __repr__(self) -> str:
+        return f"Result(status={self.status.value!r}, iterations={self.iterations}, stopped_by={self.stopped_by!r})"

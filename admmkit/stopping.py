@@ -1,0 +1,111 @@
+"""Stopping rules that compose: ``RelativeChange(1e-5) | ResidualTolerance(1e-8, 1e-6)``.
+
+A rule is called with the iteration record and returns the name of the rule
+that fired, or None.  ``a | b`` fires when either fires, ``a & b`` when both do.
+The iteration cap (``max_iter``) is a parameter of :func:`admmkit.solve`.
+"""
+from __future__ import annotations
+
+import math
+
+from .record import IterationRecord
+
+
+class StoppingRule:
+    """Base class: subclasses implement :meth:`fired`."""
+
+    name = "rule"
+
+    def fired(self, rec: IterationRecord) -> str | None:
+        """Return the name of the rule that fired at this record, or None."""
+        raise NotImplementedError
+
+    def __or__(self, other: "StoppingRule") -> "AnyOf":
+        return AnyOf(self, other)
+
+    def __and__(self, other: "StoppingRule") -> "AllOf":
+        return AllOf(self, other)
+
+    def __repr__(self) -> str:
+        return self.name
+
+
+def _positive(name: str, value: float) -> float:
+    value = float(value)
+    if not (math.isfinite(value) and value > 0):
+        raise ValueError(f"{name} must be a finite number > 0, got {value!r}")
+    return value
+
+
+class RelativeChange(StoppingRule):
+    """The paper's rule (section 4): ||x^{k+1} - x^k||_X <= tol ||x^{k+1}||_X."""
+
+    def __init__(self, tol: float = 1e-5):
+        self.tol = _positive("tol", tol)
+        self.name = f"relative_change(tol={self.tol:g})"
+
+    def fired(self, rec: IterationRecord) -> str | None:
+        """Fire when the relative change of x is at most ``tol``."""
+        return self.name if rec.x_change <= self.tol * rec.x_norm else None
+
+
+class ResidualTolerance(StoppingRule):
+    """Boyd et al. (2011) eq. (3.12), in the problem's norms.
+
+    ||r||_M <= eps_pri  = primal_unit eps_abs + eps_rel max(||Ax||_M, ||z||_M, ||c||_M)
+    ||s||   <= eps_dual = dual_unit eps_abs + eps_rel dual_scale
+    """
+
+    def __init__(self, eps_abs: float = 1e-6, eps_rel: float = 1e-4):
+        self.eps_abs = float(eps_abs)
+        self.eps_rel = float(eps_rel)
+        for name, v in (("eps_abs", self.eps_abs), ("eps_rel", self.eps_rel)):
+            if not (math.isfinite(v) and v >= 0):
+                raise ValueError(f"{name} must be a finite number >= 0, got {v!r}")
+        if self.eps_abs == 0 and self.eps_rel == 0:
+            raise ValueError("eps_abs and eps_rel cannot both be 0 (the rule could never fire)")
+        self.name = f"residual(eps_abs={self.eps_abs:g}, eps_rel={self.eps_rel:g})"
+
+    def fired(self, rec: IterationRecord) -> str | None:
+        """Fire when both residuals are below their tolerances."""
+        eps_pri = rec.primal_unit * self.eps_abs + self.eps_rel * rec.primal_scale
+        eps_dual = rec.dual_unit * self.eps_abs + self.eps_rel * rec.dual_scale
+        ok = rec.primal_residual <= eps_pri and rec.dual_residual <= eps_dual
+        return self.name if ok else None
+
+
+class AnyOf(StoppingRule):
+    """Fires when any of its rules fires (the first one's name is reported)."""
+
+    def __init__(self, *rules: StoppingRule):
+        self.rules = _check_rules(rules)
+        self.name = " | ".join(r.name for r in self.rules)
+
+    def fired(self, rec: IterationRecord) -> str | None:
+        """The name of the first rule that fires, or None."""
+        for rule in self.rules:
+            name = rule.fired(rec)
+            if name:
+                return name
+        return None
+
+
+class AllOf(StoppingRule):
+    """Fires when all of its rules fire."""
+
+    def __init__(self, *rules: StoppingRule):
+        self.rules = _check_rules(rules)
+        self.name = " & ".join(f"({r.name})" if isinstance(r, AnyOf) else r.name for r in self.rules)
+
+    def fired(self, rec: IterationRecord) -> str | None:
+        """This rule's name if every rule fires, else None."""
+        return self.name if all(rule.fired(rec) for rule in self.rules) else None
+
+
+def _check_rules(rules) -> tuple[StoppingRule, ...]:
+    if not rules:
+        raise ValueError("a composite stopping rule needs at least one rule")
+    for r in rules:
+        if not isinstance(r, StoppingRule):
+            raise TypeError(f"stop rules must be StoppingRule objects, got {type(r).__name__}")
+    return tuple(rules)

@@ -1,0 +1,13 @@
+"""Fixed penalty: rho_k = rho_0 for every k (the paper's ADMM1 and ADMM2)."""
+from __future__ import annotations
+
+from admmkit import IterationRecord, Policy, register_policy
+
+
+@register_policy("fixed")
+class Fixed(Policy):
+    """Keep rho at its initial value."""
+
+    def update(self, rec: IterationRecord) -> float:
+        """Return rho_k unchanged."""
+        return rec.rho

@@ -1,0 +1,50 @@
+"""Shared test fixtures: a tiny problem written against the public protocol only."""
+import numpy as np
+import pytest
+
+from admmkit import Problem
+
+
+class Obstacle1D(Problem):
+    """min 1/2 x'Dx - b'x  s.t.  x <= g, split as x - z = 0 in the weighted inner product (.,.)_M.
+
+    D and M are diagonal, so every step is explicit and the iterates can be
+    computed by hand.  This is the contact problem with K = D, B = I, M_c = M.
+    """
+
+    def __init__(self, d, b, g, m):
+        self.d, self.b, self.g, self.m = (np.asarray(v, dtype=float) for v in (d, b, g, m))
+        self.n = self.d.size
+
+    def x_step(self, z, lam, rho, x):
+        return (self.b - self.m * lam + rho * self.m * z) / (self.d + rho * self.m)
+
+    def z_step(self, Ax, lam, rho, z):
+        return np.minimum(self.g, Ax + lam / rho)
+
+    def apply_A(self, x):
+        return x.copy()
+
+    def inner(self, a, b):
+        return float(np.sum(self.m * a * b))
+
+    def adjoint_norm(self, y):
+        return float(np.linalg.norm(self.m * y))
+
+    def solution(self):
+        x = np.minimum(self.g, self.b / self.d)
+        lam = (self.b - self.d * x) / self.m
+        return x, lam
+
+
+@pytest.fixture
+def scalar_problem():
+    """a = 2, b = 4, g = 1, M = 1: solution x = 1, lam = 2."""
+    return Obstacle1D([2.0], [4.0], [1.0], [1.0])
+
+
+@pytest.fixture
+def vector_problem():
+    rng = np.random.default_rng(3)
+    n = 12
+    return Obstacle1D(rng.uniform(1, 3, n), rng.uniform(-2, 4, n), rng.uniform(0.2, 1.0, n), rng.uniform(0.5, 2, n))
