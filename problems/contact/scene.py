@@ -134,7 +134,7 @@ class Scene:
     # -- derived quantities
     @property
     def labels(self) -> tuple[str, ...]:
-        """Boundary labels of the geometry (None-free only for the built-in rectangle)."""
+        """Boundary labels: bottom/right/top/left, or the names in the netgen geometry."""
         return BOUNDARY_NAMES if self.geometry is None else tuple(_geometry_labels(self.geometry))
 
     def with_h(self, h: float) -> "Scene":
@@ -195,11 +195,27 @@ class Scene:
             raise ValueError(f"tractions: label {self.contact!r} is the contact boundary")
         if not callable(self.gap) and not math.isfinite(self.gap):
             raise ValueError(f"gap = {self.gap!r} is not finite; accepted: a finite number or function")
+        if callable(self.gap) and self.geometry is None:  # sample g along the contact edge
+            for x, y in _edge_points(self.contact, self.L, self.H):
+                try:
+                    value = float(self.gap(x, y))
+                except Exception as err:
+                    raise ValueError(f"gap: g({x:g}, {y:g}) failed: {err}") from None
+                if not math.isfinite(value):
+                    raise ValueError(f"gap: g({x:g}, {y:g}) = {value} is not finite; accepted: finite values")
 
 
 def _finite_positive(value, name: str, accepted: str) -> None:
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value <= 0:
         raise ValueError(f"{name} = {value!r} is outside the accepted range {accepted}")
+
+
+def _edge_points(label: str, L: float, H: float, n: int = 21):
+    """n points along one side of the rectangle."""
+    t = [i / (n - 1) for i in range(n)]
+    side = {"bottom": lambda s: (L * s, 0.0), "top": lambda s: (L * s, H),
+            "left": lambda s: (0.0, H * s), "right": lambda s: (L, H * s)}[label]
+    return [side(s) for s in t]
 
 
 def _traction(value, name: str):
@@ -221,31 +237,29 @@ def _geometry_labels(geometry) -> list[str]:
     if hasattr(geometry, "shape"):  # netgen.occ.OCCGeometry
         return sorted({e.name for e in geometry.shape.edges if e.name})
     if hasattr(geometry, "GetBCName"):  # netgen.geom2d.SplineGeometry
-        names, i = [], 1
-        while True:
-            try:
-                names.append(geometry.GetBCName(i))
-            except Exception:
-                return sorted(set(names))
-            i += 1
+        names = {geometry.GetBCName(i) for i in range(1, geometry.GetNSplines() + 1)}
+        return sorted(names - {"default"})
     raise ValueError(f"geometry: unsupported object {type(geometry).__name__}; "
                      "accepted: None (rectangle), netgen.occ.OCCGeometry, netgen.geom2d.SplineGeometry")
 
 
 # ---------------------------------------------------------------- the paper's examples
 def example1(h: float = 1 / 40, **changes) -> Scene:
-    """Paper's Example 1: (0,2)x(0,1), clamped at x=0, top traction (0,-10), g = 0.01."""
-    return Scene(L=2.0, H=1.0, h=h, E=2000.0, nu=0.3, dirichlet=("left",),
-                 tractions={"top": (0.0, -10.0), "right": (0.0, 0.0)}, contact="bottom",
-                 gap=0.01, name="example1", **changes)
+    """Paper's Example 1: (0,2)x(0,1), clamped at x=0, top traction (0,-10), g = 0.01,
+    E = 2000, nu = 0.3; ``changes`` override any Scene field (e.g. order=2)."""
+    fields = dict(L=2.0, H=1.0, h=h, E=2000.0, nu=0.3, dirichlet=("left",),
+                  tractions={"top": (0.0, -10.0), "right": (0.0, 0.0)}, contact="bottom",
+                  gap=0.01, name="example1")
+    return Scene(**(fields | changes))
 
 
 def example2(h: float = 1 / 40, **changes) -> Scene:
     """Paper's Example 2: (0,3)x(0,1), clamped at x=0, right traction (0,-2),
     g(x) = 0.003 (x - 1.5)^2 + 0.001, E = 5000, nu = 0.49."""
-    return Scene(L=3.0, H=1.0, h=h, E=5000.0, nu=0.49, dirichlet=("left",),
-                 tractions={"right": (0.0, -2.0), "top": (0.0, 0.0)}, contact="bottom",
-                 gap=expression("0.003*(x - 1.5)**2 + 0.001"), name="example2", **changes)
+    fields = dict(L=3.0, H=1.0, h=h, E=5000.0, nu=0.49, dirichlet=("left",),
+                  tractions={"right": (0.0, -2.0), "top": (0.0, 0.0)}, contact="bottom",
+                  gap=expression("0.003*(x - 1.5)**2 + 0.001"), name="example2")
+    return Scene(**(fields | changes))
 
 
 # ---------------------------------------------------------------- TOML
