@@ -79,6 +79,23 @@ def test_body_force_resultant():
     assert interpolate(op, (0, 1)) @ op.f == pytest.approx(-6 + 3 * h / 2, rel=1e-12)
 
 
+def test_traction_callable_and_expression(tmp_path):
+    """t = (0, -10 x) on the top: resultant -10 * 2^2/2 = -20, minus the clamped corner's
+    share 10 * int_0^h x (1 - x/h) dx = 10 h^2/6."""
+    h = 1 / 10
+    op = assemble(example1(h=h, tractions={"top": lambda x, y: (0 * x, -10 * x)}))
+    assert interpolate(op, (0, 1)) @ op.f == pytest.approx(-20 + 10 * h**2 / 6, rel=1e-12)
+    path = tmp_path / "t.toml"
+    path.write_text(TOML + '[tractions]\ntop = [0.0, "-10*x"]\n')
+    op2 = assemble(load_scene(path, h=1 / 10))
+    assert np.allclose(op2.f, op.f, rtol=0, atol=1e-12)
+
+
+def test_scene_is_hashable_and_replaceable():
+    s = example1()
+    assert hash(s) == hash(s.with_h(s.h)) and s.with_h(0.1).tractions == s.tractions
+
+
 # ------------------------------------------------------------------ contact nodes, mc, normals, B, g
 def test_contact_nodes_structured(ex1):
     """P1: L/h nodes (corner (0,0) clamped); P2: also the L/h edge midpoints."""

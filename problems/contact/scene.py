@@ -88,6 +88,13 @@ def estimate_memory(area: float, perimeter: float, h: float, order: int, kind: s
 
 
 # ---------------------------------------------------------------- scene
+class FrozenDict(dict):
+    """A hashable dict (keeps Scene hashable); do not mutate it."""
+
+    def __hash__(self):
+        return hash(tuple(sorted(self.items(), key=lambda kv: kv[0])))
+
+
 @dataclass(frozen=True)
 class Scene:
     """Linear elastic body on a rigid foundation, plane strain, small deformations.
@@ -125,7 +132,7 @@ class Scene:
         if isinstance(self.dirichlet, str):
             set_("dirichlet", (self.dirichlet,))
         set_("dirichlet", tuple(self.dirichlet))
-        set_("tractions", {k: _traction(v, f"tractions[{k!r}]") for k, v in dict(self.tractions).items()})
+        set_("tractions", FrozenDict({k: _traction(v, f"tractions[{k!r}]") for k, v in dict(self.tractions).items()}))
         if self.body_force is not None:
             set_("body_force", _traction(self.body_force, "body_force"))
         set_("gap", _as_func(self.gap, "gap"))
