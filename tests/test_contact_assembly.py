@@ -178,6 +178,19 @@ def test_slanted_contact_normals():
         assemble(Scene(geometry=geo, mesh_kind="unstructured", h=0.2, E=1.0, gap=0.1, tangential="stick"))
 
 
+def test_occ_geometry_with_own_labels():
+    from netgen.occ import OCCGeometry, Rectangle, X, Y
+    face = Rectangle(2, 1).Face()
+    face.edges.Min(Y).name, face.edges.Min(X).name, face.edges.Max(Y).name = "floor", "wall", "roof"
+    geo = OCCGeometry(face, dim=2)
+    scene = Scene(geometry=geo, mesh_kind="unstructured", h=0.1, E=10.0, dirichlet=("wall",),
+                  contact="floor", tractions={"roof": (0, -1)}, gap="0.01*x", tangential="stick")
+    op = assemble(scene)
+    assert np.allclose(op.g, 0.01 * op.xc[:, 0]) and np.allclose(op.normals, [0, -1])
+    with pytest.raises(ValueError, match="known labels: floor, roof, wall"):
+        Scene(geometry=geo, mesh_kind="unstructured", dirichlet=("left",), contact="floor")
+
+
 def test_stick_fixes_tangential_component():
     op, op_s = assemble(example1(h=H)), assemble(example1(h=H, tangential="stick"))
     assert op.n_free - op_s.n_free == op.n_c  # one x-dof per contact node

@@ -100,7 +100,7 @@ class Scene:
     """Linear elastic body on a rigid foundation, plane strain, small deformations.
 
     Geometry: the rectangle (0, L) x (0, H) with boundary labels bottom/right/top/left,
-    meshed ``"structured"`` (FreeFEM ``square``: L/h x H/h squares cut in two) or
+    meshed ``"structured"`` (FreeFEM ``square``: round(L/h) x round(H/h) squares cut in two) or
     ``"unstructured"`` (netgen, maxh = h); or, if ``geometry`` is a netgen geometry
     object, that geometry meshed by netgen (labels are then its boundary names).
 
