@@ -15,6 +15,7 @@ Writing a rule takes a few lines::
 """
 from __future__ import annotations
 
+import inspect
 from abc import ABC, abstractmethod
 from typing import Callable
 
@@ -39,7 +40,8 @@ class Policy(ABC):
         """Return rho_{k+1} from the record of iteration k (``rec.rho`` is rho_k)."""
 
     def __repr__(self) -> str:
-        params = ", ".join(f"{k}={v!r}" for k, v in vars(self).items() if not k.startswith("_") and k != "rho0")
+        names = [p for p in inspect.signature(type(self).__init__).parameters if p != "self"]
+        params = ", ".join(f"{k}={getattr(self, k)!r}" for k in names if hasattr(self, k))
         return f"{type(self).__name__}({params})"
 
 

@@ -1,0 +1,46 @@
+"""Loader for QPs stored as MAT files (P, q, r, A, l, u), e.g. the Maros-Meszaros set.
+
+The files of the osqp_benchmarks / qpbenchmark conversion store infinite bounds
+as +-1e20; they are read as +-inf.  The data stays where it is: pass the folder.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import scipy.io
+import scipy.sparse as sp
+
+from .problem import QP
+
+INFINITY = 1e20
+FIELDS = ("P", "q", "A", "l", "u")
+
+
+def load_mat(path: str | Path, **qp_options) -> QP:
+    """Read one MAT file into a :class:`QP` (``qp_options`` go to the constructor)."""
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"QP file not found: {path}")
+    try:
+        data = scipy.io.loadmat(str(path))
+    except Exception as err:  # scipy raises several types for non-MAT content
+        raise ValueError(f"{path} is not a readable MAT file: {err}") from None
+    missing = [f for f in FIELDS if f not in data]
+    if missing:
+        raise ValueError(f"{path} lacks the field(s) {', '.join(missing)}; a QP file needs P, q, A, l, u (and r)")
+    l = np.asarray(data["l"], dtype=float).ravel()
+    u = np.asarray(data["u"], dtype=float).ravel()
+    l[l <= -INFINITY] = -np.inf
+    u[u >= INFINITY] = np.inf
+    r = float(np.asarray(data.get("r", 0.0)).ravel()[0]) if "r" in data else 0.0
+    return QP(sp.csc_matrix(data["P"]), np.ravel(data["q"]), sp.csc_matrix(data["A"]), l, u, r,
+              name=path.stem, **qp_options)
+
+
+def list_problems(folder: str | Path) -> list[Path]:
+    """The MAT files in ``folder``, sorted by name."""
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise FileNotFoundError(f"QP folder not found: {folder}")
+    return sorted(folder.glob("*.mat"))
