@@ -1,0 +1,225 @@
+"""The obstacle plug-in: P1 finite elements, split with z = u on the free nodes.
+
+Discrete problem on the free (interior) nodes, the Dirichlet values lifted:
+
+    min 1/2 u'Ku - F'u   subject to   u >= psi   (side "lower"; u <= psi for "upper")
+
+with K the P1 stiffness on the free nodes and F = M_c f - K_fD u_D (f
+interpolated, M_c the consistent mass).  Splitting: f(u) = 1/2 u'Ku - F'u,
+g(z) = indicator of {z >= psi}, constraint u - z = 0 in the lumped mass inner
+product (a, b)_M = sum_i m_i a_i b_i.  The augmented Lagrangian's steps are
+
+    x-step:  (K + rho M) u = F + M (rho z - lam)        (one factorisation per rho)
+    z-step:  z = max(psi, u + lam/rho)                 (min for an upper obstacle)
+
+Sign convention.  admmkit's Lagrangian is f(u) + g(z) + (lam, u - z)_M, so at
+a solution K u - F + M lam = 0.  For u >= psi the lower-bound multiplier
+mu >= 0 satisfies K u - F = M mu (the contact pressure density), hence
+lam = -mu <= 0, supported on the contact set.  For u <= psi, lam >= 0.
+"""
+from __future__ import annotations
+
+import math
+
+import ngsolve as ng
+import numpy as np
+import scipy.sparse as sp
+from ngsolve.meshes import MakeStructured2DMesh
+
+from admmkit import Problem
+from admmkit.linsolve import CachedFactorization
+
+from .scene import A_STAR, Scene, check_boundary, radial_exact_cf
+
+BOUNDARY = "bottom|right|top|left"
+#: sparse solver of K + rho M.  Not "auto": on this 2-D scalar Laplacian the auto
+#: choice, CHOLMOD (supernodal, default ordering), took 2.5 s to factorise 65025
+#: unknowns (h = 1/64 on the radial scene) against 0.2 s for SuperLU and 0.13 s for
+#: qdldl, with similar solve times (measured on the project machine, 2 cores).
+DEFAULT_BACKEND = "superlu"
+
+
+def _csr(mat) -> sp.csr_matrix:
+    vals, cols, rows = mat.CSR()
+    return sp.csr_matrix((np.array(vals), np.array(cols), np.array(rows)), shape=(mat.height, mat.width))
+
+
+def build_mesh(scene: Scene) -> ng.Mesh:
+    """Structured triangular mesh of the scene's rectangle (nx x ny squares cut in two)."""
+    x0, x1, y0, y1 = scene.box
+    nx, ny = scene.counts
+    return MakeStructured2DMesh(quads=False, nx=nx, ny=ny,
+                                mapping=lambda s, t: (x0 + (x1 - x0) * s, y0 + (y1 - y0) * t))
+
+
+class ObstacleProblem(Problem):
+    """The discrete obstacle problem of a :class:`Scene` as an admmkit plug-in.
+
+    Attributes: ``K`` (stiffness on free nodes), ``F`` (load with the lifted
+    Dirichlet data), ``m`` (lumped mass on the free nodes), ``psi`` (obstacle
+    at the free nodes), ``nodes`` (all node coordinates), ``free`` (indices of
+    the free nodes), ``u_D`` (nodal values of all nodes, the boundary data on
+    the boundary), ``mesh``, ``fes``, ``scene``, ``n`` and ``c = 0``.
+    """
+
+    def __init__(self, scene: Scene, *, backend: str = DEFAULT_BACKEND):
+        if not isinstance(scene, Scene):
+            raise ValueError(f"scene must be a problems.obstacle.Scene, got {type(scene).__name__}")
+        self.scene = scene
+        self.sign = 1.0 if scene.side == "lower" else -1.0   # u >= psi  <=>  sign*(u - psi) >= 0
+        self.mesh = mesh = build_mesh(scene)
+        self.fes = fes = ng.H1(mesh, order=1, dirichlet=BOUNDARY)
+        assert fes.ndof == mesh.nv  # P1: dof i is vertex i
+        self.nodes = np.array(mesh.ngmesh.Coordinates())[:, :2]
+        x, y = self.nodes.T
+        self.free = np.flatnonzero(np.array(fes.FreeDofs(), dtype=bool))
+        bnd = np.setdiff1d(np.arange(fes.ndof), self.free)
+        check_boundary(scene, x[bnd], y[bnd])
+
+        u, v = fes.TnT()
+        a = ng.BilinearForm(ng.grad(u) * ng.grad(v) * ng.dx).Assemble()
+        mass = ng.BilinearForm(u * v * ng.dx).Assemble()
+        Kfull, Mfull = _csr(a.mat), _csr(mass.mat)
+        f_nodes = scene.evaluate("f", x, y)
+        self.u_D = np.zeros(fes.ndof)
+        self.u_D[bnd] = scene.evaluate("u_D", x[bnd], y[bnd])
+        psi_all = scene.evaluate("psi", x, y)
+        Ffull = Mfull @ f_nodes
+        self.K = Kfull[self.free][:, self.free].tocsc()
+        self.F = Ffull[self.free] - Kfull[self.free] @ self.u_D
+        self.m = np.asarray(Mfull.sum(axis=1)).ravel()[self.free]   # lumped mass, > 0
+        self.psi = psi_all[self.free]
+        # energy of the full field = 1/2 u'Ku - F'u + this constant
+        self._energy0 = float(0.5 * self.u_D @ (Kfull @ self.u_D) - Ffull @ self.u_D)
+        self.n = self.free.size
+        self.c = 0.0
+        K, m = self.K, self.m
+        self._solver = CachedFactorization(lambda rho: (K + rho * sp.diags(m)).tocsc(), backend=backend)
+
+    # -- the splitting --------------------------------------------------------
+    def x_step(self, z, lam, rho, x):
+        """Solve (K + rho M) u = F + M (rho z - lam)."""
+        return self._solver.solve(rho, self.F + self.m * (rho * z - lam))
+
+    def z_step(self, Ax, lam, rho, z):
+        """Project u + lam/rho pointwise onto {z >= psi} (or {z <= psi})."""
+        w = Ax + lam / rho
+        return np.maximum(self.psi, w) if self.sign > 0 else np.minimum(self.psi, w)
+
+    def apply_A(self, x):
+        """A = I."""
+        return np.array(x, dtype=float)
+
+    def inner(self, a, b):
+        """The lumped mass inner product sum_i m_i a_i b_i."""
+        return float(np.sum(self.m * a * b))
+
+    def x_norm(self, x):
+        """The lumped L2 norm of u on the free nodes."""
+        return self.norm(x)
+
+    def adjoint_norm(self, y):
+        """||A' M y||_2 = ||M y||_2."""
+        return float(np.linalg.norm(self.m * y))
+
+    # -- diagnostics ----------------------------------------------------------
+    def objective(self, x, z):
+        """Dirichlet energy 1/2 a(u, u) - (f, u) of the full field (boundary data included)."""
+        return float(0.5 * x @ (self.K @ x) - self.F @ x + self._energy0)
+
+    def kkt(self, x, z, lam):
+        """KKT residuals (inf-norms) of the discrete problem at (u, lam).
+
+        primal: ||u - z||; infeasibility: max (psi - u)^+ (lower obstacle);
+        dual: ||K u - F + M lam|| (stationarity, a nodal force); dual_density:
+        the same divided by m_i; sign: max (lam)^+ for u >= psi (lam <= 0 is
+        the contact pressure), max (-lam)^+ for u <= psi; complementarity:
+        max |lam_i| |u_i - psi_i|.
+        """
+        slack = self.sign * (x - self.psi)
+        residual = self.K @ x - self.F + self.m * lam
+        return {
+            "primal": _inf(x - z),
+            "infeasibility": _inf(np.maximum(-slack, 0.0)),
+            "dual": _inf(residual),
+            "dual_density": _inf(residual / self.m),
+            "sign": _inf(np.maximum(self.sign * lam, 0.0)),
+            "complementarity": _inf(lam * slack),
+        }
+
+    def counters(self):
+        """Factorisations and solves of K + rho M so far."""
+        return {"factorizations": self._solver.factorizations, "solves": self._solver.solves}
+
+    # -- finite element helpers -------------------------------------------------
+    @property
+    def h(self) -> float:
+        """Cell size of the scene."""
+        return self.scene.h
+
+    def full_vector(self, u: np.ndarray) -> np.ndarray:
+        """Nodal values on all nodes: u on the free nodes, u_D on the boundary."""
+        full = self.u_D.copy()
+        full[self.free] = u
+        return full
+
+    def gridfunction(self, u: np.ndarray) -> ng.GridFunction:
+        """The P1 function with free nodal values u and boundary values u_D."""
+        gf = ng.GridFunction(self.fes)
+        gf.vec.FV().NumPy()[:] = self.full_vector(u)
+        return gf
+
+    def contact_set(self, u: np.ndarray, tol: float = 1e-7) -> np.ndarray:
+        """Boolean mask of the free nodes with |u - psi| <= tol (the contact set)."""
+        return self.sign * (u - self.psi) <= tol
+
+    def contact_area(self, u: np.ndarray, tol: float = 1e-7) -> float:
+        """Area of the contact set: the sum of the lumped masses of its nodes."""
+        return float(self.m[self.contact_set(u, tol)].sum())
+
+    def contact_radius(self, u: np.ndarray, tol: float = 1e-7) -> float:
+        """Radius of the disk with the contact set's area, sqrt(area / pi) (radial scene)."""
+        return math.sqrt(self.contact_area(u, tol) / math.pi)
+
+    def errors(self, u: np.ndarray, intorder: int = 6) -> dict[str, float]:
+        """L2 error, H1 seminorm error and H1 error of u against the exact solution.
+
+        Integrated by NGSolve over the mesh with ``bonus_intorder`` = intorder.
+        Only for scenes with an exact solution (radial).
+        """
+        if self.scene.exact is None:
+            raise ValueError(f"scene {self.scene.name!r} has no exact solution")
+        u_ex, grad_ex = radial_exact_cf()
+        gf = self.gridfunction(u)
+        l2 = ng.Integrate((gf - u_ex) ** 2 * ng.dx(bonus_intorder=intorder), self.mesh)
+        semi = ng.Integrate(ng.InnerProduct(ng.grad(gf) - grad_ex, ng.grad(gf) - grad_ex)
+                            * ng.dx(bonus_intorder=intorder), self.mesh)
+        return {"L2": math.sqrt(max(l2, 0.0)), "H1_semi": math.sqrt(max(semi, 0.0)),
+                "H1": math.sqrt(max(l2 + semi, 0.0))}
+
+
+def make_problem(scene: Scene, *, backend: str = DEFAULT_BACKEND) -> ObstacleProblem:
+    """Assemble the discrete obstacle problem of the scene."""
+    return ObstacleProblem(scene, backend=backend)
+
+
+def _inf(v) -> float:
+    return float(np.max(np.abs(v), initial=0.0))
+
+
+def solve_with_cvxpy(problem: ObstacleProblem, solver: str = "CLARABEL", **options) -> tuple[np.ndarray, np.ndarray]:
+    """Reference solve of the same discrete QP with cvxpy; returns (u, lam) in admmkit's convention."""
+    import cvxpy as cp  # reference dependency, imported on use
+
+    u = cp.Variable(problem.n)
+    bound = problem.sign * (u - problem.psi) >= 0
+    objective = 0.5 * cp.quad_form(u, cp.psd_wrap(problem.K)) - problem.F @ u
+    prob = cp.Problem(cp.Minimize(objective), [bound])
+    prob.solve(solver=solver, **options)
+    if prob.status not in ("optimal", "optimal_inaccurate"):
+        raise RuntimeError(f"cvxpy/{solver} did not solve the obstacle problem: status {prob.status}")
+    mu = np.asarray(bound.dual_value)         # K u - F = sign * mu, mu >= 0
+    return np.asarray(u.value), -problem.sign * mu / problem.m
+
+
+__all__ = ["ObstacleProblem", "make_problem", "build_mesh", "solve_with_cvxpy", "A_STAR"]
