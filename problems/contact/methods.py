@@ -1,0 +1,77 @@
+"""The paper's three methods by name, and one call from a scene to a result.
+
+- ADMM1 = order "xz" with a fixed rho (Koko 2020, the paper's reference [8])
+- ADMM2 = order "zx" with a fixed rho (the paper's Algorithm 1)
+- SADMM = order "zx" with the summable rule, tau = 2, c_max = 100 (Algorithm 2)
+
+Any other registered policy can be named too (order "zx" unless given).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import admmkit
+import policies
+from admmkit import RelativeChange
+
+from .assembly import ContactOperators, assemble
+from .problem import contact_problem
+from .scene import Scene
+
+METHODS = {
+    "admm1": ("xz", lambda: policies.Fixed()),
+    "admm2": ("zx", lambda: policies.Fixed()),
+    "sadmm": ("zx", lambda: policies.Summable(tau=2.0, c_max=100)),
+}
+
+
+def method(name: str) -> tuple[str, admmkit.Policy]:
+    """(order, fresh policy) of a method name: admm1, admm2, sadmm or a registered policy."""
+    key = name.strip().lower()
+    if key in METHODS:
+        order, make = METHODS[key]
+        return order, make()
+    try:
+        return "zx", admmkit.make_policy(key)
+    except ValueError:
+        raise ValueError(f"unknown method {name!r}; methods: {', '.join(METHODS)}, "
+                         f"or a policy: {', '.join(admmkit.policy_names())}") from None
+
+
+@dataclass
+class ContactSolution:
+    """A solved scene: the admmkit result, the operators, the mode and the setup time."""
+
+    result: admmkit.Result
+    ops: ContactOperators
+    mode: str
+    setup_time: float
+
+    @property
+    def u(self):
+        """Displacement on the free dofs."""
+        return self.result.x
+
+    @property
+    def pressure(self):
+        """Contact pressure lam at the contact nodes."""
+        return self.result.lam
+
+
+def solve_scene(scene: Scene | ContactOperators, method_name: str = "sadmm", rho: float = 1e3, *,
+                mode: str = "auto", stop: admmkit.StoppingRule | None = None, max_iter: int = 20_000,
+                order: str | None = None, callback=None) -> ContactSolution:
+    """Assemble (unless operators are given) and solve a scene with a named method.
+
+    The default stop is the paper's RelativeChange(1e-5) in the energy norm.
+    """
+    import time
+
+    default_order, policy = method(method_name)
+    ops = scene if isinstance(scene, ContactOperators) else assemble(scene)
+    t0 = time.perf_counter()
+    problem = contact_problem(ops, mode=mode)
+    setup = time.perf_counter() - t0
+    result = admmkit.solve(problem, rho=rho, policy=policy, order=order or default_order,
+                           stop=stop or RelativeChange(1e-5), max_iter=max_iter, callback=callback)
+    return ContactSolution(result=result, ops=ops, mode=problem.mode, setup_time=setup)

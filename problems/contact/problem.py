@@ -1,0 +1,184 @@
+"""The contact plug-in: the paper's splitting of min 1/2 u'Ku - f'u s.t. B u <= g.
+
+x = u (displacement), z = p (the auxiliary normal displacement on Gamma_C),
+A x = B u, c = 0, and the constraint space carries the lumped boundary mass
+M_c, so that (the paper's eqs. (11)-(13))
+
+    z-step:  p = min(g, u_n + lam/rho)                               (11)
+    x-step:  (K + rho B'M_c B) u = f + B'M_c (rho p - lam)             (12)
+    dual:    lam <- lam + rho (B u - p)      (in admmkit's loop)        (13)
+
+The x norm is the energy norm ||u||_K = sqrt(u'Ku), the norm of V in which
+the paper's convergence theorem is stated; the paper's stopping rule
+||u^{k+1} - u^k|| <= 1e-5 ||u^{k+1}|| is measured in it.
+
+Two modes give the same iterates (to round-off):
+
+- ``"full"``: the x-step solves with K + rho B'M_c B, one sparse
+  factorisation per rho value (cached).
+- ``"condensed"``: the nonlinearity lives on Gamma_C only.  With u0 = K^{-1} f,
+  d0 = B u0 and the compliance C = B K^{-1} B' (from one factorisation, see
+  :mod:`problems.contact.schur`), every iterate is u = s u0 + K^{-1} B' w with
+  (s, w) in R^{1+n_c}, and the x-step is the dense SPD solve
+
+      (M_c^{-1} + rho C) w = rho p - lam - rho d0,   s = 1,
+
+  so an iteration costs O(n_c^2); u itself is recovered once, at the end.
+"""
+from __future__ import annotations
+
+import numpy as np
+import scipy.linalg as sla
+import scipy.sparse as sp
+
+from admmkit import Problem
+from admmkit.linsolve import CachedFactorization
+
+from .assembly import ContactOperators
+from .schur import BoundarySchur
+
+MODES = ("auto", "full", "condensed")
+#: below this many contact nodes the condensed mode is chosen by "auto"
+CONDENSED_MAX_NC = 3000
+
+
+class _ContactBase(Problem):
+    """What both modes share: the z-step, the M_c inner product, diagnostics."""
+
+    c = 0.0
+
+    def __init__(self, ops: ContactOperators):
+        self.ops = ops
+        self.mc, self.g = ops.mc, ops.g
+        self._BBt = (ops.B @ ops.B.T).tocsr()   # ||B'v||^2 = v'BB'v
+
+    def z_step(self, Ax, lam, rho, z):
+        """p = min(g, u_n + lam/rho), eq. (11)."""
+        return np.minimum(self.g, Ax + lam / rho)
+
+    def inner(self, a, b):
+        """(a, b)_Gc with the lumped boundary mass."""
+        return float(np.dot(self.mc * a, b))
+
+    def adjoint_norm(self, y):
+        """||B' M_c y||_2 (Boyd's dual residual for order xz)."""
+        v = self.mc * y
+        return float(np.sqrt(max(v @ (self._BBt @ v), 0.0)))
+
+    def objective(self, u, z):
+        """J(u) = 1/2 u'Ku - f'u."""
+        return float(0.5 * u @ (self.ops.K @ u) - self.ops.f @ u)
+
+    def kkt(self, u, z, lam):
+        """KKT residuals of the discrete problem at the full displacement u.
+
+        stationarity ||K u - f + B'M_c lam||_inf / ||f||_inf, penetration
+        max (B u - g)^+, negative pressure max (-lam)^+, complementarity
+        max |lam (g - B u)|; also the total contact force sum M_c lam and the
+        number of active nodes (where the last z-step put p on the obstacle, p = g).
+        """
+        ops = self.ops
+        un = ops.B @ u
+        stat = ops.K @ u - ops.f + ops.B.T @ (self.mc * lam)
+        return {
+            "stationarity": float(np.abs(stat).max() / max(np.abs(ops.f).max(), 1e-300)),
+            "penetration": float(np.maximum(un - self.g, 0.0).max(initial=0.0)),
+            "negative_pressure": float(np.maximum(-lam, 0.0).max(initial=0.0)),
+            "complementarity": float(np.abs(lam * (self.g - un)).max(initial=0.0)),
+            "contact_force": float(self.mc @ lam),
+            "active_nodes": int(np.count_nonzero(z >= self.g)),
+        }
+
+
+class FullContact(_ContactBase):
+    """Full-space mode: x = u, one cached sparse factorisation per rho."""
+
+    mode = "full"
+
+    def __init__(self, ops: ContactOperators, backend: str = "auto"):
+        super().__init__(ops)
+        self.n = ops.n_free
+        K, B = ops.K.tocsc(), ops.B.tocsc()
+        BtMB = (B.T @ sp.diags(self.mc) @ B).tocsc()
+        self._solver = CachedFactorization(lambda rho: (K + rho * BtMB).tocsc(), backend=backend)
+
+    def x_step(self, z, lam, rho, u):
+        """Solve (K + rho B'M_c B) u = f + B'M_c (rho p - lam), eq. (12)."""
+        rhs = self.ops.f + self.ops.B.T @ (self.mc * (rho * z - lam))
+        return self._solver.solve(rho, rhs)
+
+    def apply_A(self, u):
+        """u_n = B u at the contact nodes."""
+        return self.ops.B @ u
+
+    def x_norm(self, u):
+        """Energy norm sqrt(u'Ku)."""
+        return float(np.sqrt(max(u @ (self.ops.K @ u), 0.0)))
+
+    def counters(self):
+        """Sparse factorisations and solves."""
+        return {"factorizations": self._solver.factorizations, "solves": self._solver.solves}
+
+
+class CondensedContact(_ContactBase):
+    """Boundary-condensed mode: x = (s, w), u = s u0 + K^{-1} B'w (see the module docstring)."""
+
+    mode = "condensed"
+
+    def __init__(self, ops: ContactOperators):
+        super().__init__(ops)
+        self.n = ops.n_c + 1
+        self.schur = BoundarySchur(ops.K, ops.B)
+        u0 = self.schur.solve(ops.f)
+        self.d0 = ops.B @ u0                       # B K^{-1} f
+        self.e0 = float(ops.f @ u0)                # ||u0||_K^2
+        self.C = self.schur.compliance(ops.B)      # B K^{-1} B'
+        self._cholesky: dict[float, tuple] = {}
+        self.factorizations = 0
+        self.solves = 0
+
+    def x_step(self, z, lam, rho, x):
+        """(M_c^{-1} + rho C) w = rho p - lam - rho d0, s = 1: eq. (12) on Gamma_C."""
+        key = float(rho)
+        if key not in self._cholesky:
+            self._cholesky[key] = sla.cho_factor(np.diag(1.0 / self.mc) + rho * self.C)
+            self.factorizations += 1
+        self.solves += 1
+        w = sla.cho_solve(self._cholesky[key], rho * z - lam - rho * self.d0)
+        return np.concatenate(([1.0], w))
+
+    def apply_A(self, x):
+        """u_n = s d0 + C w."""
+        return x[0] * self.d0 + self.C @ x[1:]
+
+    def x_norm(self, x):
+        """||u||_K with u'Ku = s^2 e0 + 2 s d0'w + w'Cw."""
+        s, w = x[0], x[1:]
+        return float(np.sqrt(max(s * s * self.e0 + 2 * s * (self.d0 @ w) + w @ (self.C @ w), 0.0)))
+
+    def finalize(self, x):
+        """The full displacement u = K^{-1}(s f + B'w): one solve, once."""
+        return self.schur.solve(x[0] * self.ops.f + self.ops.B.T @ x[1:])
+
+    def initial_point(self):
+        """u^0 = 0 (s = 0, w = 0), p^0 = 0, lam^0 = 0."""
+        x0 = np.zeros(self.n)
+        return x0, np.zeros(self.ops.n_c), np.zeros(self.ops.n_c)
+
+    def counters(self):
+        """Dense factorisations (one per rho) and solves on Gamma_C."""
+        return {"factorizations": self.factorizations, "solves": self.solves}
+
+
+def contact_problem(ops: ContactOperators, mode: str = "auto", backend: str = "auto") -> _ContactBase:
+    """The contact plug-in for assembled operators, in the requested mode.
+
+    ``mode="auto"`` picks the condensed mode when the contact boundary has at
+    most CONDENSED_MAX_NC nodes (the dense n_c x n_c compliance then fits and
+    its factorisations are cheaper than sparse ones of the whole body).
+    """
+    if mode not in MODES:
+        raise ValueError(f"mode must be one of {', '.join(MODES)}, got {mode!r}")
+    if mode == "auto":
+        mode = "condensed" if ops.n_c <= CONDENSED_MAX_NC else "full"
+    return CondensedContact(ops) if mode == "condensed" else FullContact(ops, backend=backend)
