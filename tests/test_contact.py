@@ -112,3 +112,12 @@ def test_mode_and_method_errors(ex1_ops):
         contact_problem(ex1_ops, "dense")
     with pytest.raises(ValueError, match="unknown method 'sadm'"):
         solve_scene(ex1_ops, "sadm")
+
+
+def test_demo_solves_both_examples(tmp_path, capsys):
+    from problems.contact.demo import run_demo
+
+    assert run_demo(tmp_path, h=1 / 10) == 0
+    out = capsys.readouterr().out
+    assert out.count("status       converged") == 2
+    assert (tmp_path / "example1.png").stat().st_size > 10_000 and (tmp_path / "example2.png").exists()
