@@ -1,0 +1,102 @@
+"""The contact CLI, the paper reproduction and the speed benchmark (fast: h = 1/10)."""
+import csv
+import json
+
+import numpy as np
+import pytest
+
+from problems.cli import main
+from problems.contact import example1, solve_scene
+from problems.contact.reproduce import (PAPER_TIMES, paper_time, run_reproduction,
+                                        vertex_displacement)
+
+
+def test_solve_contact_writes_files(tmp_path, capsys):
+    j, c, p, v = tmp_path / "u.json", tmp_path / "gc.csv", tmp_path / "fig.png", tmp_path / "disp"
+    rc = main(["solve", "contact", "--scene", "ex1", "--h", "1/10", "--method", "sadmm", "--rho", "1e3",
+               "--json", str(j), "--csv", str(c), "--plot", str(p), "--vtk", str(v)])
+    out = capsys.readouterr().out
+    assert rc == 0
+    assert "converged" in out and "n_free 440" in out and "n_c 20" in out and "mode condensed" in out
+    data = json.loads(j.read_text())
+    assert data["status"] == "converged" and len(data["u"]) == 440
+    assert len(data["lam"]) == len(data["p"]) == len(data["g"]) == len(data["contact_x"]) == 20
+    rows = list(csv.DictReader(c.open()))
+    assert len(rows) == 20 and set(rows[0]) >= {"x", "u_n", "g", "lam"}
+    assert p.stat().st_size > 10_000
+    assert (tmp_path / "disp.vtu").exists()
+
+
+@pytest.mark.parametrize("args, needle", [
+    (["--scene", "nope"], "--scene"),
+    (["--h", "0"], "--h"),
+    (["--h=-1/40"], "--h"),
+    (["--method", "sadmmm"], "--method"),
+    (["--rho", "-3"], "--rho"),
+    (["--mode", "half"], "--mode"),
+    (["--h", "5"], "h = 5"),
+    (["--max-iter", "0"], "--max-iter"),
+])
+def test_bad_input(args, needle, capsys):
+    try:
+        rc = main(["solve", "contact", *args])
+    except SystemExit as stop:  # argparse's own errors
+        rc = stop.code
+    err = capsys.readouterr().err
+    assert rc == 2
+    assert needle in err and "Traceback" not in err
+
+
+def test_reproduce_small(tmp_path):
+    res = run_reproduction(out=tmp_path, hs=(1 / 10,), rhos=(1e3, 1e4), progress=False)
+    names = ["table1_ex1_time", "table2_ex2_time", "iterations_ex1", "iterations_ex2", "error_at_stop"]
+    for n in names:
+        assert (tmp_path / f"{n}.md").stat().st_size > 0 and (tmp_path / f"{n}.csv").stat().st_size > 0
+    for n in ["fig1_deformed_ex1", "fig2_iterations_ex1", "fig3_deformed_ex2", "fig4_iterations_ex2",
+              "pressure_gap_ex1", "pressure_gap_ex2"]:
+        assert (tmp_path / f"{n}.png").stat().st_size > 5_000 and (tmp_path / f"{n}.svg").exists()
+    readme = (tmp_path / "README.md").read_text()
+    assert "nproc" in readme and "total wall time" in readme
+    assert len(res["runs"]) == 2 * 3 * 2
+    # the SADMM iteration counts in the table equal a direct solve_scene call
+    rows = list(csv.DictReader((tmp_path / "iterations_ex1.csv").open()))
+    for rho in (1e3, 1e4):
+        direct = solve_scene(example1(1 / 10), "sadmm", rho).result.iterations
+        row = next(r for r in rows if r["method"] == "sadmm" and float(r["rho"]) == rho)
+        assert int(row["iterations"]) == direct
+    # the paper's numbers are beside ours and the errors at the stop are small
+    t1 = (tmp_path / "table1_ex1_time.md").read_text()
+    assert "0.425" in t1 and "Ratio paper / ours" in t1
+    for r in res["runs"]:
+        assert r.status == "converged" and r.errors["err_u_energy"] < 1e-2
+    for ref in res["references"].values():
+        assert ref.kkt["stationarity"] < 1e-8
+
+
+def test_paper_table_lookup():
+    assert paper_time("ex1", "sadmm", 1e3, 1 / 40) == 2.516
+    assert paper_time("ex2", "admm1", 10, 1 / 30) == 39.201
+    assert paper_time("ex2", "admm1", 10, 1 / 200) is None
+    assert all(len(row) == 4 for ex in PAPER_TIMES.values() for m in ex.values() for row in m.values())
+
+
+def test_vertex_displacement_matches_gridfunction():
+    from problems.contact import assemble
+    ops = assemble(example1(1 / 10))
+    u = np.random.default_rng(0).standard_normal(ops.n_free)
+    points, tris, disp = vertex_displacement(ops, u)
+    gf = ops.to_gridfunction(u)
+    for i in (5, 17, 100, len(points) - 1):
+        val = gf(ops.mesh(*points[i]))
+        assert np.allclose(val, disp[i], atol=1e-12)
+    assert tris.shape == (ops.mesh.ne, 3)
+
+
+def test_bench_tiny(tmp_path):
+    from problems.contact.bench import run_bench
+    out = tmp_path / "speed.md"
+    rows = run_bench(out=out, hs=(1 / 10,), repeats=1, examples=("ex1",), progress=False)
+    assert rows[0]["modes"]["condensed"]["ratio"] > 0 and rows[0]["modes"]["full"]["ratio"] > 0
+    assert rows[0]["modes"]["condensed"]["iterations"] == solve_scene(example1(1 / 10), "sadmm", 1e3).result.iterations
+    text = out.read_text()
+    assert "ratio condensed" in text and "ordering" in text
