@@ -177,9 +177,19 @@ class ObstacleProblem(Problem):
         """Area of the contact set: the sum of the lumped masses of its nodes."""
         return float(self.m[self.contact_set(u, tol)].sum())
 
-    def contact_radius(self, u: np.ndarray, tol: float = 1e-7) -> float:
-        """Radius of the disk with the contact set's area, sqrt(area / pi) (radial scene)."""
-        return math.sqrt(self.contact_area(u, tol) / math.pi)
+    def contact_radius(self, u: np.ndarray, tol: float = 1e-7, method: str = "area") -> float:
+        """Radius of the contact set around the centre of the box (radial scene).
+
+        ``method="area"``: sqrt(area / pi), the disk of the same (lumped) area;
+        ``"max"``: the largest distance of a contact node from the centre.
+        """
+        if method == "area":
+            return math.sqrt(self.contact_area(u, tol) / math.pi)
+        if method != "max":
+            raise ValueError(f"method = {method!r}; accepted: 'area', 'max'")
+        x0, x1, y0, y1 = self.scene.box
+        pts = self.nodes[self.free][self.contact_set(u, tol)]
+        return float(np.max(np.hypot(pts[:, 0] - (x0 + x1) / 2, pts[:, 1] - (y0 + y1) / 2), initial=0.0))
 
     def errors(self, u: np.ndarray, intorder: int = 6) -> dict[str, float]:
         """L2 error, H1 seminorm error and H1 error of u against the exact solution.
