@@ -212,7 +212,7 @@ def plot_deformed(ax, ops: ContactOperators, u_free: np.ndarray, magnify: float,
     ax.set_aspect("equal")
     ax.set_xlabel("x"); ax.set_ylabel("y")
     ax.set_title(title or f"deformed body, displacement x{magnify:g}")
-    ax.legend(loc="upper right", fontsize=8)
+    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.16), ncol=2, fontsize=8, frameon=False)
     return pc
 
 
@@ -247,9 +247,10 @@ def save(fig, path: Path, svg: bool = True) -> list[Path]:
 def figure_deformed(ops, u, magnify, title, path, svg=True):
     """The paper's Figs 1 / 3."""
     plt = _pyplot()
-    fig, ax = plt.subplots(figsize=(9, 4.6))
+    L, H = ops.scene.L, ops.scene.H
+    fig, ax = plt.subplots(figsize=(min(3.6 * L / H + 1.5, 13), 5.0))
     pc = plot_deformed(ax, ops, u, magnify, title)
-    fig.colorbar(pc, ax=ax, label="|u|", shrink=0.8)
+    fig.colorbar(pc, ax=ax, label="|u|", fraction=0.025, pad=0.02)
     fig.tight_layout()
     return save(fig, path, svg)
 
@@ -271,7 +272,7 @@ def figure_solution(ops, u, lam, magnify, title, path):
     gs = fig.add_gridspec(3, 1, height_ratios=[2.2, 1, 1])
     ax0 = fig.add_subplot(gs[0])
     pc = plot_deformed(ax0, ops, u, magnify, title)
-    fig.colorbar(pc, ax=ax0, label="|u|", shrink=0.8)
+    fig.colorbar(pc, ax=ax0, label="|u|", fraction=0.025, pad=0.02)
     ax1 = fig.add_subplot(gs[1]); ax2 = fig.add_subplot(gs[2], sharex=ax1)
     plot_pressure_gap((ax1, ax2), ops, u, lam)
     fig.tight_layout()
@@ -369,12 +370,22 @@ def machine_info() -> dict:
 
 def run_reproduction(out="docs/results/paper", hs=PAPER_HS, rhos=PAPER_RHOS, repeats: int = 1,
                      progress: bool = True, examples=("ex1", "ex2"), methods=METHOD_NAMES,
-                     mode: str = "auto", command: str | None = None) -> dict:
+                     mode: str = "auto", command: str | None = None, blas_threads: int | None = 1) -> dict:
     """Run every (example, h, method, rho), write the tables, figures and README into ``out``.
 
+    BLAS is pinned to ``blas_threads`` threads for the whole reproduction (setup included;
+    admmkit.solve pins it inside the loop anyway); None leaves it alone.
     Returns {"runs": [Run, ...], "references": {(example, h): Reference}, "files": [Path],
     "wall_time": seconds}.
     """
+    from contextlib import nullcontext
+
+    from threadpoolctl import threadpool_limits
+    with threadpool_limits(blas_threads, user_api="blas") if blas_threads else nullcontext():
+        return _run_reproduction(out, hs, rhos, repeats, progress, examples, methods, mode, command, blas_threads)
+
+
+def _run_reproduction(out, hs, rhos, repeats, progress, examples, methods, mode, command, blas_threads) -> dict:
     start = time.perf_counter()
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
@@ -433,7 +444,7 @@ def run_reproduction(out="docs/results/paper", hs=PAPER_HS, rhos=PAPER_RHOS, rep
     files += write_error_table(out / "error_at_stop", runs, refs)
     wall = time.perf_counter() - start
     readme = write_readme(out, runs, refs, files, wall, hs, rhos, h_fig, h_fine, rho_fig, repeats, mode,
-                          command or _default_command(out, hs))
+                          command or _default_command(out, hs), blas_threads)
     files.append(readme)
     if progress:
         print(f"done: {len(runs)} runs in {wall:.1f} s; results in {out}", file=sys.stderr)
@@ -605,7 +616,7 @@ def write_error_table(base: Path, runs, refs) -> list[Path]:
 
 
 def write_readme(out: Path, runs, refs, files, wall, hs, rhos, h_fig, h_fine, rho_fig, repeats, mode,
-                 command) -> Path:
+                 command, blas_threads=1) -> Path:
     """README.md: what each file is, the command, the machine, the wall time."""
     info = machine_info()
     desc = {
@@ -636,7 +647,9 @@ def write_readme(out: Path, runs, refs, files, wall, hs, rhos, h_fig, h_fine, rh
              f"{len(runs)} runs, {repeats} repeat(s) each (median time)",
              "- stopping rule: the paper's ||u^{k+1}-u^k||_K <= 1e-5 ||u^{k+1}||_K (energy norm), max 20000 iterations",
              f"- mode: {mode} (chosen: {', '.join(sorted({r.mode for r in runs}))}); operators assembled once per "
-             "(example, h); each run builds a fresh contact problem, and its time is setup + solve",
+             "(example, h); each run builds a fresh contact problem, and its time is setup + solve; "
+             f"BLAS threads pinned to {blas_threads} (threadpoolctl)",
+             "- reference solution per mesh: see error_at_stop.md (assembly and reference solves are not timed)",
              f"- total wall time of the reproduction: {wall:.1f} s", "",
              "## Files", ""]
     for stem, exts in by_stem.items():
