@@ -30,22 +30,22 @@ import scipy.sparse.linalg as spla
 # plane-strain elasticity, 1 thread, seconds factor / solve:
 #
 #     n        cholmod      superlu      qdldl        ngsolve      pardiso
-#     1e3   0.0013/4e-5  0.0020/7e-5  0.0016/4e-5  0.0045/1.4e-4 0.0026/1.9e-4
-#     1e4   0.020/8e-4   0.029/1.1e-3 0.031/8.5e-4 0.048/1.7e-3  0.026/1.8e-3
-#     1e5   0.56/0.012   0.67/0.020   1.2/0.028    0.74/0.036    0.31/0.023
-#     1e6   9.7/0.19     24/0.31      46/0.38      15/0.73       5.2/0.55
+#     1e3   0.0013/3e-5  0.0020/7e-5  0.0015/4e-5  0.0045/1.4e-4 0.0026/1.7e-4
+#     1e4   0.039/8e-4   0.030/1.1e-3 0.029/8.8e-4 0.048/1.8e-3  0.023/2.0e-3
+#     1e5   0.55/0.011   0.68/0.021   1.3/0.028    0.74/0.037    0.35/0.026
+#     1e6   10/0.24      21/0.29      50/0.38      14/0.74       5.5/0.49
 #
-# - cholmod is the fastest whenever it is installed (it rarely is: pip needs
-#   Debian's libsuitesparse-dev, and scikit-sparse 0.5 needs SuiteSparse 7;
-#   0.4.16 builds against Debian 12's SuiteSparse 5).
+# - cholmod is the fastest solver whenever it is installed (it rarely is: pip
+#   needs Debian's libsuitesparse-dev, and scikit-sparse 0.5 needs SuiteSparse
+#   7; 0.4.16 builds against Debian 12's SuiteSparse 5).
 # - An ADMM run does many solves per factorisation, so solves weigh most.
-#   superlu (MMD on A^T+A, symmetric mode) is always installed, within 1.3x
-#   of the best solve of the rest at 1e3-1e4 and the best of the rest at
-#   1e5-1e6; qdldl wins slightly below 1e4 but is 2x slower to factor from 1e5.
+#   superlu (MMD on A^T+A, symmetric mode) is always installed and has the
+#   best solves of the rest from 1e5 on; qdldl solves a little faster below
+#   1e4 (tens of microseconds) but factors 2x slower from 1e5 on.
 # - ngsolve is slower than superlu at every size and its own thread pool adds
-#   ~30 ms per factorisation when the other core is busy.
-# - pardiso (MKL) factors fastest from 1e5 but solves slower than superlu, and
-#   with 2 OpenMP threads on a loaded machine its small solves take ~30 ms.
+#   ~25 ms per factorisation when the other core is busy.
+# - pardiso (MKL) factors fastest from 1e4 but solves slower than superlu,
+#   and its OpenMP threads slow small solves badly on a loaded machine.
 AUTO_ORDER = ["cholmod", "superlu", "qdldl", "ngsolve", "pardiso"]
 
 _MODULES = {"superlu": "scipy", "ngsolve": "ngsolve", "qdldl": "qdldl",
