@@ -266,7 +266,7 @@ def write_markdown(path: Path, rows, repeats, rho, wall, command, blas_threads=1
         lines += ["", "## What-if: the condensed setup with CHOLMOD (prototype, not used by the solver)", "",
                   "`cholmod_schur_prototype` in `problems/contact/bench.py`: AMD ordering of the inner block K_ii "
                   "(`cholmod.analyze`), contact dofs last, CHOLMOD L L' of the permuted K in that order "
-                  "(`ordering_method=\"natural\"`, supernodal), S = L_cc L_cc' from the trailing block of L, "
+                  "(`ordering_method=\"natural\"`, CHOLMOD picks simplicial or supernodal), S = L_cc L_cc' from the trailing block of L, "
                   "then u0 and C as above. `est. ratio` = (prototype setup + the condensed SADMM iterations "
                   "measured above) / (factor+solve). One run each.", "",
                   "| example | h | " + " | ".join(f"{k} (s)" for k in keys)
