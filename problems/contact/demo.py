@@ -9,10 +9,7 @@ from .scene import example1, example2
 
 def run_demo(out: str | Path = "out/demo", h: float = 1 / 40, rho: float = 1e3) -> int:
     """Solve Examples 1 and 2 at mesh size h with SADMM, print the summaries, write figures to ``out``."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    from .plot import plot_solution
+    from .reproduce import figure_solution
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
@@ -23,6 +20,8 @@ def run_demo(out: str | Path = "out/demo", h: float = 1 / 40, rho: float = 1e3) 
         print(f"mesh         {ops.n_free} free dofs, {ops.n_c} contact nodes, {sol.mode} mode "
               f"(setup {sol.setup_time:.3f} s)")
         print(sol.result.summary())
-        path = plot_solution(sol, out / f"{scene.name or name.lower().replace(' ', '')}.png", magnify=magnify)
+        path = out / f"{scene.name}.png"
+        figure_solution(ops, sol.result.x, sol.result.lam, magnify,
+                        f"{name}: SADMM, rho_0 = {rho:g}, h = 1/{round(1 / h)}, u x{magnify:g}", path)
         print(f"figure       {path}\n")
     return 0
