@@ -50,10 +50,12 @@ def _median_time(fn, repeats):
 
 
 def time_factor_solve(K, f, repeats=3):
-    """Median seconds of factorize(K) + one solve(f) with the default backend."""
+    """Median seconds of factorize(K) + one solve(f) with the default backend (after one untimed warm-up:
+    the first factorisations in a process were up to 2x slower)."""
     def once():
         solve = factorize(K)
         return solve(f)
+    once()
     return _median_time(once, repeats)[0]
 
 
