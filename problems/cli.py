@@ -42,11 +42,17 @@ def add_common_options(parser: argparse.ArgumentParser, *, policy: str = "summab
     parser.add_argument("--policy", default=policy, choices=admmkit.policy_names(), help=f"penalty rule (default {policy})")
     parser.add_argument("--order", default=order, choices=["xz", "zx"], help=f"xz = ADMM1, zx = ADMM2 (default {order})")
     parser.add_argument("--rho", type=positive_float, default=rho, help=f"initial penalty rho_0 > 0 (default {rho:g})")
+    add_stop_options(parser)
+
+
+def add_stop_options(parser: argparse.ArgumentParser, *, max_iter: int = 10_000) -> None:
+    """Stopping rule, iteration cap, history and progress options (read by :func:`stop_rule`)."""
     parser.add_argument("--tol", type=positive_float, default=None,
-                        help="relative-change tolerance (the paper's rule; default 1e-5 unless --eps-abs is given)")
+                        help="relative-change tolerance in the problem's x norm (the paper's rule; "
+                             "default 1e-5 unless --eps-abs is given)")
     parser.add_argument("--eps-abs", type=positive_float, default=None, help="Boyd's residual test: absolute tolerance")
     parser.add_argument("--eps-rel", type=float, default=0.0, help="Boyd's residual test: relative tolerance (default 0)")
-    parser.add_argument("--max-iter", type=int, default=10_000, help="iteration cap (default 10000)")
+    parser.add_argument("--max-iter", type=int, default=max_iter, help=f"iteration cap (default {max_iter})")
     parser.add_argument("--history", metavar="CSV", default=None, help="write the per-iteration history to this CSV file")
     parser.add_argument("--progress", type=int, default=0, metavar="N", help="print a line every N iterations")
 

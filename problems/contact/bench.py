@@ -40,6 +40,9 @@ EXAMPLES = {"ex1": example1, "ex2": example2}
 TARGETS = {1 / 40: 2.0, 1 / 200: 3.0}
 
 
+#: the timed steps of the condensed setup, in the order they run
+SETUP_STEPS = ["ordering", "permute", "factorisation", "Schur extraction", "u0 solve", "compliance"]
+
 def _median_time(fn, repeats):
     times, out = [], None
     for _ in range(repeats):
@@ -248,7 +251,7 @@ def write_markdown(path: Path, rows, repeats, rho, wall, command, blas_threads=1
             cells.append("-")
         lines.append("| " + " | ".join(cells) + " |")
     if any("split" in r for r in rows):
-        keys = ["ordering", "permute", "factorisation", "Schur extraction", "u0 solve", "compliance"]
+        keys = SETUP_STEPS
         lines += ["", "## Condensed setup, split", "",
                   "The steps of `problems/contact/schur.py` `BoundarySchur` and `CondensedContact.__init__`, "
                   "timed from outside (one run, same calls): METIS nested-dissection ordering with the contact "
@@ -264,7 +267,7 @@ def write_markdown(path: Path, rows, repeats, rho, wall, command, blas_threads=1
             lines.append(f"| {r['example']} | {h_label(r['h'])} | " + " | ".join(f"{sp_[k]:.4f}" for k in keys)
                          + f" | {sum(sp_[k] for k in keys):.4f} | {sp_['L+U nnz']} |")
     if any("prototype" in r for r in rows):
-        keys = ["ordering", "permute", "factorisation", "Schur extraction", "u0 solve", "compliance"]
+        keys = SETUP_STEPS
         lines += ["", "## What-if: the condensed setup with CHOLMOD (prototype, not used by the solver)", "",
                   "`cholmod_schur_prototype` in `problems/contact/bench.py`: AMD ordering of the inner block K_ii "
                   "(`cholmod.analyze`), contact dofs last, CHOLMOD L L' of the permuted K in that order "

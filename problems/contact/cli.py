@@ -11,7 +11,7 @@ import json
 import sys
 from pathlib import Path
 
-from problems.cli import positive_float, progress_callback, stop_rule
+from problems.cli import add_stop_options, positive_float, progress_callback, stop_rule
 
 from .methods import METHODS, method as resolve_method
 from .problem import MODES
@@ -30,13 +30,7 @@ def add_solve_parser(subparsers) -> None:
     p.add_argument("--order", choices=["xz", "zx"], default=None, help="override the method's update order")
     p.add_argument("--mode", choices=list(MODES), default="auto",
                    help="full: sparse x-steps; condensed: dense x-steps on Gamma_C (default auto)")
-    p.add_argument("--tol", type=positive_float, default=None,
-                   help="relative-change tolerance in the energy norm (the paper's rule; default 1e-5)")
-    p.add_argument("--eps-abs", type=positive_float, default=None, help="Boyd's residual test: absolute tolerance")
-    p.add_argument("--eps-rel", type=float, default=0.0, help="Boyd's residual test: relative tolerance (default 0)")
-    p.add_argument("--max-iter", type=int, default=20_000, help="iteration cap (default 20000)")
-    p.add_argument("--history", metavar="CSV", default=None, help="write the per-iteration history to this CSV file")
-    p.add_argument("--progress", type=int, default=0, metavar="N", help="print a line every N iterations")
+    add_stop_options(p, max_iter=20_000)  # the stop is in the energy norm (docs/contact.md)
     p.add_argument("--json", metavar="FILE", default=None,
                    help="write u (free dofs), contact nodes, lam, p, g and the run's summary as JSON")
     p.add_argument("--csv", metavar="FILE", default=None, help="write the contact-boundary table x, y, u_n, g, lam, p")
