@@ -6,9 +6,12 @@
     admmkit solve obstacle ...     (problems.obstacle)
     admmkit demo                   the main job: the paper's examples with SADMM
 
-Each plug-in adds its own ``solve`` sub-command through a function
-``add_solve_parser(subparsers)`` in its ``cli`` module; common options
-(policy, order, rho, stopping rule, history) are added by :func:`add_common_options`.
+Each module in :data:`PLUGINS` may define, in any combination,
+``add_solve_parser(subparsers)`` (an ``admmkit solve NAME`` sub-command),
+``add_bench_parser(targets)`` (an ``admmkit bench TARGET`` sub-command) and
+``add_commands(commands)`` (new top-level commands such as ``reproduce``).
+Common options (policy, order, rho, stopping rule, history) are added by
+:func:`add_common_options`.
 """
 from __future__ import annotations
 
@@ -21,7 +24,7 @@ import admmkit
 import policies  # noqa: F401  (registers the built-in rules)
 from admmkit import RelativeChange, ResidualTolerance
 
-#: plug-ins with a ``solve`` sub-command; a missing one is skipped
+#: command-line plug-ins (solve / bench / other commands); a missing one is skipped
 PLUGINS = ("problems.qp.cli", "problems.contact.cli", "problems.obstacle.cli")
 
 
@@ -114,6 +117,8 @@ def build_parser() -> argparse.ArgumentParser:
     d.set_defaults(func=demo)
     solve = commands.add_parser("solve", help="solve one problem and print a summary")
     problems = solve.add_subparsers(dest="problem", metavar="PROBLEM", required=True)
+    bench = commands.add_parser("bench", help="benchmarks: print figures and write them under docs/results/")
+    targets = bench.add_subparsers(dest="target", metavar="TARGET", required=True)
     for name in PLUGINS:
         try:
             module = importlib.import_module(name)
@@ -121,7 +126,10 @@ def build_parser() -> argparse.ArgumentParser:
             if err.name and name.startswith(err.name):  # plug-in not present
                 continue
             raise
-        module.add_solve_parser(problems)
+        if hasattr(module, "add_solve_parser"):
+            module.add_solve_parser(problems)
+        if hasattr(module, "add_bench_parser"):
+            module.add_bench_parser(targets)
         if hasattr(module, "add_commands"):
             module.add_commands(commands)
     return parser
