@@ -24,6 +24,7 @@ class IterationRecord:
     - ``dual_scale``       ||A^T M lam|| ("xz") or ||lam||_M ("zx")
     - ``primal_unit``, ``dual_unit``  the norms of the all-ones vector of the
       spaces the residuals live in (Boyd's sqrt(p), sqrt(n))
+
     The vectors are read-only views of the new iterates.
     """
 

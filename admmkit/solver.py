@@ -62,20 +62,30 @@ def solve(
 
     Parameters
     ----------
-    problem : a :class:`Problem` plug-in.
-    rho : initial penalty rho_0, finite and > 0.
-    policy : a :class:`Policy` (reset at the start of the run), a registered
+    problem : Problem
+        The plug-in.
+    rho : float
+        Initial penalty rho_0, finite and > 0.
+    policy : Policy, str or None
+        A :class:`Policy` (reset at the start of the run), a registered
         name such as ``"summable"`` (after ``import policies``), or None to
         keep rho fixed.
-    order : ``"xz"`` (ADMM1: x-step first) or ``"zx"`` (ADMM2: z-step first).
-    stop : a stopping rule; default the paper's ``RelativeChange(1e-5)``.
-    max_iter : iteration cap, an integer >= 1.
-    callback : called with each :class:`IterationRecord`; returning True stops
+    order : str
+        ``"xz"`` (ADMM1: x-step first) or ``"zx"`` (ADMM2: z-step first).
+    stop : StoppingRule or None
+        A stopping rule; default the paper's ``RelativeChange(1e-5)``.
+    max_iter : int
+        Iteration cap, an integer >= 1.
+    callback : callable or None
+        Called with each :class:`IterationRecord`; returning True stops
         the run with status ``stopped``.
-    x0, z0, lam0 : starting point (default ``problem.initial_point()``).
-    time_limit : optional wall-time limit in seconds (for benchmarks; it makes
+    x0, z0, lam0 : numpy.ndarray or None
+        Starting point (default ``problem.initial_point()``).
+    time_limit : float or None
+        Optional wall-time limit in seconds (for benchmarks; it makes
         a run machine-dependent, so it never steers rho).
-    blas_threads : BLAS threads during the run (default 1; None leaves them
+    blas_threads : int or None
+        BLAS threads during the run (default 1; None leaves them
         alone).  The loop's vector work is small, and a multithreaded BLAS
         spends more in thread hand-off than it saves: on the 2-core machine
         of docs/results/linsolve.md, pinning cut the residual work of contact

@@ -134,7 +134,7 @@ class ObstacleProblem(Problem):
         dual: ||K u - F + M lam|| (stationarity, a nodal force); dual_density:
         the same divided by m_i; sign: max (lam)^+ for u >= psi (lam <= 0 is
         the contact pressure), max (-lam)^+ for u <= psi; complementarity:
-        max |lam_i| |u_i - psi_i|.
+        max ``|lam_i| |u_i - psi_i|``.
         """
         slack = self.sign * (x - self.psi)
         residual = self.K @ x - self.F + self.m * lam
@@ -170,7 +170,7 @@ class ObstacleProblem(Problem):
         return gf
 
     def contact_set(self, u: np.ndarray, tol: float = 1e-7) -> np.ndarray:
-        """Boolean mask of the free nodes with |u - psi| <= tol (the contact set)."""
+        """Boolean mask of the free nodes with ``|u - psi| <= tol`` (the contact set)."""
         return self.sign * (u - self.psi) <= tol
 
     def contact_area(self, u: np.ndarray, tol: float = 1e-7) -> float:

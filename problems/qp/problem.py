@@ -72,7 +72,7 @@ class QP(Problem):
 
         primal: ||A x - z||_inf (OSQP), infeasibility: distance of A x to the box,
         dual: ||P x + q + A' lam||_inf, complementarity: max of lam_i times the
-        slack of the bound it pushes against, sign: max |lam_i| pushing against
+        slack of the bound it pushes against, sign: max ``|lam_i|`` pushing against
         an infinite bound.
         """
         Ax = self.A @ x
