@@ -112,6 +112,10 @@ def test_mode_and_method_errors(ex1_ops):
         contact_problem(ex1_ops, "dense")
     with pytest.raises(ValueError, match="unknown method 'sadm'"):
         solve_scene(ex1_ops, "sadm")
+    with pytest.raises(ValueError, match="backend for mode 'condensed'"):
+        contact_problem(ex1_ops, "condensed", backend="qdldl")
+    assert contact_problem(ex1_ops, "auto", backend="qdldl").mode == "full"   # qdldl gives no Schur complement
+    assert contact_problem(ex1_ops, "auto", backend="superlu").mode == "condensed"
 
 
 def test_demo_solves_both_examples(tmp_path, capsys):

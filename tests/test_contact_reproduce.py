@@ -96,7 +96,11 @@ def test_bench_tiny(tmp_path):
     from problems.contact.bench import run_bench
     out = tmp_path / "speed.md"
     rows = run_bench(out=out, hs=(1 / 10,), repeats=1, examples=("ex1",), progress=False)
-    assert rows[0]["modes"]["condensed"]["ratio"] > 0 and rows[0]["modes"]["full"]["ratio"] > 0
-    assert rows[0]["modes"]["condensed"]["iterations"] == solve_scene(example1(1 / 10), "sadmm", 1e3).result.iterations
+    iterations = solve_scene(example1(1 / 10), "sadmm", 1e3).result.iterations
+    assert set(rows[0]["worlds"]) >= {"superlu"}
+    for world in rows[0]["worlds"].values():
+        assert world["modes"]["condensed"]["ratio"] > 0 and world["modes"]["full"]["ratio"] > 0
+        assert world["modes"]["condensed"]["iterations"] == world["modes"]["full"]["iterations"] == iterations
+        assert set(world["modes"]["condensed"]["split"]) == {"ordering", "factorisation", "schur", "u0 + compliance"}
     text = out.read_text()
-    assert "ratio condensed" in text and "ordering" in text
+    assert "ratio condensed" in text and "## Backend `superlu`" in text

@@ -156,10 +156,11 @@ def _reproduce(args) -> int:
 
 def _bench(args) -> int:
     from .bench import DEFAULT_HS, run_bench
+    from .reproduce import h_label
     if args.repeats < 1:
         raise ValueError(f"--repeats must be >= 1, got {args.repeats}")
     hs = tuple(args.hs) if args.hs else DEFAULT_HS
-    cmd = f"admmkit bench contact --out {args.out}"
+    cmd = f"admmkit bench contact --out {args.out}" + "".join(f" --h {h_label(h)}" for h in args.hs or [])
     run_bench(out=args.out, hs=hs, repeats=args.repeats, command=cmd)
     return 0
 

@@ -35,7 +35,7 @@ from admmkit import Problem
 from admmkit.linsolve import CachedFactorization
 
 from .assembly import ContactOperators
-from .schur import BoundarySchur
+from .schur import SCHUR_BACKENDS, BoundarySchur
 
 MODES = ("auto", "full", "condensed")
 #: below this many contact nodes the condensed mode is chosen by "auto"
@@ -125,10 +125,10 @@ class CondensedContact(_ContactBase):
 
     mode = "condensed"
 
-    def __init__(self, ops: ContactOperators):
+    def __init__(self, ops: ContactOperators, backend: str = "auto"):
         super().__init__(ops)
         self.n = ops.n_c + 1
-        self.schur = BoundarySchur(ops.K, ops.B)
+        self.schur = BoundarySchur(ops.K, ops.B, backend=backend)   # "auto", "cholmod" or "superlu"
         u0 = self.schur.solve(ops.f)
         self.d0 = ops.B @ u0                       # B K^{-1} f
         self.e0 = float(ops.f @ u0)                # ||u0||_K^2
@@ -173,6 +173,8 @@ class CondensedContact(_ContactBase):
 def contact_problem(ops: ContactOperators, mode: str = "auto", backend: str = "auto") -> _ContactBase:
     """The contact plug-in for assembled operators, in the requested mode.
 
+    ``backend`` names the sparse solver: any of :mod:`admmkit.linsolve`'s in
+    the full mode, "cholmod" or "superlu" (or "auto") in the condensed mode.
     ``mode="auto"`` picks the condensed mode when the contact boundary has at
     most CONDENSED_MAX_NC nodes (the dense n_c x n_c compliance then fits and
     its factorisations are cheaper than sparse ones of the whole body).
@@ -180,5 +182,10 @@ def contact_problem(ops: ContactOperators, mode: str = "auto", backend: str = "a
     if mode not in MODES:
         raise ValueError(f"mode must be one of {', '.join(MODES)}, got {mode!r}")
     if mode == "auto":
-        mode = "condensed" if ops.n_c <= CONDENSED_MAX_NC else "full"
-    return CondensedContact(ops) if mode == "condensed" else FullContact(ops, backend=backend)
+        mode = "condensed" if ops.n_c <= CONDENSED_MAX_NC and backend in ("auto",) + SCHUR_BACKENDS else "full"
+    if mode == "condensed":
+        if backend not in ("auto",) + SCHUR_BACKENDS:
+            raise ValueError(f"backend for mode 'condensed' must be 'auto' or one of {', '.join(SCHUR_BACKENDS)} "
+                             f"(the solvers that give the Schur complement), got {backend!r}")
+        return CondensedContact(ops, backend=backend)
+    return FullContact(ops, backend=backend)
