@@ -1,0 +1,88 @@
+"""One ADMM run of a benchmark method on a benchmark problem, with a tolerance ladder read off its clock.
+
+The stopping rule does not steer the iterates, so a run to the tightest
+tolerance passes through the point where every looser tolerance would have
+stopped it.  :func:`ladder_run` therefore makes one run and records, for each
+rung eps of the ladder, the first iteration where Boyd's residual test
+``ResidualTolerance(eps_abs, eps)`` holds, the wall time at that moment (the
+loop's own clock ``rec.time`` plus the problem's setup plus one
+``finalize``), and the iterate.  This is the time a run stopped by that rule
+would take.  The true errors are computed after the clock stopped.
+"""
+from __future__ import annotations
+
+import statistics
+import time
+
+import numpy as np
+
+import admmkit
+from admmkit import ResidualTolerance, StoppingRule
+
+from . import methods
+from .scenes import Discrete
+
+#: residual tolerances 1e-1, 10^-1.5, ..., 1e-10 (half decades)
+ADMM_LADDER = tuple(10.0 ** (-k / 2) for k in range(2, 21))
+
+
+class _Never(StoppingRule):
+    """A rule that never fires (the ladder callback ends the run)."""
+
+    name = "never"
+
+    def fired(self, rec):
+        """Never."""
+        return None
+
+
+def _rules(d: Discrete, ladder) -> list[ResidualTolerance]:
+    # the PDE problems carry physical units: relative tolerances only; QPs: eps_abs = eps_rel (OSQP's habit)
+    return [ResidualTolerance(eps if d.kind == "qp" else 0.0, eps) for eps in ladder]
+
+
+def ladder_run(d: Discrete, label: str, rho0: float, *, ladder=ADMM_LADDER, max_iter: int = 20_000,
+               time_limit: float | None = None, repeats: int = 3, long_run: float = 10.0) -> dict:
+    """Run method ``label`` from rho0 on ``d``; return the ladder points, status and the medians of ``repeats``."""
+    rules = _rules(d, ladder)
+    runs = []
+    for i in range(repeats):
+        t0 = time.perf_counter()
+        problem = d.make_admm()
+        setup = time.perf_counter() - t0
+        policy, order = methods.make(label)
+        hits: list[tuple] = []
+
+        def record(rec, hits=hits):
+            while len(hits) < len(rules) and rules[len(hits)].fired(rec):
+                hits.append((rec.k, rec.time, np.array(rec.x), np.array(rec.lam)))
+            return len(hits) == len(rules)
+
+        res = admmkit.solve(problem, rho=rho0, policy=policy, order=order, stop=_Never(), max_iter=max_iter,
+                            time_limit=time_limit, callback=record)
+        t0 = time.perf_counter()
+        problem.finalize(hits[-1][2] if hits else np.asarray(problem.initial_point()[0]))  # u from x, timed once
+        finalize = time.perf_counter() - t0
+        runs.append({"setup": setup, "finalize": finalize, "hits": hits, "result": res, "problem": problem})
+        if setup + res.timings["total"] > long_run:
+            break
+    last = runs[-1]
+    res, problem = last["result"], last["problem"]
+    points = []
+    for j, (k, _, x, lam) in enumerate(last["hits"]):
+        times = [r["setup"] + r["hits"][j][1] + r["finalize"] for r in runs if j < len(r["hits"])]
+        point = {"tol": ladder[j], "time": statistics.median(times), "times": times, "iterations": k + 1}
+        point.update(d.errors(problem.finalize(x), lam))
+        points.append(point)
+    status = "converged" if len(last["hits"]) == len(rules) else res.status.value
+    return {"points": points, "status": status, "iterations": res.iterations, "rho0": rho0,
+            "final_rho": res.rho, "rho_changes": res.rho_changes, "repeats": len(runs),
+            "setup_time": statistics.median(r["setup"] for r in runs), "message": res.message}
+
+
+def paper_rule_run(problem, label: str, rho0: float, *, tol: float = 1e-5, max_iter: int = 20_000,
+                   time_limit: float | None = None) -> admmkit.Result:
+    """One run stopped by the paper's rule ||x^{k+1} - x^k|| <= tol ||x^{k+1}|| (or the cap)."""
+    policy, order = methods.make(label)
+    return admmkit.solve(problem, rho=rho0, policy=policy, order=order, stop=admmkit.RelativeChange(tol),
+                         max_iter=max_iter, time_limit=time_limit)

@@ -1,0 +1,302 @@
+"""Work-precision: true error against wall time for every method and peer.
+
+    admmkit bench precision [--out docs/results/bench/precision] [--quick] [--workers 2] [--repeats 3]
+
+For each problem (contact Ex. 1 and Ex. 2 and the radial obstacle at h =
+1/20 ... 1/160, four QPs) every ADMM method (every registered policy in both
+orders, :mod:`problems.benchmarks.methods`) runs from rho_0 = rho_scale *
+rho_unit (rho_unit = E for contact, 1 otherwise) through a ladder of Boyd
+residual tolerances 1e-1 ... 1e-10 (:mod:`problems.benchmarks.admm_runs`), and
+every peer (:mod:`problems.benchmarks.peers`) through its own ladder.  Each
+point is (median wall time, true relative error of the answer against the
+reference solution, in the norm of :mod:`problems.benchmarks.scenes`).
+
+Written to ``out``: ``results.jsonl`` (the sweep's raw records: resumable),
+``precision.csv`` (one row per point), ``time_to_error.{csv,md}`` (time to a
+relative error of 1e-4 and 1e-8 and its ratio to the fastest method on the
+same problem), ``precision_<scene>.{png,svg}`` (log-log error against time,
+one curve per method, one panel per mesh size) and ``README.md`` with the
+command, the references and the machine.
+"""
+from __future__ import annotations
+
+import os
+import time
+from pathlib import Path
+
+from . import methods as methods_mod
+from .peers import PEERS, applicable, run_peer
+from .report import (NOISE_NOTE, fmt, machine_info, machine_markdown, md_table, method_styles, pyplot,
+                     save_figure, write_csv)
+from .scenes import CONTACT_SCENES, OBSTACLE_SCENES, QP_SCENES, discrete, kind_of, mm_folder, problem_key
+from .sweep import finished, run_sweep
+
+HS = (1 / 20, 1 / 40, 1 / 80, 1 / 160)
+QUICK_HS = (1 / 10,)
+TARGETS = (1e-4, 1e-8)
+CACHE_ENV = "ADMMKIT_BENCH_CACHE"
+
+
+def build_cases(scenes, hs, admm: list[str], peers=PEERS, *, rho_scale: float = 1.0, repeats: int = 3,
+                max_iter: int = 20_000, time_limit: float = 60.0) -> list[dict]:
+    """Every (problem, solver) case of the work-precision sweep."""
+    cases = []
+    for scene in scenes:
+        kind = kind_of(scene)
+        for h in (hs if kind != "qp" else (None,)):
+            base = {"target": "precision", "scene": scene, "h": h}
+            group = problem_key(base)
+            common = {"repeats": repeats, "group": group}
+            for label in admm:
+                cases.append(base | common | {"solver": "admm", "method": label, "rho_scale": rho_scale,
+                                              "policy_version": methods_mod.policy_version(label),
+                                              "max_iter": max_iter, "time_limit": time_limit})
+            for peer in peers:
+                if applicable(peer, kind):
+                    cases.append(base | common | {"solver": "peer", "method": peer, "max_iter": max_iter,
+                                                  "time_limit": time_limit})
+    return cases
+
+
+def case_cost(case: dict) -> float:
+    """A rough relative cost, to start the expensive problems first."""
+    h = case.get("h") or 0.1
+    scale = {"contact": 1.0, "obstacle": 8.0, "qp": 0.2}[kind_of(case["scene"])]
+    return scale / h**2
+
+
+def run_case(case: dict) -> dict:
+    """Worker entry point: one solver on one problem."""
+    from .admm_runs import ladder_run
+    d = discrete(case, cache_dir=os.environ.get(CACHE_ENV))
+    info = {"n": d.n, "norm": d.norm_name, **{k: v for k, v in d.info.items() if k not in ("n",)}}
+    if case["solver"] == "admm":
+        out = ladder_run(d, case["method"], case["rho_scale"] * d.rho_unit, max_iter=case["max_iter"],
+                         time_limit=case["time_limit"], repeats=case["repeats"])
+    else:
+        out = run_peer(d, case["method"], repeats=case["repeats"], time_limit=case["time_limit"],
+                       max_iter=case["max_iter"])
+    out["problem"] = info
+    out["reference"] = d.ref_info
+    if d.floor is not None and "discretisation_error_L2" in d.ref_info:
+        out["floor_rel"] = d.ref_info["discretisation_error_L2"] / max(d.x_norm(d.ref_x), 1e-300)
+    return out
+
+
+# ---------------------------------------------------------------- summaries
+def _problem_label(case: dict) -> str:
+    from problems.contact.reproduce import h_label
+    return case["scene"] + ("" if case.get("h") is None else f" h={h_label(case['h'])}")
+
+
+def time_to_error(points: list[dict], target: float) -> float | None:
+    """The smallest time among the points whose error is <= target (None if none)."""
+    ok = [p["time"] for p in points if p.get("err") is not None and p["err"] <= target]
+    return min(ok) if ok else None
+
+
+def summarise(records: dict, out: Path, *, command: str, wall: float, skipped: list[str], missing: int = 0) -> list[Path]:
+    """Write precision.csv, time_to_error.{csv,md}, the figures and README.md from the sweep records."""
+    out.mkdir(parents=True, exist_ok=True)
+    rows, per_problem, refs, failures = [], {}, {}, []
+    for rec in records.values():
+        case, res = rec["case"], rec.get("result")
+        prob = _problem_label(case)
+        if res is None:
+            failures.append((prob, case["method"], (rec.get("error") or "").splitlines()[0]))
+            continue
+        refs.setdefault(prob, (res.get("reference"), res.get("problem"), res.get("floor_rel")))
+        per_problem.setdefault(prob, {"case": case, "methods": {}})["methods"][case["method"]] = res
+        for p in res["points"]:
+            rows.append({"problem": prob, "scene": case["scene"], "h": case.get("h"), "solver": case["solver"],
+                         "method": case["method"], "tol": p.get("tol"), "step": p.get("step"), "time_s": p["time"],
+                         "err": p.get("err"), "err_lam": p.get("err_lam"), "iterations": p.get("iterations"),
+                         "status": p.get("status", res.get("status")), "run_status": res.get("status"),
+                         "repeats": len(p.get("times", [])), "solver_time_s": p.get("solver_time")})
+    files = [write_csv(out / "precision.csv", rows)]
+
+    # time to 1e-4 / 1e-8 and ratios to the fastest, within this run
+    ttrows, tables = [], []
+    order = _problem_order(per_problem)
+    all_methods = _method_order(per_problem)
+    for target in TARGETS:
+        header = ["method"] + order
+        body = []
+        best = {}
+        for prob in order:
+            ts = [time_to_error(r["points"], target) for r in per_problem[prob]["methods"].values()]
+            ts = [t for t in ts if t is not None]
+            best[prob] = min(ts) if ts else None
+        for m in all_methods:
+            cells = [m]
+            for prob in order:
+                r = per_problem[prob]["methods"].get(m)
+                if r is None:
+                    cells.append("")
+                    continue
+                t = time_to_error(r["points"], target)
+                ratio = t / best[prob] if t is not None and best[prob] else None
+                ttrows.append({"target": target, "problem": prob, "method": m, "time_s": t, "ratio_to_fastest": ratio,
+                               "run_status": r.get("status")})
+                cells.append("not reached" if t is None else f"{ratio:.3g} ({t:.3g} s)")
+            body.append(cells)
+        tables.append((target, md_table(header, body)))
+    files.append(write_csv(out / "time_to_error.csv", ttrows))
+    md = [f"# Time to a relative error of {', '.join(f'{t:g}' for t in TARGETS)}", "",
+          "Each cell: time / time of the fastest method on the same problem, measured in this run, and the time "
+          "in seconds (median of the repeats). The time of a method is that of the loosest tolerance on its "
+          "ladder whose answer has a true error at or below the target (the error norms are in README.md). "
+          "'not reached': no tolerance of the ladder got there within the iteration cap / time limit.", "",
+          NOISE_NOTE, ""]
+    for target, table in tables:
+        md += [f"## Relative error {target:g}", "", table, ""]
+    (out / "time_to_error.md").write_text("\n".join(md))
+    files.append(out / "time_to_error.md")
+
+    files += _figures(per_problem, refs, out)
+    files.append(_readme(out, per_problem, refs, failures, command, wall, skipped, files, missing))
+    return files
+
+
+def _problem_order(per_problem) -> list[str]:
+    def key(prob):
+        case = per_problem[prob]["case"]
+        scenes = CONTACT_SCENES + OBSTACLE_SCENES + QP_SCENES
+        s = case["scene"]
+        return (scenes.index(s) if s in scenes else 99, s, -(case.get("h") or 0))
+    return sorted(per_problem, key=key)
+
+
+def _method_order(per_problem) -> list[str]:
+    seen = []
+    for prob in per_problem.values():
+        for m in prob["methods"]:
+            if m not in seen:
+                seen.append(m)
+    admm = methods_mod.admm_methods()
+    return [m for m in admm if m in seen] + [m for m in seen if m not in admm and m not in PEERS] + \
+        [p for p in PEERS if p in seen]
+
+
+def _figures(per_problem, refs, out: Path) -> list[Path]:
+    plt = pyplot()
+    files = []
+    order = _problem_order(per_problem)
+    styles = method_styles(_method_order(per_problem))
+    by_scene: dict[str, list[str]] = {}
+    for prob in order:
+        scene = per_problem[prob]["case"]["scene"]
+        by_scene.setdefault("qp" if scene.startswith("qp:") else scene, []).append(prob)
+    for scene, probs in by_scene.items():
+        ncol = min(len(probs), 4)
+        fig, axes = plt.subplots(1, ncol, figsize=(4.6 * ncol + 2.6, 4.4), squeeze=False)
+        axes = axes[0]
+        for ax, prob in zip(axes, probs):
+            for m, res in per_problem[prob]["methods"].items():
+                pts = sorted((p for p in res["points"] if p.get("err") is not None and p["err"] > 0),
+                             key=lambda p: p["time"])
+                if not pts:
+                    continue
+                st = styles[m]
+                ax.loglog([p["time"] for p in pts], [max(p["err"], 1e-16) for p in pts], label=m,
+                          markersize=4 if m not in PEERS else 5, **st)
+            for target in TARGETS:
+                ax.axhline(target, color="0.7", linewidth=0.8, linestyle=":")
+            floor = (refs.get(prob) or (None, None, None))[2]
+            if floor:
+                ax.axhline(floor, color="tab:red", linewidth=1.0, linestyle="--", label="discretisation error")
+            ax.set_title(prob, fontsize=10)
+            ax.set_xlabel("wall time [s]")
+            ax.grid(True, which="major", alpha=0.3)
+        axes[0].set_ylabel("relative error (see README)")
+        handles, labels = [], []
+        for ax in axes:
+            for hnd, lab in zip(*ax.get_legend_handles_labels()):
+                if lab not in labels:
+                    handles.append(hnd)
+                    labels.append(lab)
+        fig.legend(handles, labels, loc="center left", bbox_to_anchor=(1.0, 0.5), fontsize=8, frameon=False)
+        fig.suptitle(f"Work-precision, {scene}: true error against wall time (median of repeats)", fontsize=11)
+        fig.tight_layout()
+        files += save_figure(fig, out / f"precision_{scene}")
+    return files
+
+
+def _readme(out: Path, per_problem, refs, failures, command, wall, skipped, files, missing=0) -> Path:
+    lines = ["# Work-precision: true error against wall time", "",
+             f"Produced by `{command}`; wall time of the sweep {wall:.0f} s (this invocation; a resumed sweep "
+             "reuses the finished cases of earlier invocations, see results.jsonl).", "",
+             "- ADMM methods: every registered penalty policy in both orders (admm1 = fixed/xz, admm2 = fixed/zx, "
+             "sadmm = summable/zx with tau = 2, c_max = 100), from rho_0 = E (contact) or 1 (obstacle, QPs); "
+             "one run to Boyd's residual test at 1e-10 with the points where the looser tolerances "
+             "1e-1 ... 10^-9.5 (half decades) would have stopped it (relative tolerances for the PDE problems, "
+             "eps_abs = eps_rel for the QPs); time = problem setup + the loop's clock + the final recovery of u.",
+             "- peers on the same discrete QP: PDAS (primal-dual active set, one point per Newton step; contact "
+             "uses the same boundary Schur complement as condensed ADMM), cvxpy + Clarabel (tolerances 1e-3, "
+             "1e-5, 1e-7, 1e-9), cvxpy + OSQP and OSQP called directly (1e-2, 1e-4, 1e-6, 1e-8). cvxpy times "
+             "include building and canonicalising the problem (what a user pays); the solver's own time is in "
+             "precision.csv (solver_time_s).",
+             "- error norms: contact, u in the energy norm ||u - u*||_K / ||u*||_K (err_lam: the pressure in the "
+             "lumped boundary-mass norm); obstacle, the lumped L2 norm ||u - u*||_M / ||u*||_M against the discrete "
+             "solution (the red dashed line is the discretisation error of the discrete solution against the exact "
+             "one, in the same relative units: below it more precision buys nothing); QPs, ||x - x*||_2 / ||x*||_2.",
+             "- times are medians over the repeats (a case whose first run took over 10 s ran once); ADMM runs "
+             "stop at 20000 iterations or after 60 s (wall); so do the OSQP runs.", "", NOISE_NOTE, "", "## Reference solutions", ""]
+    body = []
+    for prob in _problem_order(per_problem):
+        ref, info, floor = refs.get(prob) or ({}, {}, None)
+        ref = ref or {}
+        cc = ref.get("cross_check") or {}
+        diffs = ", ".join(f"{k} {v:.1e}" for k, v in cc.items() if k != "other" and isinstance(v, float))
+        kkt = ", ".join(f"{k} {v:.1e}" for k, v in (ref.get("kkt") or {}).items())
+        body.append([prob, str((info or {}).get("n", "")), ref.get("solver", ""), kkt,
+                     (cc.get("other", "") + (": " + diffs if diffs else "")), fmt(floor, ".2e")])
+    lines += [md_table(["problem", "n", "reference", "KKT residuals", "cross-check (relative differences)",
+                        "discretisation error (rel.)"], body, "lrllll"), ""]
+    if skipped:
+        lines += [f"Policies left out (they need constructor arguments): {', '.join(skipped)}.", ""]
+    if missing:
+        lines += [f"**{missing} cases of the sweep had not finished when these files were written** (written with "
+                  "--report-only); they are missing from the tables and charts.", ""]
+    if failures:
+        lines += ["## Cases that raised", ""] + [f"- {p}, {m}: {e}" for p, m, e in failures] + [""]
+    lines += ["## Files", "", "- `precision.csv`: one row per point (problem, method, tolerance or Newton step, "
+              "median time, errors of u and lam, iterations, status, repeats)",
+              "- `time_to_error.{md,csv}`: time to a relative error of 1e-4 and 1e-8, and the ratio to the fastest",
+              "- `precision_<scene>.{png,svg}`: the charts", "- `results.jsonl`: the raw sweep records (one JSON line "
+              "per finished case; the sweep resumes from it)", ""]
+    lines.append(machine_markdown(machine_info()))
+    path = out / "README.md"
+    path.write_text("\n".join(lines))
+    return path
+
+
+def run(out="docs/results/bench/precision", *, quick: bool = False, workers: int = 2, repeats: int = 3,
+        scenes=None, hs=None, methods=None, progress: bool = True, command: str = "admmkit bench precision",
+        time_limit: float = 60.0, report_only: bool = False) -> list[Path]:
+    """Build the cases, run (or resume) the sweep, write the summaries; return the files written."""
+    out = Path(out)
+    if scenes is None:
+        scenes = list(CONTACT_SCENES + OBSTACLE_SCENES) + [s for s in QP_SCENES
+                                                           if s == "qp:random-mixed" or mm_folder() is not None]
+        if quick:
+            scenes = ["ex1", "radial", "qp:random-mixed"]
+    hs = hs or (QUICK_HS if quick else HS)
+    admm = list(methods) if methods is not None else methods_mod.admm_methods()
+    cases = build_cases(scenes, hs, admm, repeats=repeats, time_limit=time_limit,
+                        max_iter=2000 if quick else 20_000)
+    if quick:
+        cases = [c for c in cases if c["scene"] != "qp:random-mixed" or c["solver"] == "peer"
+                 or c["method"] in ("admm1", "sadmm")]
+    os.environ[CACHE_ENV] = str(out / "cache")
+    t0 = time.perf_counter()
+    if report_only:
+        records = finished(cases, out / "results.jsonl")
+    else:
+        records = run_sweep(cases, "problems.benchmarks.precision:run_case", out / "results.jsonl", workers=workers,
+                            progress=progress, cost=case_cost,
+                            label=lambda c: f"{_problem_label(c)} {c['method']}")
+    wall = time.perf_counter() - t0
+    return summarise(records, out, command=command, wall=wall, skipped=methods_mod.skipped_policies(),
+                     missing=len(cases) - len(records))
+

@@ -1,0 +1,149 @@
+"""Writing benchmark output: machine and versions, CSV, Markdown tables, PNG + SVG figures."""
+from __future__ import annotations
+
+import csv
+import datetime
+import math
+import os
+import platform
+import subprocess
+from pathlib import Path
+
+import numpy as np
+
+#: said in every benchmark README: the machine is shared
+NOISE_NOTE = ("The machine (2 cores) is shared with other engineers' jobs while the benchmark runs, so "
+              "absolute times are noisy; compare methods by the ratios, which are computed within one run.")
+
+
+def machine_info() -> dict:
+    """nproc, CPU model, platform, git commit and the versions of every library a benchmark uses."""
+    cpu = platform.processor() or "?"
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                cpu = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    info = {"date": datetime.datetime.now().strftime("%Y-%m-%d %H:%M"), "nproc": os.cpu_count(), "cpu": cpu,
+            "platform": platform.platform(), "python": platform.python_version()}
+    try:
+        with open("/proc/meminfo") as fh:
+            info["memory"] = f"{int(fh.readline().split()[1]) / 2**20:.1f} GiB"
+    except (OSError, ValueError, IndexError):
+        pass
+    for module in ("numpy", "scipy", "ngsolve", "cvxpy", "clarabel", "osqp", "matplotlib"):
+        try:
+            info[module] = __import__(module).__version__
+        except Exception:
+            info[module] = "not installed"
+    try:
+        from admmkit import __version__
+        from admmkit.linsolve import available_backends
+        info["admmkit"] = __version__
+        info["sparse backends"] = ", ".join(available_backends())
+    except Exception:
+        pass
+    try:
+        root = Path(__file__).resolve().parents[2]
+        commit = subprocess.run(["git", "-C", str(root), "rev-parse", "--short", "HEAD"], capture_output=True,
+                                text=True, timeout=10).stdout.strip()
+        if commit:
+            info["git commit"] = commit
+    except Exception:
+        pass
+    try:
+        info["load average (1 min) at the end"] = f"{os.getloadavg()[0]:.2f}"
+    except OSError:
+        pass
+    info["BLAS threads"] = "1 per worker process (OMP/OPENBLAS_NUM_THREADS=1, threadpoolctl)"
+    return info
+
+
+def machine_markdown(info: dict) -> str:
+    """The machine section of a README."""
+    lines = ["## Machine", ""] + [f"- {k}: {v}" for k, v in info.items()] + ["", NOISE_NOTE, ""]
+    return "\n".join(lines)
+
+
+def write_csv(path: Path, rows: list[dict], columns: list[str] | None = None) -> Path:
+    """Rows of dicts as CSV (columns: the given ones, else the union in first-seen order)."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    if columns is None:
+        columns = []
+        for row in rows:
+            columns += [k for k in row if k not in columns]
+    with path.open("w", newline="") as fh:
+        writer = csv.DictWriter(fh, fieldnames=columns, extrasaction="ignore")
+        writer.writeheader()
+        for row in rows:
+            writer.writerow({k: _csv_value(row.get(k)) for k in columns})
+    return path
+
+
+def _csv_value(v):
+    if v is None:
+        return ""
+    if isinstance(v, float):
+        return "" if math.isnan(v) else repr(v)
+    return v
+
+
+def md_table(header: list[str], rows: list[list], align: str | None = None) -> str:
+    """A Markdown table; ``align`` like "lrr" (default: first column left, the rest right)."""
+    align = align or ("l" + "r" * (len(header) - 1))
+    sep = ["---:" if a == "r" else ":---" for a in align]
+    lines = ["| " + " | ".join(header) + " |", "| " + " | ".join(sep) + " |"]
+    lines += ["| " + " | ".join(str(c) for c in row) + " |" for row in rows]
+    return "\n".join(lines)
+
+
+def fmt(v, spec: str = ".3g", missing: str = "-") -> str:
+    """Format a number, or ``missing`` for None/nan."""
+    if v is None or (isinstance(v, float) and not math.isfinite(v)):
+        return missing
+    return format(v, spec)
+
+
+def pyplot():
+    """matplotlib.pyplot with the Agg backend."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    return plt
+
+
+def save_figure(fig, path: Path) -> list[Path]:
+    """Save as PNG and SVG (same stem), close the figure and return both paths."""
+    plt = pyplot()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    png, svg = path.with_suffix(".png"), path.with_suffix(".svg")
+    fig.savefig(png, dpi=120, bbox_inches="tight")
+    fig.savefig(svg, bbox_inches="tight")
+    plt.close(fig)
+    return [png, svg]
+
+
+def method_styles(names: list[str]) -> dict[str, dict]:
+    """Distinct line styles: ADMM methods in colours (tab20) with markers, peers in black/grey."""
+    peers = {"pdas": dict(color="black", marker="s", linestyle="-", linewidth=2.2),
+             "clarabel": dict(color="0.35", marker="D", linestyle="--", linewidth=2.0),
+             "cvxpy-osqp": dict(color="0.55", marker="v", linestyle=":", linewidth=2.0),
+             "osqp": dict(color="0.2", marker="^", linestyle="-.", linewidth=2.0)}
+    markers = "o^vs<>pPhX*d"
+    cmap = pyplot().get_cmap("tab20")
+    out, i = {}, 0
+    for name in names:
+        if name in peers:
+            out[name] = peers[name]
+            continue
+        out[name] = dict(color=cmap(i % 20), marker=markers[i % len(markers)], linestyle="-", linewidth=1.2)
+        i += 1
+    return out
+
+
+def median(values) -> float:
+    """Median of finite values (nan if none)."""
+    vals = [float(v) for v in values if v is not None and math.isfinite(float(v))]
+    return float(np.median(vals)) if vals else float("nan")
