@@ -24,6 +24,10 @@ Two modes give the same iterates (to round-off):
       (M_c^{-1} + rho C) w = rho p - lam - rho d0,   s = 1,
 
   so an iteration costs O(n_c^2); u itself is recovered once, at the end.
+- ``"iterative"``: the x-step of the full mode solved inexactly by CG with a
+  smoothed-aggregation AMG preconditioner (:mod:`admmkit.iterative`; memory
+  linear in the unknowns, for meshes too large to factorise).  Its iterates
+  match the other modes to the inner tolerance, not to round-off.
 """
 from __future__ import annotations
 
@@ -32,12 +36,14 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 
 from admmkit import Problem
+from admmkit.iterative import IterativeXSolver
 from admmkit.linsolve import CachedFactorization
 
 from .assembly import ContactOperators
+from .iterative import near_null_space
 from .schur import SCHUR_BACKENDS, BoundarySchur
 
-MODES = ("auto", "full", "condensed")
+MODES = ("auto", "full", "condensed", "iterative")
 #: below this many contact nodes the condensed mode is chosen by "auto"
 CONDENSED_MAX_NC = 3000
 
@@ -170,6 +176,36 @@ class CondensedContact(_ContactBase):
         return {"factorizations": self.factorizations, "solves": self.solves}
 
 
+class IterativeContact(_ContactBase):
+    """Iterative mode: x = u, the x-step (12) by AMG-preconditioned CG (admmkit.iterative)."""
+
+    mode = "iterative"
+
+    def __init__(self, ops: ContactOperators, **options):
+        super().__init__(ops)
+        self.n = ops.n_free
+        BtMB = (ops.B.T @ sp.diags(self.mc) @ ops.B).tocsr()
+        modes, blocks = near_null_space(ops)
+        self.solver = IterativeXSolver(ops.K, BtMB, near_null=modes, blocks=blocks, **options)
+
+    def x_step(self, z, lam, rho, u):
+        """Solve (K + rho B'M_c B) u = f + B'M_c (rho p - lam), eq. (12), by AMG-CG warm-started."""
+        rhs = self.ops.f + self.ops.B.T @ (self.mc * (rho * z - lam))
+        return self.solver.solve(rho, rhs, x0=u)
+
+    def apply_A(self, u):
+        """u_n = B u at the contact nodes."""
+        return self.ops.B @ u
+
+    def x_norm(self, u):
+        """Energy norm sqrt(u'Ku)."""
+        return float(np.sqrt(max(u @ (self.ops.K @ u), 0.0)))
+
+    def counters(self):
+        """AMG setups and Galerkin refreshes, solves and CG iterations."""
+        return self.solver.counters()
+
+
 def contact_problem(ops: ContactOperators, mode: str = "auto", backend: str = "auto") -> _ContactBase:
     """The contact plug-in for assembled operators, in the requested mode.
 
@@ -183,6 +219,8 @@ def contact_problem(ops: ContactOperators, mode: str = "auto", backend: str = "a
         raise ValueError(f"mode must be one of {', '.join(MODES)}, got {mode!r}")
     if mode == "auto":
         mode = "condensed" if ops.n_c <= CONDENSED_MAX_NC and backend in ("auto",) + SCHUR_BACKENDS else "full"
+    if mode == "iterative":
+        return IterativeContact(ops)
     if mode == "condensed":
         if backend not in ("auto",) + SCHUR_BACKENDS:
             raise ValueError(f"backend for mode 'condensed' must be 'auto' or one of {', '.join(SCHUR_BACKENDS)} "

@@ -15,7 +15,7 @@ def add_solve_parser(subparsers) -> None:
     p.add_argument("--scene", default="radial",
                    help=f"named scene: {', '.join(SCENES)} (default radial)")
     p.add_argument("--h", type=positive_float, default=1 / 16, help="cell size, fractions allowed (default 1/16)")
-    p.add_argument("--backend", default=DEFAULT_BACKEND, help=f"sparse solver of K + rho M (default {DEFAULT_BACKEND})")
+    p.add_argument("--backend", default=DEFAULT_BACKEND, help=f"sparse solver of K + rho M, or iterative for AMG-preconditioned CG (default {DEFAULT_BACKEND})")
     p.add_argument("--plot", metavar="FILE", default=None, help="write a plot of u, psi and the contact set (PNG)")
     add_common_options(p, policy="summable", order="zx")
     p.set_defaults(func=run)

@@ -9,7 +9,8 @@ interpolated, M_c the consistent mass).  Splitting: f(u) = 1/2 u'Ku - F'u,
 g(z) = indicator of {z >= psi}, constraint u - z = 0 in the lumped mass inner
 product (a, b)_M = sum_i m_i a_i b_i.  The augmented Lagrangian's steps are
 
-    x-step:  (K + rho M) u = F + M (rho z - lam)        (one factorisation per rho)
+    x-step:  (K + rho M) u = F + M (rho z - lam)        (one factorisation per rho,
+                                                         or AMG-CG with backend="iterative")
     z-step:  z = max(psi, u + lam/rho)                 (min for an upper obstacle)
 
 Sign convention.  admmkit's Lagrangian is f(u) + g(z) + (lam, u - z)_M, so at
@@ -27,6 +28,7 @@ import scipy.sparse as sp
 from ngsolve.meshes import MakeStructured2DMesh
 
 from admmkit import Problem
+from admmkit.iterative import IterativeXSolver
 from admmkit.linsolve import CachedFactorization
 
 from .scene import A_STAR, Scene, check_boundary, radial_exact_cf
@@ -94,7 +96,10 @@ class ObstacleProblem(Problem):
         self.n = self.free.size
         self.c = 0.0
         K, m = self.K, self.m
-        self._solver = CachedFactorization(lambda rho: (K + rho * sp.diags(m)).tocsc(), backend=backend)
+        if backend == "iterative":   # AMG-preconditioned CG (admmkit.iterative); near-null space: constants
+            self._solver = IterativeXSolver(K, sp.diags(m), near_null=np.ones((self.n, 1)))
+        else:
+            self._solver = CachedFactorization(lambda rho: (K + rho * sp.diags(m)).tocsc(), backend=backend)
 
     # -- the splitting --------------------------------------------------------
     def x_step(self, z, lam, rho, x):
@@ -148,7 +153,9 @@ class ObstacleProblem(Problem):
         }
 
     def counters(self):
-        """Factorisations and solves of K + rho M so far."""
+        """Factorisations (or AMG setups and CG iterations) and solves of K + rho M so far."""
+        if isinstance(self._solver, IterativeXSolver):
+            return self._solver.counters()
         return {"factorizations": self._solver.factorizations, "solves": self._solver.solves}
 
     # -- finite element helpers -------------------------------------------------

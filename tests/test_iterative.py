@@ -1,0 +1,238 @@
+"""admmkit.iterative: AMG-preconditioned CG x-steps, checked against sparse direct solves."""
+import math
+
+import ngsolve as ng
+import numpy as np
+import pytest
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+from ngsolve.meshes import MakeStructured2DMesh, MakeStructured3DMesh
+
+import admmkit
+import policies
+from admmkit import RelativeChange
+from admmkit.iterative import IterativeXSolver, PencilMatrix, SolutionSpace, node_blocks, rigid_body_modes
+from problems.contact import assemble, example1, example2, solve_scene
+from problems.contact.problem import contact_problem
+
+
+def _elasticity(mesh, dirichlet=""):
+    """P1 elasticity stiffness (E=1, nu=0.3) on a mesh, and its free dofs."""
+    fes = ng.VectorH1(mesh, order=1, dirichlet=dirichlet)
+    u, v = fes.TnT()
+    eps = lambda w: ng.Sym(ng.Grad(w))  # noqa: E731
+    a = ng.BilinearForm(fes)
+    a += (2 * 0.4 * ng.InnerProduct(eps(u), eps(v)) + 0.6 * ng.Trace(ng.Grad(u)) * ng.Trace(ng.Grad(v))) * ng.dx
+    a.Assemble()
+    vals, cols, rows = a.mat.CSR()
+    K = sp.csr_matrix((np.array(vals), np.array(cols), np.array(rows)), shape=(fes.ndof, fes.ndof))
+    d = mesh.dim
+    points = np.array(mesh.ngmesh.Coordinates())[:, :d]
+    comp, node = np.divmod(np.arange(fes.ndof), mesh.nv)
+    return K, points[node], comp, node, np.flatnonzero(np.array(fes.FreeDofs(), dtype=bool))
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_rigid_body_modes_are_the_null_space_of_unconstrained_elasticity(dim):
+    mesh = MakeStructured2DMesh(quads=False, nx=4, ny=3) if dim == 2 else MakeStructured3DMesh(hexes=False, nx=2, ny=2, nz=2)
+    K, points, comp, node, _ = _elasticity(mesh)
+    R = rigid_body_modes(points, comp)
+    assert R.shape == (K.shape[0], 3 if dim == 2 else 6)
+    assert np.linalg.matrix_rank(R) == R.shape[1]
+    assert np.abs(K @ R).max() <= 1e-12 * abs(K).max() * np.abs(R).max()
+    blocks = node_blocks(node, comp, dim)
+    assert blocks.shape == (mesh.nv, dim) and np.all(comp[blocks] == np.arange(dim))
+
+
+def test_node_blocks_refuses_a_node_with_a_missing_component():
+    node, comp = np.array([0, 0, 1]), np.array([0, 1, 1])
+    assert node_blocks(node, comp, 2) is None
+
+
+@pytest.mark.parametrize("blocksize", [1, 2])
+def test_pencil_matrix_is_k_plus_rho_d_with_explicit_zeros_kept(blocksize):
+    rng = np.random.default_rng(0)
+    K = sp.random(30, 30, 0.2, random_state=1, format="csr")
+    K = (K + K.T).tocsr()
+    K.data[::5] = 0.0                                   # explicit zeros, as NGSolve matrices hold
+    D = sp.diags(rng.uniform(0, 1, 30) * (rng.uniform(size=30) < 0.3)).tocsr()
+    pencil = PencilMatrix(K, D, blocksize)
+    for rho in (0.5, 1e4):
+        assert abs(pencil.at(rho) - (K + rho * D)).max() == 0.0
+
+
+def _poisson_pair(n=40):
+    """K = 2D Laplacian + small mass (SPD), D = diagonal on one edge (a Robin-like penalty)."""
+    lap = sp.diags([-1.0, 2.0, -1.0], [-1, 0, 1], shape=(n, n))
+    K = (sp.kron(lap, sp.eye(n)) + sp.kron(sp.eye(n), lap) + 1e-3 * sp.eye(n * n)).tocsr()
+    d = np.zeros(n * n)
+    d[:n] = 1.0
+    return K, sp.diags(d).tocsr()
+
+
+@pytest.mark.parametrize("reuse", ["auto", "keep", "galerkin", "rebuild"])
+def test_solves_match_the_direct_solver_across_rho_changes(reuse):
+    K, D = _poisson_pair()
+    solver = IterativeXSolver(K, D, reuse=reuse, tol=1e-10)
+    rng = np.random.default_rng(1)
+    rhos = [1.0, 1.0, 50.0, 50.0, 2500.0, 1.0]
+    for rho in rhos:
+        b = rng.normal(size=K.shape[0])
+        x = solver.solve(rho, b)
+        exact = spla.spsolve((K + rho * D).tocsc(), b)
+        A = K + rho * D
+        err = math.sqrt((x - exact) @ (A @ (x - exact)) / (exact @ (A @ exact)))
+        assert err <= 1e-8
+    counts = solver.counters()
+    changes = 3  # 1 -> 50 -> 2500 -> 1
+    assert counts["solves"] == len(rhos) and counts["cg_unconverged"] == 0
+    if reuse == "rebuild":
+        assert counts["amg_setups"] == 1 + changes and counts["amg_refreshes"] == 0
+    elif reuse == "galerkin":
+        assert counts["amg_setups"] == 1 and counts["amg_refreshes"] == changes
+    elif reuse == "keep":
+        assert counts["amg_setups"] == 1 and counts["amg_refreshes"] == 0
+
+
+def test_galerkin_refresh_recomputes_every_coarse_operator():
+    K, D = _poisson_pair(30)
+    solver = IterativeXSolver(K, D, reuse="galerkin", tol=1e-8)
+    solver.solve(1.0, np.ones(K.shape[0]))
+    solver.solve(300.0, np.ones(K.shape[0]))
+    levels = solver._amg.ml.levels
+    assert len(levels) >= 2
+    assert abs(levels[0].A - (K + 300.0 * D)).max() <= 1e-12
+    for fine, coarse in zip(levels[:-1], levels[1:]):
+        assert abs(coarse.A - fine.R @ fine.A @ fine.P).max() <= 1e-10 * abs(coarse.A).max()
+
+
+def test_projection_reproduces_combinations_of_earlier_solutions():
+    """Fischer's projection: a right-hand side in the span of earlier ones needs no CG iteration,
+    for the same rho and (through Q'KQ + rho Q'DQ) for another rho."""
+    K, D = _poisson_pair(20)
+    rng = np.random.default_rng(2)
+    space = SolutionSpace(K, D, 4)
+    for rho in (3.0, 40.0):
+        A = (K + rho * D).tocsc()
+        x1, x2 = rng.normal(size=K.shape[0]), rng.normal(size=K.shape[0])
+        space.m = 0
+        space.add(x1)
+        space.add(x2)
+        guess = space.guess(rho, A @ (x1 - 2 * x2))
+        assert np.allclose(guess, x1 - 2 * x2, rtol=0, atol=1e-9 * np.abs(x1).max())
+    solver = IterativeXSolver(K, D, tol=1e-9)
+    b1, b2 = rng.normal(size=K.shape[0]), rng.normal(size=K.shape[0])
+    solver.solve(5.0, b1)
+    solver.solve(5.0, b2)
+    solver.solve(5.0, 0.3 * b1 + b2)
+    assert solver.last["iterations"] == 0
+
+
+def test_adaptive_inner_tolerance_follows_the_outer_change_and_a_summable_cap():
+    K, D = _poisson_pair(20)
+    solver = IterativeXSolver(K, D, kappa=0.1, tol0=0.1, tol_min=1e-12)
+    assert solver.inner_tolerance() == pytest.approx(0.1)                  # no history: the cap
+    b = np.ones(K.shape[0])
+    tols = []
+    for scale in (1.0, 1.5, 1.6, 1.61, 1.611):                            # outer change shrinking
+        tols.append(solver.inner_tolerance())
+        solver.solve(1.0, scale * b)
+    for k, tol in enumerate(tols):
+        assert tol <= 0.1 / (k + 1) ** 1.1 + 1e-15
+    assert tols[-1] < 1e-3 and tols[-1] >= 1e-12
+    # when the outer change is large, the cap decides; when it is small, kappa * change does
+    delta = np.linalg.norm(solver._x_prev - solver._x_prev2) / np.linalg.norm(solver._x_prev)
+    assert solver.inner_tolerance() == pytest.approx(max(1e-12, min(0.1 * delta, 0.1 / 6 ** 1.1)))
+
+
+@pytest.mark.parametrize("bad", [dict(reuse="sometimes"), dict(tol=0.0), dict(tol="loose"), dict(projection=-1),
+                                 dict(maxiter=0), dict(kappa=-1.0), dict(blocks=np.zeros((2, 2), dtype=int))])
+def test_bad_options_are_refused(bad):
+    K, D = _poisson_pair(4)
+    with pytest.raises(ValueError):
+        IterativeXSolver(K, D, **bad)
+
+
+def test_bad_solve_input_is_refused():
+    K, D = _poisson_pair(4)
+    solver = IterativeXSolver(K, D)
+    with pytest.raises(ValueError, match="rho"):
+        solver.solve(0.0, np.ones(16))
+    with pytest.raises(ValueError, match="rhs"):
+        solver.solve(1.0, np.ones(15))
+    with pytest.raises(ValueError, match="finite"):
+        solver.solve(1.0, np.full(16, np.nan))
+
+
+# ---------------------------------------------------------------- the contact and obstacle plug-ins
+@pytest.fixture(scope="module")
+def ex2_ops():
+    return assemble(example2(h=1 / 20))
+
+
+def test_contact_iterative_mode_matches_the_direct_solver(ex2_ops):
+    """SADMM with AMG-CG x-steps ends at the direct solver's answer (both run to a tight stop)."""
+    stop = RelativeChange(1e-9)
+    full = solve_scene(ex2_ops, "sadmm", rho=1e3, mode="full", stop=stop)
+    it = solve_scene(ex2_ops, "sadmm", rho=1e3, mode="iterative", stop=stop)
+    assert full.result.converged and it.result.converged and it.mode == "iterative"
+    K = ex2_ops.K
+    energy = lambda u: math.sqrt(u @ (K @ u))  # noqa: E731
+    assert energy(it.u - full.u) <= 1e-7 * energy(full.u)
+    assert np.abs(it.pressure - full.pressure).max() <= 1e-5 * np.abs(full.pressure).max()
+    assert it.result.counters["cg_unconverged"] == 0
+    assert it.result.counters["amg_setups"] == 1          # rho changes reuse the hierarchy
+
+
+def test_contact_iterative_mode_at_the_papers_tolerance_needs_the_same_iterations(ex2_ops):
+    full = solve_scene(ex2_ops, "sadmm", rho=1e3, mode="full")
+    it = solve_scene(ex2_ops, "sadmm", rho=1e3, mode="iterative")
+    assert abs(it.result.iterations - full.result.iterations) <= 2
+    kkt = it.result.kkt
+    assert kkt["penetration"] <= 1e-3 * ex2_ops.g.max() and kkt["stationarity"] <= 1e-3
+    # early x-steps are cheap: on average fewer than 4 CG iterations per x-step
+    assert it.result.counters["cg_iterations"] <= 4 * it.result.iterations
+
+
+def test_contact_iterative_mode_in_the_loop_uses_loose_early_tolerances():
+    ops = assemble(example1(h=1 / 20))
+    problem = contact_problem(ops, "iterative")
+    tols = []
+    admmkit.solve(problem, rho=1e3, policy=policies.Summable(tau=2, c_max=100), order="zx",
+                  callback=lambda rec: tols.append(problem.solver.last["tol"]))
+    assert tols[0] >= 1e-2 and tols[-1] <= 1e-5
+    assert tols[-1] < tols[0] / 100
+
+
+def test_obstacle_iterative_backend_matches_the_direct_one():
+    from problems.obstacle import make_problem
+    from problems.obstacle.scene import scene
+    stop = RelativeChange(1e-10)
+    results = {}
+    for backend in ("superlu", "iterative"):
+        problem = make_problem(scene("radial", h=1 / 16), backend=backend)
+        results[backend] = admmkit.solve(problem, rho=1.0, policy="summable", order="zx", stop=stop, max_iter=5000)
+    a, b = results["superlu"], results["iterative"]
+    assert a.converged and b.converged
+    assert np.abs(a.x - b.x).max() <= 1e-7 * np.abs(a.x).max()
+    assert "cg_iterations" in b.counters
+
+
+# ---------------------------------------------------------------- the array-built structured mesh
+@pytest.mark.parametrize("L, H, h", [(2.0, 1.0, 1 / 10), (3.0, 1.0, 1 / 7), (1.0, 2.0, 0.5)])
+def test_structured_rectangle_is_makestructured2dmesh(L, H, h):
+    """problems.contact.mesh.structured_rectangle (arrays) builds MakeStructured2DMesh's mesh exactly,
+    so the assembled operators of the paper's examples are bit-for-bit unchanged."""
+    from problems.contact.mesh import grid_counts, structured_rectangle
+    nx, ny = grid_counts(L, H, h)
+    ref = MakeStructured2DMesh(quads=False, nx=nx, ny=ny, flip_triangles=True, mapping=lambda x, y: (L * x, H * y))
+    new = structured_rectangle(L, H, h)
+    assert np.array_equal(np.array(ref.ngmesh.Coordinates()), np.array(new.ngmesh.Coordinates()))
+    for kind in ("Elements2D", "Elements1D"):
+        a = [(e.index, [v.nr for v in e.vertices]) for e in getattr(ref.ngmesh, kind)()]
+        b = [(e.index, [v.nr for v in e.vertices]) for e in getattr(new.ngmesh, kind)()]
+        assert a == b
+    assert ref.GetBoundaries() == new.GetBoundaries() and ref.GetMaterials() == new.GetMaterials()
+    Ka, _, _, _, _ = _elasticity(ref, "left")
+    Kb, _, _, _, _ = _elasticity(new, "left")
+    assert (Ka != Kb).nnz == 0
