@@ -112,6 +112,11 @@ def _list_unlisted_pages(app, docname, source):
         source[0] += "\n```{toctree}\n:caption: More\n:maxdepth: 1\n\n" + "\n".join(pages) + "\n```\n"
 
 
+def _reread_index(app, env, added, changed, removed):
+    """Re-read the index on every build, so that its "More" toctree sees new pages."""
+    return ["index"]
+
+
 def _napoleon_except_attributes(app, what, name, obj, options, lines):
     """Napoleon for functions, classes and modules; attribute and property docstrings stay prose.
 
@@ -126,6 +131,7 @@ def _napoleon_except_attributes(app, what, name, obj, options, lines):
 def setup(app):
     """Sphinx hook: the index's "More" toctree, the local MathJax, napoleon without the attribute parsing."""
     app.connect("source-read", _list_unlisted_pages)
+    app.connect("env-get-outdated", _reread_index)
     app.connect("build-finished", _copy_mathjax)
     for listener in list(app.events.listeners.get("autodoc-process-docstring", [])):
         if listener.handler is napoleon._process_docstring:
