@@ -117,9 +117,10 @@ class _SuperLUSchur:
             raise np.linalg.LinAlgError(f"K is singular (is the body clamped?): {err}") from None
         t2 = time.perf_counter()
         m = contact.size
-        L_cc = sp.csc_matrix(self._lu.L)[:, -m:][-m:, :].toarray()
+        # no pivoting and K symmetric: L = U' D^{-1} with D = diag(U), so S = L_cc U_cc = U_cc' D_c^{-1} U_cc
+        # (reading U alone halves the copy of the factors, which scipy only gives whole)
         U_cc = sp.csc_matrix(self._lu.U)[:, -m:][-m:, :].toarray()
-        self.S = L_cc @ U_cc                            # S = L_cc U_cc
+        self.S = U_cc.T @ (U_cc / np.diag(U_cc)[:, None])
         timings.update(ordering=t1 - t0, factorisation=t2 - t1, schur=time.perf_counter() - t2)
 
     def solve_permuted(self, b: np.ndarray) -> np.ndarray:
