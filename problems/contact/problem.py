@@ -31,6 +31,8 @@ Two modes give the same iterates (to round-off):
 """
 from __future__ import annotations
 
+from collections import deque
+
 import numpy as np
 import scipy.linalg as sla
 import scipy.sparse as sp
@@ -140,6 +142,7 @@ class CondensedContact(_ContactBase):
         self.e0 = float(ops.f @ u0)                # ||u0||_K^2
         self.C = self.schur.compliance(ops.B)      # B K^{-1} B'
         self._cholesky: dict[float, tuple] = {}
+        self._recent_Cw: deque = deque(maxlen=2)  # (x, C w) of the last x-steps: one C-matvec per iteration
         self.factorizations = 0
         self.solves = 0
 
@@ -150,17 +153,33 @@ class CondensedContact(_ContactBase):
             self._cholesky[key] = sla.cho_factor(np.diag(1.0 / self.mc) + rho * self.C)
             self.factorizations += 1
         self.solves += 1
-        w = sla.cho_solve(self._cholesky[key], rho * z - lam - rho * self.d0)
-        return np.concatenate(([1.0], w))
+        # no finiteness check of the n_c x n_c factor per solve (0.25 ms at n_c = 600): the loop checks the iterates
+        w = sla.cho_solve(self._cholesky[key], rho * z - lam - rho * self.d0, check_finite=False)
+        x_new = np.concatenate(([1.0], w))
+        self._recent_Cw.append((x_new, self.C @ w))
+        return x_new
+
+    def _Cw(self, x):
+        """C w for x = (s, w), reused when x is one of the last x-step results."""
+        for x_seen, Cw in self._recent_Cw:
+            if x_seen is x:
+                return Cw
+        return self.C @ x[1:]
 
     def apply_A(self, x):
         """u_n = s d0 + C w."""
-        return x[0] * self.d0 + self.C @ x[1:]
+        return x[0] * self.d0 + self._Cw(x)
 
     def x_norm(self, x):
         """||u||_K with u'Ku = s^2 e0 + 2 s d0'w + w'Cw."""
         s, w = x[0], x[1:]
-        return float(np.sqrt(max(s * s * self.e0 + 2 * s * (self.d0 @ w) + w @ (self.C @ w), 0.0)))
+        return float(np.sqrt(max(s * s * self.e0 + 2 * s * (self.d0 @ w) + w @ self._Cw(x), 0.0)))
+
+    def x_distance(self, x, y):
+        """||u_x - u_y||_K, from the cached C w of both (no n_c x n_c product)."""
+        ds, dw = x[0] - y[0], x[1:] - y[1:]
+        dCw = self._Cw(x) - self._Cw(y)
+        return float(np.sqrt(max(ds * ds * self.e0 + 2 * ds * (self.d0 @ dw) + dw @ dCw, 0.0)))
 
     def finalize(self, x):
         """The full displacement u = K^{-1}(s f + B'w): one solve, once."""
