@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, fields
+from typing import Callable
 
 import numpy as np
 
@@ -25,7 +26,11 @@ class IterationRecord:
     - ``primal_unit``, ``dual_unit``  the norms of the all-ones vector of the
       spaces the residuals live in (Boyd's sqrt(p), sqrt(n))
 
-    The vectors are read-only views of the new iterates.
+    The vectors are read-only views of the new iterates; ``z_prev`` and
+    ``Ax_prev`` are those of the previous iterate (z^k, A x^k) and ``inner``
+    is the problem's (., .)_M (None: Euclidean, for hand-made records).
+    From them the record gives the multiplier of each block's optimality
+    condition (:attr:`lam_x`, :attr:`lam_z`), which spectral rules need.
     """
 
     k: int
@@ -47,6 +52,41 @@ class IterationRecord:
     z: np.ndarray
     lam: np.ndarray
     Ax: np.ndarray
+    z_prev: np.ndarray | None = None
+    Ax_prev: np.ndarray | None = None
+    inner: Callable[[np.ndarray, np.ndarray], float] | None = None
+
+    def dot(self, a: np.ndarray, b: np.ndarray) -> float:
+        """(a, b)_M, the problem's inner product of the constraint space (Euclidean if not given)."""
+        return float(np.dot(a, b)) if self.inner is None else float(self.inner(a, b))
+
+    @property
+    def lam_x(self) -> np.ndarray:
+        """The multiplier of the x-step's optimality condition: -A^T M lam_x in the subdifferential of f at x^{k+1}.
+
+        Order "zx" (x-step last): lam^{k+1}.  Order "xz": the x-step used z^k, so
+        lam_x = lam^k + rho (A x^{k+1} - z^k - c) = lam^{k+1} + rho (z^{k+1} - z^k)
+        (Xu, Figueiredo & Goldstein 2017's "hat" multiplier).  Needs ``z_prev``.
+        """
+        if self.order == "zx":
+            return self.lam
+        if self.z_prev is None:
+            raise ValueError("lam_x of an order 'xz' record needs z_prev (the previous z)")
+        return self.lam + self.rho * (self.z - self.z_prev)
+
+    @property
+    def lam_z(self) -> np.ndarray:
+        """The multiplier of the z-step's optimality condition: M lam_z in the subdifferential of g at z^{k+1}.
+
+        Order "xz" (z-step last): lam^{k+1}.  Order "zx": the z-step used A x^k, so
+        lam_z = lam^k + rho (A x^k - z^{k+1} - c) = lam^{k+1} - rho (A x^{k+1} - A x^k).
+        Needs ``Ax_prev``.
+        """
+        if self.order == "xz":
+            return self.lam
+        if self.Ax_prev is None:
+            raise ValueError("lam_z of an order 'zx' record needs Ax_prev (the previous A x)")
+        return self.lam - self.rho * (self.Ax - self.Ax_prev)
 
     @property
     def rel_change(self) -> float:

@@ -180,6 +180,7 @@ def solve(
             dual_scale=dual_scale, primal_unit=primal_unit, dual_unit=dual_unit,
             time=time.perf_counter() - start,
             x=_readonly(x_new), z=_readonly(z_new), lam=_readonly(lam_new), Ax=_readonly(Ax_new),
+            z_prev=_readonly(z), Ax_prev=_readonly(Ax), inner=problem.inner,
         )
         timings["residuals"] += time.perf_counter() - t0
         x, z, lam, Ax = x_new, z_new, lam_new, Ax_new

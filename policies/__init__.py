@@ -4,7 +4,13 @@ Importing this package registers every rule by name, so that
 ``admmkit.solve(problem, policy="summable")`` and ``admmkit.make_policy`` find them.
 """
 from .fixed import Fixed
+from .osqp_rule import OSQPRule
+from .quantized import Quantized
 from .residual_balancing import ResidualBalancing
+from .spectral import Spectral
 from .summable import Summable
+from .summable_steps import SummableSteps
+from .wohlberg import Wohlberg
 
-__all__ = ["Fixed", "ResidualBalancing", "Summable"]
+__all__ = ["Fixed", "ResidualBalancing", "Summable", "Wohlberg", "OSQPRule", "Spectral", "SummableSteps",
+           "Quantized"]
