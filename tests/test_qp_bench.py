@@ -1,0 +1,129 @@
+"""The QP policy benchmark: OSQP's termination test, the statistics, and a smoke run on tiny MAT files.
+
+The tests that read the Maros-Meszaros set skip when ../shared/data/maros_meszaros is absent.
+"""
+import csv
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+import scipy.io
+import scipy.sparse as sp
+
+import admmkit
+import policies  # noqa: F401
+from problems.qp import load_mat, random_qp
+from problems.qp.bench import (performance_profile, run_benchmark, run_osqp, shifted_geometric_mean, skip_reason,
+                               summarize)
+from problems.qp.reference import solve_with_cvxpy
+from problems.qp.termination import OSQPTermination, osqp_relative_residuals, osqp_residuals, osqp_satisfied
+
+MM = Path(__file__).resolve().parents[2] / "shared" / "data" / "maros_meszaros"
+needs_mm = pytest.mark.skipif(not MM.is_dir(), reason=f"Maros-Meszaros data not found at {MM}")
+
+
+def save_mat(qp, path):
+    l = np.where(np.isfinite(qp.l), qp.l, -1e20)
+    u = np.where(np.isfinite(qp.u), qp.u, 1e20)
+    scipy.io.savemat(str(path), {"P": qp.P, "q": qp.q, "A": qp.A, "l": l, "u": u, "r": qp.r})
+
+
+@pytest.mark.parametrize("order", ["xz", "zx"])
+def test_osqp_termination_certifies_the_cvxpy_solution(order):
+    qp = random_qp(30, 45, kind="mixed", seed=2)
+    x_ref, lam_ref, _ = solve_with_cvxpy(qp)
+    stop = OSQPTermination(qp, eps=(1e-3, 1e-6))
+    recs = []
+    res = admmkit.solve(qp, rho=0.1, policy="wohlberg", order=order, stop=stop, max_iter=20_000,
+                        callback=recs.append)
+    assert res.converged and set(stop.met) == {1e-3, 1e-6}
+    assert stop.met[1e-3][0] <= stop.met[1e-6][0] == res.iterations
+    assert np.linalg.norm(res.x - x_ref) <= 1e-4 * max(1.0, np.linalg.norm(x_ref))
+    # the reference itself passes the test, a perturbed point does not
+    Ax = qp.A @ x_ref
+    assert osqp_satisfied(osqp_residuals(qp, x_ref, np.clip(Ax, qp.l, qp.u), lam_ref), 1e-6)
+    assert not osqp_satisfied(osqp_residuals(qp, x_ref + 0.1, np.clip(Ax, qp.l, qp.u), lam_ref), 1e-3)
+    r, s = osqp_relative_residuals(qp)(recs[-1])       # the last record before the stop
+    assert 0 <= r < 1e-5 and 0 <= s < 1e-5
+
+
+def test_statistics():
+    assert shifted_geometric_mean([10.0, 40.0]) == pytest.approx(math.sqrt(20 * 50) - 10)
+    assert shifted_geometric_mean([0.0, 0.0]) == pytest.approx(0.0)
+    rows = [dict(problem=p, solver=s, order="xz", eps=1e-3, solved=ok, iterations=it, time=t, factorizations=1,
+                 rho_max=1.0, status="solved" if ok else "max_iter")
+            for p, s, ok, it, t in [("a", "s1", True, 10, 1.0), ("a", "s2", True, 20, 4.0),
+                                    ("b", "s1", False, 100, 9.0), ("b", "s2", True, 50, 2.0)]]
+    prof = performance_profile(rows, "time", 1e-3)
+    taus, frac = prof[("s1", "xz")]
+    assert frac[0] == 0.5 and frac[-1] == 0.5            # best on a, fails b
+    taus, frac = prof[("s2", "xz")]
+    assert frac[0] == 0.5 and frac[np.searchsorted(taus, 4.0)] == 1.0
+    summary = {(s["solver"]): s for s in summarize(rows, max_iter=100, time_limit=10.0)}
+    assert summary["s1"]["rate"] == 0.5 and summary["s1"]["failures"] == {"max_iter": 1}
+    assert summary["s1"]["sgm_time"] == pytest.approx(math.sqrt(11 * 20) - 10)
+
+
+def test_osqp_direct_run():
+    qp = random_qp(20, 30, kind="mixed", seed=1)
+    row = run_osqp(qp, 1e-6)
+    assert row["solved"] and row["solver"] == "OSQP" and row["iterations"] >= 1
+    assert row["primal_res"] < 1e-4 and row["dual_res"] < 1e-4
+
+
+def test_benchmark_smoke(tmp_path, capsys):
+    data = tmp_path / "data"
+    data.mkdir()
+    save_mat(random_qp(15, 20, kind="mixed", seed=1), data / "RAND1.mat")
+    save_mat(random_qp(10, 12, kind="inequality", seed=2), data / "RAND2.mat")
+    dense = random_qp(40, 5, kind="equality", seed=3)
+    dense.A = sp.csc_matrix(np.ones((5, 40)))             # dense rows: A'A is full (bound 5 x 40^2 + nnz P)
+    dense.l, dense.u = np.full(5, -1.0), np.full(5, 1.0)
+    save_mat(dense, data / "DENSE.mat")
+    assert skip_reason(data / "DENSE.mat", nnz_limit=3000) is not None
+    out = tmp_path / "out"
+    from problems.cli import main
+    code = main(["bench", "qp", "--data", str(data), "--out", str(out), "--policies", "wohlberg,osqp_qp",
+                 "--max-iter", "3000", "--time-limit", "5", "--quiet"])
+    assert code == 0
+    for name in ("README.md", "results.csv", "summary.csv", "profiles.png", "profiles.svg"):
+        assert (out / name).stat().st_size > 0, name
+    with (out / "results.csv").open() as fh:
+        rows = list(csv.DictReader(fh))
+    # 3 problems (the dense one runs here: its bound is small) x (2 rules x 2 orders + OSQP) x 2 accuracies
+    assert len(rows) == 3 * 5 * 2
+    assert {r["solver"] for r in rows} == {"wohlberg", "osqp_qp", "OSQP"}
+    text = (out / "README.md").read_text()
+    assert "admmkit bench qp --data" in text and "## eps = 1e-06" in text and "## Skipped" in text
+    # a low fill limit lists the dense problem as skipped, with the reason
+    res = run_benchmark(data, tmp_path / "out2", policy_names=["aadmm"], orders=["zx"], max_iter=500,
+                        time_limit=5.0, nnz_limit=3000, osqp_direct=False, progress=False)
+    assert set(res["skipped"]) == {"DENSE"} and "DENSE" in (tmp_path / "out2" / "README.md").read_text()
+    assert {r["problem"] for r in res["rows"]} == {"RAND1", "RAND2"}
+
+
+def test_benchmark_bad_input(tmp_path):
+    with pytest.raises(ValueError, match="workers must be 1 or 2"):
+        run_benchmark(tmp_path, tmp_path / "o", workers=3)
+    with pytest.raises(ValueError, match="unknown policies"):
+        run_benchmark(tmp_path, tmp_path / "o", policy_names=["nope"])
+    with pytest.raises(FileNotFoundError):
+        run_benchmark(tmp_path / "missing", tmp_path / "o")
+
+
+@needs_mm
+def test_maros_meszaros_hs35_against_cvxpy():
+    qp = load_mat(MM / "HS35.mat")
+    x_ref, _, obj_ref = solve_with_cvxpy(qp)
+    for name in ("wohlberg", "osqp", "aadmm", "summable_steps", "quantized"):
+        stop = OSQPTermination(qp, 1e-6)
+        res = admmkit.solve(qp, rho=0.1, policy=name, order="zx", stop=stop, max_iter=5000)
+        assert res.converged, name
+        assert abs(res.objective - obj_ref) <= 1e-4 * max(1.0, abs(obj_ref)), name
+
+
+@needs_mm
+def test_maros_meszaros_skips_the_dense_row_problems():
+    assert skip_reason(MM / "BOYD1.mat") is not None
+    assert skip_reason(MM / "HS21.mat") is None
