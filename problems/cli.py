@@ -25,7 +25,7 @@ import policies  # noqa: F401  (registers the built-in rules)
 from admmkit import RelativeChange, ResidualTolerance
 
 #: command-line plug-ins (solve / bench / other commands); a missing one is skipped
-PLUGINS = ("problems.qp.cli", "problems.contact.cli", "problems.obstacle.cli", "problems.benchmarks.cli")
+PLUGINS = ("problems.qp.cli", "problems.contact.cli", "problems.obstacle.cli", "problems.benchmarks.cli", "problems.contact.cli_scale")
 
 
 def positive_float(text: str) -> float:

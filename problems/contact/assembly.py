@@ -27,7 +27,7 @@ class ContactOperators:
     mc: np.ndarray            # (n_c,) lumped boundary mass (quadrature weights) on Gamma_C
     g: np.ndarray             # (n_c,) gap at the contact nodes
     xc: np.ndarray            # (n_c, 2) contact node coordinates
-    normals: np.ndarray       # (n_c, 2) outward unit normals at the contact nodes
+    normals: np.ndarray       # (n_c, 2) unit directions of u.n (the body's outward normals or scene.contact_normal)
     free: np.ndarray          # (n_free,) indices of the free dofs in the full dof vector
     mesh: ng.Mesh
     fes: ng.comp.FESpace
@@ -169,6 +169,8 @@ def assemble(scene: Scene) -> ContactOperators:
         if label not in known:
             raise ValueError(f"unknown boundary label {label!r}; known labels: {', '.join(sorted(known))}")
     nodes, xc, mc, normals = contact_nodes(mesh, scene)
+    if scene.contact_normal is not None:   # a flat obstacle's fixed direction instead of the body's normals
+        normals = np.tile(np.asarray(scene.contact_normal, dtype=float), (len(xc), 1))
     g = np.array([scene.gap_at(x, y) for x, y in xc])
     if not np.all(np.isfinite(g)):
         raise ValueError(f"gap: not finite at the contact nodes {xc[~np.isfinite(g)].tolist()}")

@@ -109,6 +109,10 @@ class Scene:
     labels are traction free; contact u.n <= g on ``contact``; tangentially either
     sigma_t = 0 (``"frictionless"``) or u_t = 0 (``"stick"``, the paper's eq. (1)).
     ``gap`` and ``body_force`` likewise accept numbers, callables or expressions in x, y.
+    ``contact_normal``: None measures u.n along the body's outward normal at each contact
+    node; a pair (nx, ny) measures it along that fixed direction instead, the outward
+    normal of a flat obstacle (e.g. (0, -1) for the plane below a curved body, as in Hertz
+    contact; g is then the distance to the obstacle along it).
     """
 
     L: float = 1.0
@@ -126,6 +130,7 @@ class Scene:
     tangential: str = "frictionless"
     geometry: Any = None
     name: str = ""
+    contact_normal: Any = None
 
     def __post_init__(self):
         set_ = lambda k, v: object.__setattr__(self, k, v)  # noqa: E731 (frozen)
@@ -136,6 +141,8 @@ class Scene:
         if self.body_force is not None:
             set_("body_force", _traction(self.body_force, "body_force"))
         set_("gap", _as_func(self.gap, "gap"))
+        if self.contact_normal is not None:
+            set_("contact_normal", _unit_pair(self.contact_normal, "contact_normal"))
         self.validate()
 
     # -- derived quantities
@@ -217,6 +224,16 @@ def _finite_positive(value, name: str, accepted: str) -> None:
         raise ValueError(f"{name} = {value!r} is outside the accepted range {accepted}")
 
 
+def _unit_pair(value, name: str) -> tuple[float, float]:
+    """A pair of finite numbers, not both zero, scaled to unit length."""
+    ok = isinstance(value, (list, tuple)) and len(value) == 2 and all(
+        isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in value)
+    norm = math.hypot(*value) if ok else 0.0
+    if not ok or norm == 0.0:
+        raise ValueError(f"{name} = {value!r}; accepted: None or a pair (nx, ny) of finite numbers, not both 0")
+    return (value[0] / norm, value[1] / norm)
+
+
 def _edge_points(label: str, L: float, H: float, n: int = 21):
     """n points along one side of the rectangle."""
     t = [i / (n - 1) for i in range(n)]
@@ -282,6 +299,7 @@ _TOML_KEYS = {  # key: (accepted types, description)
     "contact": ((str,), "a label"),
     "gap": ((int, float, str), "a number or an expression in x, y"),
     "tangential": ((str,), "'frictionless' or 'stick'"),
+    "contact_normal": ((list,), "a pair [nx, ny]"),
 }
 _REQUIRED = ("L", "H", "E", "nu", "dirichlet", "contact", "gap")
 
@@ -314,6 +332,8 @@ def load_scene(path, **changes) -> Scene:
             raise ValueError(f"{path}: key 'tractions.{label}' must be a pair [tx, ty], got {t!r}")
     if "dirichlet" in data and isinstance(data["dirichlet"], list):
         data["dirichlet"] = tuple(data["dirichlet"])
+    if "contact_normal" in data:
+        data["contact_normal"] = tuple(data["contact_normal"])
     try:
         return Scene(**(data | changes))
     except ValueError as err:
