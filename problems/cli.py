@@ -25,7 +25,8 @@ import policies  # noqa: F401  (registers the built-in rules)
 from admmkit import RelativeChange, ResidualTolerance
 
 #: command-line plug-ins (solve / bench / other commands); a missing one is skipped
-PLUGINS = ("problems.qp.cli", "problems.contact.cli", "problems.obstacle.cli", "problems.benchmarks.cli", "problems.contact.cli_scale")
+PLUGINS = ("problems.qp.cli", "problems.contact.cli", "problems.obstacle.cli", "problems.benchmarks.cli", "problems.contact.cli_scale",
+           "problems.policy_sweep")
 
 
 def positive_float(text: str) -> float:

@@ -1,0 +1,219 @@
+"""Penalty rules on the finite element problems across rho_0: ``admmkit bench policies``.
+
+    admmkit bench policies [--out docs/results/policies_fe] [--quick]
+
+For contact Example 1 (h = 1/20, condensed mode) and the radial obstacle
+(h = 1/16), every rule of :data:`RULES` in both orders from rho_0 = 10^j over
+12 decades (13 values; 1e-4 ... 1e8 for contact, whose stiffness E = 2000
+puts good penalties near 1e3, and 1e-6 ... 1e6 for the obstacle).
+
+Each run stops when the relative error against a reference solution of the
+same discrete problem (cvxpy + Clarabel) is at most 1e-6, in the problem's
+x norm (energy norm of u for contact, lumped L2 for the obstacle), or at the
+cap: this measures the rules, not a stopping rule.  Reported: those
+iterations, the factorisations of the x-step matrix until then, and, from the
+same run (a stopping rule does not change the iterates), the iteration at
+which the paper's rule (relative change 1e-5) would have fired and the error
+there.  Writes README.md (tables), sweep.csv and sweep.png/.svg.
+"""
+from __future__ import annotations
+
+import csv
+import math
+import time
+from pathlib import Path
+
+import numpy as np
+
+import admmkit
+import policies  # noqa: F401  (registers the rules)
+from admmkit import RelativeChange
+
+#: the rules of this table: the literature rules, the wrappers, and the paper's baselines
+RULES = ("fixed", "summable", "wohlberg", "osqp", "aadmm", "summable_steps", "quantized")
+ORDERS = ("xz", "zx")
+MAX_ITER = 20_000
+TOL = 1e-5          # the paper's relative-change tolerance
+ORACLE = 1e-6       # the stop: relative error against the reference
+
+
+def contact_case(h: float = 1 / 20):
+    """(name, make_problem, relative_error, rho_0 values) for contact Example 1 in the condensed mode."""
+    from problems.contact.assembly import assemble
+    from problems.contact.problem import contact_problem
+    from problems.contact.reproduce import energy_norm, reference_solution
+    from problems.contact.scene import example1
+    ops = assemble(example1(h))
+    ref = reference_solution(ops)
+    # the condensed iterate of the reference: u = K^{-1}(f + B'w) with w = -M_c lam (s = 1)
+    x_ref = np.concatenate(([1.0], -ops.mc * ref.lam))
+
+    def error(problem, x):
+        return problem.x_distance(x, x_ref) / problem.x_norm(x_ref)
+    return (f"contact Ex.1, h = 1/{round(1 / h)}", lambda: contact_problem(ops, mode="condensed"), error,
+            tuple(10.0 ** j for j in range(-4, 9)), "energy norm")
+
+
+def obstacle_case(h: float = 1 / 16):
+    """(name, make_problem, relative_error, rho_0 values) for the radial obstacle."""
+    from problems.obstacle.problem import make_problem, solve_with_cvxpy
+    from problems.obstacle.scene import radial
+    problem = make_problem(radial(h=h))
+    u_ref, _ = solve_with_cvxpy(problem, tol_gap_abs=1e-12, tol_gap_rel=1e-12, tol_feas=1e-12)
+    norm_ref = problem.norm(u_ref)
+
+    def error(problem, x):
+        return problem.norm(x - u_ref) / norm_ref
+    return (f"radial obstacle, h = 1/{round(1 / h)}", lambda: make_problem(radial(h=h)), error,
+            tuple(10.0 ** j for j in range(-6, 7)), "lumped L2 norm")
+
+
+def sweep(case, rules=RULES, orders=ORDERS, rhos=None, max_iter: int = MAX_ITER, progress: bool = True
+          ) -> list[dict]:
+    """Every rule x order x rho_0 on one case; one row per run (see the module docstring)."""
+    name, make, error, default_rhos, _ = case
+    rows = []
+    for rule in rules:
+        for order in orders:
+            t0 = time.perf_counter()
+            for rho0 in rhos or default_rhos:
+                problem = make()
+                paper = {}
+
+                def watch(rec, problem=problem, paper=paper):
+                    err = error(problem, rec.x)
+                    if not paper and rec.x_change <= TOL * rec.x_norm:
+                        paper.update(iterations=rec.k + 1, error=err)
+                    return err <= ORACLE
+                res = admmkit.solve(problem, rho=rho0, policy=rule, order=order, stop=RelativeChange(1e-300),
+                                    max_iter=max_iter, callback=watch)
+                rows.append({"case": name, "rule": rule, "order": order, "rho0": rho0,
+                             "reached": res.status.value == "stopped", "iterations": res.iterations,
+                             "factorizations": res.factorizations or 0, "rho_changes": res.rho_changes,
+                             "rho_final": res.rho, "paper_iterations": paper.get("iterations", math.nan),
+                             "paper_error": paper.get("error", math.nan)})
+            if progress:
+                sel = [r for r in rows if r["rule"] == rule and r["order"] == order]
+                print(f"  {name}: {rule:>15s} {order}  iterations {min(r['iterations'] for r in sel)}-"
+                      f"{max(r['iterations'] for r in sel)}  factorisations "
+                      f"{max(r['factorizations'] for r in sel)} max  ({time.perf_counter() - t0:.1f} s)", flush=True)
+    return rows
+
+
+def table(rows: list[dict], key: str) -> list[str]:
+    """Markdown table: one line per rule/order, one column per rho_0 (* = error 1e-6 not reached)."""
+    rhos = sorted({r["rho0"] for r in rows})
+    lines = ["| rule | order | " + " | ".join(f"{x:.0e}" for x in rhos) + " | max |",
+             "|---|---|" + "---|" * (len(rhos) + 1)]
+    for rule, order in dict.fromkeys((r["rule"], r["order"]) for r in rows):
+        sel = {r["rho0"]: r for r in rows if r["rule"] == rule and r["order"] == order}
+        cells = [f"{sel[x][key]}" + ("" if sel[x]["reached"] else "*") for x in rhos]
+        lines.append(f"| {rule} | {order} | " + " | ".join(cells) + f" | {max(sel[x][key] for x in rhos)} |")
+    return lines
+
+
+def markdown(results: dict, command: str, max_iter: int = MAX_ITER) -> str:
+    """The report: per case, the iteration and factorisation tables and the paper's rule's stop."""
+    out = ["# Penalty rules on the finite element problems across rho_0", "",
+           f"Command (from the repository root): `{command}`", "",
+           f"Each run stops when the relative error against the reference (cvxpy + Clarabel on the same discrete "
+           f"problem) is at most {ORACLE:g} in the problem's x norm, or at {max_iter} iterations (* = not reached).  "
+           "Each run builds a fresh problem, so the factorisations are those of this run (one per distinct rho: "
+           "the plug-ins cache them).  The last table is the paper's stopping rule (relative change "
+           f"{TOL:g}) in the same runs: where it would have fired and the error there.  Per-run data in "
+           "`sweep.csv`.", "", "![sweep](sweep.png)", ""]
+    for name, (rows, norm) in results.items():
+        out += [f"## {name}", "", f"**Iterations to a relative error of {ORACLE:g} ({norm})**", ""]
+        out += table(rows, "iterations")
+        out += ["", "**Factorisations until then**", ""] + table(rows, "factorizations")
+        out += ["", f"**The paper's rule (relative change {TOL:g}): worst error where it would have fired, over "
+                "rho_0**", "", "| rule | order | worst error | at rho_0 | fired at iteration | rho_final of that run |",
+                "|---|---|---|---|---|---|"]
+        for rule, order in dict.fromkeys((r["rule"], r["order"]) for r in rows):
+            sel = [r for r in rows if r["rule"] == rule and r["order"] == order and not math.isnan(r["paper_error"])]
+            if not sel:
+                out.append(f"| {rule} | {order} | never fired | - | - | - |")
+                continue
+            worst = max(sel, key=lambda r: r["paper_error"])
+            out.append(f"| {rule} | {order} | {worst['paper_error']:.1e} | {worst['rho0']:.0e} | "
+                       f"{worst['paper_iterations']} | {worst['rho_final']:.2e} |")
+        out.append("")
+    return "\n".join(out)
+
+
+def plot(results: dict, stem: Path) -> list[Path]:
+    """Iterations and factorisations against rho_0, one row of panels per case (PNG and SVG)."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    fig, axes = plt.subplots(len(results), 2, figsize=(12, 4.2 * len(results)), squeeze=False)
+    for i, (name, (rows, _)) in enumerate(results.items()):
+        rules = list(dict.fromkeys(r["rule"] for r in rows))
+        for j, key in enumerate(("iterations", "factorizations")):
+            ax = axes[i][j]
+            for c, rule in enumerate(rules):
+                for order, style in (("xz", "-"), ("zx", "--")):
+                    sel = sorted((r for r in rows if r["rule"] == rule and r["order"] == order),
+                                 key=lambda r: r["rho0"])
+                    if sel:
+                        ax.loglog([r["rho0"] for r in sel], [max(r[key], 1) for r in sel], style, marker="o",
+                                  markersize=3, color=plt.cm.tab10(c % 10), label=f"{rule} ({order})")
+            ax.set_xlabel("rho_0")
+            ax.set_ylabel(key)
+            ax.set_title(f"{name}: {key}")
+            ax.grid(True, which="both", alpha=0.3)
+    handles, labels = axes[0][0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="center right", fontsize=8, frameon=False)
+    fig.tight_layout(rect=(0, 0, 0.83, 1))
+    paths = []
+    for ext in ("png", "svg"):
+        paths.append(stem.with_suffix(f".{ext}"))
+        fig.savefig(paths[-1], dpi=110)
+    plt.close(fig)
+    return paths
+
+
+def run(out="docs/results/policies_fe", rules=RULES, quick: bool = False, command: str = "",
+        progress: bool = True, max_iter: int = MAX_ITER) -> dict:
+    """Run both cases (``quick``: coarser meshes, three rho_0, for the smoke test) and write the report."""
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    cases = [contact_case(1 / 10), obstacle_case(1 / 4)] if quick else [contact_case(), obstacle_case()]
+    results = {}
+    for case in cases:
+        rhos = (case[3][0], case[3][6], case[3][-1]) if quick else None
+        results[case[0]] = (sweep(case, rules=rules, rhos=rhos, max_iter=max_iter, progress=progress), case[4])
+    rows = [r for rs, _ in results.values() for r in rs]
+    with (out / "sweep.csv").open("w", newline="") as fh:
+        w = csv.DictWriter(fh, fieldnames=list(rows[0]))
+        w.writeheader()
+        w.writerows(rows)
+    plot(results, out / "sweep")
+    text = markdown(results, command, max_iter)
+    (out / "README.md").write_text(text)
+    if progress:
+        print(text)
+    return results
+
+
+def add_bench_parser(targets) -> None:
+    """Register ``bench policies``."""
+    b = targets.add_parser("policies", help="penalty rules on contact Ex.1 and the radial obstacle, rho_0 over 12 decades",
+                           description="Iterations, factorisations and the error at the stop of the penalty rules "
+                                       "on contact Example 1 (h = 1/20) and the radial obstacle (h = 1/16).")
+    b.add_argument("--out", default="docs/results/policies_fe", help="output folder (default docs/results/policies_fe)")
+    b.add_argument("--rules", default=",".join(RULES), help=f"comma-separated rules (default {','.join(RULES)})")
+    b.add_argument("--quick", action="store_true", help="coarse meshes and three rho_0 (smoke test)")
+    b.add_argument("--quiet", action="store_true", help="no progress lines")
+    b.set_defaults(func=_bench)
+
+
+def _bench(args) -> int:
+    rules = [r.strip() for r in args.rules.split(",") if r.strip()]
+    unknown = [r for r in rules if r not in admmkit.policy_names()]
+    if unknown:
+        raise ValueError(f"--rules: unknown {unknown}; known: {', '.join(admmkit.policy_names())}")
+    command = f"admmkit bench policies --out {args.out}" + (f" --rules {args.rules}" if args.rules != ",".join(RULES)
+                                                          else "") + (" --quick" if args.quick else "")
+    run(args.out, rules=rules, quick=args.quick, command=command, progress=not args.quiet)
+    return 0
