@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import os
 import re
-import shutil
 import sys
 from pathlib import Path
 
@@ -129,10 +128,9 @@ def _napoleon_except_attributes(app, what, name, obj, options, lines):
 
 
 def setup(app):
-    """Sphinx hook: the index's "More" toctree, the local MathJax, napoleon without the attribute parsing."""
+    """Sphinx hook: the index's "More" toctree; napoleon without the attribute parsing."""
     app.connect("source-read", _list_unlisted_pages)
     app.connect("env-get-outdated", _reread_index)
-    app.connect("build-finished", _copy_mathjax)
     for listener in list(app.events.listeners.get("autodoc-process-docstring", [])):
         if listener.handler is napoleon._process_docstring:
             app.disconnect(listener.id)
@@ -140,27 +138,15 @@ def setup(app):
 
 
 # ---------------------------------------------------------------- math
-# MathJax 2 from the jupyter-server-mathjax wheel (in the docs extra), copied
-# into the site, so that the formulas render offline too; the CDN otherwise.
+# MathJax 3 from the sphinx-mathjax-offline wheel (in the docs extra) is copied
+# into the site, so that the formulas render without a network too.
 try:
-    import jupyter_server_mathjax
+    import importlib.util
 
-    MATHJAX_STATIC = Path(jupyter_server_mathjax.__file__).parent / "static"
-except ImportError:  # pragma: no cover
-    MATHJAX_STATIC = None
-if MATHJAX_STATIC is not None and (MATHJAX_STATIC / "MathJax.js").is_file():
-    mathjax_path = "mathjax/MathJax.js?config=TeX-AMS-MML_HTMLorMML-full"
-    mathjax3_config = None
-    myst_update_mathjax = False      # MyST would add a MathJax 3 configuration
-    # process only the math that Sphinx/MyST mark (class "math"), as MyST does for MathJax 3
-    mathjax2_config = {"tex2jax": {"inlineMath": [["\\(", "\\)"]], "displayMath": [["\\[", "\\]"]],
-                                   "processClass": "math|output_area", "ignoreClass": "tex2jax_ignore|mathjax_ignore"}}
-
-
-def _copy_mathjax(app, exception):
-    """Copy the local MathJax into the built site (_static/mathjax)."""
-    if exception is None and app.builder.format == "html" and "mathjax_path" in globals():
-        shutil.copytree(MATHJAX_STATIC, Path(app.outdir) / "_static" / "mathjax", dirs_exist_ok=True)
+    if importlib.util.find_spec("sphinx-mathjax-offline") is not None:
+        extensions.append("sphinx-mathjax-offline")
+except (ImportError, ValueError):  # pragma: no cover - the CDN is used instead
+    pass
 
 
 # ---------------------------------------------------------------- HTML
