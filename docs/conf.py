@@ -82,7 +82,7 @@ nb_merge_streams = True
 
 # ---------------------------------------------------------------- API reference
 autodoc_member_order = "bysource"
-autodoc_typehints = "description"
+autodoc_typehints = "signature"
 autodoc_default_options = {"members": True, "show-inheritance": True}
 napoleon_google_docstring = False
 napoleon_numpy_docstring = True
@@ -94,6 +94,7 @@ nitpick_ignore_regex = [
     (r"py:class", r".*\._[A-Za-z]\w*"),  # private base classes (e.g. problems.contact.problem._ContactBase)
     (r"py:class", r"(optional|callable|array-like|array_like|int|float|str|bool|dict|list|tuple|None)"),
     (r"py:class", r"(Path|Callable|Mapping|Any|Iterable|Sequence|ndarray|spmatrix|csr_matrix)"),
+    (r"py:class", r"tuple\[.*"),  # Sphinx splits tuple[str, ...] at the Ellipsis
 ]
 
 # ---------------------------------------------------------------- navigation
