@@ -23,8 +23,8 @@ from contextlib import ExitStack
 from typing import Callable
 
 import numpy as np
-from threadpoolctl import threadpool_limits
 
+from .blas import limit_blas
 from .history import History
 from .policy import Policy, make_policy
 from .problem import Problem
@@ -132,7 +132,7 @@ def solve(
     rho_changes = 0
     limits = ExitStack()
     if blas_threads is not None:
-        limits.enter_context(threadpool_limits(blas_threads, user_api="blas"))
+        limits.enter_context(limit_blas(blas_threads))   # a cached controller: ~15 us, not 0.5 ms
     start = time.perf_counter()
     for k in range(max_iter):
         try:
