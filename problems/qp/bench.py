@@ -60,7 +60,7 @@ MAX_ITER = 20_000
 TIME_LIMIT = 10.0
 SHIFT = 10.0
 #: a wall-time cap of WALL_FACTOR x the (CPU) time limit, against a stalled machine
-WALL_FACTOR = 6.0
+WALL_FACTOR = 20.0
 #: skip a problem whose x-step matrix would have more nonzeros than this (bound: nnz(P) + sum_i nnz(row_i)^2)
 NNZ_LIMIT = 2e7
 #: the extra configuration of OSQP's rule with OSQP's exact QP normalisation
