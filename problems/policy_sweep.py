@@ -35,6 +35,7 @@ ORDERS = ("xz", "zx")
 MAX_ITER = 20_000
 TOL = 1e-5          # the paper's relative-change tolerance
 ORACLE = 1e-6       # the stop: relative error against the reference
+FALSE_STOP = 1e-3   # an error above this where the paper's rule fires counts as a false stop
 
 
 def contact_case(h: float = 1 / 20):
@@ -126,17 +127,20 @@ def markdown(results: dict, command: str, max_iter: int = MAX_ITER) -> str:
         out += [f"## {name}", "", f"**Iterations to a relative error of {ORACLE:g} ({norm})**", ""]
         out += table(rows, "iterations")
         out += ["", "**Factorisations until then**", ""] + table(rows, "factorizations")
-        out += ["", f"**The paper's rule (relative change {TOL:g}): worst error where it would have fired, over "
-                "rho_0**", "", "| rule | order | worst error | at rho_0 | fired at iteration | rho_final of that run |",
+        out += ["", f"**The paper's rule (relative change {TOL:g}) in the same runs: how often it would have "
+                f"fired with an error above {FALSE_STOP:g}, and the worst case**", "",
+                f"| rule | order | fired with error > {FALSE_STOP:g} | worst error | at rho_0 | fired at iteration |",
                 "|---|---|---|---|---|---|"]
         for rule, order in dict.fromkeys((r["rule"], r["order"]) for r in rows):
-            sel = [r for r in rows if r["rule"] == rule and r["order"] == order and not math.isnan(r["paper_error"])]
-            if not sel:
+            sel = [r for r in rows if r["rule"] == rule and r["order"] == order]
+            fired = [r for r in sel if not math.isnan(r["paper_error"])]
+            if not fired:
                 out.append(f"| {rule} | {order} | never fired | - | - | - |")
                 continue
-            worst = max(sel, key=lambda r: r["paper_error"])
-            out.append(f"| {rule} | {order} | {worst['paper_error']:.1e} | {worst['rho0']:.0e} | "
-                       f"{worst['paper_iterations']} | {worst['rho_final']:.2e} |")
+            worst = max(fired, key=lambda r: r["paper_error"])
+            early = sum(1 for r in fired if r["paper_error"] > FALSE_STOP)
+            out.append(f"| {rule} | {order} | {early} of {len(sel)} rho_0 | {worst['paper_error']:.1e} | "
+                       f"{worst['rho0']:.0e} | {worst['paper_iterations']} |")
         out.append("")
     return "\n".join(out)
 
