@@ -30,7 +30,7 @@ class IterationRecord:
     ``Ax_prev`` are those of the previous iterate (z^k, A x^k) and ``inner``
     is the problem's (., .)_M (None: Euclidean, for hand-made records).
     From them the record gives the multiplier of each block's optimality
-    condition (:attr:`lam_x`, :attr:`lam_z`), which spectral rules need.
+    condition (``lam_x``, ``lam_z``), which spectral rules need.
     """
 
     k: int
