@@ -5,7 +5,6 @@ two or three methods, and only check that the commands run, write their files
 and resume without redoing finished cases.
 """
 import csv
-import json
 
 import pytest
 
@@ -142,4 +141,19 @@ def test_bench_bad_input(tmp_path, capsys):
     assert "--methods: unknown method 'sadm'" in capsys.readouterr().err
     with pytest.raises(SystemExit):
         main(["bench", "precision", "--workers", "0"])
-    json.dumps({})  # keep the import used
+
+
+def test_active_set_polish_sharpens_the_clarabel_reference():
+    import numpy as np
+
+    from problems.benchmarks import scenes
+    from problems.qp import random_qp
+
+    qp = random_qp(40, 60, kind="mixed", seed=3)
+    d = scenes.Discrete(key="t", kind="qp", n=qp.n, P=qp.P, q=qp.q, A=qp.A, l=qp.l, u=qp.u, weights=np.ones(qp.m),
+                        x_norm=np.linalg.norm, lam_norm=np.linalg.norm, norm_name="", make_admm=None, rho_unit=1.0)
+    x, y, status, _ = scenes.clarabel_solve(d, 1e-6)
+    assert status == "optimal"
+    xp, yp, kkt = scenes.active_set_polish(d, x, y)
+    assert max(kkt.values()) < 1e-10 < max(scenes._qp_kkt(d, x, y).values())
+    assert np.linalg.norm(xp - x) <= 1e-4 * np.linalg.norm(x)      # the same solution, sharpened

@@ -13,7 +13,6 @@ PNG + SVG figures with the machine and versions into ``--out``.
 from __future__ import annotations
 
 import shlex
-import sys
 
 from problems.cli import positive_float
 

@@ -25,8 +25,11 @@ Reference solutions (computed once per problem and cached on disk):
   when the problem has at most ``CROSS_CHECK_MAX`` unknowns (the relative
   differences are recorded).  Clarabel itself is only accurate to its
   tolerance (interior point), so it cannot measure errors near 1e-10.
-- QPs: cvxpy + Clarabel at tolerance 1e-10 (no active-set method applies to
-  two-sided and equality rows), with its KKT residuals.
+- QPs: cvxpy + Clarabel at tolerance 1e-10, then an active-set polish (the
+  equality-constrained QP on the active set read off Clarabel's solution,
+  :func:`active_set_polish`, kept when it is feasible, has multipliers of the
+  right sign and smaller KKT residuals); Clarabel alone left errors of 1e-9 to
+  1e-7 in x, a floor under every method's error.
 """
 from __future__ import annotations
 
@@ -247,7 +250,7 @@ def pdas_form(d: Discrete):
 def _attach_reference(d: Discrete, cache_dir, cross_check_max: int) -> None:
     path = None
     if cache_dir is not None:
-        path = Path(cache_dir) / f"ref-{d.key}.npz"
+        path = Path(cache_dir) / f"ref-{d.key}{'-polished' if d.kind == 'qp' else ''}.npz"
         if path.exists():
             data = np.load(path, allow_pickle=False)
             d.ref_x, d.ref_lam = data["x"], data["lam"]
@@ -281,15 +284,62 @@ def _attach_reference(d: Discrete, cache_dir, cross_check_max: int) -> None:
         x, y, status, _ = clarabel_solve(d, CLARABEL_TIGHT)
         if status not in ("optimal",):
             raise RuntimeError(f"{d.key}: the Clarabel reference ended with status {status}")
-        d.ref_x, d.ref_lam = x, y
-        info = {"solver": f"cvxpy + Clarabel, tol {CLARABEL_TIGHT:g}", "kkt": _qp_kkt(d, x, y),
-                "seconds": time.perf_counter() - t0}
+        kkt = _qp_kkt(d, x, y)
+        info = {"solver": f"cvxpy + Clarabel, tol {CLARABEL_TIGHT:g}", "kkt": kkt}
+        polished = active_set_polish(d, x, y)
+        if polished is not None and max(polished[2].values()) < max(kkt.values()):
+            d.ref_x, d.ref_lam = polished[0], polished[1]
+            info = {"solver": f"cvxpy + Clarabel, tol {CLARABEL_TIGHT:g}, then an active-set polish",
+                    "kkt": polished[2], "cross_check": {"other": "Clarabel before the polish",
+                                                        **{f"{k}_diff": v for k, v in d.errors(x, y).items()}}}
+        else:
+            d.ref_x, d.ref_lam = x, y
+        info["seconds"] = time.perf_counter() - t0
     d.ref_info = info
     if path is not None:
         path.parent.mkdir(parents=True, exist_ok=True)
         tmp = path.with_name(path.stem + ".tmp.npz")
         np.savez(tmp, x=d.ref_x, lam=d.ref_lam, info=json.dumps(info, default=float))
         tmp.replace(path)
+
+
+def active_set_polish(d: Discrete, x, y):
+    """Solve the equality-constrained QP on the active set read off an interior-point solution.
+
+    Active: the equality rows, and the rows whose slack at the matching bound
+    is smaller than their multiplier (upper: y > 0, lower: y < 0).  Solves the
+    KKT system [[P, A_a'], [A_a, 0]] [x; y_a] = [-q; b_a] by sparse LU (as OSQP's
+    polish does) and returns (x, y, kkt) if the result is feasible with
+    multipliers of the right sign, else None.  An interior point method at
+    tolerance 1e-10 leaves errors of 1e-9 to 1e-7 in x; the polished solution is
+    exact up to round-off when the active set is right.
+    """
+    import scipy.sparse.linalg as spla
+
+    Ax = d.A @ x
+    scale = max(float(np.abs(y).max(initial=0.0)), 1e-300)
+    eq = np.isfinite(d.l) & (d.l == d.u)
+    up = ~eq & np.isfinite(d.u) & (y > 0) & ((d.u - Ax) < np.abs(y) / scale * 1e-3 + 1e-9 * (1 + np.abs(d.u)))
+    lo = ~eq & np.isfinite(d.l) & (y < 0) & ((Ax - d.l) < np.abs(y) / scale * 1e-3 + 1e-9 * (1 + np.abs(d.l)))
+    act = np.flatnonzero(eq | up | lo)
+    b = np.where(lo, d.l, d.u)[act]
+    Aa = d.A[act]
+    kkt = sp.bmat([[d.P, Aa.T], [Aa, None]], format="csc")
+    try:
+        sol = spla.splu(kkt).solve(np.concatenate([-d.q, b]))
+    except RuntimeError:          # singular: degenerate active set
+        return None
+    if not np.all(np.isfinite(sol)):
+        return None
+    xp, yp = sol[:d.n], np.zeros(d.A.shape[0])
+    yp[act] = sol[d.n:]
+    Axp = d.A @ xp
+    tol = 1e-9 * (1 + np.abs(Axp))
+    feasible = np.all(Axp <= d.u + tol) and np.all(Axp >= d.l - tol)
+    signs = np.all(yp[up] >= -1e-9 * scale) and np.all(yp[lo] <= 1e-9 * scale)
+    if not (feasible and signs):
+        return None
+    return xp, yp, _qp_kkt(d, xp, yp)
 
 
 def _qp_kkt(d: Discrete, x, y) -> dict:

@@ -76,8 +76,10 @@ def build_cases(admm: list[str], *, examples=("ex1", "ex2"), rho_scales=RHO_SCAL
 
 
 def case_cost(case: dict) -> float:
-    """Rough relative cost (P2 has four times the unknowns)."""
-    return (4.0 if case.get("p") == 2 else 1.0) / case["h"] ** 2
+    """Rough relative cost of a case's group share (P2 has four times the unknowns; a rho-sweep problem
+    is shared by 13 rho_0 values, so it is counted once per rho_0 and runs early)."""
+    share = len(RHO_SCALES) if case.get("sweep") == "rho" else 1
+    return (4.0 if case.get("p") == 2 else 1.0) / case["h"] ** 2 / share
 
 
 _PROBLEMS: dict[str, object] = {}
@@ -153,7 +155,8 @@ def _heatmap(ax, grid_iter, grid_out, row_labels, col_labels, title, value_label
             elif out == "false_convergence":
                 ax.add_patch(pyplot().Rectangle((j - 0.45, i - 0.45), 0.9, 0.9, fill=False, edgecolor="red",
                                                 linewidth=1.4))
-                ax.text(j, i, "F", ha="center", va="center", fontsize=7, color="red", fontweight="bold")
+                ax.text(j, i, "F" if not np.isfinite(v) or value_label != "iterations" else f"F {int(v)}",
+                        ha="center", va="center", fontsize=6, color="red", fontweight="bold")
             elif out is None:
                 ax.text(j, i, "?", ha="center", va="center", fontsize=6, color="0.4")
             elif np.isfinite(v) and value_label == "iterations" and values.shape[1] <= 16:
@@ -200,12 +203,15 @@ def figure_rho(rows, out: Path) -> list[Path]:
         it = [[(index.get((ex, m, s)) or {}).get("iterations") for s in scales] for m in meths]
         oc = [[(index.get((ex, m, s)) or {}).get("outcome") for s in scales] for m in meths]
         im = _heatmap(ax, it, oc, meths, [_rho_label(s) for s in scales],
-                      f"{ex}, h = 1/40, P1: iterations against rho_0 / E", vmin=0, vmax=math.log10(MAX_ITER))
+                      f"{ex}, h = {_h_label(rho_rows[0]['h'])}, P1: iterations against rho_0 / E",
+                      vmin=0, vmax=math.log10(MAX_ITER))
         ax.set_xlabel("rho_0 / E")
     cb = fig.colorbar(im, ax=axes[0].tolist(), shrink=0.8)
     cb.set_label("log10 iterations")
-    fig.text(0.01, 0.005, "F (red box) = false convergence: the paper's rule fired with true error > 1e-3;  "
-             "M = max_iter (20000), D = diverged, S = stalled, T = time limit", fontsize=7)
+    for ax in axes[0][1:]:
+        ax.set_yticklabels([])
+    fig.suptitle("F (red box) = false convergence: the paper's rule fired with true error > 1e-3;  "
+                 "M = max_iter, D = diverged, S = stalled, T = time limit", fontsize=8, y=1.0)
     return save_figure(fig, out / "rho_sweep")
 
 
@@ -239,8 +245,10 @@ def figure_mesh(rows, out: Path, what: str = "iterations") -> list[Path]:
         ax.axis("off")
     cb = fig.colorbar(im, ax=axes.ravel().tolist(), shrink=0.6)
     cb.set_label("log10 iterations" if what == "iterations" else "log10 ||u - u*||_K / ||u*||_K")
-    fig.text(0.01, 0.003, "F (red box) = false convergence (true error > 1e-3 at the stop);  M = max_iter, "
-             "D = diverged, S = stalled, T = time limit", fontsize=7)
+    for ax in axes[:, 1:].ravel():
+        ax.set_yticklabels([])
+    fig.suptitle("F (red box) = false convergence (true error > 1e-3 at the stop);  M = max_iter, "
+                 "D = diverged, S = stalled, T = time limit", fontsize=8, y=1.0)
     return save_figure(fig, out / ("mesh_sweep" if what == "iterations" else "mesh_error"))
 
 

@@ -8,13 +8,15 @@ always has the same id.  :func:`run_sweep`
   interruption without redoing finished cases);
 - runs the rest on ``workers`` processes (spawned, BLAS pinned to one thread
   each, so two workers use the two cores without oversubscription);
+- starts the cheapest groups first;
 - keeps the cases of one *group* (``case["group"]``, e.g. one discrete
   problem) together in one task, so a worker assembles a problem and its
   reference solution once for all the solvers run on it;
-- appends each finished case as one line ``{"id": ..., "case": ..., "result": ...}``
-  with a single ``write`` on a file opened in append mode, then flush and
-  fsync, so an interrupted sweep leaves whole lines only (a torn last line,
-  e.g. from a power cut, is ignored on reading);
+- appends each finished case, from the worker that ran it and as soon as it
+  is done, as one line ``{"id": ..., "case": ..., "result": ...}`` with a
+  single ``write`` on a file opened with O_APPEND, then fsync, so an
+  interrupted sweep leaves whole lines only (a torn last line, e.g. from a
+  power cut, is ignored on reading);
 - prints a progress line (done / total, elapsed, estimated time left, the last case).
 """
 from __future__ import annotations
@@ -204,7 +206,8 @@ def run_sweep(cases: Iterable[dict], func: str, results_path: str | Path, *, wor
     ``func`` is "module:function" (importable by the spawned workers); it takes
     a case and returns a JSON-serialisable dict.  Cases with the same
     ``case["group"]`` run in one task, in the given order; groups are started
-    most expensive first (``cost(case)`` summed over the group).  ``workers=1``
+    cheapest first (``cost(case)`` summed over the group), so that an
+    interrupted sweep has covered the most problems.  ``workers=1``
     runs in this process (no spawning).  A case that raises is recorded with
     its error (``record["error"]``) and not retried on resume; delete its line
     to retry it.
@@ -221,7 +224,8 @@ def run_sweep(cases: Iterable[dict], func: str, results_path: str | Path, *, wor
     groups: dict[str, list] = {}
     for cid, c in todo:
         groups.setdefault(str(c.get("group", cid)), []).append((cid, c))
-    order = sorted(groups.values(), key=lambda g: -sum((cost or (lambda _c: 1.0))(c) for _, c in g))
+    # cheapest groups first: a sweep that is interrupted (or time-boxed) has covered the most problems
+    order = sorted(groups.values(), key=lambda g: sum((cost or (lambda _c: 1.0))(c) for _, c in g))
     bar = Progress(len(cases), len(cases) - len(todo), enabled=progress)
     name = label or (lambda c: " ".join(f"{k}={v}" for k, v in c.items() if k != "group"))
     by_id = dict(todo)
@@ -231,6 +235,10 @@ def run_sweep(cases: Iterable[dict], func: str, results_path: str | Path, *, wor
         bar.update(name(by_id.get(cid, {})) + (" FAILED" if failed else ""), failed=failed)
 
     tasks = [(func, str(results_path), g) for g in order]
+    if progress:
+        print(f"sweep: {len(cases)} cases, {len(cases) - len(todo)} already in {results_path}, {len(todo)} to run "
+              f"in {len(tasks)} groups on {min(workers, max(len(tasks), 1))} worker(s); a line per finished case",
+              file=sys.stderr, flush=True)
     if tasks and workers == 1:
         _init_worker()
         for task in tasks:
