@@ -175,8 +175,9 @@ def pcg(matvec, b: np.ndarray, x0: np.ndarray, precond, *, tol: float, maxiter: 
     Stops when sqrt(r'Pr) <= tol * sqrt(|x'b|): with P a good preconditioner
     sqrt(r'Pr) is within mesh-independent constants of the energy norm of the
     error ||x - x*||_A, and x'b -> ||x*||_A^2, so the test is a relative energy
-    error.  Returns (x, iterations, achieved ratio, r0Pr0 ratio) where the
-    ratios are sqrt(r'Pr)/sqrt(|x'b|) at the end and the start.
+    error.  Returns (x, iterations, achieved ratio, starting ratio, r) where the
+    ratios are sqrt(r'Pr)/sqrt(|x'b|) at the end and the start and r = b - A x
+    is CG's (recursively updated) residual.
     """
     x = np.array(x0, dtype=float)
     r = b - matvec(x) if np.any(x) else np.array(b, dtype=float)
@@ -206,7 +207,7 @@ def pcg(matvec, b: np.ndarray, x0: np.ndarray, precond, *, tol: float, maxiter: 
         its += 1
     else:
         ratio = math.sqrt(max(rz, 0.0)) / scale()
-    return x, its, ratio, start_ratio
+    return x, its, ratio, start_ratio, r
 
 
 # ---------------------------------------------------------------- successive right-hand sides
@@ -223,6 +224,7 @@ class SolutionSpace:
         self.K, self.D, self.size = K, D, size
         n = K.shape[0]
         self.Q = np.empty((n, size)) if size > 0 else np.empty((n, 0))
+        self.KQ = np.empty_like(self.Q)   # K Q, so that adding a solution whose K x is known needs no product
         self.m = 0
         self.GK = np.zeros((size, size))
         self.GD = np.zeros((size, size))
@@ -239,8 +241,11 @@ class SolutionSpace:
         y = V[:, keep] @ ((V[:, keep].T @ c) / w[keep])
         return Q @ y
 
-    def add(self, x: np.ndarray) -> None:
-        """Add a solution (orthonormalised against the basis; restart when full)."""
+    def add(self, x: np.ndarray, Kx: np.ndarray | None = None) -> None:
+        """Add a solution (orthonormalised against the basis; restart when full).
+
+        ``Kx`` = K x, if known, saves the product with K.
+        """
         if self.size == 0:
             return
         if self.m == self.size:
@@ -249,17 +254,25 @@ class SolutionSpace:
         norm0 = np.linalg.norm(q)
         if norm0 == 0:
             return
+        coef = np.zeros(self.m)
         if self.m:
             Q = self.Q[:, :self.m]
             for _ in range(2):  # classical Gram-Schmidt twice ("twice is enough")
-                q -= Q @ (Q.T @ q)
+                c = Q.T @ q
+                q -= Q @ c
+                coef += c
         norm = np.linalg.norm(q)
         if norm <= 1e-10 * norm0:
             return
         q /= norm
         j = self.m
         self.Q[:, j] = q
-        Kq, Dq = self.K @ q, self.D @ q
+        if Kx is None:
+            Kq = self.K @ q
+        else:          # K q = (K x - K Q coef) / norm
+            Kq = (Kx - self.KQ[:, :j] @ coef) / norm if j else Kx / norm
+        self.KQ[:, j] = Kq
+        Dq = self.D @ q
         self.GK[j, :j + 1] = self.GK[:j + 1, j] = self.Q[:, :j + 1].T @ Kq
         self.GD[j, :j + 1] = self.GD[:j + 1, j] = self.Q[:, :j + 1].T @ Dq
         self.m += 1
@@ -387,6 +400,7 @@ class IterativeXSolver:
         self._stale_loss = 0.0    # seconds lost to a stale hierarchy since the last refresh
         self._x_prev = None
         self._x_prev2 = None
+        self._Kx: list[tuple[np.ndarray, np.ndarray]] = []
         self.setups = self.refreshes = self.solves = self.cg_iterations = self.unconverged = 0
         self.setup_time = self.refresh_time = self.solve_time = 0.0
         self.last: dict = {}
@@ -459,7 +473,7 @@ class IterativeXSolver:
         if guess is None:
             guess = np.zeros(self.n) if x0 is None else np.asarray(x0, dtype=float)[self.perm if self.perm is not None else slice(None)]
         A = self._A
-        x, its, ratio, start_ratio = pcg(A.__matmul__, b, guess, self._amg, tol=tol, maxiter=self.maxiter)
+        x, its, ratio, start_ratio, r = pcg(A.__matmul__, b, guess, self._amg, tol=tol, maxiter=self.maxiter)
         elapsed = time.perf_counter() - start
         if ratio > tol:
             if ratio > 0.5:
@@ -467,18 +481,35 @@ class IterativeXSolver:
                                             f"(error ratio {ratio:.2e}, tolerance {tol:.2e})")
             self.unconverged += 1
         self._account(its, ratio, start_ratio, elapsed)
-        self.space.add(x)
+        Kx = (b - r) - rho * (self.D @ x)          # K x = A x - rho D x with A x = b - r: no product with K
+        self.space.add(x, Kx)
         self.solves += 1
         self.cg_iterations += its
         self.solve_time += elapsed
         self.last = dict(rho=rho, action=action, tol=tol, iterations=its, error_ratio=ratio,
                          start_ratio=start_ratio, seconds=elapsed)
         if self.perm is not None:
-            out = np.empty_like(x)
-            out[self.perm] = x
-            x = out
+            x, Kx = self._unpermute(x), self._unpermute(Kx)
         self._x_prev2, self._x_prev = self._x_prev, x
+        self._Kx = [(x, Kx)] + self._Kx[:1]
         return x
+
+    def _unpermute(self, v: np.ndarray) -> np.ndarray:
+        out = np.empty_like(v)
+        out[self.perm] = v
+        return out
+
+    def known_Kx(self, x: np.ndarray) -> np.ndarray | None:
+        """K x for one of the last two returned solutions (the very array objects), else None.
+
+        Lets a plug-in measure the energy norm of an iterate without a product
+        with K (CG's residual gives A x, and K x = A x - rho D x).  Accurate to
+        the CG residual's round-off, not to the last bit.
+        """
+        for obj, Kx in self._Kx:
+            if obj is x:
+                return Kx
+        return None
 
     def _account(self, its: int, ratio: float, start_ratio: float, elapsed: float) -> None:
         """Track the convergence factor; with a stale hierarchy, add up the time it lost."""

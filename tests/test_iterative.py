@@ -236,3 +236,51 @@ def test_structured_rectangle_is_makestructured2dmesh(L, H, h):
     Ka, _, _, _, _ = _elasticity(ref, "left")
     Kb, _, _, _, _ = _elasticity(new, "left")
     assert (Ka != Kb).nnz == 0
+
+
+# ---------------------------------------------------------------- the scale benchmarks (smoke tests)
+def test_run_case_in_a_subprocess_reports_time_memory_and_refusals():
+    from problems.contact.scale import run_case, run_in_subprocess
+    row = run_in_subprocess("ex1", 1 / 10, "iterative", timeout=120)
+    assert row["status"] == "converged" and row["n_free"] == 440
+    assert row["peak_rss_bytes"] > 50e6 and row["total_s"] > 0 and row["counters"]["cg_iterations"] > 0
+    refused = run_case("ex1", 1 / 1200, "full")               # about 60 GiB: refused before assembling
+    assert refused["status"] == "refused" and "GiB" in refused["message"]
+
+
+@pytest.fixture
+def in_process(monkeypatch):
+    """Run the benchmark's cases in this process (the subprocess path is tested above)."""
+    from problems.contact import scale
+    monkeypatch.setattr(scale, "run_in_subprocess",
+                        lambda example, h, mode, timeout=0, rho=1e3: scale.run_case(example, h, mode) | {"wall_s": 0.0})
+    from problems.contact import crossover, scale_bench
+    monkeypatch.setattr(scale_bench, "run_in_subprocess", scale.run_in_subprocess)
+    monkeypatch.setattr(crossover, "run_in_subprocess", scale.run_in_subprocess)
+
+
+def test_bench_scale_writes_table_and_growth_chart(tmp_path, in_process, capsys):
+    from problems.cli import main
+    assert main(["bench", "scale", "--quick", "--out", str(tmp_path)]) == 0
+    for name in ("scale.md", "scale.csv", "scale_growth.png", "scale_growth.svg"):
+        assert (tmp_path / name).exists()
+    text = (tmp_path / "scale.md").read_text()
+    assert "| 1/20 | 1680 |" in text and "Target (issue #8)" in text
+
+
+def test_bench_amg_crossover_writes_modes_and_reuse_tables(tmp_path, in_process, capsys):
+    from problems.cli import main
+    assert main(["bench", "amg-crossover", "--quick", "--out", str(tmp_path)]) == 0
+    text = (tmp_path / "amg_crossover.md").read_text()
+    assert "| 1/10 | 440 |" in text and "Reusing the hierarchy" in text
+    assert (tmp_path / "amg_crossover.png").exists() and (tmp_path / "amg_crossover.csv").exists()
+
+
+def test_known_kx_is_k_times_the_returned_solution():
+    K, D = _poisson_pair(20)
+    solver = IterativeXSolver(K, D, tol=1e-10)
+    x1 = solver.solve(2.0, np.ones(K.shape[0]))
+    x2 = solver.solve(2.0, np.arange(K.shape[0], dtype=float))
+    for x in (x1, x2):
+        assert np.allclose(solver.known_Kx(x), K @ x, rtol=0, atol=1e-9 * np.abs(K @ x).max())
+    assert solver.known_Kx(x1.copy()) is None

@@ -16,7 +16,7 @@ from admmkit import RelativeChange
 
 from .assembly import ContactOperators, assemble
 from .problem import contact_problem
-from .scene import Scene
+from .scene import Scene, check_memory
 
 METHODS = {
     "admm1": ("xz", lambda: policies.Fixed()),
@@ -64,10 +64,14 @@ def solve_scene(scene: Scene | ContactOperators, method_name: str = "sadmm", rho
     """Assemble (unless operators are given) and solve a scene with a named method.
 
     The default stop is the paper's RelativeChange(1e-5) in the energy norm.
+    A direct ``mode`` whose memory estimate exceeds the available memory is
+    refused with the estimate before anything is assembled.
     """
     import time
 
     default_order, policy = method(method_name)
+    if isinstance(scene, Scene) and mode in ("full", "condensed", "iterative"):
+        check_memory(scene, mode)
     ops = scene if isinstance(scene, ContactOperators) else assemble(scene)
     t0 = time.perf_counter()
     problem = contact_problem(ops, mode=mode)

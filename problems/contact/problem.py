@@ -48,6 +48,10 @@ from .schur import SCHUR_BACKENDS, BoundarySchur
 MODES = ("auto", "full", "condensed", "iterative")
 #: below this many contact nodes the condensed mode is chosen by "auto"
 CONDENSED_MAX_NC = 3000
+#: from this many unknowns "auto" prefers the iterative mode to the full one in 2D, and to both
+#: direct modes in 3D (measured crossovers: docs/results/scale/amg_crossover.md, contact3d.md)
+ITERATIVE_MIN_N_2D = 200_000
+ITERATIVE_MIN_N_3D = 20_000
 
 
 class _ContactBase(Problem):
@@ -217,8 +221,16 @@ class IterativeContact(_ContactBase):
         return self.ops.B @ u
 
     def x_norm(self, u):
-        """Energy norm sqrt(u'Ku)."""
-        return float(np.sqrt(max(u @ (self.ops.K @ u), 0.0)))
+        """Energy norm sqrt(u'Ku) (K u from the x-step's CG residual when u is a recent iterate)."""
+        Ku = self.solver.known_Kx(u)
+        return float(np.sqrt(max(u @ (self.ops.K @ u if Ku is None else Ku), 0.0)))
+
+    def x_distance(self, u, v):
+        """||u - v||_K, from the known K u and K v of the last two iterates when possible."""
+        Ku, Kv = self.solver.known_Kx(u), self.solver.known_Kx(v)
+        d = u - v
+        Kd = self.ops.K @ d if Ku is None or Kv is None else Ku - Kv
+        return float(np.sqrt(max(d @ Kd, 0.0)))
 
     def counters(self):
         """AMG setups and Galerkin refreshes, solves and CG iterations."""
@@ -232,12 +244,13 @@ def contact_problem(ops: ContactOperators, mode: str = "auto", backend: str = "a
     the full mode, "cholmod" or "superlu" (or "auto") in the condensed mode.
     ``mode="auto"`` picks the condensed mode when the contact boundary has at
     most CONDENSED_MAX_NC nodes (the dense n_c x n_c compliance then fits and
-    its factorisations are cheaper than sparse ones of the whole body).
+    its factorisations are cheaper than sparse ones of the whole body), unless
+    :func:`auto_mode` finds the body too large for a factorisation.
     """
     if mode not in MODES:
         raise ValueError(f"mode must be one of {', '.join(MODES)}, got {mode!r}")
     if mode == "auto":
-        mode = "condensed" if ops.n_c <= CONDENSED_MAX_NC and backend in ("auto",) + SCHUR_BACKENDS else "full"
+        mode = auto_mode(ops, backend)
     if mode == "iterative":
         return IterativeContact(ops)
     if mode == "condensed":
@@ -246,3 +259,37 @@ def contact_problem(ops: ContactOperators, mode: str = "auto", backend: str = "a
                              f"(the solvers that give the Schur complement), got {backend!r}")
         return CondensedContact(ops, backend=backend)
     return FullContact(ops, backend=backend)
+
+
+def auto_mode(ops: ContactOperators, backend: str = "auto") -> str:
+    """The mode ``"auto"`` picks (measured crossovers in docs/results/scale/).
+
+    The direct choice is the condensed mode when n_c <= CONDENSED_MAX_NC (and
+    the backend can build the Schur complement), else the full mode.  The
+    iterative mode replaces it in 3D from ITERATIVE_MIN_N_3D unknowns, in 2D
+    when the direct choice is the full mode and there are at least
+    ITERATIVE_MIN_N_2D unknowns, and whenever the direct choice's memory
+    estimate exceeds the available memory.  On Example 1 (2D, n_c <= 1000)
+    the condensed mode was the fastest at every size measured, up to 1e6
+    unknowns, so "auto" keeps it there.
+    """
+    direct = "condensed" if ops.n_c <= CONDENSED_MAX_NC and backend in ("auto",) + SCHUR_BACKENDS else "full"
+    dim = ops.mesh.dim
+    if dim == 3 and ops.n_free >= ITERATIVE_MIN_N_3D:
+        return "iterative"
+    if dim == 2 and direct == "full" and ops.n_free >= ITERATIVE_MIN_N_2D:
+        return "iterative"
+    return "iterative" if _direct_would_not_fit(ops, direct) else direct
+
+
+def _direct_would_not_fit(ops: ContactOperators, mode: str) -> bool:
+    """Whether the memory estimate of a direct mode exceeds the available memory."""
+    from .scene import Scene, available_memory, memory_need
+    from .scene3d import Scene3D, memory_need3d
+    if isinstance(ops.scene, Scene):
+        need = memory_need(ops.scene, mode)
+    elif isinstance(ops.scene, Scene3D):
+        need = memory_need3d(ops.scene, mode)
+    else:
+        return False
+    return need > available_memory()

@@ -73,18 +73,95 @@ def available_memory() -> int:
     return 8 * 2**30
 
 
-def estimate_memory(area: float, perimeter: float, h: float, order: int, kind: str) -> int:
+SOLVERS = ("direct", "iterative")
+
+
+def estimate_memory(area: float, perimeter: float, h: float, order: int, kind: str, solver: str = "direct") -> int:
     """Rough bytes for the assembled system (NGSolve + scipy copies) and a sparse LU.
 
     Vertices ~ area/h^2 (structured) or ~1.2 area/h^2 (netgen), dofs = 2 * order^2 *
     vertices; ~14 (P1) / ~26 (P2) nonzeros per row, 12 bytes each, 3 copies; fill of a
-    nested-dissection factor of a 2D problem ~ 8 n log2 n nonzeros.
+    nested-dissection factor of a 2D problem ~ 8 n log2 n nonzeros.  With
+    ``solver="iterative"`` (the AMG-CG x-step, admmkit.iterative) the factor is
+    replaced by what that solver holds, linear in n (:func:`iterative_solver_bytes`).
     """
+    if solver not in SOLVERS:
+        raise ValueError(f"solver = {solver!r}; accepted: {', '.join(SOLVERS)}")
     vertices = (1.0 if kind == "structured" else 1.2) * area / h**2 + perimeter / h
     n = 2 * order**2 * vertices
-    system = 3 * 12 * (14 if order == 1 else 26) * n
+    nnz_row = 14 if order == 1 else 26
+    system = 3 * 12 * nnz_row * n
+    if solver == "iterative":
+        return int(system + iterative_solver_bytes(n, nnz_row * n, blocksize=2))
     factor = 12 * 8 * n * math.log2(max(n, 2.0))
     return int(system + factor)
+
+
+def iterative_solver_bytes(n: float, nnz: float, blocksize: int = 2) -> float:
+    """Bytes the AMG-CG x-step holds for n unknowns and a matrix with nnz nonzeros.
+
+    The permuted K and D (12 bytes a nonzero), K + rho D on one pattern (index,
+    K, D and current values: 4 + 3 * 8 bytes a nonzero), the smoothed-aggregation
+    hierarchy (coarse operators ~0.45 nnz and prolongators ~0.5 nnz at 12 bytes,
+    block diagonal inverses) and temporaries of the setup, and ~40 vectors of n
+    doubles (projection basis and K times it, CG, near-null space, right-hand
+    sides).  Calibrated against ru_maxrss of Example 1: 2.04 GB measured at
+    1.0e6 unknowns, 0.96 GB at 4.1e5 (docs/results/scale/scale.md).
+    """
+    per_nnz = 70.0
+    return per_nnz * nnz + 40 * 8 * n + 8 * blocksize * n
+
+
+#: resident memory of a Python process with numpy, scipy, NGSolve and pyamg loaded (measured: 0.17-0.18 GB)
+PROCESS_BASELINE = 200_000_000
+#: factorisations the full mode keeps: one per rho value, and SADMM changed rho 3-6 times in the runs measured
+CACHED_FACTORS = 4
+
+
+def memory_need(scene: "Scene", mode: str) -> int:
+    """Estimated peak bytes of a contact run of the scene in a mode (0 if the geometry is not a rectangle).
+
+    The process baseline (Python and the libraries) plus: ``"iterative"`` the
+    iterative estimate; ``"full"`` the system and CACHED_FACTORS sparse
+    factorisations (one per rho value met); ``"condensed"`` the system, one LU
+    (L and U: twice a Cholesky factor) and its dense n_c x n_c matrices (about
+    5 n_c^2 doubles).  For Example 1 at 4.1e5 unknowns the runs peaked at
+    0.96 (iterative), 1.54 (condensed) and 2.92 GB (full).
+    """
+    if scene.geometry is not None:
+        return 0
+    area, perim = _rectangle_measure(scene)
+    if mode == "iterative":
+        return PROCESS_BASELINE + estimate_memory(area, perim, scene.h, scene.order, scene.mesh_kind, solver="iterative")
+    if mode not in ("full", "condensed"):
+        raise ValueError(f"mode = {mode!r}; accepted: full, condensed, iterative")
+    direct = estimate_memory(area, perim, scene.h, scene.order, scene.mesh_kind)
+    vertices = (1.0 if scene.mesh_kind == "structured" else 1.2) * area / scene.h**2 + perim / scene.h
+    n = 2 * scene.order**2 * vertices
+    system = 3 * 12 * (14 if scene.order == 1 else 26) * n
+    factor = direct - system
+    if mode == "full":
+        return int(PROCESS_BASELINE + system + CACHED_FACTORS * factor)
+    n_c = scene.order * (scene.L if scene.contact in ("bottom", "top") else scene.H) / scene.h
+    return int(PROCESS_BASELINE + system + 2 * factor + 5 * 8 * n_c**2)
+
+
+def check_memory(scene: "Scene", mode: str) -> None:
+    """Raise ValueError with the estimate if a run in ``mode`` would not fit in the available memory."""
+    need, have = memory_need(scene, mode), available_memory()
+    if need > have:
+        other = "" if mode == "iterative" else \
+            f"; mode 'iterative' needs about {memory_need(scene, 'iterative') / 2**30:.3g} GiB"
+        raise ValueError(f"mode = {mode!r} at h = {scene.h:g} needs about {need / 2**30:.3g} GiB, only "
+                         f"{have / 2**30:.3g} GiB available{other}; choose a larger h or another mode")
+
+
+def _rectangle_measure(scene: "Scene") -> tuple[float, float]:
+    """Area and perimeter of the meshed rectangle."""
+    if scene.mesh_kind == "structured":
+        nx, ny = grid_counts(scene.L, scene.H, scene.h)
+        return nx * ny * scene.h**2, 2 * (nx + ny) * scene.h
+    return scene.L * scene.H, 2 * (scene.L + scene.H)
 
 
 # ---------------------------------------------------------------- scene
@@ -178,16 +255,14 @@ class Scene:
             if self.h > min(self.L, self.H):
                 raise ValueError(f"h = {self.h} is larger than the rectangle; accepted 0 < h <= "
                                  f"min(L, H) = {min(self.L, self.H)}")
-            if self.mesh_kind == "structured":
-                nx, ny = grid_counts(self.L, self.H, self.h)
-                area, perim = nx * ny * self.h**2, 2 * (nx + ny) * self.h
-            else:
-                area, perim = self.L * self.H, 2 * (self.L + self.H)
-            need, have = estimate_memory(area, perim, self.h, self.order, self.mesh_kind), available_memory()
-            if need > have:
-                raise ValueError(f"h = {self.h} is too small: the system and its sparse factorisation "
-                                 f"need about {need / 2**30:.3g} GiB, only {have / 2**30:.3g} GiB available; "
-                                 f"choose a larger h")
+            area, perim = _rectangle_measure(self)
+            need = estimate_memory(area, perim, self.h, self.order, self.mesh_kind, solver="iterative")
+            have = available_memory()
+            if need > have:   # refused before anything is assembled; the direct modes check again (memory_need)
+                direct = estimate_memory(area, perim, self.h, self.order, self.mesh_kind)
+                raise ValueError(f"h = {self.h} is too small: the system needs about {need / 2**30:.3g} GiB "
+                                 f"with the iterative x-step ({direct / 2**30:.3g} GiB with a sparse "
+                                 f"factorisation), only {have / 2**30:.3g} GiB available; choose a larger h")
         elif self.mesh_kind != "unstructured":
             raise ValueError("mesh_kind = 'structured' needs the built-in rectangle; "
                              "with a netgen geometry use mesh_kind = 'unstructured'")

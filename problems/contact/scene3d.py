@@ -1,0 +1,259 @@
+"""3D contact: an elastic block on a rigid foundation with a curved gap (P1 tetrahedra, NGSolve).
+
+The 3D analogue of the paper's Example 2 (:func:`example2_3d`): the block
+(0, 3) x (0, 1) x (0, 1), clamped on the face x = 0 ("back"), loaded by the
+traction (0, 0, -2) on the face x = 3 ("front"), resting without friction on
+a rigid foundation under its bottom face z = 0 with the curved gap
+
+    g(x, y) = 0.003 (x - 1.5)^2 + 0.003 (y - 0.5)^2 + 0.001,
+
+E = 5000, nu = 0.49.  The contact model is the 2D one (docs/contact.md) one
+dimension up: u.n <= g at the nodes of the contact face with n = (0, 0, -1),
+lumped boundary mass (a third of the area of every adjacent triangle),
+multiplier lam = pressure.  :func:`assemble3d` returns the same
+:class:`ContactOperators` as the 2D assembly, so every contact mode and
+method works unchanged; at useful sizes only the iterative mode is practical.
+
+Mesh: ``block_mesh`` cuts nx x ny x nz cubes into 6 tetrahedra each, the
+Kuhn triangulation of ``ngsolve.meshes.MakeStructured3DMesh(hexes=False)``
+with the same vertex numbering and tetrahedra, built from arrays.  Boundary
+names as there: back (x = 0), front (x = Lx), left (y = 0), right (y = Ly),
+bottom (z = 0), top (z = Lz).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any, Mapping
+
+import ngsolve as ng
+import numpy as np
+import scipy.sparse as sp
+
+from .assembly import ContactOperators, _csr, lame
+from .scene import (CACHED_FACTORS, PROCESS_BASELINE, FrozenDict, _as_func, _finite_positive, available_memory,
+                    expression, iterative_solver_bytes)
+
+FACES_3D = ("back", "front", "left", "right", "bottom", "top")
+#: the 6 tetrahedra of a cube (local corners as in MakeStructured3DMesh: 0 = (i,j,k), 1 = k+1,
+#: 2 = j+1,k+1, 3 = j+1, 4 = i+1, 5 = i+1,k+1, 6 = i+1,j+1,k+1, 7 = i+1,j+1); all share the diagonal 0-6
+KUHN = ((0, 4, 5, 6), (0, 6, 7, 4), (0, 3, 7, 6), (0, 1, 6, 5), (0, 1, 2, 6), (0, 3, 6, 2))
+
+
+def block_counts(Lx: float, Ly: float, Lz: float, h: float) -> tuple[int, int, int]:
+    """Cubes per direction: round(L/h), at least 1."""
+    return max(1, round(Lx / h)), max(1, round(Ly / h)), max(1, round(Lz / h))
+
+
+def block_mesh(Lx: float, Ly: float, Lz: float, h: float) -> ng.Mesh:
+    """Structured tetrahedral mesh of the block (0, Lx) x (0, Ly) x (0, Lz) (module docstring)."""
+    from netgen.meshing import FaceDescriptor, Mesh
+    nx, ny, nz = block_counts(Lx, Ly, Lz, h)
+    mesh = Mesh(dim=3)
+    I, J, Kk = np.meshgrid(np.arange(nx + 1), np.arange(ny + 1), np.arange(nz + 1), indexing="ij")
+    mesh.AddPoints(np.column_stack([(I / nx).ravel() * Lx, (J / ny).ravel() * Ly, (Kk / nz).ravel() * Lz]))
+    vid = lambda i, j, k: (i * (ny + 1) + j) * (nz + 1) + k  # noqa: E731
+    i, j, k = (a.ravel() for a in np.meshgrid(np.arange(nx), np.arange(ny), np.arange(nz), indexing="ij"))
+    corners = np.column_stack([vid(i, j, k), vid(i, j, k + 1), vid(i, j + 1, k + 1), vid(i, j + 1, k),
+                               vid(i + 1, j, k), vid(i + 1, j, k + 1), vid(i + 1, j + 1, k + 1), vid(i + 1, j + 1, k)])
+    tets = np.empty((corners.shape[0] * 6, 4), dtype=np.int32)
+    for t, local in enumerate(KUHN):
+        tets[t::6] = corners[:, local]
+    for bc, name in enumerate(FACES_3D, 1):
+        mesh.Add(FaceDescriptor(surfnr=bc, domin=1, domout=0, bc=bc))
+        mesh.SetBCName(bc - 1, name)
+    mesh.AddElements(dim=3, index=1, data=tets, base=0)
+    # boundary squares (lowest corner a, corners a, b, c = opposite, d; u, v the face's two
+    # increasing coordinates): triangles (a, b, c), (a, c, d) follow the cube diagonals through
+    # corner 0 / 6, so they are faces of the tetrahedra
+    faces = {
+        "back": (lambda u, v: vid(0, u, v), ny, nz),
+        "front": (lambda u, v: vid(nx, u, v), ny, nz),
+        "left": (lambda u, v: vid(u, 0, v), nx, nz),
+        "right": (lambda u, v: vid(u, ny, v), nx, nz),
+        "bottom": (lambda u, v: vid(u, v, 0), nx, ny),
+        "top": (lambda u, v: vid(u, v, nz), nx, ny),
+    }
+    for bc, name in enumerate(FACES_3D, 1):
+        fn, nu_, nv_ = faces[name]
+        u, v = (a.ravel() for a in np.meshgrid(np.arange(nu_), np.arange(nv_), indexing="ij"))
+        a, b, c, d = fn(u, v), fn(u + 1, v), fn(u + 1, v + 1), fn(u, v + 1)
+        # du x dv is +x (back/front), -y (left/right), +z (bottom/top): flip where that points
+        # into the block, so that every triangle's right-hand normal points out
+        tri = [np.column_stack([a, b, c]), np.column_stack([a, c, d])]
+        if name in ("back", "right", "bottom"):
+            tri = [t[:, ::-1] for t in tri]
+        mesh.AddElements(dim=2, index=bc, data=np.vstack(tri).astype(np.int32), base=0)
+    return ng.Mesh(mesh)
+
+
+# ---------------------------------------------------------------- memory
+def estimate_memory3d(nx: int, ny: int, nz: int, solver: str = "direct") -> int:
+    """Rough bytes of a 3D P1 contact run on nx x ny x nz cubes.
+
+    n = 3 (nx+1)(ny+1)(nz+1) dofs, ~45 nonzeros per row (a vertex of the Kuhn
+    mesh has 14 neighbours), 12 bytes each, 3 copies; the iterative x-step adds
+    :func:`iterative_solver_bytes`; a sparse Cholesky factor of this 3D problem
+    has ~ 20 n^(4/3) nonzeros (CHOLMOD, nested dissection: 11.8, 13.5 and 14.4
+    n^(4/3) measured at 5.8e3, 1.8e4 and 4.2e4 unknowns; SuperLU's MMD ordering
+    filled 44, 30 and 70 n^(4/3), so without CHOLMOD this is an underestimate).
+    """
+    n = 3.0 * (nx + 1) * (ny + 1) * (nz + 1)
+    system = 3 * 12 * 45 * n
+    if solver == "iterative":
+        return int(system + iterative_solver_bytes(n, 45 * n, blocksize=3))
+    return int(system + 12 * 20.0 * n ** (4 / 3))
+
+
+# ---------------------------------------------------------------- the scene
+@dataclass(frozen=True)
+class Scene3D:
+    """Linear elastic block on a rigid foundation, small deformations, frictionless (3D)."""
+
+    Lx: float = 3.0
+    Ly: float = 1.0
+    Lz: float = 1.0
+    h: float = 1 / 8
+    E: float = 5000.0
+    nu: float = 0.49
+    dirichlet: tuple[str, ...] = ("back",)
+    tractions: Mapping[str, Any] = field(default_factory=lambda: {"front": (0.0, 0.0, -2.0)})
+    contact: str = "bottom"
+    gap: Any = 0.0
+    name: str = ""
+    order: int = 1
+
+    def __post_init__(self):
+        set_ = lambda k, v: object.__setattr__(self, k, v)  # noqa: E731 (frozen)
+        if isinstance(self.dirichlet, str):
+            set_("dirichlet", (self.dirichlet,))
+        set_("dirichlet", tuple(self.dirichlet))
+        set_("tractions", FrozenDict({k: _traction3(v, f"tractions[{k!r}]") for k, v in dict(self.tractions).items()}))
+        set_("gap", _as_func(self.gap, "gap"))
+        self.validate()
+
+    @property
+    def counts(self) -> tuple[int, int, int]:
+        """Cubes per direction."""
+        return block_counts(self.Lx, self.Ly, self.Lz, self.h)
+
+    @property
+    def mesh_kind(self) -> str:
+        """Always the structured tetrahedral mesh."""
+        return "structured"
+
+    def gap_at(self, x: float, y: float) -> float:
+        """g(x, y) on the contact face."""
+        return float(self.gap(x, y)) if callable(self.gap) else float(self.gap)
+
+    def validate(self) -> None:
+        """Raise ValueError naming the offending parameter and its accepted range."""
+        for name in ("Lx", "Ly", "Lz", "E"):
+            _finite_positive(getattr(self, name), name, f"{name} > 0")
+        if not (isinstance(self.nu, (int, float)) and -1.0 < self.nu < 0.5):
+            raise ValueError(f"nu = {self.nu!r} is outside the accepted range -1 < nu < 0.5")
+        if self.order != 1:
+            raise ValueError(f"order = {self.order!r}; accepted: 1 (P1 tetrahedra)")
+        _finite_positive(self.h, "h", "0 < h (finite)")
+        if self.h > min(self.Lx, self.Ly, self.Lz):
+            raise ValueError(f"h = {self.h} is larger than the block; accepted 0 < h <= {min(self.Lx, self.Ly, self.Lz)}")
+        for what, labels in (("dirichlet", self.dirichlet), ("tractions", tuple(self.tractions)), ("contact", (self.contact,))):
+            for label in labels:
+                if label not in FACES_3D:
+                    raise ValueError(f"{what}: unknown face {label!r}; known faces: {', '.join(FACES_3D)}")
+        if not self.dirichlet:
+            raise ValueError("dirichlet: no clamped face; at least one is needed (otherwise K is singular)")
+        if self.contact != "bottom":
+            raise ValueError(f"contact: {self.contact!r}; accepted: 'bottom' (the face z = 0 on the foundation)")
+        if self.contact in self.dirichlet or self.contact in self.tractions:
+            raise ValueError(f"contact: face {self.contact!r} is also clamped or loaded")
+        need, have = estimate_memory3d(*self.counts, solver="iterative"), available_memory()
+        if need > have:
+            raise ValueError(f"h = {self.h} is too small: {3 * np.prod(np.array(self.counts) + 1):.3g} unknowns need "
+                             f"about {need / 2**30:.3g} GiB with the iterative x-step "
+                             f"({estimate_memory3d(*self.counts) / 2**30:.3g} GiB with a sparse factorisation), "
+                             f"only {have / 2**30:.3g} GiB available; choose a larger h")
+        for x in np.linspace(0, self.Lx, 7):
+            for y in np.linspace(0, self.Ly, 7):
+                value = self.gap_at(float(x), float(y))
+                if not math.isfinite(value):
+                    raise ValueError(f"gap: g({x:g}, {y:g}) = {value} is not finite; accepted: finite values")
+
+    def with_h(self, h: float) -> "Scene3D":
+        """The same scene with mesh size h."""
+        import dataclasses
+        return dataclasses.replace(self, h=h)
+
+
+def _traction3(value, name: str):
+    """A constant 3-vector of finite numbers."""
+    ok = isinstance(value, (list, tuple)) and len(value) == 3 and all(
+        isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in value)
+    if not ok:
+        raise ValueError(f"{name} must be a triple (tx, ty, tz) of finite numbers, got {value!r}")
+    return tuple(float(v) for v in value)
+
+
+def example2_3d(h: float = 1 / 8, **changes) -> Scene3D:
+    """The 3D analogue of the paper's Example 2 (module docstring)."""
+    fields = dict(Lx=3.0, Ly=1.0, Lz=1.0, h=h, E=5000.0, nu=0.49, dirichlet=("back",),
+                  tractions={"front": (0.0, 0.0, -2.0)}, contact="bottom",
+                  gap=expression("0.003*(x - 1.5)**2 + 0.003*(y - 0.5)**2 + 0.001"), name="example2_3d")
+    return Scene3D(**(fields | changes))
+
+
+def memory_need3d(scene: Scene3D, mode: str) -> int:
+    """Estimated peak bytes of a run of the scene in a contact mode (as :func:`scene.memory_need` in 2D:
+    the full mode keeps CACHED_FACTORS factorisations, the condensed one an LU and 5 n_c^2 doubles)."""
+    nx, ny, nz = scene.counts
+    if mode == "iterative":
+        return PROCESS_BASELINE + estimate_memory3d(nx, ny, nz, "iterative")
+    if mode not in ("full", "condensed"):
+        raise ValueError(f"mode = {mode!r}; accepted: full, condensed, iterative")
+    n = 3.0 * (nx + 1) * (ny + 1) * (nz + 1)
+    system = 3 * 12 * 45 * n
+    factor = estimate_memory3d(nx, ny, nz) - system
+    if mode == "full":
+        return int(PROCESS_BASELINE + system + CACHED_FACTORS * factor)
+    return int(PROCESS_BASELINE + system + 2 * factor + 5 * 8 * ((nx + 1) * (ny + 1)) ** 2)
+
+
+# ---------------------------------------------------------------- assembly
+def assemble3d(scene: Scene3D) -> ContactOperators:
+    """K, f, B, mc, g on the free dofs of the 3D scene (n = (0, 0, -1) on the contact face)."""
+    mesh = block_mesh(scene.Lx, scene.Ly, scene.Lz, scene.h)
+    fes = ng.VectorH1(mesh, order=1, dirichlet="|".join(scene.dirichlet))
+    u, v = fes.TnT()
+    mu, lam = lame(scene.E, scene.nu)
+    eps = lambda w: ng.Sym(ng.Grad(w))  # noqa: E731
+    a = ng.BilinearForm(fes)
+    a += (2 * mu * ng.InnerProduct(eps(u), eps(v)) + lam * ng.Trace(ng.Grad(u)) * ng.Trace(ng.Grad(v))) * ng.dx
+    a.Assemble()
+    lf = ng.LinearForm(fes)
+    for label, t in scene.tractions.items():
+        lf += ng.CF(t) * v * ng.ds(definedon=mesh.Boundaries(label))
+    lf.Assemble()
+    free = np.flatnonzero(np.array(fes.FreeDofs(), dtype=bool))
+    K = _csr(a.mat)[free][:, free].tocsr()
+    f = lf.vec.FV().NumPy()[free].copy()
+
+    # contact nodes: vertices of the contact face not on a clamped face; lumped mass = area/3 per triangle
+    points = np.array(mesh.ngmesh.Coordinates())
+    nv = mesh.nv
+    clamped = {vx.nr for el in mesh.Elements(ng.BND) if el.mat in scene.dirichlet for vx in el.vertices}
+    tris = np.array([[vx.nr for vx in el.vertices] for el in mesh.Elements(ng.BND) if el.mat == scene.contact])
+    P = points[tris]
+    area = 0.5 * np.linalg.norm(np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0]), axis=1)
+    weight = np.bincount(tris.ravel(), weights=np.repeat(area / 3, 3), minlength=nv)
+    nodes = np.array(sorted(set(tris.ravel().tolist()) - clamped))
+    xc = points[nodes]
+    order = np.lexsort((xc[:, 1], xc[:, 0]))
+    nodes, xc = nodes[order], xc[order]
+    mc = weight[nodes]
+    normals = np.tile([0.0, 0.0, -1.0], (len(nodes), 1))
+    g = np.array([scene.gap_at(x, y) for x, y, _ in xc])
+    # u.n at node i = -u_z(node i); VectorH1 numbers the z-component dofs 2 nv + vertex
+    Bfull = sp.csr_matrix((-np.ones(len(nodes)), (np.arange(len(nodes)), 2 * nv + nodes)), shape=(len(nodes), fes.ndof))
+    B = Bfull[:, free].tocsr()
+    return ContactOperators(K=K, f=f, B=B, mc=mc, g=g, xc=xc, normals=normals, free=free,
+                            mesh=mesh, fes=fes, scene=scene)

@@ -1,0 +1,105 @@
+"""3D contact: the block mesh, the assembly, the AMG x-step against the direct one and cvxpy, bad input."""
+import math
+
+import ngsolve as ng
+import numpy as np
+import pytest
+from ngsolve.meshes import MakeStructured3DMesh
+
+from admmkit import RelativeChange
+from problems.cli import main
+from problems.contact import solve_scene
+from problems.contact.scene3d import FACES_3D, Scene3D, assemble3d, block_mesh, example2_3d, memory_need3d
+
+
+def test_block_mesh_is_makestructured3dmesh_with_outward_faces():
+    mesh = block_mesh(3.0, 1.0, 1.0, 1 / 3)
+    ref = MakeStructured3DMesh(hexes=False, nx=9, ny=3, nz=3, mapping=lambda x, y, z: (3 * x, y, z))
+    assert np.abs(np.array(mesh.ngmesh.Coordinates()) - np.array(ref.ngmesh.Coordinates())).max() <= 1e-15
+    assert [[v.nr for v in e.vertices] for e in mesh.Elements(ng.VOL)] == \
+           [[v.nr for v in e.vertices] for e in ref.Elements(ng.VOL)]
+    normal = ng.specialcf.normal(3)
+    expected = {"back": (-1, 0, 0), "front": (1, 0, 0), "left": (0, -1, 0), "right": (0, 1, 0),
+                "bottom": (0, 0, -1), "top": (0, 0, 1)}
+    for face in FACES_3D:
+        area = ng.Integrate(ng.CF(1) * ng.ds(face), mesh)
+        n = [ng.Integrate(normal[i] * ng.ds(face), mesh) / area for i in range(3)]
+        assert np.allclose(n, expected[face], atol=1e-12)
+    assert ng.Integrate(ng.CF(1) * ng.dx, mesh) == pytest.approx(3.0)
+
+
+@pytest.fixture(scope="module")
+def small():
+    return assemble3d(example2_3d(h=1 / 4))
+
+
+def test_assembly_of_the_contact_face(small):
+    ops = small
+    assert ops.xc.shape[1] == 3 and np.all(ops.xc[:, 2] == 0.0)
+    assert np.all(ops.xc[:, 0] > 0)                                  # the clamped edge x = 0 is not a contact node
+    assert 3.0 - 1 / 4 <= ops.mc.sum() <= 3.0                          # the face's area less the clamped strip
+    assert np.allclose(ops.g, 0.003 * (ops.xc[:, 0] - 1.5) ** 2 + 0.003 * (ops.xc[:, 1] - 0.5) ** 2 + 0.001)
+    assert np.all(np.abs(ops.B.sum(axis=1)) == 1.0) and ops.B.nnz == ops.n_c   # B u = -u_z at each node
+    # traction (0, 0, -2) on the unit face x = 3: the load vector sums to -2 in z
+    n_scalar = ops.fes.ndof // 3
+    z_dofs = ops.free >= 2 * n_scalar
+    assert ops.f[z_dofs].sum() == pytest.approx(-2.0)
+    assert ops.f[~z_dofs].sum() == pytest.approx(0.0, abs=1e-12)
+
+
+def test_iterative_and_full_modes_agree_and_solve_the_qp(small):
+    """3D SADMM: the AMG x-step ends at the direct solver's answer, and both at cvxpy's (Clarabel) QP solution."""
+    import cvxpy as cp
+    ops = small
+    stop = RelativeChange(1e-10)
+    full = solve_scene(ops, "sadmm", rho=1e3, mode="full", stop=stop)
+    it = solve_scene(ops, "sadmm", rho=1e3, mode="iterative", stop=stop)
+    assert full.result.converged and it.result.converged
+    K = ops.K
+    energy = lambda u: math.sqrt(u @ (K @ u))  # noqa: E731
+    assert energy(it.u - full.u) <= 1e-7 * energy(full.u)
+    u = cp.Variable(ops.n_free)
+    cons = [ops.B @ u <= ops.g]
+    cp.Problem(cp.Minimize(0.5 * cp.quad_form(u, cp.psd_wrap(K)) - ops.f @ u), cons).solve(
+        solver="CLARABEL", tol_gap_abs=1e-12, tol_gap_rel=1e-12, tol_feas=1e-12, tol_ktratio=1e-10)
+    assert energy(it.u - u.value) <= 1e-7 * energy(u.value)
+    lam_ref = cons[0].dual_value / ops.mc                              # B'M lam = B' mu
+    assert np.abs(it.pressure - lam_ref).max() <= 1e-4 * np.abs(lam_ref).max()
+    assert it.result.kkt["active_nodes"] > 0
+
+
+def test_memory_need_grows_and_the_iterative_need_is_the_smaller():
+    small, big = example2_3d(h=1 / 8), example2_3d(h=1 / 16)
+    assert memory_need3d(big, "iterative") > memory_need3d(small, "iterative")
+    assert memory_need3d(big, "iterative") < min(memory_need3d(big, "full"), memory_need3d(big, "condensed"))
+    # the direct need grows like n^(4/3) times the cached factorisations, the iterative one like n
+    growth = lambda mode: memory_need3d(big, mode) / memory_need3d(small, mode)  # noqa: E731
+    assert growth("full") > growth("iterative")
+
+
+@pytest.mark.parametrize("bad, match", [
+    (dict(h=1e-3), "GiB"), (dict(nu=0.5), "nu"), (dict(dirichlet=("side",)), "unknown face"),
+    (dict(contact="top"), "contact"), (dict(tractions={"front": (0.0, -2.0)}), "triple"),
+    (dict(h=2.0), "larger than the block"), (dict(E=-1.0), "E"),
+])
+def test_bad_3d_scenes_are_refused_before_any_work(bad, match):
+    with pytest.raises(ValueError, match=match):
+        example2_3d(**bad)
+
+
+def test_the_memory_refusal_names_both_estimates():
+    with pytest.raises(ValueError, match=r"iterative x-step .* sparse factorisation"):
+        Scene3D(h=2e-3)
+
+
+def test_bench_contact3d_writes_figure_vtk_and_table(tmp_path, monkeypatch, capsys):
+    from problems.contact import contact3d_bench, scale
+    monkeypatch.setattr(contact3d_bench, "probe_in_subprocess",            # in-process: keeps the test fast
+                        lambda h, which, timeout: contact3d_bench.probe(h) | {"status": "ok"})
+    monkeypatch.setattr(scale, "run_in_subprocess",
+                        lambda example, h, mode, timeout=0, rho=1e3: scale.run_case(example, h, mode) | {"wall_s": 0.0})
+    assert main(["bench", "contact3d", "--quick", "--out", str(tmp_path)]) == 0
+    for name in ("contact3d.md", "contact3d.png", "contact3d.svg", "contact3d.vtu"):
+        assert (tmp_path / name).exists()
+    text = (tmp_path / "contact3d.md").read_text()
+    assert "| 1/4 |" in text and "converged" in text and "## SADMM by x-step mode" in text
