@@ -245,7 +245,7 @@ def contact_problem(ops: ContactOperators, mode: str = "auto", backend: str = "a
     ``mode="auto"`` picks the condensed mode when the contact boundary has at
     most CONDENSED_MAX_NC nodes (the dense n_c x n_c compliance then fits and
     its factorisations are cheaper than sparse ones of the whole body), unless
-    :func:`auto_mode` finds the body too large for a factorisation.
+    ``auto_mode`` finds the body too large for a factorisation.
     """
     if mode not in MODES:
         raise ValueError(f"mode must be one of {', '.join(MODES)}, got {mode!r}")
