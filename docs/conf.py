@@ -128,14 +128,19 @@ def _napoleon_except_attributes(app, what, name, obj, options, lines):
         napoleon._process_docstring(app, what, name, obj, options, lines)
 
 
-def setup(app):
-    """Sphinx hook: the index's "More" toctree; napoleon without the attribute parsing."""
-    app.connect("source-read", _list_unlisted_pages)
-    app.connect("env-get-outdated", _reread_index)
+def prose_attribute_docstrings(app):
+    """Replace napoleon's docstring hook by :func:`_napoleon_except_attributes`."""
     for listener in list(app.events.listeners.get("autodoc-process-docstring", [])):
         if listener.handler is napoleon._process_docstring:
             app.disconnect(listener.id)
     app.connect("autodoc-process-docstring", _napoleon_except_attributes)
+
+
+def setup(app):
+    """Sphinx hook: the index's "More" toctree; napoleon without the attribute parsing."""
+    app.connect("source-read", _list_unlisted_pages)
+    app.connect("env-get-outdated", _reread_index)
+    prose_attribute_docstrings(app)
 
 
 # ---------------------------------------------------------------- math
