@@ -284,3 +284,16 @@ def test_known_kx_is_k_times_the_returned_solution():
     for x in (x1, x2):
         assert np.allclose(solver.known_Kx(x), K @ x, rtol=0, atol=1e-9 * np.abs(K @ x).max())
     assert solver.known_Kx(x1.copy()) is None
+
+
+def test_axpy_refresh_equals_the_galerkin_product_for_the_new_rho():
+    """A_l(rho) = A_l(rho_0) + (rho - rho_0) D_l with D_l = R D P, so the axpy refresh is R A(rho) P exactly."""
+    from admmkit.iterative import AMGPreconditioner
+    K, D = _poisson_pair(30)
+    M = AMGPreconditioner(K + 2.0 * D, None, D=D, rho=2.0)
+    M.refresh((K + 700.0 * D).tocsr(), 700.0)
+    levels = M.ml.levels
+    assert len(levels) >= 2
+    for fine, coarse in zip(levels[:-1], levels[1:]):
+        ref = fine.R @ fine.A @ fine.P
+        assert abs(coarse.A - ref).max() <= 1e-10 * abs(ref).max()
