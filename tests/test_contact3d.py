@@ -98,8 +98,8 @@ def test_bench_contact3d_writes_figure_vtk_and_table(tmp_path, monkeypatch, caps
                         lambda h, which, timeout: contact3d_bench.probe(h) | {"status": "ok"})
     monkeypatch.setattr(scale, "run_in_subprocess",
                         lambda example, h, mode, timeout=0, rho=1e3: scale.run_case(example, h, mode) | {"wall_s": 0.0})
-    assert main(["bench", "contact3d", "--quick", "--out", str(tmp_path)]) == 0
-    for name in ("contact3d.md", "contact3d.png", "contact3d.svg", "contact3d.vtu"):
+    assert main(["bench", "contact3d", "--quick", "--out", str(tmp_path), "--vtk", str(tmp_path / "c3d")]) == 0
+    for name in ("contact3d.md", "contact3d.png", "contact3d.svg", "c3d.vtu"):
         assert (tmp_path / name).exists()
     text = (tmp_path / "contact3d.md").read_text()
     assert "| 1/4 |" in text and "converged" in text and "## SADMM by x-step mode" in text

@@ -297,3 +297,16 @@ def test_axpy_refresh_equals_the_galerkin_product_for_the_new_rho():
     for fine, coarse in zip(levels[:-1], levels[1:]):
         ref = fine.R @ fine.A @ fine.P
         assert abs(coarse.A - ref).max() <= 1e-10 * abs(ref).max()
+
+
+def test_auto_mode_follows_the_measured_crossovers():
+    from types import SimpleNamespace
+
+    from problems.contact.problem import auto_mode
+    fake = lambda n, n_c, dim: SimpleNamespace(n_free=n, n_c=n_c, mesh=SimpleNamespace(dim=dim), scene=None)  # noqa: E731
+    assert auto_mode(fake(1_000_000, 1000, 2)) == "condensed"     # the condensed mode won at every 2D size measured
+    assert auto_mode(fake(50_000, 5000, 2)) == "full"
+    assert auto_mode(fake(500_000, 5000, 2)) == "iterative"
+    assert auto_mode(fake(5_000, 300, 3)) == "condensed"
+    assert auto_mode(fake(300_000, 3000, 3)) == "iterative"
+    assert auto_mode(assemble(example1(h=1 / 10))) == "condensed"   # the paper's sizes: unchanged

@@ -67,6 +67,8 @@ def add_bench_parser(targets) -> None:
                    help="mesh sizes of the direct-vs-AMG probe (repeatable; default 1/8 1/12 1/16 1/24 1/32)")
     d.add_argument("--quick", action="store_true", help="h = 1/4 everywhere (smoke test)")
     d.add_argument("--timeout", type=positive_float, default=600.0, help="seconds per probe (default 600)")
+    d.add_argument("--vtk", default="out/contact3d/contact3d", metavar="BASENAME",
+                   help="VTK file of the SADMM run, .vtu added (default out/contact3d/contact3d)")
     d.set_defaults(func=_contact3d)
 
 
@@ -120,5 +122,6 @@ def _contact3d(args) -> int:
     command = _command("contact3d", args, {"h": 1 / 32, "probe_hs": None, "quick": False, "out": "docs/results/scale"})
     from .contact3d_bench import SADMM_HS
     sadmm_hs = (1 / 4,) if args.quick else SADMM_HS
-    run_contact3d(out=args.out, h=h, probe_hs=probe_hs, timeout=args.timeout, command=command, sadmm_hs=sadmm_hs)
+    run_contact3d(out=args.out, h=h, probe_hs=probe_hs, timeout=args.timeout, command=command, sadmm_hs=sadmm_hs,
+                  vtk=args.vtk)
     return 0

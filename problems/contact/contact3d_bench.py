@@ -10,7 +10,8 @@
    1e3, the paper's stopping rule): iterations, CG iterations, times, peak
    memory, KKT residuals; the figure of the deformed block and of the contact
    pressure on the contact face (``contact3d.png/svg``) and VTK output
-   (``contact3d.vtu``: displacement and contact pressure, for ParaView).
+   (``--vtk``, default ``out/contact3d/contact3d.vtu``: displacement and contact
+   pressure, for ParaView).
 """
 from __future__ import annotations
 
@@ -119,8 +120,9 @@ def write_vtk(ops, u: np.ndarray, lam: np.ndarray, base: Path) -> Path:
     values = np.zeros(ops.mesh.nv)
     values[_contact_vertices(ops)] = lam
     pressure.vec.FV().NumPy()[:] = values
+    base.parent.mkdir(parents=True, exist_ok=True)
     ng.VTKOutput(ops.mesh, coefs=[gf, pressure], names=["displacement", "contact_pressure"],
-                 filename=str(base)).Do()
+                 filename=str(base), floatsize="single").Do()
     return base.with_suffix(".vtu")
 
 
@@ -146,7 +148,9 @@ def figure_3d(ops, u: np.ndarray, lam: np.ndarray, p: np.ndarray, path: Path, ma
     fig = plt.figure(figsize=(14, 5.6))
     ax = fig.add_subplot(1, 2, 1, projection="3d")
     colours = plt.get_cmap("viridis")(mag[tris].mean(axis=1) / max(mag.max(), 1e-300))
-    ax.add_collection3d(Poly3DCollection(Y[tris], facecolors=colours, edgecolors="none", linewidths=0))
+    surface = Poly3DCollection(Y[tris], facecolors=colours, edgecolors="none", linewidths=0)
+    surface.set_rasterized(True)          # keeps the SVG small (one bitmap instead of 1e5 polygons)
+    ax.add_collection3d(surface)
     lo, hi = Y.min(axis=0), Y.max(axis=0)
     ax.set_xlim(lo[0], hi[0]); ax.set_ylim(lo[1], hi[1]); ax.set_zlim(lo[2] - 0.1, hi[2])
     ax.set_box_aspect(hi - lo + [0, 0, 0.1])
@@ -158,7 +162,7 @@ def figure_3d(ops, u: np.ndarray, lam: np.ndarray, p: np.ndarray, path: Path, ma
     fig.colorbar(sm, ax=ax, shrink=0.6, label="|u|")
     ax2 = fig.add_subplot(1, 2, 2)
     xc = ops.xc
-    tpc = ax2.tripcolor(xc[:, 0], xc[:, 1], lam, shading="gouraud", cmap="magma")
+    tpc = ax2.tripcolor(xc[:, 0], xc[:, 1], lam, shading="gouraud", cmap="magma", rasterized=True)
     fig.colorbar(tpc, ax=ax2, label="contact pressure lam")
     active = p >= ops.g
     ax2.plot(xc[active, 0], xc[active, 1], "c.", ms=2, label=f"active nodes ({active.sum()})")
@@ -188,8 +192,9 @@ def run_sadmm_modes(hs, modes=("full", "condensed", "iterative"), timeout=600.0)
 
 
 def run_contact3d(out="docs/results/scale", h=DEFAULT_H, probe_hs=PROBE_HS, timeout=600.0,
-                  command="admmkit bench contact3d", sadmm_hs=SADMM_HS) -> dict:
-    """All measurements; print them; write contact3d.md, the figure and the VTK file."""
+                  command="admmkit bench contact3d", sadmm_hs=SADMM_HS, vtk="out/contact3d/contact3d") -> dict:
+    """All measurements; print them; write contact3d.md, the figure and the VTK file (``vtk``.vtu:
+    single precision, about 70 MB at h = 1/32, so outside docs/ and not committed)."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     sadmm = run_sadmm_modes(sadmm_hs, timeout=timeout) if sadmm_hs else []
@@ -215,7 +220,8 @@ def run_contact3d(out="docs/results/scale", h=DEFAULT_H, probe_hs=PROBE_HS, time
     print(f"        n = {ops.n_free}  n_c = {ops.n_c}  {res.status.value}, {res.iterations} iterations, "
           f"{c['cg_iterations']} CG, total {run['total_s']:.1f} s  peak {run['peak_rss_bytes'] / 1e9:.2f} GB", flush=True)
     figs = figure_3d(ops, res.x, res.lam, res.z, out / "contact3d.png")
-    vtu = write_vtk(ops, res.x, res.lam, out / "contact3d")
+    vtu = write_vtk(ops, res.x, res.lam, Path(vtk))
+    print(f"        figure {figs[0]}, VTK {vtu}", flush=True)
     _write_md(out / "contact3d.md", probes, run, command, figs, vtu, sadmm)
     return {"probes": probes, "run": run, "sadmm": sadmm}
 
@@ -271,7 +277,8 @@ def _write_md(path, probes, run, command, figs, vtu, sadmm=()) -> None:
               f"{kkt.get('penetration', float('nan')):.2e}, negative pressure {kkt.get('negative_pressure', float('nan')):.2e}; "
               f"{kkt.get('active_nodes', '?')} active nodes; total contact force {kkt.get('contact_force', float('nan')):.4f} "
               f"(the applied load is 2.0; the clamp at x = 0 carries the difference)",
-              f"- figure `{figs[0].name}` (deformed block, pressure on the contact face), VTK `{vtu.name}`", "",
+              f"- figure `{figs[0].name}` (deformed block, pressure on the contact face); VTK file `{vtu}` "
+              "(displacement and contact pressure for ParaView; not committed: `*.vtu` is git-ignored)", "",
               "Machine (shared with other engineers during the run):", ""]
     lines += [f"- {k}: {v}" for k, v in machine_info().items()]
     Path(path).write_text("\n".join(lines) + "\n")

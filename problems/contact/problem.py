@@ -50,7 +50,7 @@ MODES = ("auto", "full", "condensed", "iterative")
 CONDENSED_MAX_NC = 3000
 #: from this many unknowns "auto" prefers the iterative mode to the full one in 2D, and to both
 #: direct modes in 3D (measured crossovers: docs/results/scale/amg_crossover.md, contact3d.md)
-ITERATIVE_MIN_N_2D = 200_000
+ITERATIVE_MIN_N_2D = 100_000
 ITERATIVE_MIN_N_3D = 20_000
 
 
