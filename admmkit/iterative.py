@@ -35,13 +35,15 @@ system iteratively in O(n) memory.  :class:`IterativeXSolver` combines
   summable);
 * **reuse of the AMG hierarchy across rho** (``reuse``): when rho changes,
   ``"rebuild"`` sets the hierarchy up again, ``"galerkin"`` keeps the
-  aggregates and prolongators and recomputes only the coarse operators
-  R A(rho) P and the smoothers, ``"keep"`` keeps the preconditioner built for
-  the old rho (still SPD, so CG still converges), and ``"auto"`` keeps it
-  until the time it has measurably cost (the extra CG iterations against the
-  convergence factor of a fresh hierarchy, times the measured time of one)
-  exceeds the measured time of a Galerkin refresh -- the rent-or-buy rule,
-  never more than twice the cost of the better choice made in hindsight.
+  aggregates and prolongators and makes every coarse operator R A(rho) P --
+  since A = K + rho D this is A_l + (rho - rho_0) D_l with D_l = R D P kept
+  from the setup, one axpy per level -- ``"keep"`` keeps the preconditioner
+  built for the old rho (still SPD, so CG still converges), and ``"auto"``
+  keeps it until the time it has measurably cost (the extra CG iterations
+  against the convergence factor of a fresh hierarchy, times the measured
+  time of one) exceeds the measured time of a Galerkin refresh -- the
+  rent-or-buy rule, never more than twice the cost of the better choice made
+  in hindsight.
 
 Generic: nothing here knows about contact or obstacles; a plug-in passes K,
 D, the near-null space and (optionally) the dofs of each node.
@@ -482,8 +484,7 @@ class IterativeXSolver:
             elif self.reuse == "keep":
                 action = "keep"
             else:  # auto: rent (keep) until the measured loss reaches the price of a refresh
-                price = self._amg.refresh_time if math.isfinite(self._amg.refresh_time) else self._amg.setup_time / 3
-                action = "refresh" if self._stale_loss >= price else "keep"
+                action = "refresh" if self._stale_loss >= self._refresh_price() else "keep"
         if action == "setup":
             start = time.perf_counter()
             self._amg = AMGPreconditioner(self._A, self.near_null, blocksize=self.blocksize,
@@ -498,6 +499,13 @@ class IterativeXSolver:
         if action in ("setup", "refresh"):
             self._rho_amg, self._fresh_factor, self._stale_loss = rho, None, 0.0
         return action
+
+    def _refresh_price(self) -> float:
+        """Seconds a Galerkin refresh costs: measured once one was done; before, 0 for the axpy
+        refresh (one axpy per coarse level) and a third of the setup for R A P products."""
+        if math.isfinite(self._amg.refresh_time):
+            return self._amg.refresh_time
+        return 0.0 if self._amg._pencils is not None else self._amg.setup_time / 3
 
     def inner_tolerance(self) -> float:
         """The tolerance of the next solve: rule (*) or the fixed ``tol``."""

@@ -237,7 +237,7 @@ def _write_md(path, probes, run, command, figs, vtu, sadmm=()) -> None:
              "## Where the direct solver struggles", "",
              "One factorisation of K + rho B'M_c B (rho = 1e3, `admmkit.linsolve`, backend auto) against one AMG "
              "setup + CG solve to 1e-8 (relative energy error), each in its own process (BLAS on one thread); "
-             "peak = the process's ru_maxrss. SADMM refactorises at every change of rho (3-6 times in these runs).",
+             "peak = the process's ru_maxrss. In the full mode SADMM refactorises at every change of rho.",
              "", "| h | unknowns | factorisation (s) | peak direct (GB) | AMG setup + CG (s) | CG it. | peak AMG (GB) |",
              "|---|---:|---:|---:|---:|---:|---:|"]
     for row in probes:
