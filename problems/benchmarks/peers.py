@@ -45,14 +45,16 @@ def _osqp_tolerances(d: Discrete, tol: float) -> dict:
 
 
 def _timed(fn, repeats: int, long_run: float):
-    times, out = [], None
+    """(median CPU seconds, CPU seconds of each repeat, median wall seconds, the last output)."""
+    cpus, walls, out = [], [], None
     for i in range(repeats):
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         out = fn()
-        times.append(time.perf_counter() - t0)
-        if times[0] > long_run:
+        walls.append(time.perf_counter() - t0)
+        cpus.append(time.process_time() - c0)
+        if walls[0] > long_run:
             break
-    return statistics.median(times), times, out
+    return statistics.median(cpus), cpus, statistics.median(walls), out
 
 
 def run_peer(d: Discrete, peer: str, *, repeats: int = 3, long_run: float = 10.0, time_limit: float = 60.0,
@@ -68,8 +70,8 @@ def run_peer(d: Discrete, peer: str, *, repeats: int = 3, long_run: float = 10.0
             fn = lambda: _cvxpy_osqp(d, tol, time_limit, max_iter)  # noqa: E731
         else:
             fn = lambda: _osqp(d, tol, time_limit, max_iter)  # noqa: E731
-        t, times, (x, y, status, solver_time, iters) = _timed(fn, repeats, long_run)
-        point = {"tol": tol, "time": t, "times": times, "solver_time": clean_float(solver_time),
+        t, times, wall, (x, y, status, solver_time, iters) = _timed(fn, repeats, long_run)
+        point = {"tol": tol, "time": t, "times": times, "wall": wall, "solver_time": clean_float(solver_time),
                  "iterations": iters, "status": status}
         if x is not None and np.all(np.isfinite(x)):
             point.update(d.errors(x, None if y is None else y / d.weights))
@@ -116,29 +118,31 @@ def _run_pdas(d: Discrete, repeats: int, long_run: float) -> dict:
     K, f, B, g, to_lam = pdas_form(d)
 
     def once():
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         kwargs = d.pdas_args()
         kwargs.pop("weights", None)
-        t_args = time.perf_counter() - t0
+        t_args, c_args = time.perf_counter() - t0, time.process_time() - c0
         res = pdas(K, f, B, g, max_iter=200, keep_iterates=True, **kwargs)
-        return t_args, res
+        return (t_args, c_args), res
 
     runs, totals = [], []
     for i in range(repeats):
         t_args, res = once()
         runs.append((t_args, res))
-        totals.append(t_args + res.time)
+        totals.append(t_args[0] + res.time)
         if totals[0] > long_run:
             break
     res = runs[-1][1]
     points = []
     for k, (u, mu) in enumerate(zip(res.iterates, res.multipliers)):
-        step_times = [t_args + r.history[k]["time"] for t_args, r in runs if k < len(r.history)]
+        step_times = [t[1] + r.history[k]["cpu"] for t, r in runs if k < len(r.history)]
+        step_walls = [t[0] + r.history[k]["time"] for t, r in runs if k < len(r.history)]
         point = {"tol": None, "step": k + 1, "time": statistics.median(step_times), "times": step_times,
+                 "wall": statistics.median(step_walls),
                  "iterations": k + 1, "status": res.status if k + 1 == res.iterations else "step",
                  "active": res.history[k]["active"], "changed": res.history[k]["changed"]}
         point.update(d.errors(u, to_lam(mu)))
         points.append(point)
     return {"points": points, "method": res.method, "status": res.status, "kkt": res.kkt,
-            "setup_time": statistics.median([t for t, _ in runs]) + res.setup_time,
+            "setup_time": statistics.median([t[0] for t, _ in runs]) + res.setup_time,
             "total_time": statistics.median(totals)}
