@@ -22,7 +22,7 @@
 #    work-precision chart: the true error against wall time.
 #
 # The benchmark commands measure both and commit their numbers as CSV files
-# under `docs/results/`. The [benchmarks page](../benchmarks.md) says how
+# under `docs/results/`. The benchmarks page (`docs/benchmarks.md`) says how
 # they measure. This tutorial reads the committed CSV files, redraws the
 # charts, and shows how to read them. It runs nothing expensive: the numbers
 # are those of the committed runs, so they describe the machine and the code
