@@ -140,19 +140,23 @@ assert summary(contact, "summable", "zx")["worst"] <= 71
 # ## 2. Work-precision and stability: `admmkit bench precision | stability`
 #
 # The two larger benchmarks write their CSV files to `docs/results/bench/`.
-# The cells below read them when they are committed.
+# Each part below runs when its CSV file is committed.
 
 # %%
 PRECISION = BENCH / "precision" / "precision.csv"
 STABILITY = BENCH / "stability" / "stability.csv"
-have_bench = PRECISION.is_file() and STABILITY.is_file()
-if have_bench:
-    precision, stability = read(PRECISION), read(STABILITY)
-    print(f"{len(precision)} work-precision points, {len(stability)} stability runs")
-    print("problems:", ", ".join(dict.fromkeys(r["problem"] for r in precision)))
+have_precision, have_stability = PRECISION.is_file(), STABILITY.is_file()
+if have_precision:
+    precision = read(PRECISION)
+    print(f"{len(precision)} work-precision points; problems:",
+          ", ".join(dict.fromkeys(r["problem"] for r in precision)))
 else:
-    print("docs/results/bench/ has no committed precision.csv and stability.csv yet: "
-          "run `admmkit bench precision` and `admmkit bench stability`")
+    print("no committed precision.csv yet: run `admmkit bench precision`")
+if have_stability:
+    stability = read(STABILITY)
+    print(f"{len(stability)} stability runs")
+else:
+    print("no committed stability.csv yet: run `admmkit bench stability`")
 
 # %% [markdown]
 # ### Work-precision: error against time
@@ -192,7 +196,7 @@ def draw(problem, methods, ax):
     ax.legend(fontsize=7, ncol=2)
 
 
-if have_bench:
+if have_precision:
     SHOW = ["admm1", "admm2", "sadmm", "aadmm/zx", "wohlberg/xz", "osqp/zx", "clarabel", "osqp", "pdas"]
     problems = list(dict.fromkeys(r["problem"] for r in precision))
     # the finest contact mesh and the finest obstacle mesh, if present
@@ -221,7 +225,7 @@ def time_to_error(problem, method, target):
     return min(times) if times else None
 
 
-if have_bench:
+if have_precision:
     table = read(BENCH / "precision" / "time_to_error.csv")
     for row in table:
         mine = time_to_error(row["problem"], row["method"], float(row["target"]))
@@ -259,7 +263,7 @@ if have_bench:
 # of $s$, from $10^{-6}$ to $10^{6}$, on both of the paper's examples.
 
 # %%
-if have_bench:
+if have_stability:
     OUTCOMES = ["converged", "false_convergence", "max_iter", "diverged", "stalled", "time_limit", "error"]
     rho_rows = [r for r in stability if r["sweep"] == "rho"]
     scales = sorted({number(r["rho_scale"]) for r in rho_rows})
@@ -299,7 +303,7 @@ if have_bench:
 # per method are:
 
 # %%
-if have_bench:
+if have_stability:
     counts = {m: Counter(r["outcome"] for r in stability if r["method"] == m)
               for m in dict.fromkeys(r["method"] for r in stability)}
     print(f"{'method':<22}{'runs':>6}" + "".join(f"{o[:12]:>14}" for o in OUTCOMES[:4]))
