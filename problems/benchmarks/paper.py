@@ -200,7 +200,10 @@ def summarise(records: dict, out: Path, *, command: str, wall: float, reproducti
     files.append(out / "iterations.md")
 
     files += _figure(speed_rows, out)
-    readme = ["# The paper side by side", "", f"Produced by `{command}`; wall time of this invocation {wall:.0f} s.", "",
+    readme = ["# The paper side by side", "",
+              f"Produced by `{command}`; " + (f"wall time of this invocation {wall:.0f} s." if wall is not None
+                                               else "these files were rewritten from results.jsonl (--report-only)."),
+              "",
               "- `times.{md,csv}`: our times beside the paper's Tables 1-2, with paper / ours",
               "- `speedups.{md,csv,png,svg}`: time(ADMM1 or ADMM2) / time(SADMM), paper against this run",
               "- `iterations.{md,csv}`: our iteration counts beside the committed reproduction", "",
@@ -256,5 +259,6 @@ def run(out="docs/results/bench/paper", *, repeats: int = 3, workers: int = 2, q
                         cases, "problems.benchmarks.paper:run_case", out / "results.jsonl", workers=workers,
                         progress=progress, cost=lambda c: 1 / c["h"] ** 2,
                         label=lambda c: f"{c['scene']} h={c['h']:.4g} {c['method']} rho={c['rho']:g}")
-    return summarise(records, out, command=command, wall=time.perf_counter() - t0, reproduction=reproduction)
+    return summarise(records, out, command=command, wall=None if report_only else time.perf_counter() - t0,
+                     reproduction=reproduction)
 

@@ -236,8 +236,10 @@ def _figures(per_problem, refs, out: Path) -> list[Path]:
 
 def _readme(out: Path, per_problem, refs, failures, command, wall, skipped, files, missing=0) -> Path:
     lines = ["# Work-precision: true error against time", "",
-             f"Produced by `{command}`; wall time of the sweep {wall:.0f} s (this invocation; a resumed sweep "
-             "reuses the finished cases of earlier invocations, see results.jsonl).", "",
+             f"Produced by `{command}`; " + (f"wall time of the sweep {wall:.0f} s (this invocation; a resumed "
+                                              "sweep reuses the finished cases of earlier invocations, see "
+                                              "results.jsonl)." if wall is not None else
+                                              "these files were rewritten from results.jsonl (--report-only)."), "",
              "- ADMM methods: every registered penalty policy in both orders (admm1 = fixed/xz, admm2 = fixed/zx, "
              "sadmm = summable/zx with tau = 2, c_max = 100), from rho_0 = E (contact) or 1 (obstacle, QPs); "
              "one run to Boyd's residual test at 1e-10 with the points where the looser tolerances "
@@ -316,7 +318,7 @@ def run(out="docs/results/bench/precision", *, quick: bool = False, workers: int
         records = run_sweep(cases, "problems.benchmarks.precision:run_case", out / "results.jsonl", workers=workers,
                             progress=progress, cost=case_cost,
                             label=lambda c: f"{_problem_label(c)} {c['method']}")
-    wall = time.perf_counter() - t0
+    wall = None if report_only else time.perf_counter() - t0
     return summarise(records, out, command=command, wall=wall, skipped=methods_mod.skipped_policies(),
                      missing=len(cases) - len(records))
 

@@ -324,7 +324,9 @@ def summarise(records, out: Path, *, command: str, wall: float, skipped, missing
         c = rec["case"]
         refs.setdefault(problem_key(c), (res.get("reference"), res.get("n_free"), res.get("n_c")))
     lines = ["# Stability: where the methods converge and how they fail", "",
-             f"Produced by `{command}`; wall time of this invocation {wall:.0f} s.", "",
+             f"Produced by `{command}`; " + (f"wall time of this invocation {wall:.0f} s." if wall is not None
+                                              else "these files were rewritten from results.jsonl (--report-only)."),
+             "",
              "- every ADMM method (every registered policy in both orders; admm1 = fixed/xz, admm2 = fixed/zx, "
              "sadmm = summable/zx), each run stopped by the paper's rule ||u^{k+1} - u^k||_K <= 1e-5 ||u^{k+1}||_K "
              f"or after {MAX_ITER} iterations; contact problems in the boundary-condensed mode.",
@@ -378,5 +380,5 @@ def run(out="docs/results/bench/stability", *, quick: bool = False, workers: int
                             progress=progress, cost=case_cost,
                             label=lambda c: (f"{c['sweep']} {c['scene']} h={_h_label(c['h'])} nu={c['nu']} "
                                              f"P{c['p']} s={c['rho_scale']:g} {c['method']}"))
-    return summarise(records, out, command=command, wall=time.perf_counter() - t0,
+    return summarise(records, out, command=command, wall=None if report_only else time.perf_counter() - t0,
                      skipped=methods_mod.skipped_policies(), missing=len(cases) - len(records))
