@@ -50,7 +50,7 @@ def machine_info() -> dict:
         commit = subprocess.run(["git", "-C", str(root), "rev-parse", "--short", "HEAD"], capture_output=True,
                                 text=True, timeout=10).stdout.strip()
         if commit:
-            info["git commit"] = commit
+            info["git commit (when these files were written)"] = commit
     except Exception:
         pass
     try:
