@@ -19,7 +19,7 @@
 #    starting penalty $\rho_0$, and its stopping rule should not fire far from
 #    the solution.
 # 2. **How long does it take to reach the accuracy I need?** This is a
-#    work-precision chart: the true error against wall time.
+#    work-precision chart: the true error against CPU time.
 #
 # The benchmark commands measure both and commit their numbers as CSV files
 # under `docs/results/`. The benchmarks page (`docs/benchmarks.md`) says how
@@ -163,9 +163,10 @@ else:
 #
 # Each ADMM method makes **one run**, to a very tight residual tolerance. On
 # the way, the benchmark records where each looser tolerance of a ladder
-# ($10^{-1}, 10^{-1.5}, \dots$) would have stopped it: the wall time at that
-# iteration, and the true relative error against a reference solution at
-# that point. Every row of `precision.csv` is such a point. The peers,
+# ($10^{-1}, 10^{-1.5}, \dots$) would have stopped it: the CPU time of the
+# process at that iteration (the shared machine's load distorts wall time
+# more; the CSV keeps both), and the true relative error against a reference
+# solution at that point. Every row of `precision.csv` is such a point. The peers,
 # cvxpy + Clarabel and OSQP, are run once per tolerance. So each method
 # becomes a curve of (time, error) points:
 #
@@ -191,7 +192,7 @@ def draw(problem, methods, ax):
         if m in data:
             t, e = data[m]
             ax.loglog(t, e, "o-" if "/" in m or m.startswith(("admm", "sadmm")) else "s--", ms=3, label=m)
-    ax.set(xlabel="wall time (s)", ylabel="true relative error", title=problem)
+    ax.set(xlabel="CPU time (s)", ylabel="true relative error", title=problem)
     ax.grid(alpha=0.3, which="both")
     ax.legend(fontsize=7, ncol=2)
 
