@@ -2,14 +2,12 @@
 from __future__ import annotations
 
 import csv
-import datetime
 import math
-import os
-import platform
-import subprocess
 from pathlib import Path
 
 import numpy as np
+
+from problems.machine import machine_info as _machine_info
 
 #: said in every benchmark README: the machine is shared
 NOISE_NOTE = ("The machine (2 cores) is shared with other engineers' jobs while the benchmark runs, so "
@@ -17,46 +15,8 @@ NOISE_NOTE = ("The machine (2 cores) is shared with other engineers' jobs while 
 
 
 def machine_info() -> dict:
-    """nproc, CPU model, platform, git commit and the versions of every library a benchmark uses."""
-    cpu = platform.processor() or "?"
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                cpu = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        pass
-    info = {"date": datetime.datetime.now().strftime("%Y-%m-%d %H:%M"), "nproc": os.cpu_count(), "cpu": cpu,
-            "platform": platform.platform(), "python": platform.python_version()}
-    try:
-        with open("/proc/meminfo") as fh:
-            info["memory"] = f"{int(fh.readline().split()[1]) / 2**20:.1f} GiB"
-    except (OSError, ValueError, IndexError):
-        pass
-    for module in ("numpy", "scipy", "ngsolve", "cvxpy", "clarabel", "osqp", "matplotlib"):
-        try:
-            info[module] = __import__(module).__version__
-        except Exception:
-            info[module] = "not installed"
-    try:
-        from admmkit import __version__
-        from admmkit.linsolve import available_backends
-        info["admmkit"] = __version__
-        info["sparse backends"] = ", ".join(available_backends())
-    except Exception:
-        pass
-    try:
-        root = Path(__file__).resolve().parents[2]
-        commit = subprocess.run(["git", "-C", str(root), "rev-parse", "--short", "HEAD"], capture_output=True,
-                                text=True, timeout=10).stdout.strip()
-        if commit:
-            info["git commit (when these files were written)"] = commit
-    except Exception:
-        pass
-    try:
-        info["load average (1 min) at the end"] = f"{os.getloadavg()[0]:.2f}"
-    except OSError:
-        pass
+    """:func:`problems.machine.machine_info` and how the sweeps pin BLAS."""
+    info = _machine_info()
     info["BLAS threads"] = "1 per worker process (OMP/OPENBLAS_NUM_THREADS=1, threadpoolctl)"
     return info
 

@@ -6,7 +6,6 @@ that are not clamped). All matrices act on the free (non-Dirichlet) dofs.
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import ngsolve as ng

@@ -23,8 +23,6 @@ import argparse
 import csv
 import datetime
 import math
-import os
-import platform
 import statistics
 import sys
 import time
@@ -36,8 +34,10 @@ import numpy as np
 
 import admmkit
 
+from problems.machine import machine_info  # noqa: F401  (the benchmarks of this plug-in import it from here)
+
 from .assembly import ContactOperators, assemble
-from .methods import ContactSolution, solve_scene
+from .methods import solve_scene
 from .problem import contact_problem
 from .scene import example1, example2
 
@@ -336,36 +336,6 @@ def _timed_run(ops, method, rho, mode, repeats):
         sols.append(sol)
     return sols[-1], statistics.median(walls), statistics.median(cpus), \
         statistics.median(s.setup_time for s in sols), statistics.median(s.result.timings["total"] for s in sols)
-
-
-def machine_info() -> dict:
-    """nproc, CPU model, platform and library versions."""
-    cpu = platform.processor() or "?"
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                cpu = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        pass
-    import scipy
-    info = {"nproc": os.cpu_count(), "cpu": cpu, "platform": platform.platform(),
-            "python": platform.python_version(), "numpy": np.__version__, "scipy": scipy.__version__}
-    try:
-        import ngsolve
-        info["ngsolve"] = ngsolve.__version__
-    except Exception:
-        pass
-    try:
-        from admmkit.linsolve import available_backends
-        info["sparse backend (auto)"] = available_backends()[0]
-    except Exception:
-        pass
-    try:
-        info["load average (1 min) at the end"] = f"{os.getloadavg()[0]:.2f}"
-    except OSError:
-        pass
-    return info
 
 
 def run_reproduction(out="docs/results/paper", hs=PAPER_HS, rhos=PAPER_RHOS, repeats: int = 1,

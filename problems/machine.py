@@ -1,0 +1,54 @@
+"""The machine and library versions, recorded beside every benchmark figure."""
+from __future__ import annotations
+
+import datetime
+import os
+import platform
+import subprocess
+from pathlib import Path
+
+LIBRARIES = ("numpy", "scipy", "ngsolve", "pyamg", "cvxpy", "clarabel", "osqp", "matplotlib")
+
+
+def machine_info() -> dict:
+    """Date, nproc, CPU model, memory, platform, git commit, library versions, sparse backends, load."""
+    cpu = platform.processor() or "?"
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                cpu = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    info = {"date": datetime.datetime.now().strftime("%Y-%m-%d %H:%M"), "nproc": os.cpu_count(), "cpu": cpu,
+            "platform": platform.platform(), "python": platform.python_version()}
+    try:
+        with open("/proc/meminfo") as fh:
+            info["memory"] = f"{int(fh.readline().split()[1]) / 2**20:.1f} GiB"
+    except (OSError, ValueError, IndexError):
+        pass
+    for module in LIBRARIES:
+        try:
+            info[module] = __import__(module).__version__
+        except Exception:
+            info[module] = "not installed"
+    try:
+        from admmkit import __version__
+        from admmkit.linsolve import available_backends
+        info["admmkit"] = __version__
+        info["sparse backends (auto picks the first)"] = ", ".join(available_backends())
+    except Exception:
+        pass
+    try:
+        root = Path(__file__).resolve().parents[1]
+        commit = subprocess.run(["git", "-C", str(root), "rev-parse", "--short", "HEAD"], capture_output=True,
+                                text=True, timeout=10).stdout.strip()
+        if commit:
+            info["git commit (when these files were written)"] = commit
+    except Exception:
+        pass
+    try:
+        info["load average (1 min) at the end"] = f"{os.getloadavg()[0]:.2f}"
+    except OSError:
+        pass
+    return info
