@@ -176,18 +176,14 @@ def figure_3d(ops, u: np.ndarray, lam: np.ndarray, p: np.ndarray, path: Path, ma
 
 def run_sadmm_modes(hs, modes=("full", "condensed", "iterative"), timeout=600.0) -> list[dict]:
     """SADMM on the 3D scene in each mode and size, each run in its own process (scale.run_in_subprocess)."""
-    from .scale import run_in_subprocess
+    from .scale import print_run, run_in_subprocess
     rows = []
     for h in hs:
         for mode in modes:
             print(f"SADMM h = {_label(h)} {mode} ...", flush=True)
             r = run_in_subprocess("ex2_3d", h, mode, timeout=timeout)
             rows.append(r)
-            if r.get("status") == "converged":
-                print(f"        n = {r['n_free']}  setup {r['setup_s']:.2f} s  SADMM {r['solve_s']:.2f} s "
-                      f"({r['iterations']} it.)  peak {r['peak_rss_bytes'] / 1e9:.2f} GB", flush=True)
-            else:
-                print(f"        {r.get('status')}: {r.get('message', '')}", flush=True)
+            print_run(r)
     return rows
 
 

@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from .reproduce import _pyplot, machine_info, save
-from .scale import run_in_subprocess
+from .scale import print_run, run_in_subprocess
 from .scale_bench import h_label
 
 DEFAULT_HS = (1 / 20, 1 / 40, 1 / 80, 1 / 160, 1 / 320, 1 / 500)
@@ -107,11 +107,7 @@ def run_crossover(out="docs/results/scale", hs=DEFAULT_HS, modes=MODES, reuse_h=
         print(f"[{i}/{total}] ex1 h = {h_label(h)} {mode} ...", flush=True)
         r = run_in_subprocess("ex1", h, mode, timeout=timeout)
         rows.append(r)
-        if r.get("status") == "converged":
-            print(f"        n = {r['n_free']}  setup {r['setup_s']:.2f} s  SADMM {r['solve_s']:.2f} s  "
-                  f"({r['iterations']} it.)  peak {r['peak_rss_bytes'] / 1e9:.2f} GB", flush=True)
-        else:
-            print(f"        {r.get('status')}: {r.get('message', '')}", flush=True)
+        print_run(r)
     print(f"hierarchy reuse at h = {h_label(reuse_h)} ...", flush=True)
     reuse = reuse_table(reuse_h)
     for r in reuse:

@@ -82,6 +82,15 @@ def run_case(example: str, h: float, mode: str, rho: float = 1e3, max_iter: int 
     return row
 
 
+def print_run(r: dict) -> None:
+    """One progress line for a finished :func:`run_in_subprocess` case."""
+    if r.get("status") == "converged":
+        print(f"        n = {r['n_free']}  setup {r['setup_s']:.2f} s  SADMM {r['solve_s']:.2f} s  "
+              f"({r['iterations']} it.)  peak {r['peak_rss_bytes'] / 1e9:.2f} GB", flush=True)
+    else:
+        print(f"        {r.get('status')}: {r.get('message', '')}", flush=True)
+
+
 def run_in_subprocess(example: str, h: float, mode: str, timeout: float = 900.0, rho: float = 1e3) -> dict:
     """run_case in a fresh Python process with BLAS pinned to one thread; timeouts are reported."""
     env = dict(os.environ, OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1", MKL_NUM_THREADS="1")

@@ -34,8 +34,6 @@ from __future__ import annotations
 import csv
 import datetime
 import math
-import os
-import platform
 import sys
 import time
 from concurrent.futures import ProcessPoolExecutor, as_completed
@@ -48,6 +46,8 @@ import scipy.sparse as sp
 import admmkit
 import policies
 from admmkit import Status
+
+from problems.machine import machine_info
 
 from .mat import list_problems, load_mat
 from .problem import QP
@@ -294,25 +294,6 @@ def plot_profiles(rows: list[dict], path_stem: Path) -> list[Path]:
         paths.append(p)
     plt.close(fig)
     return paths
-
-
-def machine_info() -> dict:
-    """CPU, platform and library versions for the report."""
-    import osqp
-    import scipy
-    cpu = platform.processor() or "?"
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                cpu = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        pass
-    from admmkit.linsolve import available_backends
-    return {"cpu": cpu, "nproc": os.cpu_count(), "platform": platform.platform(),
-            "python": platform.python_version(), "numpy": np.__version__, "scipy": scipy.__version__,
-            "osqp": osqp.__version__, "admmkit": admmkit.__version__,
-            "sparse backend (auto)": available_backends()[0]}
 
 
 def _fmt_failures(failures: dict) -> str:
