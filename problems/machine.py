@@ -41,9 +41,13 @@ def machine_info() -> dict:
         pass
     try:
         root = Path(__file__).resolve().parents[1]
+        # only a checkout of admmkit has a meaningful commit: an installed copy in site-packages may sit
+        # inside some other repository (pyenv's), whose commit would be reported instead
+        top = subprocess.run(["git", "-C", str(root), "rev-parse", "--show-toplevel"], capture_output=True,
+                             text=True, timeout=10).stdout.strip()
         commit = subprocess.run(["git", "-C", str(root), "rev-parse", "--short", "HEAD"], capture_output=True,
                                 text=True, timeout=10).stdout.strip()
-        if commit:
+        if commit and top and Path(top).resolve() == root:
             info["git commit (when these files were written)"] = commit
     except Exception:
         pass
