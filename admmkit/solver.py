@@ -114,7 +114,7 @@ def solve(
     if Ax.shape != z.shape or lam.shape != z.shape:
         raise ValueError(f"shapes do not match: A x0 has shape {Ax.shape}, z0 {z.shape}, lam0 {lam.shape}")
     c = problem.c
-    has_adjoint = _has_adjoint(problem, z)
+    has_adjoint = order_key == "xz" and _has_adjoint(problem, z)   # only order xz uses adjoint_norm
     if order_key == "xz" and "dual_residual" in policy.requires and not has_adjoint:
         raise ValueError(
             f"policy {policy!r} needs Boyd's dual residual, which for order 'xz' needs "

@@ -63,7 +63,7 @@ class _ContactBase(Problem):
     def __init__(self, ops: ContactOperators):
         self.ops = ops
         self.mc, self.g = ops.mc, ops.g
-        self._BBt = (ops.B @ ops.B.T).tocsr()   # ||B'v||^2 = v'BB'v
+        self._BBt = None   # B B', built on the first adjoint_norm (only order xz needs it)
 
     def z_step(self, Ax, lam, rho, z):
         """p = min(g, u_n + lam/rho), eq. (11)."""
@@ -75,6 +75,8 @@ class _ContactBase(Problem):
 
     def adjoint_norm(self, y):
         """||B' M_c y||_2 (Boyd's dual residual for order xz)."""
+        if self._BBt is None:
+            self._BBt = (self.ops.B @ self.ops.B.T).tocsr()   # ||B'v||^2 = v'BB'v
         v = self.mc * y
         return float(np.sqrt(max(v @ (self._BBt @ v), 0.0)))
 

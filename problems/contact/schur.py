@@ -18,15 +18,14 @@ Two backends, picked like :mod:`admmkit.linsolve` picks its solvers:
 
 * ``"cholmod"`` (scikit-sparse, when installed): AMD on K_ii, then CHOLMOD's
   L L' in that order; S from the last n_c columns of L.
-* ``"superlu"`` (scipy, always there): METIS nested dissection (pymetis) on the
-  graph of K_ii compressed to one node per mesh vertex (dofs with the same row
-  pattern, i.e. the x and y dofs of a vertex, are one node: half the nodes,
-  same fill), then SuperLU's LU in that order without pivoting.
+* ``"superlu"`` (scipy, always there): SuperLU's multiple minimum degree
+  ordering of K_ii (the one ``splu`` uses for a plain solve, read off a
+  factorisation that keeps no fill), then SuperLU's LU in that order without
+  pivoting; S from the last n_c columns of U.
 """
 from __future__ import annotations
 
 import time
-import warnings
 
 import numpy as np
 import scipy.linalg as sla
@@ -49,35 +48,19 @@ def available_schur_backends() -> list[str]:
     return out + ["superlu"]
 
 
-def compressed_nested_dissection(K_ii: sp.spmatrix) -> np.ndarray:
-    """A nested-dissection ordering of K_ii computed on its compressed graph.
+def minimum_degree_ordering(A: sp.spmatrix) -> np.ndarray:
+    """SuperLU's multiple minimum degree ordering of A' + A, as a permutation.
 
-    Rows with identical sparsity patterns (the components of one vector-valued
-    node) become one graph node; METIS orders the nodes and each node's dofs
-    stay together.  Returns a permutation of ``range(K_ii.shape[0])``.
+    scipy does not expose SuperLU's ordering alone, but an incomplete LU
+    that drops every entry (``spilu`` with ``drop_tol=1``) computes it, plus
+    the elimination-tree postorder, at the cost of the ordering: at Example
+    1, h = 1/40, it took 6 ms where METIS nested dissection took 12 ms, and
+    the factorisation in either order took 15-17 ms.  Returns ``order`` with
+    ``A[order][:, order]`` the reordered matrix.
     """
-    import pymetis
-
-    A = sp.csr_matrix(K_ii, copy=True)
-    A.sort_indices()
-    n = A.shape[0]
-    # equal patterns give bit-equal sums of random weights; distinct ones collide with probability ~0,
-    # and a collision would only change the fill, never the correctness of the permutation
-    weights = np.random.default_rng(12345).random(n)
-    key = np.add.reduceat(weights[A.indices], A.indptr[:-1]) if A.nnz else np.zeros(n)
-    _, group = np.unique(key, return_inverse=True)
-    n_groups = int(group.max()) + 1 if n else 0
-    P = sp.csr_matrix((np.ones(n), (group, np.arange(n))), shape=(n_groups, n))
-    pattern = sp.csr_matrix((np.ones(A.nnz), A.indices, A.indptr), shape=A.shape)
-    G = (P @ pattern @ P.T).tocsr()
-    G.setdiag(0)
-    G.eliminate_zeros()
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", DeprecationWarning)  # the xadj/adjncy form works on every pymetis
-        node_order, _ = pymetis.nested_dissection(xadj=G.indptr, adjncy=G.indices)
-    rank = np.empty(n_groups, dtype=np.int64)
-    rank[np.asarray(node_order)] = np.arange(n_groups)
-    return np.argsort(rank[group], kind="stable")
+    ilu = spla.spilu(sp.csc_matrix(A), drop_tol=1.0, fill_factor=1.0, permc_spec="MMD_AT_PLUS_A",
+                     diag_pivot_thresh=0.0, options=dict(SymmetricMode=True))
+    return np.argsort(ilu.perm_c)   # perm_c[j] is the new position of column j
 
 
 class _CholmodSchur:
@@ -103,11 +86,11 @@ class _CholmodSchur:
 
 
 class _SuperLUSchur:
-    """K = L U by SuperLU without pivoting, inner dofs in compressed-ND order, contact dofs last."""
+    """K = L U by SuperLU without pivoting, inner dofs in minimum degree order, contact dofs last."""
 
     def __init__(self, K: sp.csc_matrix, inner: np.ndarray, contact: np.ndarray, timings: dict):
         t0 = time.perf_counter()
-        self.order = np.concatenate([inner[compressed_nested_dissection(K[inner][:, inner])], contact])
+        self.order = np.concatenate([inner[minimum_degree_ordering(K[inner][:, inner])], contact])
         Kp = K[self.order][:, self.order].tocsc()
         t1 = time.perf_counter()
         try:
@@ -152,9 +135,12 @@ class BoundarySchur:
         elif backend not in installed:
             raise ValueError(f"schur backend {backend!r} is not installed here (installed: {', '.join(installed)})")
         self.backend = backend
-        K = sp.csc_matrix(K)
-        self.contact_dofs = np.unique(sp.csc_matrix(B).nonzero()[1])
-        inner = np.setdiff1d(np.arange(K.shape[0]), self.contact_dofs)
+        # K is symmetric, so its CSR arrays are those of K' = K in CSC: no copy
+        K = sp.csc_matrix((K.data, K.indices, K.indptr), shape=K.shape) if getattr(K, "format", None) == "csr" else sp.csc_matrix(K)
+        self.contact_dofs = np.unique(sp.csr_matrix(B).indices)
+        is_inner = np.ones(K.shape[0], dtype=bool)
+        is_inner[self.contact_dofs] = False
+        inner = np.flatnonzero(is_inner)
         self.timings: dict[str, float] = {}
         try:
             with limit_blas(blas_threads):
