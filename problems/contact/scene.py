@@ -125,9 +125,12 @@ def memory_need(scene: "Scene", mode: str) -> int:
     The process baseline (Python and the libraries) plus: ``"iterative"`` the
     iterative estimate; ``"full"`` the system and CACHED_FACTORS sparse
     factorisations (one per rho value met); ``"condensed"`` the system, one LU
-    (L and U: twice a Cholesky factor) and its dense n_c x n_c matrices (about
-    5 n_c^2 doubles).  For Example 1 at 4.1e5 unknowns the runs peaked at
-    0.96 (iterative), 1.54 (condensed) and 2.92 GB (full).
+    (L and U: twice a Cholesky factor), the copy of U that S is read from,
+    and the dense n_c x n_c matrices (about 5 n_c^2 doubles).  For Example 1
+    at 4.1e5 unknowns the runs peaked at 0.96 (iterative), 1.54 (condensed,
+    METIS-ordered then) and 2.92 GB (full); the condensed set-up with
+    SuperLU's minimum degree ordering peaked at 4.1 GB at 6.4e5 unknowns,
+    which this estimate gives.
     """
     if scene.geometry is not None:
         return 0
@@ -144,7 +147,7 @@ def memory_need(scene: "Scene", mode: str) -> int:
     if mode == "full":
         return int(PROCESS_BASELINE + system + CACHED_FACTORS * factor)
     n_c = scene.order * (scene.L if scene.contact in ("bottom", "top") else scene.H) / scene.h
-    return int(PROCESS_BASELINE + system + 2 * factor + 5 * 8 * n_c**2)
+    return int(PROCESS_BASELINE + system + 3 * factor + 5 * 8 * n_c**2)
 
 
 def check_memory(scene: "Scene", mode: str) -> None:
