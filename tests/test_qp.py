@@ -103,3 +103,45 @@ def test_qp_validation(change, match):
         QP(**data)
     with pytest.raises(ValueError, match="sigma must be"):
         QP(np.eye(2), np.zeros(2), np.ones((3, 2)), -np.ones(3), np.ones(3), sigma=-1)
+
+
+# -- the KKT form of the x-step ------------------------------------------------------------------------
+def _with_xstep(qp, xstep, **kw):
+    return QP(qp.P, qp.q, qp.A, qp.l, qp.u, qp.r, name=qp.name, xstep=xstep, **kw)
+
+
+@pytest.mark.parametrize("backend", ["superlu", "qdldl"])
+def test_kkt_form_gives_the_reduced_iterates(backend):
+    if backend == "qdldl":
+        pytest.importorskip("qdldl")
+    qp = random_qp(30, 40, kind="mixed", seed=4)
+    runs = [solve(_with_xstep(qp, xs, **({"backend": backend} if xs == "kkt" else {})), rho=0.5,
+                  policy="residual_balancing", order=order, stop=ResidualTolerance(1e-12, 1e-12), max_iter=300)
+            for order in ("xz", "zx") for xs in ("reduced", "kkt")]
+    for reduced, kkt in (runs[0:2], runs[2:4]):
+        assert kkt.iterations == reduced.iterations
+        assert rel(kkt.x, reduced.x) < 1e-9 and rel(kkt.lam, reduced.lam) < 1e-9
+        assert kkt.counters["factorizations"] == reduced.counters["factorizations"]
+
+
+def test_kkt_form_matches_cvxpy():
+    qp = _with_xstep(random_qp(25, 30, kind="inequality", seed=5), "kkt")
+    x_ref, lam_ref, obj_ref = solve_with_cvxpy(qp, **TIGHT)
+    res = solve(qp, rho=1.0, policy="osqp", order="xz", stop=ResidualTolerance(1e-10, 1e-10), max_iter=20_000)
+    assert res.converged and rel(res.x, x_ref) < 1e-6 and rel(res.lam, lam_ref) < 1e-6
+
+
+def test_auto_takes_the_kkt_form_when_a_row_of_A_is_dense(monkeypatch):
+    import problems.qp.problem as qp_module
+    qp = random_qp(40, 5, kind="equality", seed=3)
+    assert _with_xstep(qp, "auto").xstep == "reduced"
+    monkeypatch.setattr(qp_module, "REDUCED_MAX_NNZ", 10.0)   # any A'A is "too dense" now
+    assert _with_xstep(qp, "auto").xstep == "kkt"
+
+
+def test_kkt_form_bad_input():
+    qp = random_qp(10, 12, kind="mixed", seed=6)
+    with pytest.raises(ValueError, match="xstep must be one of auto, reduced, kkt"):
+        _with_xstep(qp, "normal")
+    with pytest.raises(ValueError, match="backend for xstep 'kkt'"):
+        _with_xstep(qp, "kkt", backend="cholmod")

@@ -14,8 +14,8 @@ import scipy.sparse as sp
 import admmkit
 import policies  # noqa: F401
 from problems.qp import load_mat, random_qp
-from problems.qp.bench import (performance_profile, run_benchmark, run_osqp, shifted_geometric_mean, skip_reason,
-                               summarize)
+from problems.qp.bench import (kkt_form_reason, performance_profile, run_benchmark, run_osqp, shifted_geometric_mean,
+                               skip_reason, summarize)
 from problems.qp.reference import solve_with_cvxpy
 from problems.qp.termination import OSQPTermination, osqp_relative_residuals, osqp_residuals, osqp_satisfied
 
@@ -81,7 +81,9 @@ def test_benchmark_smoke(tmp_path, capsys):
     dense.A = sp.csc_matrix(np.ones((5, 40)))             # dense rows: A'A is full (bound 5 x 40^2 + nnz P)
     dense.l, dense.u = np.full(5, -1.0), np.full(5, 1.0)
     save_mat(dense, data / "DENSE.mat")
-    assert skip_reason(data / "DENSE.mat", nnz_limit=3000) is not None
+    # reduced form: up to 5 x 40^2 + nnz(P) entries; KKT form: nnz(P) + 2 x 200 + 45
+    assert skip_reason(data / "DENSE.mat", nnz_limit=1000) is not None
+    assert skip_reason(data / "DENSE.mat", nnz_limit=3000) is None          # its KKT form fits
     out = tmp_path / "out"
     from problems.cli import main
     code = main(["bench", "qp", "--data", str(data), "--out", str(out), "--policies", "wohlberg,osqp_qp",
@@ -98,7 +100,7 @@ def test_benchmark_smoke(tmp_path, capsys):
     assert "admmkit bench qp --data" in text and "## eps = 1e-06" in text and "## Skipped" in text
     # a low fill limit lists the dense problem as skipped, with the reason
     res = run_benchmark(data, tmp_path / "out2", policy_names=["aadmm"], orders=["zx"], max_iter=500,
-                        time_limit=5.0, nnz_limit=3000, osqp_direct=False, progress=False)
+                        time_limit=5.0, nnz_limit=1000, osqp_direct=False, progress=False)
     assert set(res["skipped"]) == {"DENSE"} and "DENSE" in (tmp_path / "out2" / "README.md").read_text()
     assert {r["problem"] for r in res["rows"]} == {"RAND1", "RAND2"}
 
@@ -124,6 +126,8 @@ def test_maros_meszaros_hs35_against_cvxpy():
 
 
 @needs_mm
-def test_maros_meszaros_skips_the_dense_row_problems():
-    assert skip_reason(MM / "BOYD1.mat") is not None
-    assert skip_reason(MM / "HS21.mat") is None
+def test_maros_meszaros_dense_row_problems_run_in_kkt_form():
+    # BOYD1 has a row of A with all 93261 entries: A'A would be dense, the KKT matrix is not
+    assert skip_reason(MM / "BOYD1.mat") is None and kkt_form_reason(MM / "BOYD1.mat") is not None
+    assert load_mat(MM / "BOYD1.mat").xstep == "kkt"
+    assert kkt_form_reason(MM / "HS21.mat") is None and load_mat(MM / "HS21.mat").xstep == "reduced"

@@ -16,9 +16,11 @@ once per accuracy.
 Reported per configuration and accuracy: the success rate, the shifted
 geometric means of iterations and time (shift 10; a failure counts as the
 iteration cap and the time limit), the factorisations of the x-step matrix,
-status counts and the performance profiles (Dolan & More 2002).  Problems
-whose x-step matrix P + rho A'A would be too large for this machine (a dense
-row of A makes A'A dense) are listed as skipped with the reason.
+status counts and the performance profiles (Dolan & More 2002).  Where a
+dense row of A makes A'A dense, the QP plug-in solves the x-step in OSQP's
+KKT form (``QP(xstep="auto")``) and the report lists those problems; a
+problem too large for this machine in either form is listed as skipped with
+the reason.
 
 Configurations beyond the registered rules: ``osqp_qp`` is OSQP's rule fed
 OSQP's exact normalisation of the QP residuals
@@ -50,7 +52,7 @@ from admmkit import Status
 from problems.machine import machine_info
 
 from .mat import list_problems, load_mat
-from .problem import QP
+from .problem import QP, REDUCED_MAX_NNZ, reduced_nnz_bound
 from .termination import OSQPTermination, osqp_relative_residuals, osqp_residuals
 
 RHO0 = 0.1
@@ -61,7 +63,8 @@ TIME_LIMIT = 10.0
 SHIFT = 10.0
 #: a wall-time cap of WALL_FACTOR x the (CPU) time limit, against a stalled machine
 WALL_FACTOR = 20.0
-#: skip a problem whose x-step matrix would have more nonzeros than this (bound: nnz(P) + sum_i nnz(row_i)^2)
+#: skip a problem whose x-step matrix would have more nonzeros than this in both forms (reduced: at most
+#: nnz(P) + sum_i nnz(row_i)^2; KKT: nnz(P) + 2 nnz(A) + n + m)
 NNZ_LIMIT = 2e7
 #: the extra configuration of OSQP's rule with OSQP's exact QP normalisation
 OSQP_QP = "osqp_qp"
@@ -85,21 +88,36 @@ def make_policy(name: str, qp: QP) -> admmkit.Policy:
 
 
 # ---------------------------------------------------------------- problems
-def skip_reason(path: Path, nnz_limit: float = NNZ_LIMIT) -> str | None:
-    """Why a MAT file is not run (None if it is): the x-step matrix P + rho A'A would be too large."""
+def x_step_sizes(path: Path) -> tuple[float, float, str]:
+    """Entries of the x-step matrix of a MAT file in the reduced form (a bound) and the KKT form, and a note."""
     data = scipy.io.loadmat(str(path), variable_names=["P", "A"])
-    A = sp.csr_matrix(data["A"])
-    rows = np.diff(A.indptr).astype(float)
-    bound = float(sp.csc_matrix(data["P"]).nnz + (rows ** 2).sum())
-    if bound > nnz_limit:
-        return (f"x-step matrix P + rho A'A: up to {bound:.2g} nonzeros (> {nnz_limit:.0g}; densest row of A has "
-                f"{int(rows.max())} of {A.shape[1]} entries)")
+    P, A = sp.csc_matrix(data["P"]), sp.csr_matrix(data["A"])
+    rows = np.diff(A.indptr)
+    kkt = float(P.nnz + 2 * A.nnz + A.shape[0] + A.shape[1])
+    note = f"densest row of A has {int(rows.max(initial=0))} of {A.shape[1]} entries"
+    return reduced_nnz_bound(P, A), kkt, note
+
+
+def skip_reason(path: Path, nnz_limit: float = NNZ_LIMIT) -> str | None:
+    """Why a MAT file is not run (None if it is): the x-step matrix would be too large in both forms."""
+    reduced, kkt, note = x_step_sizes(path)
+    if min(reduced, kkt) > nnz_limit:
+        return (f"x-step matrix: up to {reduced:.2g} nonzeros reduced (P + rho A'A), {kkt:.2g} in KKT form "
+                f"(> {nnz_limit:.0g}; {note})")
+    return None
+
+
+def kkt_form_reason(path: Path) -> str | None:
+    """Why QP(xstep="auto") solves this problem's x-step in KKT form (None if it uses the reduced form)."""
+    reduced, kkt, note = x_step_sizes(path)
+    if reduced > REDUCED_MAX_NNZ:
+        return f"P + rho A'A could have {reduced:.2g} nonzeros (> {REDUCED_MAX_NNZ:.0g}), the KKT matrix {kkt:.2g}; {note}"
     return None
 
 
 def _fresh(qp: QP) -> QP:
     """A new QP object on the same data (an empty factorisation cache)."""
-    return QP(qp.P, qp.q, qp.A, qp.l, qp.u, qp.r, sigma=qp.sigma, name=qp.name)
+    return QP(qp.P, qp.q, qp.A, qp.l, qp.u, qp.r, sigma=qp.sigma, name=qp.name, xstep=qp.xstep)
 
 
 # ---------------------------------------------------------------- one run
@@ -301,8 +319,8 @@ def _fmt_failures(failures: dict) -> str:
 
 
 def markdown(summary: list[dict], skipped: dict[str, str], meta: dict, command: str, n_run: int,
-             figure: str) -> str:
-    """The report: settings, one table per accuracy, the skipped problems, the machine."""
+             figure: str, kkt_form: dict[str, str] | None = None) -> str:
+    """The report: settings, one table per accuracy, the KKT-form and the skipped problems, the machine."""
     lines = [
         "# Penalty rules on the Maros-Meszaros QPs",
         "",
@@ -332,7 +350,11 @@ def markdown(summary: list[dict], skipped: dict[str, str], meta: dict, command: 
                          f"| {s['sgm_iterations']:.1f} | {s['sgm_time']:.3f} | {s['factorizations_mean']:.1f} / "
                          f"{s['factorizations_max']} | {_fmt_failures(s['failures'])} | {s['runaway']} |")
         lines.append("")
-    lines += ["## Skipped", ""]
+    lines += ["## x-step in KKT form", "",
+              "A dense row of A makes A'A dense; these problems ran with OSQP's KKT form of the x-step "
+              "(`QP(xstep=\"auto\")`, factorised by qdldl or SuperLU):", ""]
+    lines += [f"- {name}: {why}" for name, why in sorted((kkt_form or {}).items())] or ["- none"]
+    lines += ["", "## Skipped", ""]
     lines += [f"- {name}: {why}" for name, why in sorted(skipped.items())] or ["- none"]
     lines += ["", "## Machine", ""] + [f"- {k}: {v}" for k, v in meta["machine"].items()]
     lines += [f"- started {meta['started']}, wall time {meta['wall']:.0f} s", ""]
@@ -403,7 +425,7 @@ def run_benchmark(folder, out, *, policy_names=None, orders=ORDERS, eps=EPS, max
 
     started = datetime.datetime.now().isoformat(timespec="seconds")
     t_start = time.perf_counter()
-    skipped = {}
+    skipped, kkt_form = {}, {}
     todo = []
     for p in paths:
         why = skip_reason(p, nnz_limit)
@@ -411,6 +433,9 @@ def run_benchmark(folder, out, *, policy_names=None, orders=ORDERS, eps=EPS, max
             skipped[p.stem] = why
         else:
             todo.append(p)
+            kkt_why = kkt_form_reason(p)
+            if kkt_why:
+                kkt_form[p.stem] = kkt_why
     done = set()
     if resume and csv_path.exists():
         done = {r["problem"] for r in read_rows(csv_path)}
@@ -449,7 +474,7 @@ def run_benchmark(folder, out, *, policy_names=None, orders=ORDERS, eps=EPS, max
     meta = {"max_iter": max_iter, "time_limit": time_limit, "workers": workers, "machine": machine_info(),
             "started": started, "wall": time.perf_counter() - t_start}
     figures = plot_profiles(rows, out / "profiles") if rows else []
-    text = markdown(summary, skipped, meta, command, len({r["problem"] for r in rows}), "profiles.png")
+    text = markdown(summary, skipped, meta, command, len({r["problem"] for r in rows}), "profiles.png", kkt_form)
     (out / "README.md").write_text(text)
     with (out / "summary.csv").open("w", newline="") as fh:
         w = csv.writer(fh)
@@ -461,7 +486,7 @@ def run_benchmark(folder, out, *, policy_names=None, orders=ORDERS, eps=EPS, max
                         s["factorizations_max"], _fmt_failures(s["failures"]), s["runaway"]])
     if progress:
         print(text)
-    return {"rows": rows, "summary": summary, "skipped": skipped, "figures": figures, "out": out}
+    return {"rows": rows, "summary": summary, "skipped": skipped, "kkt_form": kkt_form, "figures": figures, "out": out}
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -10,6 +10,21 @@ The proximal term sigma/2 ||x - x^k||^2 (OSQP's sigma, default 1e-6) keeps the
 x-step uniquely solvable when P + rho A'A is singular (an LP-like QP); with
 sigma = 0 the iterates are those of plain ADMM.  The x-step matrix is
 factorised once per rho value and cached.
+
+Two forms of the same x-step (``xstep=``):
+
+- ``"reduced"``: the SPD matrix P + sigma I + rho A'A above (Cholesky-able,
+  n x n), the default while A'A stays sparse;
+- ``"kkt"``: the quasi-definite system OSQP solves,
+
+      [P + sigma I    A'    ] [x]   [sigma x^k - q ]
+      [A           -I / rho ] [v] = [z - lam / rho ],
+
+  whose second row gives v = rho (A x - z) + lam, so that its first row is
+  the reduced equation.  It has nnz(P) + 2 nnz(A) + n + m entries however
+  dense the rows of A are, and is factorised by an LDL' (qdldl) or an LU
+  (SuperLU).  ``"auto"`` takes it when A'A could have more than
+  REDUCED_MAX_NNZ entries (one dense row of A makes A'A dense).
 """
 from __future__ import annotations
 
@@ -19,7 +34,19 @@ import numpy as np
 import scipy.sparse as sp
 
 from admmkit import Problem
-from admmkit.linsolve import CachedFactorization
+from admmkit.linsolve import CachedFactorization, available_backends
+
+XSTEPS = ("auto", "reduced", "kkt")
+#: "auto" uses the KKT form when A'A could have more entries than this (bound: nnz(P) + sum_i nnz(row_i of A)^2)
+REDUCED_MAX_NNZ = 2e7
+#: sparse solvers that factorise the indefinite KKT matrix (CHOLMOD's L L' and PARDISO's SPD mode cannot)
+KKT_BACKENDS = ("qdldl", "superlu")
+
+
+def reduced_nnz_bound(P: sp.spmatrix, A: sp.spmatrix) -> float:
+    """An upper bound on the entries of P + rho A'A: nnz(P) + sum over rows of A of nnz(row)^2."""
+    rows = np.diff(sp.csr_matrix(A).indptr).astype(float)
+    return float(sp.csc_matrix(P).nnz + (rows ** 2).sum())
 
 
 class QP(Problem):
@@ -27,27 +54,44 @@ class QP(Problem):
 
     Parameters: P (n x n, symmetric PSD), q (n,), A (m x n), l, u (m,) with
     l <= u (infinite bounds allowed, equal bounds are equality rows), r a
-    constant, sigma >= 0 the proximal weight, backend the sparse solver.
+    constant, sigma >= 0 the proximal weight, backend the sparse solver,
+    xstep the form of the x-step system ("auto", "reduced" or "kkt"; see the
+    module docstring).
     """
 
-    def __init__(self, P, q, A, l, u, r: float = 0.0, *, sigma: float = 1e-6, backend: str = "auto", name: str = "qp"):
+    def __init__(self, P, q, A, l, u, r: float = 0.0, *, sigma: float = 1e-6, backend: str = "auto",
+                 name: str = "qp", xstep: str = "auto"):
         self.P, self.q, self.A, self.l, self.u = _validate(P, q, A, l, u)
         self.r = float(r)
         if not (math.isfinite(sigma) and sigma >= 0):
             raise ValueError(f"sigma must be a finite number >= 0, got {sigma!r}")
+        if xstep not in XSTEPS:
+            raise ValueError(f"xstep must be one of {', '.join(XSTEPS)}, got {xstep!r}")
         self.sigma = float(sigma)
         self.name = name
         self.n = self.P.shape[0]
         self.m = self.A.shape[0]
         self.c = 0.0
         self.At = self.A.T.tocsr()      # A' once: scipy builds a new matrix on every A.T (~40 us)
-        AtA = (self.At @ self.A).tocsc()
+        if xstep == "auto":
+            xstep = "kkt" if reduced_nnz_bound(self.P, self.A) > REDUCED_MAX_NNZ else "reduced"
+        self.xstep = xstep
         base = (self.P + self.sigma * sp.identity(self.n, format="csc")).tocsc()
-        self._solver = CachedFactorization(lambda rho: (base + rho * AtA).tocsc(), backend=backend)
+        if xstep == "reduced":
+            AtA = (self.At @ self.A).tocsc()
+            self._solver = CachedFactorization(lambda rho: (base + rho * AtA).tocsc(), backend=backend)
+        else:
+            kkt_backend = _kkt_backend(backend)
+            top = sp.bmat([[base, self.A.T], [self.A, None]], format="csc")
+            minus_I = sp.diags(np.r_[np.zeros(self.n), -np.ones(self.m)], format="csc")
+            self._solver = CachedFactorization(lambda rho: (top + minus_I / rho).tocsc(), backend=kkt_backend)
 
     # -- the splitting --------------------------------------------------------
     def x_step(self, z, lam, rho, x):
-        """Solve (P + sigma I + rho A'A) x = sigma x^k - q + A'(rho z - lam)."""
+        """Solve (P + sigma I + rho A'A) x = sigma x^k - q + A'(rho z - lam), in either form."""
+        if self.xstep == "kkt":
+            rhs = np.concatenate([self.sigma * x - self.q, z - lam / rho])
+            return self._solver.solve(rho, rhs)[:self.n]
         rhs = self.sigma * x - self.q + self.At @ (rho * z - lam)
         return self._solver.solve(rho, rhs)
 
@@ -92,6 +136,16 @@ class QP(Problem):
     def counters(self):
         """Factorisations and solves of the x-step matrix so far."""
         return {"factorizations": self._solver.factorizations, "solves": self._solver.solves}
+
+
+def _kkt_backend(backend: str) -> str:
+    """The solver for the KKT form: qdldl if installed, else SuperLU, unless one of them is asked for."""
+    if backend == "auto":
+        return next(b for b in KKT_BACKENDS if b in available_backends())
+    if backend not in KKT_BACKENDS:
+        raise ValueError(f"backend for xstep 'kkt' must be 'auto' or one of {', '.join(KKT_BACKENDS)} "
+                         f"(the KKT matrix is indefinite), got {backend!r}")
+    return backend
 
 
 def _inf(v) -> float:
