@@ -98,18 +98,21 @@ def x_step_sizes(path: Path) -> tuple[float, float, str]:
     return reduced_nnz_bound(P, A), kkt, note
 
 
-def skip_reason(path: Path, nnz_limit: float = NNZ_LIMIT) -> str | None:
-    """Why a MAT file is not run (None if it is): the x-step matrix would be too large in both forms."""
-    reduced, kkt, note = x_step_sizes(path)
+def skip_reason(path: Path, nnz_limit: float = NNZ_LIMIT, sizes: tuple | None = None) -> str | None:
+    """Why a MAT file is not run (None if it is): the x-step matrix would be too large in both forms.
+
+    ``sizes``: :func:`x_step_sizes` of the file, if already read.
+    """
+    reduced, kkt, note = sizes or x_step_sizes(path)
     if min(reduced, kkt) > nnz_limit:
         return (f"x-step matrix: up to {reduced:.2g} nonzeros reduced (P + rho A'A), {kkt:.2g} in KKT form "
                 f"(> {nnz_limit:.0g}; {note})")
     return None
 
 
-def kkt_form_reason(path: Path) -> str | None:
+def kkt_form_reason(path: Path, sizes: tuple | None = None) -> str | None:
     """Why QP(xstep="auto") solves this problem's x-step in KKT form (None if it uses the reduced form)."""
-    reduced, kkt, note = x_step_sizes(path)
+    reduced, kkt, note = sizes or x_step_sizes(path)
     if reduced > REDUCED_MAX_NNZ:
         return f"P + rho A'A could have {reduced:.2g} nonzeros (> {REDUCED_MAX_NNZ:.0g}), the KKT matrix {kkt:.2g}; {note}"
     return None
@@ -428,12 +431,13 @@ def run_benchmark(folder, out, *, policy_names=None, orders=ORDERS, eps=EPS, max
     skipped, kkt_form = {}, {}
     todo = []
     for p in paths:
-        why = skip_reason(p, nnz_limit)
+        sizes = x_step_sizes(p)   # one read of P and A per file
+        why = skip_reason(p, nnz_limit, sizes)
         if why:
             skipped[p.stem] = why
         else:
             todo.append(p)
-            kkt_why = kkt_form_reason(p)
+            kkt_why = kkt_form_reason(p, sizes)
             if kkt_why:
                 kkt_form[p.stem] = kkt_why
     done = set()
