@@ -12,12 +12,12 @@ from .problem import Problem
 from .record import IterationRecord
 from .result import Result, Status
 from .solver import solve
-from .stopping import AllOf, AnyOf, RelativeChange, ResidualTolerance, StoppingRule
+from .stopping import AllOf, AnyOf, RelativeChange, ResidualTolerance, StoppingRule, default_stop
 
 __version__ = "0.1.0"
 
 __all__ = [
     "solve", "Problem", "Policy", "IterationRecord", "Result", "Status", "History",
-    "StoppingRule", "RelativeChange", "ResidualTolerance", "AnyOf", "AllOf",
+    "StoppingRule", "RelativeChange", "ResidualTolerance", "AnyOf", "AllOf", "default_stop",
     "register_policy", "make_policy", "policy_names", "__version__",
 ]

@@ -1,44 +1,82 @@
-"""Per-iteration history of a run: columns of numbers, exportable to arrays and CSV."""
+"""Per-iteration history of a run: columns of numbers, exportable to arrays and CSV.
+
+Two modes (``admmkit.solve(..., history=...)``):
+
+- ``"lean"`` (default) keeps, for each iteration, the norms that were computed
+  anyway (those the stopping rule, the policy and the callback read) and NaN
+  for the others; the last row is always complete.  It costs nothing beyond
+  storing a few numbers.
+- ``"full"`` computes every norm of every record, as the eager loop did: all
+  columns are filled, at the price of about nine extra vector norms per iteration.
+
+Where a lean row has a number, it is bitwise the number a full row holds.
+"""
 from __future__ import annotations
 
 import csv
+import math
 from pathlib import Path
 
 import numpy as np
 
-from .record import SCALAR_FIELDS, IterationRecord
+from .record import LAZY_FIELDS, SCALAR_FIELDS, IterationRecord, ratio, relative_change
 
 #: columns of the history, in CSV order
 COLUMNS = SCALAR_FIELDS + ("rel_change", "primal_residual_rel", "dual_residual_rel", "rho_next", "rho_changed")
+MODES = ("lean", "full")
+_NAN = math.nan
 
 
 class History:
     """One row per iteration: the record's scalars, the next rho and whether it changed."""
 
-    def __init__(self) -> None:
-        self._rows: list[tuple] = []
+    def __init__(self, mode: str = "full") -> None:
+        if mode not in MODES:
+            raise ValueError(f"history must be 'lean' or 'full', got {mode!r}")
+        self.mode = mode
+        self._rows: list[tuple] = []     # (k, rho, primal_unit, dual_unit, time, lazy values, rho_next)
 
     def append(self, rec: IterationRecord, rho_next: float) -> None:
         """Add the row of iteration ``rec.k``; ``rho_next`` is the rho the policy chose."""
-        row = tuple(getattr(rec, name) for name in SCALAR_FIELDS)
-        row += (rec.rel_change, rec.primal_residual_rel, rec.dual_residual_rel, rho_next, rho_next != rec.rho)
-        self._rows.append(row)
+        if self.mode == "full":
+            rec.complete()
+        self._rows.append((rec.k, rec.rho, rec.primal_unit, rec.dual_unit, rec.time, rec.computed(), rho_next))
+
+    def replace_last(self, rec: IterationRecord) -> None:
+        """Refresh the last row from ``rec`` (the loop completes the last record of a run)."""
+        k, rho, pu, du, t, _, rho_next = self._rows[-1]
+        self._rows[-1] = (k, rho, pu, du, t, rec.computed(), rho_next)
 
     def __len__(self) -> int:
         return len(self._rows)
 
+    def _row(self, row: tuple) -> tuple:
+        k, rho, primal_unit, dual_unit, t, vals, rho_next = row
+        v = dict(zip(LAZY_FIELDS, (_NAN if a is None else a for a in vals)))
+        scalars = dict(v, k=k, rho=rho, primal_unit=primal_unit, dual_unit=dual_unit, time=t)
+        out = tuple(scalars[name] for name in SCALAR_FIELDS)
+        return out + (relative_change(v["x_change"], v["x_norm"]) if vals[4] is not None and vals[5] is not None else _NAN,
+                      ratio(v["primal_residual"], v["primal_scale"]) if vals[0] is not None and vals[7] is not None else _NAN,
+                      ratio(v["dual_residual"], v["dual_scale"]) if vals[1] is not None and vals[8] is not None else _NAN,
+                      rho_next, rho_next != rho)
+
     def __getitem__(self, column: str) -> np.ndarray:
-        """The column ``column`` as an array, e.g. ``history["rho"]``."""
+        """The column ``column`` as an array, e.g. ``history["rho"]`` (NaN where a lean row did not compute it)."""
         try:
             j = COLUMNS.index(column)
         except ValueError:
             raise KeyError(f"unknown history column {column!r}; columns are {', '.join(COLUMNS)}") from None
         dtype = bool if column == "rho_changed" else (int if column == "k" else float)
-        return np.array([row[j] for row in self._rows], dtype=dtype)
+        return np.array([self._row(row)[j] for row in self._rows], dtype=dtype)
 
     def as_dict(self) -> dict[str, np.ndarray]:
         """All columns as a dict of arrays."""
-        return {name: self[name] for name in COLUMNS}
+        rows = [self._row(row) for row in self._rows]
+        out = {}
+        for j, name in enumerate(COLUMNS):
+            dtype = bool if name == "rho_changed" else (int if name == "k" else float)
+            out[name] = np.array([row[j] for row in rows], dtype=dtype)
+        return out
 
     def to_csv(self, path: str | Path) -> Path:
         """Write the history as CSV (header row, one row per iteration) and return the path."""
@@ -47,5 +85,6 @@ class History:
             writer = csv.writer(fh)
             writer.writerow(COLUMNS)
             for row in self._rows:
-                writer.writerow([int(v) if isinstance(v, (bool, np.bool_)) else repr(float(v)) if isinstance(v, float) else v for v in row])
+                writer.writerow([int(v) if isinstance(v, (bool, np.bool_)) else repr(float(v)) if isinstance(v, float) else v
+                                 for v in self._row(row)])
         return path

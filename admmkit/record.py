@@ -1,13 +1,122 @@
-"""The read-only record of one ADMM iteration, as policies and stopping rules see it."""
+"""The read-only record of one ADMM iteration, as policies and stopping rules see it.
+
+The loop builds a *lazy* record: it holds references to the iterates and
+computes each norm the first time something reads it (then keeps it), so an
+iteration costs only the norms that the stopping rule, the policy, the
+callback or the history actually read.  A record made by hand
+(``IterationRecord(k=..., rho=..., primal_residual=..., ...)``, as in the
+tests of the policies) holds the given numbers and computes nothing.
+"""
 from __future__ import annotations
 
-from dataclasses import dataclass, fields
+import math
 from typing import Callable
 
 import numpy as np
 
+#: the scalar fields of a record that the history keeps, in its column order
+SCALAR_FIELDS = ("k", "rho", "primal_residual", "dual_residual", "rho_Ax_change", "lam_change", "x_change",
+                 "x_norm", "z_change", "primal_scale", "dual_scale", "primal_unit", "dual_unit", "time")
+#: the fields computed on first access in a loop record (indices into ``_vals``)
+LAZY_FIELDS = ("primal_residual", "dual_residual", "rho_Ax_change", "lam_change", "x_change", "x_norm",
+               "z_change", "primal_scale", "dual_scale")
+_INDEX = {name: i for i, name in enumerate(LAZY_FIELDS)}
+_VECTORS = ("x", "z", "lam", "Ax", "z_prev", "Ax_prev")
 
-@dataclass(frozen=True, slots=True)
+
+class RunContext:
+    """What the lazy fields of every record of one run share: the problem's norms and the constants."""
+
+    __slots__ = ("problem", "norm", "order", "alpha", "c", "c_is_zero", "c_norm", "has_adjoint",
+                 "primal_unit", "dual_unit", "inner")
+
+    def __init__(self, problem, order: str, alpha: float, c, c_norm: float, has_adjoint: bool,
+                 primal_unit: float, dual_unit: float):
+        self.problem, self.norm, self.inner = problem, problem.norm, problem.inner
+        self.order, self.alpha, self.c = order, alpha, c
+        self.c_is_zero = np.isscalar(c) and c == 0
+        self.c_norm, self.has_adjoint = c_norm, has_adjoint
+        self.primal_unit, self.dual_unit = primal_unit, dual_unit
+
+
+# -- the lazy fields: each a function of the record (r = A x^{k+1} - z^{k+1} - c) --------------
+def _primal_residual(rec) -> float:                  # ||r||_M
+    return rec._ctx.norm(rec._residual())
+
+
+def _lam_change(rec) -> float:                       # ||lam^{k+1} - lam^k||_M = rho ||r||_M if alpha = 1
+    if rec._ctx.alpha == 1.0:
+        return rec.rho * rec.primal_residual
+    return rec._ctx.norm(rec._lam - rec._lam_prev)
+
+
+def _rho_Ax_change(rec) -> float:                    # rho ||A x^{k+1} - A x^k||_M
+    return rec.rho * rec._ctx.norm(rec._Ax - rec._Ax_prev)
+
+
+def _dual_residual(rec) -> float:
+    ctx = rec._ctx
+    if ctx.order == "zx":                            # rho ||A x^{k+1} - A x^k + z_hat - z^{k+1}||_M
+        if ctx.alpha == 1.0:
+            return rec.rho_Ax_change
+        return rec.rho * ctx.norm((rec._Ax - rec._Ax_prev) + (rec._z - rec._hat))
+    if not ctx.has_adjoint:
+        return math.nan
+    if ctx.alpha == 1.0:                             # rho ||A^T M (z^{k+1} - z^k)||
+        return rec.rho * ctx.problem.adjoint_norm(rec._z - rec._z_prev)
+    return rec.rho * ctx.problem.adjoint_norm((rec._Ax - rec._hat) + (rec._z - rec._z_prev))
+
+
+def _dual_scale(rec) -> float:                       # ||A^T M lam|| (xz) or ||lam||_M (zx)
+    ctx = rec._ctx
+    if ctx.order == "zx":
+        return ctx.norm(rec._lam)
+    return ctx.problem.adjoint_norm(rec._lam) if ctx.has_adjoint else math.nan
+
+
+def _primal_scale(rec) -> float:                     # max(||A x||_M, ||z||_M, ||c||_M)
+    ctx = rec._ctx
+    return max(ctx.norm(rec._Ax), ctx.norm(rec._z), ctx.c_norm)
+
+
+_COMPUTE = {
+    "primal_residual": _primal_residual,
+    "dual_residual": _dual_residual,
+    "rho_Ax_change": _rho_Ax_change,
+    "lam_change": _lam_change,
+    "x_change": lambda rec: rec._ctx.problem.x_distance(rec._x, rec._x_prev),
+    "x_norm": lambda rec: rec._ctx.problem.x_norm(rec._x),
+    "z_change": lambda rec: rec._ctx.norm(rec._z - rec._z_prev),
+    "primal_scale": _primal_scale,
+    "dual_scale": _dual_scale,
+}
+
+
+def _lazy(name: str, doc: str) -> property:
+    i, compute = _INDEX[name], _COMPUTE[name]
+
+    def get(self):
+        v = self._vals[i]
+        if v is None:
+            v = self._vals[i] = compute(self)
+        return v
+    return property(get, doc=doc)
+
+
+def _view(name: str, doc: str) -> property:
+    attr = "_" + name
+
+    def get(self):
+        v = getattr(self, attr)
+        if v is None or not v.flags.writeable:
+            return v
+        view = v.view()
+        view.flags.writeable = False
+        object.__setattr__(self, attr, view)
+        return view
+    return property(get, doc=doc)
+
+
 class IterationRecord:
     """What happened in iteration k (which produced x^{k+1}, z^{k+1}, lam^{k+1}).
 
@@ -17,100 +126,185 @@ class IterationRecord:
     - ``primal_residual``  ||r||_M
     - ``dual_residual``    Boyd's dual residual: rho ||A^T M (z^{k+1} - z^k)||
       for order "xz"; rho ||A (x^{k+1} - x^k)||_M for order "zx" (where x is
-      the second block; this is the denominator of the paper's w_k)
+      the second block; this is the denominator of the paper's w_k).  With
+      over-relaxation (alpha != 1) the norm of the first block's optimality
+      defect ||lam_x - lam^{k+1}|| (xz) or ||lam_z - lam^{k+1}|| (zx), see docs/math.md
     - ``rho_Ax_change``    rho ||A x^{k+1} - A x^k||_M (the paper's w_k denominator)
-    - ``lam_change``       ||lam^{k+1} - lam^k||_M = rho ||r||_M (w_k numerator)
+    - ``lam_change``       ||lam^{k+1} - lam^k||_M (= rho ||r||_M when alpha = 1; w_k numerator)
     - ``x_change``, ``x_norm``  ||x^{k+1} - x^k||_X and ||x^{k+1}||_X
     - ``primal_scale``     max(||A x||_M, ||z||_M, ||c||_M)  (Boyd 3.3.1)
     - ``dual_scale``       ||A^T M lam|| ("xz") or ||lam||_M ("zx")
     - ``primal_unit``, ``dual_unit``  the norms of the all-ones vector of the
       spaces the residuals live in (Boyd's sqrt(p), sqrt(n))
 
-    The vectors are read-only views of the new iterates; ``z_prev`` and
-    ``Ax_prev`` are those of the previous iterate (z^k, A x^k) and ``inner``
-    is the problem's (., .)_M (None: Euclidean, for hand-made records).
-    From them the record gives the multiplier of each block's optimality
-    condition (``lam_x``, ``lam_z``), which spectral rules need.
+    In a record of the loop each of these norms is computed the first time it
+    is read and then kept; reading one costs what the old eager loop paid for
+    all of them only if everything is read.  The vectors are read-only views of
+    the new iterates; ``z_prev`` and ``Ax_prev`` are those of the previous
+    iterate (z^k, A x^k) and ``inner`` is the problem's (., .)_M (None:
+    Euclidean, for hand-made records).  From them the record gives the
+    multiplier of each block's optimality condition (``lam_x``, ``lam_z``),
+    which spectral rules need.  Records are read-only.
     """
 
-    k: int
-    rho: float
-    order: str
-    primal_residual: float
-    dual_residual: float
-    rho_Ax_change: float
-    lam_change: float
-    x_change: float
-    x_norm: float
-    z_change: float
-    primal_scale: float
-    dual_scale: float
-    primal_unit: float
-    dual_unit: float
-    time: float
-    x: np.ndarray
-    z: np.ndarray
-    lam: np.ndarray
-    Ax: np.ndarray
-    z_prev: np.ndarray | None = None
-    Ax_prev: np.ndarray | None = None
-    inner: Callable[[np.ndarray, np.ndarray], float] | None = None
+    __slots__ = ("k", "rho", "order", "primal_unit", "dual_unit", "time", "alpha", "inner_product", "_vals",
+                 "_ctx", "_x", "_z", "_lam", "_Ax", "_z_prev", "_Ax_prev", "_x_prev", "_lam_prev", "_r", "_hat")
+
+    def __init__(self, k: int, rho: float, order: str, primal_residual: float, dual_residual: float,
+                 rho_Ax_change: float, lam_change: float, x_change: float, x_norm: float, z_change: float,
+                 primal_scale: float, dual_scale: float, primal_unit: float, dual_unit: float, time: float,
+                 x: np.ndarray, z: np.ndarray, lam: np.ndarray, Ax: np.ndarray,
+                 z_prev: np.ndarray | None = None, Ax_prev: np.ndarray | None = None,
+                 inner: Callable[[np.ndarray, np.ndarray], float] | None = None):
+        put = object.__setattr__
+        for name, value in (("k", k), ("rho", rho), ("order", order), ("primal_unit", primal_unit),
+                            ("dual_unit", dual_unit), ("time", time), ("alpha", 1.0), ("inner_product", inner),
+                            ("_ctx", None), ("_x", x), ("_z", z), ("_lam", lam), ("_Ax", Ax), ("_z_prev", z_prev),
+                            ("_Ax_prev", Ax_prev), ("_x_prev", None), ("_lam_prev", None), ("_r", None),
+                            ("_hat", None)):
+            put(self, name, value)
+        put(self, "_vals", [primal_residual, dual_residual, rho_Ax_change, lam_change, x_change, x_norm,
+                            z_change, primal_scale, dual_scale])
+
+    def __setattr__(self, name, value):
+        raise AttributeError(f"IterationRecord is read-only (tried to set {name!r})")
+
+    primal_residual = _lazy("primal_residual", "||A x^{k+1} - z^{k+1} - c||_M.")
+    dual_residual = _lazy("dual_residual", "Boyd's dual residual (see the class docstring).")
+    rho_Ax_change = _lazy("rho_Ax_change", "rho_k ||A x^{k+1} - A x^k||_M.")
+    lam_change = _lazy("lam_change", "||lam^{k+1} - lam^k||_M.")
+    x_change = _lazy("x_change", "||x^{k+1} - x^k||_X.")
+    x_norm = _lazy("x_norm", "||x^{k+1}||_X.")
+    z_change = _lazy("z_change", "||z^{k+1} - z^k||_M.")
+    primal_scale = _lazy("primal_scale", "max(||A x^{k+1}||_M, ||z^{k+1}||_M, ||c||_M).")
+    dual_scale = _lazy("dual_scale", "||A^T M lam^{k+1}|| (order xz) or ||lam^{k+1}||_M (order zx).")
+    x = _view("x", "x^{k+1} (read-only).")
+    z = _view("z", "z^{k+1} (read-only).")
+    lam = _view("lam", "lam^{k+1} (read-only).")
+    Ax = _view("Ax", "A x^{k+1} (read-only).")
+    z_prev = _view("z_prev", "z^k (read-only; None in a hand-made record that did not give it).")
+    Ax_prev = _view("Ax_prev", "A x^k (read-only; None in a hand-made record that did not give it).")
+
+    @classmethod
+    def _from_loop(cls, ctx: RunContext, k: int, rho: float, t: float, x, z, lam, Ax, x_prev, z_prev, lam_prev,
+                   Ax_prev, r, hat) -> "IterationRecord":
+        """The loop's lazy record (no norm computed yet)."""
+        rec = object.__new__(cls)
+        put = object.__setattr__
+        put(rec, "k", k)
+        put(rec, "rho", rho)
+        put(rec, "order", ctx.order)
+        put(rec, "primal_unit", ctx.primal_unit)
+        put(rec, "dual_unit", ctx.dual_unit)
+        put(rec, "time", t)
+        put(rec, "alpha", ctx.alpha)
+        put(rec, "inner_product", ctx.inner)
+        put(rec, "_vals", [None] * 9)
+        put(rec, "_ctx", ctx)
+        put(rec, "_x", x)
+        put(rec, "_z", z)
+        put(rec, "_lam", lam)
+        put(rec, "_Ax", Ax)
+        put(rec, "_z_prev", z_prev)
+        put(rec, "_Ax_prev", Ax_prev)
+        put(rec, "_x_prev", x_prev)
+        put(rec, "_lam_prev", lam_prev)
+        put(rec, "_r", r)
+        put(rec, "_hat", hat)
+        return rec
+
+    def _residual(self) -> np.ndarray:
+        """r = A x^{k+1} - z^{k+1} - c (the dual update's vector when alpha = 1)."""
+        if self._r is None:
+            ctx = self._ctx
+            r = self._Ax - self._z if ctx.c_is_zero else self._Ax - self._z - ctx.c
+            object.__setattr__(self, "_r", r)
+        return self._r
+
+    def complete(self) -> "IterationRecord":
+        """Compute every norm not yet computed (what the eager loop computed); return self."""
+        for name in LAZY_FIELDS:
+            getattr(self, name)
+        return self
+
+    def computed(self) -> tuple:
+        """The lazy fields as they stand: a number where computed, None where not (no computation)."""
+        return tuple(self._vals)
+
+    @property
+    def inner(self) -> Callable[[np.ndarray, np.ndarray], float] | None:
+        """The problem's inner product (., .)_M (None: Euclidean)."""
+        return self.inner_product
 
     def dot(self, a: np.ndarray, b: np.ndarray) -> float:
         """(a, b)_M, the problem's inner product of the constraint space (Euclidean if not given)."""
-        return float(np.dot(a, b)) if self.inner is None else float(self.inner(a, b))
+        return float(np.dot(a, b)) if self.inner_product is None else float(self.inner_product(a, b))
 
     @property
     def lam_x(self) -> np.ndarray:
         """The multiplier of the x-step's optimality condition: -A^T M lam_x in the subdifferential of f at x^{k+1}.
 
         Order "zx" (x-step last): lam^{k+1}.  Order "xz": the x-step used z^k, so
-        lam_x = lam^k + rho (A x^{k+1} - z^k - c) = lam^{k+1} + rho (z^{k+1} - z^k)
+        lam_x = lam^k + rho (A x^{k+1} - z^k - c), which is
+        lam^{k+1} + rho (z^{k+1} - z^k) when alpha = 1
         (Xu, Figueiredo & Goldstein 2017's "hat" multiplier).  Needs ``z_prev``.
         """
         if self.order == "zx":
             return self.lam
-        if self.z_prev is None:
+        if self._z_prev is None:
             raise ValueError("lam_x of an order 'xz' record needs z_prev (the previous z)")
-        return self.lam + self.rho * (self.z - self.z_prev)
+        if self.alpha == 1.0:
+            return self.lam + self.rho * (self.z - self.z_prev)
+        return self.lam + self.rho * ((self._Ax - self._hat) + (self._z - self._z_prev))
 
     @property
     def lam_z(self) -> np.ndarray:
         """The multiplier of the z-step's optimality condition: M lam_z in the subdifferential of g at z^{k+1}.
 
         Order "xz" (z-step last): lam^{k+1}.  Order "zx": the z-step used A x^k, so
-        lam_z = lam^k + rho (A x^k - z^{k+1} - c) = lam^{k+1} - rho (A x^{k+1} - A x^k).
-        Needs ``Ax_prev``.
+        lam_z = lam^k + rho (A x^k - z^{k+1} - c), which is
+        lam^{k+1} - rho (A x^{k+1} - A x^k) when alpha = 1.  Needs ``Ax_prev``.
         """
         if self.order == "xz":
             return self.lam
-        if self.Ax_prev is None:
+        if self._Ax_prev is None:
             raise ValueError("lam_z of an order 'zx' record needs Ax_prev (the previous A x)")
-        return self.lam - self.rho * (self.Ax - self.Ax_prev)
+        if self.alpha == 1.0:
+            return self.lam - self.rho * (self.Ax - self.Ax_prev)
+        return self.lam - self.rho * ((self._Ax - self._Ax_prev) + (self._z - self._hat))
 
     @property
     def rel_change(self) -> float:
         """||x^{k+1} - x^k||_X / ||x^{k+1}||_X (inf when x^{k+1} = 0 and x moved)."""
-        if self.x_norm > 0:
-            return self.x_change / self.x_norm
-        return 0.0 if self.x_change == 0 else float("inf")
+        return relative_change(self.x_change, self.x_norm)
 
     @property
     def primal_residual_rel(self) -> float:
         """Primal residual normalised by ``primal_scale``."""
-        return _ratio(self.primal_residual, self.primal_scale)
+        return ratio(self.primal_residual, self.primal_scale)
 
     @property
     def dual_residual_rel(self) -> float:
         """Dual residual normalised by ``dual_scale``."""
-        return _ratio(self.dual_residual, self.dual_scale)
+        return ratio(self.dual_residual, self.dual_scale)
+
+    def __repr__(self) -> str:
+        shown = ", ".join(f"{n}={v:.3g}" for n, v in zip(LAZY_FIELDS, self._vals) if v is not None)
+        return f"IterationRecord(k={self.k}, rho={self.rho:.4g}, order={self.order!r}{', ' if shown else ''}{shown})"
 
 
-def _ratio(a: float, b: float) -> float:
+def relative_change(change: float, norm: float) -> float:
+    """change / norm (0 when both are 0, inf when only norm is 0)."""
+    if norm > 0:
+        return change / norm
+    return 0.0 if change == 0 else float("inf")
+
+
+def ratio(a: float, b: float) -> float:
+    """a / b, with 0/0 = 0 and a/0 = inf."""
     if b > 0:
         return a / b
     return 0.0 if a == 0 else float("inf")
 
 
-#: the scalar fields of a record that the history keeps
-SCALAR_FIELDS = tuple(f.name for f in fields(IterationRecord) if f.type in ("int", "float"))
+_ratio = ratio

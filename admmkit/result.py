@@ -12,7 +12,8 @@ from .history import History
 class Status(str, Enum):
     """How a run ended."""
 
-    CONVERGED = "converged"    # a stopping rule fired
+    CONVERGED = "converged"    # a stopping rule fired and the KKT check (if any) agreed
+    CONVERGED_INACCURATE = "converged_inaccurate"  # a rule fired, but the KKT residuals are > 10x its tolerance
     MAX_ITER = "max_iter"      # the iteration cap was reached first
     DIVERGED = "diverged"      # an iterate, a norm or rho became non-finite (or a solve failed)
     STALLED = "stalled"        # the iterates stopped changing before any rule fired
@@ -27,8 +28,12 @@ class Status(str, Enum):
 class Result:
     """What :func:`admmkit.solve` returns (in the spirit of scipy's OptimizeResult).
 
-    ``x`` is the problem's solution (after ``problem.finalize``), ``z`` and
-    ``lam`` the last auxiliary variable and (unscaled) multiplier.  ``timings``
+    ``x`` is the problem's solution (after ``problem.finalize``),
+    ``x_iterate`` the last ADMM iterate (what ``finalize`` was applied to;
+    ``solve(problem, warm_start=result)`` restarts from it), ``z`` and ``lam``
+    the last auxiliary variable and (unscaled) multiplier.  ``accuracy`` holds
+    the relative KKT measures compared with the stopping rule's tolerance when
+    a rule fired (see :data:`admmkit.solver.INACCURATE_FACTOR`).  ``timings``
     splits the wall time into x_step, z_step, policy, residuals and total
     seconds.  ``kkt`` holds the problem's KKT residuals at the stop, when the
     plug-in provides them.
@@ -50,10 +55,13 @@ class Result:
     objective: float | None = None
     order: str = "xz"
     policy: str = "fixed"
+    x_iterate: np.ndarray | None = None
+    accuracy: dict[str, float] | None = None
+    alpha: float = 1.0
 
     @property
     def converged(self) -> bool:
-        """True when a stopping rule fired."""
+        """True when a stopping rule fired and the KKT check did not find the point far off (status ``converged``)."""
         return self.status is Status.CONVERGED
 
     @property

@@ -12,9 +12,18 @@ from .record import IterationRecord
 
 
 class StoppingRule:
-    """Base class: subclasses implement :meth:`fired`."""
+    """Base class: subclasses implement :meth:`fired`.
+
+    ``requires`` names the record fields the rule reads that a problem may be
+    unable to give (``"dual_residual"``, ``"dual_scale"``: order "xz" needs
+    ``Problem.adjoint_norm``); :func:`admmkit.solve` refuses to start a run
+    that cannot provide them.  ``tolerance`` is the accuracy the rule asks for,
+    against which the result's KKT check is made (None: no check).
+    """
 
     name = "rule"
+    requires: tuple[str, ...] = ()
+    tolerance: float | None = None
 
     def fired(self, rec: IterationRecord) -> str | None:
         """Return the name of the rule that fired at this record, or None."""
@@ -42,6 +51,7 @@ class RelativeChange(StoppingRule):
 
     def __init__(self, tol: float = 1e-5):
         self.tol = _positive("tol", tol)
+        self.tolerance = self.tol
         self.name = f"relative_change(tol={self.tol:g})"
 
     def fired(self, rec: IterationRecord) -> str | None:
@@ -54,7 +64,13 @@ class ResidualTolerance(StoppingRule):
 
     ||r||_M <= eps_pri  = primal_unit eps_abs + eps_rel max(||Ax||_M, ||z||_M, ||c||_M)
     ||s||   <= eps_dual = dual_unit eps_abs + eps_rel dual_scale
+
+    The default rule of :func:`admmkit.solve` is :func:`default_stop`,
+    ``ResidualTolerance(1e-6, 1e-5)``.  Its ``tolerance`` (for the KKT check of
+    the result) is max(eps_abs, eps_rel).
     """
+
+    requires = ("dual_residual", "dual_scale")
 
     def __init__(self, eps_abs: float = 1e-6, eps_rel: float = 1e-4):
         self.eps_abs = float(eps_abs)
@@ -64,6 +80,7 @@ class ResidualTolerance(StoppingRule):
                 raise ValueError(f"{name} must be a finite number >= 0, got {v!r}")
         if self.eps_abs == 0 and self.eps_rel == 0:
             raise ValueError("eps_abs and eps_rel cannot both be 0 (the rule could never fire)")
+        self.tolerance = max(self.eps_abs, self.eps_rel)
         self.name = f"residual(eps_abs={self.eps_abs:g}, eps_rel={self.eps_rel:g})"
 
     def fired(self, rec: IterationRecord) -> str | None:
@@ -74,12 +91,22 @@ class ResidualTolerance(StoppingRule):
         return self.name if ok else None
 
 
+def default_stop() -> "ResidualTolerance":
+    """The stopping rule of :func:`admmkit.solve` when none is given: Boyd's residuals, eps_abs 1e-6, eps_rel 1e-5.
+
+    (The paper's ``RelativeChange(1e-5)`` was the default before; the paper's
+    contact methods still pass it explicitly.)
+    """
+    return ResidualTolerance(1e-6, 1e-5)
+
+
 class AnyOf(StoppingRule):
     """Fires when any of its rules fires (the first one's name is reported)."""
 
     def __init__(self, *rules: StoppingRule):
         self.rules = _check_rules(rules)
         self.name = " | ".join(r.name for r in self.rules)
+        self.requires, self.tolerance = _combined(self.rules)
 
     def fired(self, rec: IterationRecord) -> str | None:
         """The name of the first rule that fires, or None."""
@@ -95,6 +122,7 @@ class AllOf(StoppingRule):
 
     def __init__(self, *rules: StoppingRule):
         self.rules = _check_rules(rules)
+        self.requires, self.tolerance = _combined(self.rules)
         self.name = " & ".join(f"({r.name})" if isinstance(r, AnyOf) else r.name for r in self.rules)
 
     def fired(self, rec: IterationRecord) -> str | None:
@@ -109,3 +137,10 @@ def _check_rules(rules) -> tuple[StoppingRule, ...]:
         if not isinstance(r, StoppingRule):
             raise TypeError(f"stop rules must be StoppingRule objects, got {type(r).__name__}")
     return tuple(rules)
+
+
+def _combined(rules) -> tuple[tuple[str, ...], float | None]:
+    """The union of the rules' requirements and the loosest of their tolerances."""
+    requires = tuple(dict.fromkeys(name for r in rules for name in r.requires))
+    tols = [r.tolerance for r in rules if r.tolerance is not None]
+    return requires, (max(tols) if tols else None)

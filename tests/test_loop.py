@@ -62,12 +62,20 @@ def test_converges_to_the_exact_solution(vector_problem, order, policy):
     assert np.allclose(res.x, x, atol=1e-9) and np.allclose(res.lam, lam, atol=1e-8)
 
 
-def test_default_stop_is_the_papers_relative_change(scalar_problem):
-    res = solve(scalar_problem, rho=1.0)
+def test_papers_relative_change_rule(scalar_problem):
+    # the paper's rule, passed explicitly (it was the default until issue #14)
+    res = solve(scalar_problem, rho=1.0, stop=RelativeChange(1e-5))
     assert res.stopped_by == "relative_change(tol=1e-05)"
     h = res.history
     assert h["x_change"][-1] <= 1e-5 * h["x_norm"][-1]
     assert np.all(h["x_change"][:-1] > 1e-5 * h["x_norm"][:-1])
+
+
+def test_default_stop_is_boyds_residuals(scalar_problem):
+    res = solve(scalar_problem, rho=1.0)
+    assert res.stopped_by == "residual(eps_abs=1e-06, eps_rel=1e-05)" and res.status is Status.CONVERGED
+    h = res.history
+    assert h["primal_residual"][-1] <= 1e-6 * h["primal_unit"][-1] + 1e-5 * h["primal_scale"][-1]
 
 
 def test_composed_rules_report_which_fired(vector_problem):
@@ -89,9 +97,12 @@ def test_max_iter_status(vector_problem):
 def test_relative_change_can_fire_far_from_the_solution(vector_problem):
     # with a tiny rho x barely moves: the paper's rule fires although x is wrong;
     # this is why results carry the true KKT residuals of the plug-in
-    res = solve(vector_problem, rho=1e-6)
+    # -- and the result says so: the KKT check turns it into converged_inaccurate
+    res = solve(vector_problem, rho=1e-6, stop=RelativeChange(1e-5))
     x, _ = vector_problem.solution()
-    assert res.converged and np.linalg.norm(res.x - x) > 0.1 * np.linalg.norm(x)
+    assert res.stopped_by and np.linalg.norm(res.x - x) > 0.1 * np.linalg.norm(x)
+    assert res.status is Status.CONVERGED_INACCURATE and not res.converged
+    assert max(res.accuracy.values()) > 10 * 1e-5
 
 
 def test_callback_can_stop(vector_problem):
@@ -130,8 +141,16 @@ class Exploding(admmkit.Problem):
 
 
 def test_non_finite_iterates_give_diverged():
-    res = solve(Exploding(), max_iter=50, stop=ResidualTolerance(1e-300, 1e-300))
+    # order zx: Exploding has no adjoint_norm, so order xz would refuse ResidualTolerance at the start
+    res = solve(Exploding(), max_iter=50, order="zx", stop=ResidualTolerance(1e-300, 1e-300))
     assert res.status is Status.DIVERGED and "non-finite" in res.message
+
+
+def test_a_rule_needing_the_adjoint_is_refused_at_the_start():
+    with pytest.raises(ValueError, match=r"implement Exploding.adjoint_norm\(y\) to return"):
+        solve(Exploding(), order="xz")                     # the default stop reads the dual residual
+    with pytest.raises(ValueError, match="policy .* reads dual_residual"):
+        solve(Exploding(), order="xz", policy="residual_balancing", stop=RelativeChange(1e-5))
 
 
 def test_bad_policy_output_gives_diverged(vector_problem):
