@@ -12,7 +12,7 @@ system iteratively in O(n) memory.  :class:`IterativeXSolver` combines
 * **CG preconditioned by one V-cycle of smoothed-aggregation AMG** (Vanek,
   Mandel & Brezina 1996, as implemented by pyamg), with a near-null space
   given by the plug-in: the rigid body modes for elasticity
-  (:func:`rigid_body_modes`), the constants for a scalar problem;
+  (:func:`problems.contact.iterative.rigid_body_modes`), the constants for a scalar problem;
 * **warm starts**: the initial guess is the A(rho)-orthogonal projection of the
   solution onto the span of the last solutions (Fischer 1998, "Projection
   techniques for iterative solution of Ax = b with successive right-hand
@@ -59,38 +59,7 @@ import scipy.sparse as sp
 REUSE = ("auto", "keep", "galerkin", "rebuild")
 
 
-# ---------------------------------------------------------------- near-null spaces
-def rigid_body_modes(points: np.ndarray, component: np.ndarray) -> np.ndarray:
-    """Rigid body modes of linear elasticity at the dofs, the near-null space of K.
-
-    ``points`` (n, d) are the coordinates of the node of each dof and
-    ``component`` (n,) the displacement component (0..d-1) the dof carries.
-    Returns (n, 3) in 2D (two translations, one rotation) and (n, 6) in 3D
-    (three translations, three rotations), the rotations about the centroid.
-    """
-    points = np.asarray(points, dtype=float)
-    component = np.asarray(component)
-    if points.ndim != 2 or points.shape[1] not in (2, 3) or component.shape != (points.shape[0],):
-        raise ValueError(f"points must be (n, 2) or (n, 3) and component (n,), got {points.shape} and {component.shape}")
-    d = points.shape[1]
-    if component.size and (component.min() < 0 or component.max() >= d):
-        raise ValueError(f"component must be in 0..{d - 1}")
-    x = points - points.mean(axis=0)
-    # rotation about axis a: u = e_a x (x - centroid); each entry: (component, coordinate, sign)
-    rotations = [[(0, 1, -1.0), (1, 0, 1.0)]] if d == 2 else [
-        [(1, 2, -1.0), (2, 1, 1.0)],     # about x: (0, -z, y)
-        [(2, 0, -1.0), (0, 2, 1.0)],     # about y: (z, 0, -x)
-        [(0, 1, -1.0), (1, 0, 1.0)]]     # about z: (-y, x, 0)
-    modes = np.zeros((points.shape[0], d + len(rotations)))
-    for a in range(d):
-        modes[component == a, a] = 1.0
-    for j, parts in enumerate(rotations):
-        for c, coord, sign in parts:
-            mask = component == c
-            modes[mask, d + j] = sign * x[mask, coord]
-    return modes
-
-
+# ---------------------------------------------------------------- node blocks of the AMG
 def node_blocks(node: np.ndarray, component: np.ndarray, d: int) -> np.ndarray | None:
     """(n_nodes, d) dof indices grouped by node, or None if some node misses a component.
 
@@ -395,7 +364,7 @@ class IterativeXSolver:
     Parameters
     ----------
     K, D : sparse symmetric matrices, K + rho D SPD for rho > 0.
-    near_null : (n, m) near-null space of K (e.g. :func:`rigid_body_modes`) or
+    near_null : (n, m) near-null space of K (e.g. the rigid body modes of :mod:`problems.contact.iterative`) or
         None (pyamg's default: the constant per block).
     blocks : (n_nodes, d) dof indices of each node (:func:`node_blocks`) or
         None.  With blocks the AMG aggregates nodes (BSR d x d blocks).

@@ -11,6 +11,7 @@ from .spectral import Spectral
 from .summable import Summable
 from .summable_steps import SummableSteps
 from .wohlberg import Wohlberg
+from .paper_methods import PAPER_METHODS, method  # noqa: E402  (after the rules it names)
 
 __all__ = ["Fixed", "ResidualBalancing", "Summable", "Wohlberg", "OSQPRule", "Spectral", "SummableSteps",
-           "Quantized"]
+           "Quantized", "PAPER_METHODS", "method"]

@@ -9,9 +9,9 @@ import csv
 import pytest
 
 import admmkit
-from problems.benchmarks import methods, stability
-from problems.benchmarks.sweep import append_result, case_id, load_results, run_sweep
-from problems.cli import main
+from benchmarks import methods, stability
+from benchmarks.sweep import append_result, case_id, load_results, run_sweep
+from admmkit.cli import main
 
 
 # ---------------------------------------------------------------- the sweep runner
@@ -146,7 +146,7 @@ def test_bench_bad_input(tmp_path, capsys):
 def test_active_set_polish_sharpens_the_clarabel_reference():
     import numpy as np
 
-    from problems.benchmarks import scenes
+    from benchmarks import families as scenes
     from problems.qp import random_qp
 
     qp = random_qp(40, 60, kind="mixed", seed=3)

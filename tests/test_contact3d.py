@@ -7,7 +7,7 @@ import pytest
 from ngsolve.meshes import MakeStructured3DMesh
 
 from admmkit import RelativeChange
-from problems.cli import main
+from admmkit.cli import main
 from problems.contact import solve_scene
 from problems.contact.scene3d import FACES_3D, Scene3D, assemble3d, block_mesh, example2_3d, memory_need3d
 
@@ -93,7 +93,7 @@ def test_the_memory_refusal_names_both_estimates():
 
 
 def test_bench_contact3d_writes_figure_vtk_and_table(tmp_path, monkeypatch, capsys):
-    from problems.contact import contact3d_bench, scale
+    from benchmarks import contact3d as contact3d_bench, scale_runs as scale
     monkeypatch.setattr(contact3d_bench, "probe_in_subprocess",            # in-process: keeps the test fast
                         lambda h, which, timeout: contact3d_bench.probe(h) | {"status": "ok"})
     monkeypatch.setattr(scale, "run_in_subprocess",

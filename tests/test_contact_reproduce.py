@@ -5,10 +5,10 @@ import json
 import numpy as np
 import pytest
 
-from problems.cli import main
+from admmkit.cli import main
 from problems.contact import example1, solve_scene
-from problems.contact.reproduce import (PAPER_TIMES, paper_time, run_reproduction,
-                                        vertex_displacement)
+from benchmarks.paper import paper_time, paper_times, run_reproduction
+from problems.contact.plot import vertex_displacement
 
 
 def test_solve_contact_writes_files(tmp_path, capsys):
@@ -77,7 +77,7 @@ def test_paper_table_lookup():
     assert paper_time("ex1", "sadmm", 1e3, 1 / 40) == 2.516
     assert paper_time("ex2", "admm1", 10, 1 / 30) == 39.201
     assert paper_time("ex2", "admm1", 10, 1 / 200) is None
-    assert all(len(row) == 4 for ex in PAPER_TIMES.values() for m in ex.values() for row in m.values())
+    assert all(len(row) == 4 for ex in paper_times().values() for m in ex.values() for row in m.values())
 
 
 def test_vertex_displacement_matches_gridfunction():
@@ -93,7 +93,7 @@ def test_vertex_displacement_matches_gridfunction():
 
 
 def test_bench_tiny(tmp_path):
-    from problems.contact.bench import run_bench
+    from benchmarks.contact_speed import run_bench
     out = tmp_path / "speed.md"
     rows = run_bench(out=out, hs=(1 / 10,), repeats=1, examples=("ex1",), progress=False)
     iterations = solve_scene(example1(1 / 10), "sadmm", 1e3).result.iterations

@@ -5,7 +5,7 @@ import ngsolve as ng
 import numpy as np
 import pytest
 
-from problems.cli import main
+from admmkit.cli import main
 from problems.contact import Scene, assemble, solve_scene
 from problems.contact.hertz import (HertzCase, e_star, hertz_half_width, hertz_load, hertz_peak_pressure,
                                     hertz_pressure, measure)

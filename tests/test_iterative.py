@@ -11,7 +11,8 @@ from ngsolve.meshes import MakeStructured2DMesh, MakeStructured3DMesh
 import admmkit
 import policies
 from admmkit import RelativeChange
-from admmkit.iterative import IterativeXSolver, PencilMatrix, SolutionSpace, node_blocks, rigid_body_modes
+from admmkit.iterative import IterativeXSolver, PencilMatrix, SolutionSpace, node_blocks
+from problems.contact.iterative import rigid_body_modes
 from problems.contact import assemble, example1, example2, solve_scene
 from problems.contact.problem import contact_problem
 
@@ -240,7 +241,7 @@ def test_structured_rectangle_is_makestructured2dmesh(L, H, h):
 
 # ---------------------------------------------------------------- the scale benchmarks (smoke tests)
 def test_run_case_in_a_subprocess_reports_time_memory_and_refusals():
-    from problems.contact.scale import run_case, run_in_subprocess
+    from benchmarks.scale_runs import run_case, run_in_subprocess
     row = run_in_subprocess("ex1", 1 / 10, "iterative", timeout=120)
     assert row["status"] == "converged" and row["n_free"] == 440
     assert row["peak_rss_bytes"] > 50e6 and row["total_s"] > 0 and row["counters"]["cg_iterations"] > 0
@@ -251,16 +252,16 @@ def test_run_case_in_a_subprocess_reports_time_memory_and_refusals():
 @pytest.fixture
 def in_process(monkeypatch):
     """Run the benchmark's cases in this process (the subprocess path is tested above)."""
-    from problems.contact import scale
+    from benchmarks import scale_runs as scale
     monkeypatch.setattr(scale, "run_in_subprocess",
                         lambda example, h, mode, timeout=0, rho=1e3: scale.run_case(example, h, mode) | {"wall_s": 0.0})
-    from problems.contact import crossover, scale_bench
+    from benchmarks import amg_crossover as crossover, scale as scale_bench
     monkeypatch.setattr(scale_bench, "run_in_subprocess", scale.run_in_subprocess)
     monkeypatch.setattr(crossover, "run_in_subprocess", scale.run_in_subprocess)
 
 
 def test_bench_scale_writes_table_and_growth_chart(tmp_path, in_process, capsys):
-    from problems.cli import main
+    from admmkit.cli import main
     assert main(["bench", "scale", "--quick", "--out", str(tmp_path)]) == 0
     for name in ("scale.md", "scale.csv", "scale_growth.png", "scale_growth.svg"):
         assert (tmp_path / name).exists()
@@ -269,7 +270,7 @@ def test_bench_scale_writes_table_and_growth_chart(tmp_path, in_process, capsys)
 
 
 def test_bench_amg_crossover_writes_modes_and_reuse_tables(tmp_path, in_process, capsys):
-    from problems.cli import main
+    from admmkit.cli import main
     assert main(["bench", "amg-crossover", "--quick", "--out", str(tmp_path)]) == 0
     text = (tmp_path / "amg_crossover.md").read_text()
     assert "| 1/10 | 440 |" in text and "Reusing the hierarchy" in text

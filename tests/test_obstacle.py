@@ -6,7 +6,7 @@ import pytest
 
 import policies  # noqa: F401  (registers the rules by name)
 from admmkit import ResidualTolerance, Status, solve
-from problems.cli import main
+from admmkit.cli import main
 from problems.obstacle import A_STAR, Scene, make_problem, pyramid, radial, radial_exact, radial_psi, scene, solve_with_cvxpy
 from problems.obstacle.scene import A_COEF, B_COEF, pyramid_psi
 

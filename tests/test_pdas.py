@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from problems.baselines import pdas
+from benchmarks.pdas import pdas
 from problems.contact import assemble, contact_problem, example1, example2
 
 

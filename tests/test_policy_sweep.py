@@ -1,7 +1,7 @@
 """``admmkit bench policies``: the rules on contact and the obstacle across rho_0 (smoke run on coarse meshes)."""
 import csv
 
-from problems.policy_sweep import run
+from benchmarks.policies_fe import run
 
 
 def test_policy_sweep_smoke(tmp_path):

@@ -14,7 +14,7 @@ import scipy.sparse as sp
 import admmkit
 import policies  # noqa: F401
 from problems.qp import load_mat, random_qp
-from problems.qp.bench import (kkt_form_reason, performance_profile, run_benchmark, run_osqp, shifted_geometric_mean,
+from benchmarks.maros_meszaros import (kkt_form_reason, performance_profile, run_benchmark, run_osqp, shifted_geometric_mean,
                                skip_reason, summarize)
 from problems.qp.reference import solve_with_cvxpy
 from problems.qp.termination import OSQPTermination, osqp_relative_residuals, osqp_residuals, osqp_satisfied
@@ -85,7 +85,7 @@ def test_benchmark_smoke(tmp_path, capsys):
     assert skip_reason(data / "DENSE.mat", nnz_limit=1000) is not None
     assert skip_reason(data / "DENSE.mat", nnz_limit=3000) is None          # its KKT form fits
     out = tmp_path / "out"
-    from problems.cli import main
+    from admmkit.cli import main
     code = main(["bench", "qp", "--data", str(data), "--out", str(out), "--policies", "wohlberg,osqp_qp",
                  "--max-iter", "3000", "--time-limit", "5", "--quiet"])
     assert code == 0

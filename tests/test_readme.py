@@ -20,7 +20,7 @@ def test_readme_examples_run():
 
 
 def test_readme_commands_exist():
-    from problems.cli import build_parser
+    from admmkit.cli import build_parser
 
     text = README.read_text()
     assert "pip install . && admmkit demo" in text

@@ -124,7 +124,7 @@ assert mine.result.converged and mine.result.iterations <= 2 * sadmm.result.iter
 # %%
 import numpy as np
 
-from problems.contact.reproduce import reference_solution
+from problems.contact.reference import reference_solution
 from problems.obstacle import make_problem, radial, solve_with_cvxpy as obstacle_reference
 from problems.qp import random_qp
 from problems.qp.reference import solve_with_cvxpy as qp_reference

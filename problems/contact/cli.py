@@ -1,23 +1,21 @@
-"""``admmkit solve contact``, ``admmkit reproduce paper`` and ``admmkit bench contact``.
+"""``admmkit solve contact`` and ``admmkit demo`` (the studies of this plug-in are in benchmarks/).
 
     admmkit solve contact --scene ex1 --h 1/40 --method sadmm --rho 1e3 [--mode auto|full|condensed]
                           [--json FILE] [--csv FILE] [--plot FILE.png] [--vtk BASENAME]
-    admmkit reproduce paper [--out docs/results/paper] [--quick]
-    admmkit bench contact [--out docs/results/contact_speed.md]
+    admmkit demo [--out out/demo]
 """
 from __future__ import annotations
 
 import json
-import sys
 from pathlib import Path
 
-from problems.cli import add_stop_options, positive_float, progress_callback, stop_rule
+from admmkit.cli import add_stop_options, positive_float, progress_callback, stop_rule
 
 from .methods import METHODS, method as resolve_method
 from .problem import MODES
 
 
-def add_solve_parser(subparsers) -> None:
+def register(subparsers) -> None:
     """Register ``solve contact``."""
     p = subparsers.add_parser("contact", help="2D frictionless elastic contact with a rigid foundation (NGSolve)",
                               description="Solve a contact scene with ADMM1, ADMM2, SADMM or any penalty policy.")
@@ -105,7 +103,7 @@ def run(args) -> int:
                             f"{lam:.10e}", f"{p:.10e}"])
         print(f"csv          {args.csv}")
     if args.plot:
-        from .reproduce import figure_solution
+        from .plot import figure_solution
         magnify = args.magnify or (10.0 if scene.name == "example1" else 20.0)
         figure_solution(ops, r.x, r.lam, magnify,
                         f"{scene.name or args.scene}: {args.method}, rho_0 = {args.rho:g}, h = {scene.h:.4g}, "
@@ -120,51 +118,13 @@ def run(args) -> int:
     return 0 if r.converged else 1
 
 
-# ---------------------------------------------------------------- reproduce / bench
-def add_commands(commands) -> None:
-    """Register ``reproduce paper``."""
-    r = commands.add_parser("reproduce", help="reproduce a paper's tables and figures",
-                            description="Reproduce the paper's section 4: both examples x ADMM1/ADMM2/SADMM x rho x h.")
-    r.add_argument("target", choices=["paper"], help="paper: Tables 1-2 and Figs 1-4 of Yuan & Zhang (2023)")
-    r.add_argument("--out", default="docs/results/paper", help="output folder (default docs/results/paper)")
-    r.add_argument("--quick", action="store_true", help="h = 1/10 and 1/20 only (CI smoke test)")
-    r.add_argument("--repeats", type=int, default=1, help="repeats per run, the median time is reported (default 1)")
-    r.add_argument("--quiet", action="store_true", help="no progress lines")
-    r.set_defaults(func=_reproduce)
+def register_demo(commands) -> None:
+    """Register ``demo``, the main job: the paper's two examples with SADMM."""
+    d = commands.add_parser("demo", help="the main job: solve the paper's two examples with SADMM and plot them")
+    d.add_argument("--out", default="out/demo", help="folder for the figures (default out/demo)")
+    d.set_defaults(func=_demo)
 
 
-def add_bench_parser(targets) -> None:
-    """Register ``bench contact``."""
-    b = targets.add_parser("contact", help="SADMM time / (one factorisation + solve of K), Ex. 1-2",
-                           description="SADMM time against one sparse factorisation + solve of K.")
-    b.add_argument("--out", default="docs/results/contact_speed.md", help="Markdown file to write")
-    b.add_argument("--h", type=positive_float, action="append", default=None, dest="hs",
-                   help="mesh size (repeatable; default 1/40 and 1/200)")
-    b.add_argument("--repeats", type=int, default=3, help="repeats, median reported (default 3)")
-    b.set_defaults(func=_bench)
-
-
-def _reproduce(args) -> int:
-    from .reproduce import PAPER_HS, run_reproduction
-    if args.repeats < 1:
-        raise ValueError(f"--repeats must be >= 1, got {args.repeats}")
-    hs = (1 / 10, 1 / 20) if args.quick else PAPER_HS
-    cmd = f"admmkit reproduce paper --out {args.out}" + (" --quick" if args.quick else "")
-    run_reproduction(out=args.out, hs=hs, repeats=args.repeats, progress=not args.quiet, command=cmd)
-    return 0
-
-
-def _bench(args) -> int:
-    from .bench import DEFAULT_HS, run_bench
-    from .reproduce import h_label
-    if args.repeats < 1:
-        raise ValueError(f"--repeats must be >= 1, got {args.repeats}")
-    hs = tuple(args.hs) if args.hs else DEFAULT_HS
-    cmd = f"admmkit bench contact --out {args.out}" + "".join(f" --h {h_label(h)}" for h in args.hs or [])
-    run_bench(out=args.out, hs=hs, repeats=args.repeats, command=cmd)
-    return 0
-
-
-if __name__ == "__main__":  # pragma: no cover
-    from problems.cli import main
-    sys.exit(main(sys.argv[1:]))
+def _demo(args) -> int:
+    from .demo import run_demo
+    return run_demo(args.out)

@@ -4,13 +4,12 @@ from __future__ import annotations
 from pathlib import Path
 
 from .methods import solve_scene
+from .plot import figure_solution
 from .scene import example1, example2
 
 
 def run_demo(out: str | Path = "out/demo", h: float = 1 / 40, rho: float = 1e3) -> int:
     """Solve Examples 1 and 2 at mesh size h with SADMM, print the summaries, write figures to ``out``."""
-    from .reproduce import figure_solution
-
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     for name, scene, magnify in (("Example 1", example1(h=h), 10), ("Example 2", example2(h=h), 20)):

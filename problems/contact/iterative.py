@@ -9,9 +9,40 @@ from __future__ import annotations
 
 import numpy as np
 
-from admmkit.iterative import node_blocks, rigid_body_modes
+from admmkit.iterative import node_blocks
 
 from .assembly import ContactOperators
+
+
+def rigid_body_modes(points: np.ndarray, component: np.ndarray) -> np.ndarray:
+    """Rigid body modes of linear elasticity at the dofs, the near-null space of K.
+
+    ``points`` (n, d) are the coordinates of the node of each dof and
+    ``component`` (n,) the displacement component (0..d-1) the dof carries.
+    Returns (n, 3) in 2D (two translations, one rotation) and (n, 6) in 3D
+    (three translations, three rotations), the rotations about the centroid.
+    """
+    points = np.asarray(points, dtype=float)
+    component = np.asarray(component)
+    if points.ndim != 2 or points.shape[1] not in (2, 3) or component.shape != (points.shape[0],):
+        raise ValueError(f"points must be (n, 2) or (n, 3) and component (n,), got {points.shape} and {component.shape}")
+    d = points.shape[1]
+    if component.size and (component.min() < 0 or component.max() >= d):
+        raise ValueError(f"component must be in 0..{d - 1}")
+    x = points - points.mean(axis=0)
+    # rotation about axis a: u = e_a x (x - centroid); each entry: (component, coordinate, sign)
+    rotations = [[(0, 1, -1.0), (1, 0, 1.0)]] if d == 2 else [
+        [(1, 2, -1.0), (2, 1, 1.0)],     # about x: (0, -z, y)
+        [(2, 0, -1.0), (0, 2, 1.0)],     # about y: (z, 0, -x)
+        [(0, 1, -1.0), (1, 0, 1.0)]]     # about z: (-y, x, 0)
+    modes = np.zeros((points.shape[0], d + len(rotations)))
+    for a in range(d):
+        modes[component == a, a] = 1.0
+    for j, parts in enumerate(rotations):
+        for c, coord, sign in parts:
+            mask = component == c
+            modes[mask, d + j] = sign * x[mask, coord]
+    return modes
 
 
 def dof_geometry(ops: ContactOperators) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:

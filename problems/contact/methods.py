@@ -1,42 +1,19 @@
-"""The paper's three methods by name, and one call from a scene to a result.
+"""One call from a scene to a result, with the paper's methods by name.
 
-- ADMM1 = order "xz" with a fixed rho (Koko 2020, the paper's reference [8])
-- ADMM2 = order "zx" with a fixed rho (the paper's Algorithm 1)
-- SADMM = order "zx" with the summable rule, tau = 2, c_max = 100 (Algorithm 2)
-
-Any other registered policy can be named too (order "zx" unless given).
+The methods ADMM1, ADMM2 and SADMM are defined in :mod:`policies.paper_methods`;
+any other registered policy can be named too (order "zx" unless given).
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
 
 import admmkit
-import policies
 from admmkit import RelativeChange
+from policies.paper_methods import PAPER_METHODS as METHODS, method  # noqa: F401  (re-exported)
 
 from .assembly import ContactOperators, assemble
 from .problem import contact_problem
 from .scene import Scene, check_memory
-
-METHODS = {
-    "admm1": ("xz", lambda: policies.Fixed()),
-    "admm2": ("zx", lambda: policies.Fixed()),
-    "sadmm": ("zx", lambda: policies.Summable(tau=2.0, c_max=100)),
-}
-
-
-def method(name: str) -> tuple[str, admmkit.Policy]:
-    """(order, fresh policy) of a method name: admm1, admm2, sadmm or a registered policy."""
-    key = name.strip().lower()
-    if key in METHODS:
-        order, make = METHODS[key]
-        return order, make()
-    try:
-        return "zx", admmkit.make_policy(key)
-    except ValueError:
-        raise ValueError(f"unknown method {name!r}; methods: {', '.join(METHODS)}, "
-                         f"or a policy: {', '.join(admmkit.policy_names())}") from None
-
 
 @dataclass
 class ContactSolution:

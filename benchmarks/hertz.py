@@ -20,10 +20,12 @@ import numpy as np
 
 from admmkit import RelativeChange
 
-from .assembly import assemble
-from .hertz import HertzCase, hertz_pressure, measure
-from .methods import solve_scene
-from .reproduce import _pyplot, machine_info, save
+from problems.contact.assembly import assemble
+from problems.contact.hertz import HertzCase, hertz_pressure, measure
+from problems.contact.methods import solve_scene
+from admmkit.figures import pyplot, save_figure
+
+from .machine import machine_info
 
 DEFAULT_KS = (10, 20, 40, 80)
 #: the issue's targets: a within 1 %, p0 within 2 %, on a mesh of at most 1e5 unknowns
@@ -44,7 +46,7 @@ def hertz_run(case: HertzCase, k: int, rho: float = 1e3) -> dict:
                 "assemble_s": t1 - t0, "solve_s": t2 - t1, "x": ops.xc[:, 0].copy(), "lam": sol.result.lam.copy()}
 
 
-def run_hertz_study(out="docs/results/scale", ks=DEFAULT_KS, case: HertzCase | None = None,
+def run_hertz_study(out="out/scale", ks=DEFAULT_KS, case: HertzCase | None = None,
                     command: str = "admmkit bench hertz", progress: bool = True) -> list[dict]:
     """Run the refinement study, print the table and write the files under ``out``."""
     case = case or HertzCase()
@@ -119,7 +121,7 @@ def _write_markdown(path: Path, rows, case: HertzCase, command: str) -> None:
 
 
 def _figure_pressure(path: Path, rows, case: HertzCase) -> None:
-    plt = _pyplot()
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(7, 4.5))
     for r in rows:
         a, p0 = r["a_hertz"], r["p0_hertz"]
@@ -133,11 +135,11 @@ def _figure_pressure(path: Path, rows, case: HertzCase) -> None:
     ax.set_title("Half-cylinder on a rigid plane: contact pressure")
     ax.grid(alpha=0.3); ax.legend(fontsize=8)
     fig.tight_layout()
-    save(fig, path)
+    save_figure(fig, path)
 
 
 def _figure_errors(path: Path, rows) -> None:
-    plt = _pyplot()
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(6, 4.2))
     n = [r["n_free"] for r in rows]
     ax.loglog(n, [abs(r["a_err"]) for r in rows], "o-", label="|a - a_Hertz| / a_Hertz")
@@ -149,4 +151,4 @@ def _figure_errors(path: Path, rows) -> None:
     ax.set_title("Hertz: errors on meshes refined near the contact")
     ax.grid(alpha=0.3, which="both"); ax.legend(fontsize=8)
     fig.tight_layout()
-    save(fig, path)
+    save_figure(fig, path)

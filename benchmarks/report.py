@@ -3,11 +3,15 @@ from __future__ import annotations
 
 import csv
 import math
+from fractions import Fraction
 from pathlib import Path
 
 import numpy as np
 
-from problems.machine import machine_info as _machine_info
+from admmkit.figures import pyplot, save_figure  # noqa: F401  (the one pyplot and save of every study)
+from admmkit.io import atomic_open, write_text  # noqa: F401  (every report is written whole or not at all)
+
+from .machine import machine_info as _machine_info
 
 #: said in every benchmark README: the machine is shared
 NOISE_NOTE = ("The machine (2 cores) is shared with other engineers' jobs while the benchmark runs, so "
@@ -15,7 +19,7 @@ NOISE_NOTE = ("The machine (2 cores) is shared with other engineers' jobs while 
 
 
 def machine_info() -> dict:
-    """:func:`problems.machine.machine_info` and how the sweeps pin BLAS."""
+    """:func:`benchmarks.machine.machine_info` and how the sweeps pin BLAS."""
     info = _machine_info()
     info["BLAS threads"] = "1 per worker process (OMP/OPENBLAS_NUM_THREADS=1, threadpoolctl)"
     return info
@@ -34,7 +38,7 @@ def write_csv(path: Path, rows: list[dict], columns: list[str] | None = None) ->
         columns = []
         for row in rows:
             columns += [k for k in row if k not in columns]
-    with path.open("w", newline="") as fh:
+    with atomic_open(path, "w", newline="") as fh:
         writer = csv.DictWriter(fh, fieldnames=columns, extrasaction="ignore")
         writer.writeheader()
         for row in rows:
@@ -66,25 +70,6 @@ def fmt(v, spec: str = ".3g", missing: str = "-") -> str:
     return format(v, spec)
 
 
-def pyplot():
-    """matplotlib.pyplot with the Agg backend."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    return plt
-
-
-def save_figure(fig, path: Path) -> list[Path]:
-    """Save as PNG and SVG (same stem), close the figure and return both paths."""
-    plt = pyplot()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    png, svg = path.with_suffix(".png"), path.with_suffix(".svg")
-    fig.savefig(png, dpi=120, bbox_inches="tight")
-    fig.savefig(svg, bbox_inches="tight")
-    plt.close(fig)
-    return [png, svg]
-
-
 def method_styles(names: list[str]) -> dict[str, dict]:
     """Distinct line styles: ADMM methods in colours (tab20) with markers, peers in black/grey."""
     peers = {"pdas": dict(color="black", marker="s", linestyle="-", linewidth=2.2),
@@ -107,3 +92,19 @@ def median(values) -> float:
     """Median of finite values (nan if none)."""
     vals = [float(v) for v in values if v is not None and math.isfinite(float(v))]
     return float(np.median(vals)) if vals else float("nan")
+
+
+def h_label(h: float) -> str:
+    """1/40 for 0.025, else the number."""
+    frac = Fraction(h).limit_denominator(10_000)
+    if frac.numerator == 1 and math.isclose(float(frac), h, rel_tol=1e-12):
+        return f"1/{frac.denominator}"
+    return f"{h:g}"
+
+
+def rho_label(rho: float) -> str:
+    """1, 10, 1e2, 1e3, ..."""
+    if rho > 0 and math.isclose(math.log10(rho), round(math.log10(rho)), abs_tol=1e-12):
+        e = round(math.log10(rho))
+        return "1" if e == 0 else "10" if e == 1 else f"1e{e}"
+    return f"{rho:g}"

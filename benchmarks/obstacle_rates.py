@@ -1,6 +1,6 @@
 """Convergence study and policy sweep for the obstacle plug-in.
 
-    python -m problems.obstacle.study [--out docs/results/obstacle] [--quick]
+    admmkit bench obstacle [--out DIR] [--quick]      (default DIR: ./out/obstacle/)
 
 1. Convergence (radial scene, h = 1/4 ... 1/128): L2, H1 and H1-seminorm errors
    against the exact solution, observed rates, the free-boundary radius
@@ -18,8 +18,6 @@ Writes convergence.{csv,md,png}, sweep.{csv,md,png} and radial.png / pyramid.png
 """
 from __future__ import annotations
 
-import argparse
-import csv
 import math
 import time
 from pathlib import Path
@@ -30,9 +28,13 @@ import admmkit
 import policies  # noqa: F401  (registers the rules)
 from admmkit import RelativeChange, ResidualTolerance, solve
 
-from .cli import plot_solution
-from .problem import make_problem, solve_with_cvxpy
-from .scene import A_STAR, pyramid, radial
+from admmkit.figures import pyplot, save_figure
+from admmkit.io import write_text
+from problems.obstacle.plot import plot_solution
+from problems.obstacle.problem import make_problem, solve_with_cvxpy
+from problems.obstacle.scene import A_STAR, pyramid, radial
+
+from .report import write_csv
 
 MESHES = (16, 32, 64, 128, 256, 512)          # squares per side of (-2, 2)^2: h = 4/N
 SWEEP_N = 64                                   # h = 1/16
@@ -100,16 +102,6 @@ def sweep(N: int = SWEEP_N, rhos=RHOS, policy_names=None, max_iter: int = MAX_IT
 
 
 # ---------------------------------------------------------------- output
-def write_csv(rows: list[dict], path: Path) -> Path:
-    """Write rows (dicts) to CSV with the union of their keys as header."""
-    keys = list(dict.fromkeys(k for r in rows for k in r))
-    with path.open("w", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=keys)
-        w.writeheader()
-        w.writerows(rows)
-    return path
-
-
 def _fmt(v, spec=".3e") -> str:
     if v is None or (isinstance(v, float) and math.isnan(v)):
         return "-"
@@ -160,9 +152,7 @@ def sweep_markdown(rows: list[dict]) -> str:
 
 def plot_convergence(rows: list[dict], path: Path) -> Path:
     """Log-log plot of the errors against h with reference slopes."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
     h = np.array([r["h"] for r in rows])
     fig, ax = plt.subplots(figsize=(6, 4.5))
     for key, style in [("L2", "o-"), ("H1", "s-"), ("H1_semi", "^--"), ("radius_error", "d:")]:
@@ -173,15 +163,13 @@ def plot_convergence(rows: list[dict], path: Path) -> Path:
         ax.text(h[-1], e0 * 0.6 * (h[-1] / h[0]) ** p, f" O(h^{p})", fontsize=8, va="center")
     ax.set_xlabel("h"); ax.set_ylabel("error"); ax.grid(True, which="both", alpha=0.3)
     ax.set_title("radial obstacle, P1: errors against the exact solution"); ax.legend()
-    fig.tight_layout(); fig.savefig(path, dpi=120); plt.close(fig)
-    return path
+    fig.tight_layout()
+    return save_figure(fig, path, ("png",), dpi=120)[0]
 
 
 def plot_sweep(rows: list[dict], path: Path) -> Path:
     """Iterations against rho0 for every policy/order, for both stopping criteria."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
     fig, axes = plt.subplots(1, 2, figsize=(12, 4.5), sharey=True)
     for ax, key, title in [(axes[0], "iterations", "paper's rule: relative change 1e-5"),
                            (axes[1], "iterations_to_tol", f"until relative error <= {ORACLE_TOL:g}")]:
@@ -193,30 +181,26 @@ def plot_sweep(rows: list[dict], path: Path) -> Path:
         ax.set_xlabel("rho0"); ax.set_title(title); ax.grid(True, which="both", alpha=0.3)
     axes[0].set_ylabel("iterations"); axes[1].legend(fontsize=8)
     fig.suptitle(f"radial obstacle, h = 1/{SWEEP_N // 4}: iterations across rho0 (cap {MAX_ITER})")
-    fig.tight_layout(); fig.savefig(path, dpi=120); plt.close(fig)
-    return path
+    fig.tight_layout()
+    return save_figure(fig, path, ("png",), dpi=120)[0]
 
 
-def main(argv=None) -> int:
-    """Run both studies and write the tables and plots."""
-    parser = argparse.ArgumentParser(prog="python -m problems.obstacle.study", description=__doc__.splitlines()[0])
-    parser.add_argument("--out", default="docs/results/obstacle", help="output folder (default docs/results/obstacle)")
-    parser.add_argument("--quick", action="store_true", help="small meshes and 5 rho values (a smoke test)")
-    args = parser.parse_args(argv)
-    out = Path(args.out)
+def run(out="out/obstacle", *, quick: bool = False, command: str = "admmkit bench obstacle") -> int:
+    """Run both studies and write the tables and plots to ``out``."""
+    out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    meshes, rhos, n_sweep = (MESHES[:3], RHOS[::4], 16) if args.quick else (MESHES, RHOS, SWEEP_N)
+    meshes, rhos, n_sweep = (MESHES[:3], RHOS[::4], 16) if quick else (MESHES, RHOS, SWEEP_N)
 
     print("convergence study (radial, summable zx, rho0 = 1):", flush=True)
     rows = convergence(meshes)
-    write_csv(rows, out / "convergence.csv")
-    (out / "convergence.md").write_text(convergence_markdown(rows))
+    write_csv(out / "convergence.csv", rows)
+    write_text(out / "convergence.md", convergence_markdown(rows) + f"\nMade by `{command}`.\n")
     plot_convergence(rows, out / "convergence.png")
 
     print(f"policy sweep (radial, h = 4/{n_sweep}):", flush=True)
     srows = sweep(n_sweep, rhos)
-    write_csv(srows, out / "sweep.csv")
-    (out / "sweep.md").write_text(sweep_markdown(srows))
+    write_csv(out / "sweep.csv", srows)
+    write_text(out / "sweep.md", sweep_markdown(srows) + f"\nMade by `{command}`.\n")
     plot_sweep(srows, out / "sweep.png")
 
     for sc in (radial(h=1 / 16), pyramid(h=1 / 64)):
@@ -225,7 +209,3 @@ def main(argv=None) -> int:
         plot_solution(p, res.x, res.x, out / f"{sc.name}.png")
     print(f"wrote {', '.join(sorted(f.name for f in out.iterdir()))} to {out}")
     return 0
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())

@@ -22,7 +22,7 @@ import admmkit
 from admmkit import ResidualTolerance, StoppingRule
 
 from . import methods
-from .scenes import Discrete
+from .families import Discrete
 
 #: residual tolerances 1e-1, 10^-1.5, ..., 1e-10 (half decades)
 ADMM_LADDER = tuple(10.0 ** (-k / 2) for k in range(2, 21))

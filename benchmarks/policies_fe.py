@@ -42,7 +42,7 @@ def contact_case(h: float = 1 / 20):
     """(name, make_problem, relative_error, rho_0 values) for contact Example 1 in the condensed mode."""
     from problems.contact.assembly import assemble
     from problems.contact.problem import contact_problem
-    from problems.contact.reproduce import energy_norm, reference_solution
+    from problems.contact.reference import reference_solution
     from problems.contact.scene import example1
     ops = assemble(example1(h))
     ref = reference_solution(ops)
@@ -177,7 +177,7 @@ def plot(results: dict, stem: Path) -> list[Path]:
     return paths
 
 
-def run(out="docs/results/policies_fe", rules=RULES, quick: bool = False, command: str = "",
+def run(out="out/policies", rules=RULES, quick: bool = False, command: str = "",
         progress: bool = True, max_iter: int = MAX_ITER) -> dict:
     """Run both cases (``quick``: coarser meshes, three rho_0, for the smoke test) and write the report."""
     out = Path(out)
@@ -198,26 +198,3 @@ def run(out="docs/results/policies_fe", rules=RULES, quick: bool = False, comman
     if progress:
         print(text)
     return results
-
-
-def add_bench_parser(targets) -> None:
-    """Register ``bench policies``."""
-    b = targets.add_parser("policies", help="penalty rules on contact Ex.1 and the radial obstacle, rho_0 over 12 decades",
-                           description="Iterations, factorisations and the error at the stop of the penalty rules "
-                                       "on contact Example 1 (h = 1/20) and the radial obstacle (h = 1/16).")
-    b.add_argument("--out", default="docs/results/policies_fe", help="output folder (default docs/results/policies_fe)")
-    b.add_argument("--rules", default=",".join(RULES), help=f"comma-separated rules (default {','.join(RULES)})")
-    b.add_argument("--quick", action="store_true", help="coarse meshes and three rho_0 (smoke test)")
-    b.add_argument("--quiet", action="store_true", help="no progress lines")
-    b.set_defaults(func=_bench)
-
-
-def _bench(args) -> int:
-    rules = [r.strip() for r in args.rules.split(",") if r.strip()]
-    unknown = [r for r in rules if r not in admmkit.policy_names()]
-    if unknown:
-        raise ValueError(f"--rules: unknown {unknown}; known: {', '.join(admmkit.policy_names())}")
-    command = f"admmkit bench policies --out {args.out}" + (f" --rules {args.rules}" if args.rules != ",".join(RULES)
-                                                          else "") + (" --quick" if args.quick else "")
-    run(args.out, rules=rules, quick=args.quick, command=command, progress=not args.quiet)
-    return 0

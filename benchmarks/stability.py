@@ -2,7 +2,7 @@
 
     admmkit bench stability [--out docs/results/bench/stability] [--quick] [--workers 2]
 
-Two sweeps, every ADMM method (:mod:`problems.benchmarks.methods`), each run
+Two sweeps, every ADMM method (:mod:`benchmarks.methods`), each run
 stopped by the paper's rule ||u^{k+1} - u^k||_K <= 1e-5 ||u^{k+1}||_K or the cap
 of 20000 iterations:
 
@@ -13,7 +13,7 @@ Each run ends as one *outcome*: ``converged`` (the rule fired and the true
 error is at most 1e-3), ``false_convergence`` (the rule fired while the true
 error ||u - u*||_K / ||u*||_K was still above 1e-3), ``max_iter``,
 ``diverged``, ``stalled`` or ``time_limit``.  u* is the reference solution of
-the same discrete problem (:mod:`problems.benchmarks.scenes`).
+the same discrete problem (:mod:`benchmarks.families`).
 
 Written to ``out``: ``results.jsonl`` (resumable raw records),
 ``stability.csv``, ``failures.md`` (which methods failed where),
@@ -32,7 +32,7 @@ import numpy as np
 
 from . import methods as methods_mod
 from .report import NOISE_NOTE, fmt, machine_info, machine_markdown, md_table, pyplot, save_figure, write_csv
-from .scenes import discrete, problem_key
+from .families import discrete, problem_key
 from .sweep import clean_float, finished, run_sweep
 
 RHO_SCALES = tuple(10.0 ** k for k in range(-6, 7))
@@ -182,7 +182,7 @@ def _rho_label(s: float) -> str:
 
 
 def _h_label(h: float) -> str:
-    from problems.contact.reproduce import h_label
+    from .report import h_label
     return h_label(h)
 
 
@@ -361,7 +361,7 @@ def summarise(records, out: Path, *, command: str, wall: float, skipped, missing
     return files
 
 
-def run(out="docs/results/bench/stability", *, quick: bool = False, workers: int = 2, methods=None,
+def run(out="out/stability", *, quick: bool = False, workers: int = 2, methods=None,
         progress: bool = True, command: str = "admmkit bench stability", report_only: bool = False,
         **grid) -> list[Path]:
     """Build the cases, run (or resume) the sweep, write the summaries."""
@@ -376,7 +376,7 @@ def run(out="docs/results/bench/stability", *, quick: bool = False, workers: int
     if report_only:
         records = finished(cases, out / "results.jsonl")
     else:
-        records = run_sweep(cases, "problems.benchmarks.stability:run_case", out / "results.jsonl", workers=workers,
+        records = run_sweep(cases, "benchmarks.stability:run_case", out / "results.jsonl", workers=workers,
                             progress=progress, cost=case_cost,
                             label=lambda c: (f"{c['sweep']} {c['scene']} h={_h_label(c['h'])} nu={c['nu']} "
                                              f"P{c['p']} s={c['rho_scale']:g} {c['method']}"))

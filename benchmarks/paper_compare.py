@@ -10,7 +10,7 @@ the process, as the paper's tables are (wall seconds are kept in times.csv;
 the machine is shared), and writes
 
 - ``times.{md,csv}``: the paper's CPU seconds (Tables 1-2,
-  :data:`problems.contact.reproduce.PAPER_TIMES`), ours, and paper / ours;
+  ``benchmarks/data/paper_tables.json``), ours, and paper / ours;
 - ``speedups.{md,csv}``: the machine-free comparison: time(ADMM1) / time(SADMM)
   and time(ADMM2) / time(SADMM) in the paper and in this run (both ratios
   within one run on one machine), and our iteration ratio;
@@ -37,7 +37,7 @@ REPRODUCTION = Path("docs/results/paper")
 
 def build_cases(repeats: int = 3, hs=None, rhos=None, examples=("ex1", "ex2")) -> list[dict]:
     """The paper's grid."""
-    from problems.contact.reproduce import PAPER_HS, PAPER_RHOS
+    from .paper import PAPER_HS, PAPER_RHOS
 
     from .methods import policy_version
     versions = {m: policy_version(m) for m in METHODS}
@@ -89,7 +89,8 @@ def _reproduction_iterations(folder: Path) -> dict:
 
 def summarise(records: dict, out: Path, *, command: str, wall: float, reproduction: Path = REPRODUCTION) -> list[Path]:
     """Write the three tables, the figure and README.md."""
-    from problems.contact.reproduce import h_label, paper_time, rho_label
+    from .paper import paper_time
+    from .report import h_label, rho_label
     out.mkdir(parents=True, exist_ok=True)
     runs = {}
     for rec in records.values():
@@ -248,7 +249,7 @@ def _figure(speed_rows, out: Path) -> list[Path]:
     return save_figure(fig, out / "speedups")
 
 
-def run(out="docs/results/bench/paper", *, repeats: int = 3, workers: int = 2, quick: bool = False,
+def run(out="out/paper-compare", *, repeats: int = 3, workers: int = 2, quick: bool = False,
         progress: bool = True, command: str = "admmkit bench paper-compare",
         reproduction: Path = REPRODUCTION, report_only: bool = False) -> list[Path]:
     """Run (or resume) the paper's grid and write the comparison."""
@@ -256,7 +257,7 @@ def run(out="docs/results/bench/paper", *, repeats: int = 3, workers: int = 2, q
     cases = build_cases(repeats=repeats, hs=(1 / 10,) if quick else None, rhos=(1.0, 1e3) if quick else None)
     t0 = time.perf_counter()
     records = finished(cases, out / "results.jsonl") if report_only else run_sweep(
-                        cases, "problems.benchmarks.paper:run_case", out / "results.jsonl", workers=workers,
+                        cases, "benchmarks.paper_compare:run_case", out / "results.jsonl", workers=workers,
                         progress=progress, cost=lambda c: 1 / c["h"] ** 2,
                         label=lambda c: f"{c['scene']} h={c['h']:.4g} {c['method']} rho={c['rho']:g}")
     return summarise(records, out, command=command, wall=None if report_only else time.perf_counter() - t0,

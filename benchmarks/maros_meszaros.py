@@ -36,7 +36,6 @@ from __future__ import annotations
 import csv
 import datetime
 import math
-import sys
 import time
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
@@ -49,11 +48,11 @@ import admmkit
 import policies
 from admmkit import Status
 
-from problems.machine import machine_info
+from .machine import machine_info
 
-from .mat import list_problems, load_mat
-from .problem import QP, REDUCED_MAX_NNZ, reduced_nnz_bound
-from .termination import OSQPTermination, osqp_relative_residuals, osqp_residuals
+from problems.qp.mat import list_problems, load_mat
+from problems.qp.problem import QP, REDUCED_MAX_NNZ, reduced_nnz_bound
+from problems.qp.termination import OSQPTermination, osqp_relative_residuals, osqp_residuals
 
 RHO0 = 0.1
 EPS = (1e-3, 1e-6)
@@ -491,8 +490,3 @@ def run_benchmark(folder, out, *, policy_names=None, orders=ORDERS, eps=EPS, max
     if progress:
         print(text)
     return {"rows": rows, "summary": summary, "skipped": skipped, "kkt_form": kkt_form, "figures": figures, "out": out}
-
-
-if __name__ == "__main__":  # pragma: no cover
-    from problems.cli import main
-    sys.exit(main(["bench", "qp"] + sys.argv[1:]))

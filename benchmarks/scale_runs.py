@@ -1,6 +1,6 @@
 """One measured contact run at a given size, in its own process (for peak memory).
 
-    python -m problems.contact.scale --example ex1 --h 1/500 --mode iterative
+    python -m benchmarks.scale_runs --example ex1 --h 1/500 --mode iterative
 
 :func:`run_case` assembles the paper's Example 1 (or 2, or the 3D analogue of
 Example 2, ``ex2_3d``) at mesh size h,
@@ -40,8 +40,8 @@ def run_case(example: str, h: float, mode: str, rho: float = 1e3, max_iter: int 
     import policies
     from admmkit import RelativeChange
 
-    from .problem import contact_problem
-    from .scene import available_memory, example1, example2, memory_need
+    from problems.contact.problem import contact_problem
+    from problems.contact.scene import available_memory, example1, example2, memory_need
 
     if example not in EXAMPLES:
         raise ValueError(f"example must be one of {', '.join(EXAMPLES)}, got {example!r}")
@@ -49,7 +49,7 @@ def run_case(example: str, h: float, mode: str, rho: float = 1e3, max_iter: int 
         raise ValueError(f"mode must be one of {', '.join(RUN_MODES)}, got {mode!r}")
     t0 = time.perf_counter()
     if example == "ex2_3d":
-        from .scene3d import assemble3d, example2_3d, memory_need3d
+        from problems.contact.scene3d import assemble3d, example2_3d, memory_need3d
         scene = example2_3d(h=h)
         need, have = memory_need3d(scene, mode), available_memory()
     else:
@@ -59,12 +59,13 @@ def run_case(example: str, h: float, mode: str, rho: float = 1e3, max_iter: int 
     if need > have:
         return row | {"status": "refused", "message": f"needs about {need / 2**30:.3g} GiB, "
                                                       f"{have / 2**30:.3g} GiB available"}
-    from .assembly import assemble
+    from problems.contact.assembly import assemble
     ops = assemble3d(scene) if example == "ex2_3d" else assemble(scene)
     t1 = time.perf_counter()
     problem = contact_problem(ops, mode=mode)
     t2 = time.perf_counter()
-    result = admmkit.solve(problem, rho=rho, policy=policies.Summable(tau=2.0, c_max=100), order="zx",
+    sadmm_order, sadmm_rule = policies.method("sadmm")   # policies/paper_methods.py
+    result = admmkit.solve(problem, rho=rho, policy=sadmm_rule, order=sadmm_order,
                            stop=RelativeChange(1e-5), max_iter=max_iter)
     t3 = time.perf_counter()
     kkt = result.kkt or {}
@@ -96,7 +97,7 @@ def run_in_subprocess(example: str, h: float, mode: str, timeout: float = 900.0,
     env = dict(os.environ, OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1", MKL_NUM_THREADS="1")
     root = str(Path(__file__).resolve().parents[2])
     env["PYTHONPATH"] = root + os.pathsep + env.get("PYTHONPATH", "")
-    cmd = [sys.executable, "-m", "problems.contact.scale", "--example", example, "--h", repr(h), "--mode", mode,
+    cmd = [sys.executable, "-m", "benchmarks.scale_runs", "--example", example, "--h", repr(h), "--mode", mode,
            "--rho", repr(rho)]
     start = time.perf_counter()
     try:

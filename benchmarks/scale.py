@@ -1,6 +1,6 @@
 """``admmkit bench scale``: Example 1 with the iterative x-step from 1e3 to 1e6 unknowns.
 
-Each size runs in its own process (:func:`problems.contact.scale.run_in_subprocess`),
+Each size runs in its own process (:func:`benchmarks.scale_runs.run_in_subprocess`),
 so the peak resident memory (ru_maxrss) belongs to that size.  Writes
 ``scale.md``, ``scale.csv`` and the log-log growth chart ``scale_growth.png/svg``
 (time, SADMM and CG iterations and peak memory against the unknowns, with the
@@ -14,8 +14,10 @@ import math
 import time
 from pathlib import Path
 
-from .reproduce import _pyplot, machine_info, save
-from .scale import run_in_subprocess
+from admmkit.figures import pyplot, save_figure
+
+from .machine import machine_info
+from .scale_runs import run_in_subprocess
 
 #: 1.7e3, 6.6e3, 2.6e4, 1.0e5, 4.1e5 and 1.0e6 free unknowns on Example 1 (P1)
 DEFAULT_HS = (1 / 20, 1 / 40, 1 / 80, 1 / 160, 1 / 320, 1 / 500)
@@ -29,7 +31,7 @@ def h_label(h: float) -> str:
     return f"1/{round(inv)}" if abs(inv - round(inv)) < 1e-9 else f"{h:g}"
 
 
-def run_scale_bench(out="docs/results/scale", hs=DEFAULT_HS, example="ex1", mode="iterative",
+def run_scale_bench(out="out/scale", hs=DEFAULT_HS, example="ex1", mode="iterative",
                     command="admmkit bench scale", timeout=1800.0) -> list[dict]:
     """Run the sizes, print one line each, write the table and the chart."""
     out = Path(out)
@@ -130,7 +132,7 @@ def _write_markdown(path: Path, rows, example, mode, command, wall) -> None:
 
 
 def _figure(path: Path, rows, example, mode) -> None:
-    plt = _pyplot()
+    plt = pyplot()
     n = [r["n_free"] for r in rows]
     fig, (ax1, ax2, ax3) = plt.subplots(1, 3, figsize=(15, 4.4))
     for key, label, style in (("total_s", "total (assembly + setup + SADMM)", "o-"), ("solve_s", "SADMM loop", "s-"),
@@ -152,4 +154,4 @@ def _figure(path: Path, rows, example, mode) -> None:
         ax.grid(alpha=0.3, which="both"); ax.legend(fontsize=8)
     fig.suptitle(f"Example {example[-1]}, SADMM with the {mode} x-step: growth with the number of unknowns")
     fig.tight_layout()
-    save(fig, path)
+    save_figure(fig, path)

@@ -25,9 +25,11 @@ from pathlib import Path
 
 import numpy as np
 
-from .reproduce import _pyplot, machine_info, save
-from .scale import print_run, run_in_subprocess
-from .scale_bench import h_label
+from admmkit.figures import pyplot, save_figure
+
+from .machine import machine_info
+from .scale_runs import print_run, run_in_subprocess
+from .scale import h_label
 
 DEFAULT_HS = (1 / 20, 1 / 40, 1 / 80, 1 / 160, 1 / 320, 1 / 500)
 MODES = ("full", "condensed", "iterative")
@@ -41,9 +43,9 @@ def reuse_table(h: float = 1 / 160, rho0: float = 1e3, ratios=RATIOS, tol: float
 
     from admmkit.iterative import AMGPreconditioner, PencilMatrix, pcg
 
-    from .assembly import assemble
-    from .iterative import near_null_space
-    from .scene import example1
+    from problems.contact.assembly import assemble
+    from problems.contact.iterative import near_null_space
+    from problems.contact.scene import example1
 
     ops = assemble(example1(h=h))
     modes, blocks = near_null_space(ops)
@@ -96,7 +98,7 @@ def crossover_size(rows: list[dict]) -> dict:
     return {"winners": winners, "iterative_from": first}
 
 
-def run_crossover(out="docs/results/scale", hs=DEFAULT_HS, modes=MODES, reuse_h=1 / 160,
+def run_crossover(out="out/scale", hs=DEFAULT_HS, modes=MODES, reuse_h=1 / 160,
                   command="admmkit bench amg-crossover", timeout=1800.0) -> dict:
     """Run both measurements, print them and write the files."""
     out = Path(out)
@@ -167,7 +169,7 @@ def _write(out: Path, rows, reuse, summary, command) -> None:
     done = [r for r in rows if r.get("status") == "converged"]
     if not done:
         return
-    plt = _pyplot()
+    plt = pyplot()
     fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(12, 4.4))
     for mode, style in zip(MODES, ("s-", "^-", "o-")):
         pts = sorted((r["n_free"], r["setup_s"] + r["solve_s"], r["peak_rss_bytes"] / 1e9) for r in done if r["mode"] == mode)
@@ -179,4 +181,4 @@ def _write(out: Path, rows, reuse, summary, command) -> None:
     for ax in (ax1, ax2):
         ax.grid(alpha=0.3, which="both"); ax.legend()
     fig.tight_layout()
-    save(fig, out / "amg_crossover.png")
+    save_figure(fig, out / "amg_crossover.png")

@@ -5,7 +5,7 @@
   solver's own time is recorded as ``solver_time``).
 - ``cvxpy-osqp``: cvxpy + OSQP, timed the same way.
 - ``osqp``: OSQP called directly (setup with its KKT factorisation + solve).
-- ``pdas``: the primal-dual active set baseline (:mod:`problems.baselines.pdas`),
+- ``pdas``: the primal-dual active set baseline (:mod:`benchmarks.pdas`),
   contact and obstacle only; for contact it uses the same boundary Schur
   complement as ADMM's condensed mode, and its setup is timed with it.
 
@@ -22,7 +22,7 @@ import time
 import numpy as np
 import scipy.sparse as sp
 
-from .scenes import Discrete, clarabel_solve, cvxpy_duals, cvxpy_problem, pdas_form
+from .families import Discrete, clarabel_solve, cvxpy_duals, cvxpy_problem, pdas_form
 from .sweep import clean_float
 
 PEERS = ("pdas", "clarabel", "cvxpy-osqp", "osqp")
@@ -113,7 +113,7 @@ def _osqp(d: Discrete, tol: float, time_limit: float, max_iter: int):
 
 
 def _run_pdas(d: Discrete, repeats: int, long_run: float) -> dict:
-    from problems.baselines import pdas
+    from .pdas import pdas
 
     K, f, B, g, to_lam = pdas_form(d)
 

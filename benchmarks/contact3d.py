@@ -24,8 +24,10 @@ from pathlib import Path
 
 import numpy as np
 
-from .reproduce import _pyplot, machine_info, save
-from .scale import peak_rss_bytes
+from admmkit.figures import pyplot, save_figure
+
+from .machine import machine_info
+from .scale_runs import peak_rss_bytes
 
 DEFAULT_H = 1 / 32
 PROBE_HS = (1 / 8, 1 / 12, 1 / 16, 1 / 24, 1 / 32)
@@ -44,8 +46,8 @@ def probe(h: float, rho: float = 1e3) -> dict:
     from admmkit.iterative import IterativeXSolver
     from admmkit.linsolve import available_backends, factorize
 
-    from .iterative import near_null_space
-    from .scene3d import assemble3d, example2_3d
+    from problems.contact.iterative import near_null_space
+    from problems.contact.scene3d import assemble3d, example2_3d
 
     ops = assemble3d(example2_3d(h=h))
     D = (ops.B.T @ sp.diags(ops.mc) @ ops.B).tocsr()
@@ -78,7 +80,7 @@ def probe_in_subprocess(h: float, which: str, timeout: float) -> dict:
     """:func:`probe` of ``which`` ("direct" or "amg") in a fresh process (its own peak memory)."""
     env = dict(os.environ, OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1", MKL_NUM_THREADS="1", ADMMKIT_PROBE=which)
     env["PYTHONPATH"] = str(Path(__file__).resolve().parents[2]) + os.pathsep + env.get("PYTHONPATH", "")
-    cmd = [sys.executable, "-m", "problems.contact.contact3d_bench", repr(h)]
+    cmd = [sys.executable, "-m", "benchmarks.contact3d", repr(h)]
     start = time.perf_counter()
     try:
         proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, env=env)
@@ -96,8 +98,8 @@ def solve_3d(h: float, rho: float = 1e3) -> dict:
     import policies
     from threadpoolctl import threadpool_limits
 
-    from .problem import contact_problem
-    from .scene3d import assemble3d, example2_3d
+    from problems.contact.problem import contact_problem
+    from problems.contact.scene3d import assemble3d, example2_3d
 
     t0 = time.perf_counter()
     ops = assemble3d(example2_3d(h=h))
@@ -105,7 +107,8 @@ def solve_3d(h: float, rho: float = 1e3) -> dict:
     with threadpool_limits(1):
         problem = contact_problem(ops, mode="iterative")
         t2 = time.perf_counter()
-        result = admmkit.solve(problem, rho=rho, policy=policies.Summable(tau=2.0, c_max=100), order="zx",
+        sadmm_order, sadmm_rule = policies.method("sadmm")   # policies/paper_methods.py
+        result = admmkit.solve(problem, rho=rho, policy=sadmm_rule, order=sadmm_order,
                                stop=admmkit.RelativeChange(1e-5), max_iter=5000)
     t3 = time.perf_counter()
     return {"ops": ops, "result": result, "solver": problem.solver, "assemble_s": t1 - t0, "setup_s": t2 - t1,
@@ -137,7 +140,7 @@ def figure_3d(ops, u: np.ndarray, lam: np.ndarray, p: np.ndarray, path: Path, ma
     """Deformed block (boundary surface, colour |u|) and contact pressure on the face z = 0."""
     import ngsolve as ng
     from mpl_toolkits.mplot3d.art3d import Poly3DCollection
-    plt = _pyplot()
+    plt = pyplot()
     nv = ops.mesh.nv
     full = ops.full_vector(u)
     disp = np.column_stack([full[:nv], full[nv:2 * nv], full[2 * nv:3 * nv]])
@@ -171,12 +174,12 @@ def figure_3d(ops, u: np.ndarray, lam: np.ndarray, p: np.ndarray, path: Path, ma
     ax2.set_title("pressure on the contact face z = 0 (white: gap contours)")
     ax2.legend(loc="upper left", fontsize=8)
     fig.tight_layout()
-    return save(fig, path)
+    return save_figure(fig, path)
 
 
 def run_sadmm_modes(hs, modes=("full", "condensed", "iterative"), timeout=600.0) -> list[dict]:
     """SADMM on the 3D scene in each mode and size, each run in its own process (scale.run_in_subprocess)."""
-    from .scale import print_run, run_in_subprocess
+    from .scale_runs import print_run, run_in_subprocess
     rows = []
     for h in hs:
         for mode in modes:
@@ -187,7 +190,7 @@ def run_sadmm_modes(hs, modes=("full", "condensed", "iterative"), timeout=600.0)
     return rows
 
 
-def run_contact3d(out="docs/results/scale", h=DEFAULT_H, probe_hs=PROBE_HS, timeout=600.0,
+def run_contact3d(out="out/scale", h=DEFAULT_H, probe_hs=PROBE_HS, timeout=600.0,
                   command="admmkit bench contact3d", sadmm_hs=SADMM_HS, vtk="out/contact3d/contact3d") -> dict:
     """All measurements; print them; write contact3d.md, the figure and the VTK file (``vtk``.vtu:
     single precision, about 70 MB at h = 1/32, so outside docs/ and not committed)."""

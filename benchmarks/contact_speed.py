@@ -31,11 +31,12 @@ from admmkit import RelativeChange
 from admmkit.blas import limit_blas
 from admmkit.linsolve import available_backends, factorize
 
-from .assembly import assemble
-from .problem import contact_problem
-from .reproduce import h_label, machine_info
-from .scene import example1, example2
-from .schur import available_schur_backends
+from problems.contact.assembly import assemble
+from problems.contact.problem import contact_problem
+from .machine import machine_info
+from .report import h_label
+from problems.contact.scene import example1, example2
+from problems.contact.schur import available_schur_backends
 
 DEFAULT_HS = (1 / 40, 1 / 200)
 EXAMPLES = {"ex1": example1, "ex2": example2}
@@ -78,7 +79,8 @@ def time_sadmm(ops, mode, backend="auto", rho=1e3, repeats=3):
         t0, c0 = time.perf_counter(), time.process_time()
         problem = contact_problem(ops, mode=mode, backend=backend)
         t1 = time.perf_counter()
-        result = admmkit.solve(problem, rho=rho, policy=policies.Summable(tau=2.0, c_max=100), order="zx",
+        sadmm_order, sadmm_rule = policies.method("sadmm")   # policies/paper_methods.py
+        result = admmkit.solve(problem, rho=rho, policy=sadmm_rule, order=sadmm_order,
                                stop=RelativeChange(1e-5), max_iter=20_000)
         t2, c2 = time.perf_counter(), time.process_time()
         setups.append(t1 - t0)

@@ -4,12 +4,12 @@
 
 For each problem (contact Ex. 1 and Ex. 2 and the radial obstacle at h =
 1/20 ... 1/160, four QPs) every ADMM method (every registered policy in both
-orders, :mod:`problems.benchmarks.methods`) runs from rho_0 = rho_scale *
+orders, :mod:`benchmarks.methods`) runs from rho_0 = rho_scale *
 rho_unit (rho_unit = E for contact, 1 otherwise) through a ladder of Boyd
-residual tolerances 1e-1 ... 1e-10 (:mod:`problems.benchmarks.admm_runs`), and
-every peer (:mod:`problems.benchmarks.peers`) through its own ladder.  Each
+residual tolerances 1e-1 ... 1e-10 (:mod:`benchmarks.admm_runs`), and
+every peer (:mod:`benchmarks.peers`) through its own ladder.  Each
 point is (median CPU time of the process, true relative error of the answer
-against the reference solution, in the norm of :mod:`problems.benchmarks.scenes`).
+against the reference solution, in the norm of :mod:`benchmarks.families`).
 CPU time, not wall time: the machine is shared, and with one BLAS thread per
 process the CPU time is the work done whatever the load (the wall times are in
 precision.csv too).
@@ -31,7 +31,7 @@ from . import methods as methods_mod
 from .peers import PEERS, applicable, run_peer
 from .report import (NOISE_NOTE, fmt, machine_info, machine_markdown, md_table, method_styles, pyplot,
                      save_figure, write_csv)
-from .scenes import CONTACT_SCENES, OBSTACLE_SCENES, QP_SCENES, discrete, kind_of, mm_folder, problem_key
+from .families import CONTACT_SCENES, OBSTACLE_SCENES, QP_SCENES, discrete, kind_of, mm_folder, problem_key
 from .sweep import finished, run_sweep
 
 HS = (1 / 20, 1 / 40, 1 / 80, 1 / 160)
@@ -92,7 +92,7 @@ def run_case(case: dict) -> dict:
 
 # ---------------------------------------------------------------- summaries
 def _problem_label(case: dict) -> str:
-    from problems.contact.reproduce import h_label
+    from .report import h_label
     return case["scene"] + ("" if case.get("h") is None else f" h={h_label(case['h'])}")
 
 
@@ -293,7 +293,7 @@ def _readme(out: Path, per_problem, refs, failures, command, wall, skipped, file
     return path
 
 
-def run(out="docs/results/bench/precision", *, quick: bool = False, workers: int = 2, repeats: int = 3,
+def run(out="out/precision", *, quick: bool = False, workers: int = 2, repeats: int = 3,
         scenes=None, hs=None, methods=None, progress: bool = True, command: str = "admmkit bench precision",
         time_limit: float = 60.0, report_only: bool = False) -> list[Path]:
     """Build the cases, run (or resume) the sweep, write the summaries; return the files written."""
@@ -315,7 +315,7 @@ def run(out="docs/results/bench/precision", *, quick: bool = False, workers: int
     if report_only:
         records = finished(cases, out / "results.jsonl")
     else:
-        records = run_sweep(cases, "problems.benchmarks.precision:run_case", out / "results.jsonl", workers=workers,
+        records = run_sweep(cases, "benchmarks.precision:run_case", out / "results.jsonl", workers=workers,
                             progress=progress, cost=case_cost,
                             label=lambda c: f"{_problem_label(c)} {c['method']}")
     wall = None if report_only else time.perf_counter() - t0

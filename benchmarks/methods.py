@@ -16,9 +16,9 @@ from __future__ import annotations
 
 import admmkit
 import policies  # noqa: F401  (registers the built-in rules)
+from policies.paper_methods import PAPER_NAMES
 
 ORDERS = ("xz", "zx")
-PAPER_NAMES = {("fixed", "xz"): "admm1", ("fixed", "zx"): "admm2", ("summable", "zx"): "sadmm"}
 _PAPER_BY_NAME = {v: k for k, v in PAPER_NAMES.items()}
 
 

@@ -1,0 +1,96 @@
+"""Plots of a contact solution: the deformed body with the obstacle, and pressure and gap along Gamma_C."""
+from __future__ import annotations
+
+import numpy as np
+
+from admmkit.figures import pyplot, save_figure
+
+from .assembly import ContactOperators
+
+
+def vertex_displacement(ops: ContactOperators, u_free: np.ndarray):
+    """(points (nv, 2), triangles (nt, 3), displacement at the vertices (nv, 2)).
+
+    VectorH1 numbers all x-component dofs first, then all y; in each component
+    the first nv dofs belong to the vertices (P1 nodal values; for P2 the edge
+    bubbles vanish at the vertices), so the vertex values are read off the dofs.
+    """
+    import ngsolve as ng
+    mesh = ops.mesh
+    points = np.array([v.point[:2] for v in mesh.vertices])
+    triangles = np.array([[v.nr for v in el.vertices] for el in mesh.Elements(ng.VOL)])
+    full = ops.full_vector(u_free)
+    nv, half = mesh.nv, ops.fes.ndof // 2
+    return points, triangles, np.column_stack([full[:nv], full[half:half + nv]])
+
+
+def plot_deformed(ax, ops: ContactOperators, u_free: np.ndarray, magnify: float, title: str = ""):
+    """The deformed triangulation (coloured by |u|), the undeformed outline and the obstacle."""
+    import matplotlib.tri as mtri
+    points, triangles, disp = vertex_displacement(ops, u_free)
+    moved = points + magnify * disp
+    tri = mtri.Triangulation(moved[:, 0], moved[:, 1], triangles)
+    pc = ax.tripcolor(tri, np.linalg.norm(disp, axis=1), shading="gouraud", cmap="viridis")
+    ax.triplot(tri, color="k", lw=0.25, alpha=0.5)
+    L, H = ops.scene.L, ops.scene.H
+    ax.plot([0, L, L, 0, 0], [0, 0, H, H, 0], "k--", lw=0.8, label="undeformed body")
+    x = np.linspace(-0.05 * L, 1.05 * L, 400)
+    g = np.array([ops.scene.gap_at(xi, 0.0) for xi in x])
+    ax.plot(x, -magnify * g, "r-", lw=1.6, label=f"obstacle y = -g(x) (x{magnify:g}, like u)")
+    ax.fill_between(x, -magnify * g, -magnify * g.max() - 0.08 * H, color="r", alpha=0.12, lw=0)
+    ax.set_aspect("equal")
+    ax.set_xlabel("x"); ax.set_ylabel("y")
+    ax.set_title(title or f"deformed body, displacement x{magnify:g}")
+    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.16), ncol=2, fontsize=8, frameon=False)
+    return pc
+
+
+def plot_pressure_gap(axes, ops: ContactOperators, u_free: np.ndarray, lam: np.ndarray):
+    """lam and the gap g - u_n along Gamma_C against x (two axes)."""
+    x = ops.xc[:, 0]
+    un = ops.B @ u_free
+    gap = ops.g - un
+    active = gap <= 1e-4 * max(float(np.abs(ops.g).max()), 1e-300)  # the stop leaves gaps ~1e-7 g
+    ax1, ax2 = axes
+    ax1.plot(x, lam, "b.-", ms=3, label="contact pressure lam")
+    ax1.plot(x[active], lam[active], "o", mfc="none", mec="r", ms=5, label="in contact (g - u_n <= 1e-4 max g)")
+    ax1.set_ylabel("lam"); ax1.legend(fontsize=8); ax1.grid(alpha=0.3)
+    ax2.plot(x, gap, "g.-", ms=3, label="gap g - u_n")
+    ax2.plot(x, ops.g, "k--", lw=0.8, label="initial gap g")
+    ax2.axhline(0, color="k", lw=0.5)
+    ax2.set_ylabel("g - u_n"); ax2.set_xlabel("x on Gamma_C (y = 0)"); ax2.legend(fontsize=8); ax2.grid(alpha=0.3)
+
+
+def figure_deformed(ops, u, magnify, title, path, svg=True):
+    """The paper's Figs 1 / 3."""
+    plt = pyplot()
+    L, H = ops.scene.L, ops.scene.H
+    fig, ax = plt.subplots(figsize=(min(3.6 * L / H + 1.5, 13), 5.0))
+    pc = plot_deformed(ax, ops, u, magnify, title)
+    fig.colorbar(pc, ax=ax, label="|u|", fraction=0.025, pad=0.02)
+    fig.tight_layout()
+    return save_figure(fig, path, ("png", "svg") if svg else ("png",))
+
+
+def figure_pressure_gap(ops, u, lam, title, path, svg=True):
+    """lam and g - u_n along Gamma_C."""
+    plt = pyplot()
+    fig, axes = plt.subplots(2, 1, figsize=(8, 5.5), sharex=True)
+    plot_pressure_gap(axes, ops, u, lam)
+    axes[0].set_title(title)
+    fig.tight_layout()
+    return save_figure(fig, path, ("png", "svg") if svg else ("png",))
+
+
+def figure_solution(ops, u, lam, magnify, title, path):
+    """Deformed body over pressure/gap in one PNG (the CLI's --plot)."""
+    plt = pyplot()
+    fig = plt.figure(figsize=(9, 8.5))
+    gs = fig.add_gridspec(3, 1, height_ratios=[2.2, 1, 1])
+    ax0 = fig.add_subplot(gs[0])
+    pc = plot_deformed(ax0, ops, u, magnify, title)
+    fig.colorbar(pc, ax=ax0, label="|u|", fraction=0.025, pad=0.02)
+    ax1 = fig.add_subplot(gs[1]); ax2 = fig.add_subplot(gs[2], sharex=ax1)
+    plot_pressure_gap((ax1, ax2), ops, u, lam)
+    fig.tight_layout()
+    return save_figure(fig, path, ("png",))[0]

@@ -1,0 +1,42 @@
+"""Plot of an obstacle solution: a section through u and psi, and the contact set over the mesh."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from admmkit.figures import pyplot, save_figure
+
+from .scene import A_STAR
+
+
+def plot_solution(problem, u, z, path):
+    """Write a PNG: u and psi along the line y = centre, and the contact set over the mesh."""
+    plt = pyplot()
+
+    full = problem.full_vector(u)
+    x, y = problem.nodes.T
+    psi_all = problem.scene.evaluate("psi", x, y)
+    x0, x1, y0, y1 = problem.scene.box
+    yc = y[np.argmin(np.abs(y - (y0 + y1) / 2))]
+    line = np.flatnonzero(np.isclose(y, yc))
+    line = line[np.argsort(x[line])]
+    contact = problem.contact_set(z)
+
+    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(11, 4.5))
+    ax1.plot(x[line], full[line], "b-", label="u_h")
+    ax1.plot(x[line], psi_all[line], "k--", label="psi")
+    if problem.scene.exact is not None:
+        xs = np.linspace(x0, x1, 801)
+        ax1.plot(xs, problem.scene.exact(xs, np.full_like(xs, yc)), "r:", label="exact u")
+    ax1.set_xlabel("x"); ax1.set_title(f"section y = {yc:g}"); ax1.legend()
+    tri = ax2.tricontourf(x, y, full, levels=30, cmap="viridis")
+    fig.colorbar(tri, ax=ax2, label="u_h")
+    free = problem.nodes[problem.free]
+    ax2.plot(free[contact, 0], free[contact, 1], "w.", ms=2, label="contact set")
+    if problem.scene.exact is not None:
+        t = np.linspace(0, 2 * math.pi, 200)
+        ax2.plot(A_STAR * np.cos(t), A_STAR * np.sin(t), "r-", lw=1, label="r = a*")
+    ax2.set_aspect("equal"); ax2.set_title(f"{problem.scene.name}: u_h and contact set"); ax2.legend(loc="upper right")
+    fig.tight_layout()
+    return save_figure(fig, path, ("png",), dpi=120)[0]
