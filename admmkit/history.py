@@ -40,12 +40,13 @@ class History:
         """Add the row of iteration ``rec.k``; ``rho_next`` is the rho the policy chose."""
         if self.mode == "full":
             rec.complete()
-        self._rows.append((rec.k, rec.rho, rec.primal_unit, rec.dual_unit, rec.time, rec.computed(), rho_next))
+        d = rec._d
+        self._rows.append((d[0], d[1], rec.primal_unit, rec.dual_unit, d[2], rec._vals, rho_next))
 
     def replace_last(self, rec: IterationRecord) -> None:
         """Refresh the last row from ``rec`` (the loop completes the last record of a run)."""
         k, rho, pu, du, t, _, rho_next = self._rows[-1]
-        self._rows[-1] = (k, rho, pu, du, t, rec.computed(), rho_next)
+        self._rows[-1] = (k, rho, pu, du, t, rec._vals, rho_next)
 
     def __len__(self) -> int:
         return len(self._rows)

@@ -27,16 +27,38 @@ _VECTORS = ("x", "z", "lam", "Ax", "z_prev", "Ax_prev")
 class RunContext:
     """What the lazy fields of every record of one run share: the problem's norms and the constants."""
 
-    __slots__ = ("problem", "norm", "order", "alpha", "c", "c_is_zero", "c_norm", "has_adjoint",
-                 "primal_unit", "dual_unit", "inner")
+    __slots__ = ("problem", "norm", "x_norm", "x_distance", "order", "alpha", "c", "c_is_zero", "c_norm",
+                 "has_adjoint", "primal_unit", "dual_unit", "inner")
 
     def __init__(self, problem, order: str, alpha: float, c, c_norm: float, has_adjoint: bool,
                  primal_unit: float, dual_unit: float):
-        self.problem, self.norm, self.inner = problem, problem.norm, problem.inner
+        from .problem import Problem
+        self.problem, self.inner = problem, problem.inner
+        kind = type(problem)
+        # the default Euclidean norms, without three Python calls each (bitwise the same value:
+        # Problem.norm is sqrt(max(dot(y, y), 0)) and numpy's norm of a vector is sqrt(dot(y, y)))
+        euclid_M = getattr(kind, "norm", None) is Problem.norm and getattr(kind, "inner", None) is Problem.inner
+        euclid_X = getattr(kind, "x_norm", None) is Problem.x_norm
+        self.norm = _euclidean if euclid_M else problem.norm
+        self.x_norm = _euclidean if euclid_X else problem.x_norm
+        self.x_distance = (_euclidean_distance if euclid_X and getattr(kind, "x_distance", None) is Problem.x_distance
+                           else problem.x_distance)
         self.order, self.alpha, self.c = order, alpha, c
         self.c_is_zero = np.isscalar(c) and c == 0
         self.c_norm, self.has_adjoint = c_norm, has_adjoint
         self.primal_unit, self.dual_unit = primal_unit, dual_unit
+
+
+_dot, _sqrt = np.dot, math.sqrt
+
+
+def _euclidean(y) -> float:
+    return _sqrt(_dot(y, y))
+
+
+def _euclidean_distance(a, b) -> float:
+    d = a - b
+    return _sqrt(_dot(d, d))
 
 
 # -- the lazy fields: each a function of the record (r = A x^{k+1} - z^{k+1} - c) --------------
@@ -84,8 +106,8 @@ _COMPUTE = {
     "dual_residual": _dual_residual,
     "rho_Ax_change": _rho_Ax_change,
     "lam_change": _lam_change,
-    "x_change": lambda rec: rec._ctx.problem.x_distance(rec._x, rec._x_prev),
-    "x_norm": lambda rec: rec._ctx.problem.x_norm(rec._x),
+    "x_change": lambda rec: rec._ctx.x_distance(rec._x, rec._x_prev),
+    "x_norm": lambda rec: rec._ctx.x_norm(rec._x),
     "z_change": lambda rec: rec._ctx.norm(rec._z - rec._z_prev),
     "primal_scale": _primal_scale,
     "dual_scale": _dual_scale,
@@ -103,18 +125,35 @@ def _lazy(name: str, doc: str) -> property:
     return property(get, doc=doc)
 
 
-def _view(name: str, doc: str) -> property:
-    attr = "_" + name
-
+def _view(i: int, slot: int, doc: str) -> property:
     def get(self):
-        v = getattr(self, attr)
-        if v is None or not v.flags.writeable:
-            return v
-        view = v.view()
-        view.flags.writeable = False
-        object.__setattr__(self, attr, view)
+        view = self._cache[slot]
+        if view is None:
+            v = self._d[i]
+            if v is None:
+                return None
+            view = v.view()
+            view.flags.writeable = False
+            self._cache[slot] = view
         return view
     return property(get, doc=doc)
+
+
+class _Given:
+    """The context of a hand-made record: its order, units and inner product."""
+
+    __slots__ = ("order", "primal_unit", "dual_unit", "inner", "alpha")
+
+    def __init__(self, order, primal_unit, dual_unit, inner):
+        self.order, self.primal_unit, self.dual_unit, self.inner, self.alpha = order, primal_unit, dual_unit, inner, 1.0
+
+
+def _item(i: int, doc: str) -> property:
+    return property(lambda self: self._d[i], doc=doc)
+
+
+def _ctx_attr(name: str, doc: str) -> property:
+    return property(lambda self: getattr(self._ctx, name), doc=doc)
 
 
 class IterationRecord:
@@ -138,17 +177,18 @@ class IterationRecord:
       spaces the residuals live in (Boyd's sqrt(p), sqrt(n))
 
     In a record of the loop each of these norms is computed the first time it
-    is read and then kept; reading one costs what the old eager loop paid for
-    all of them only if everything is read.  The vectors are read-only views of
-    the new iterates; ``z_prev`` and ``Ax_prev`` are those of the previous
-    iterate (z^k, A x^k) and ``inner`` is the problem's (., .)_M (None:
-    Euclidean, for hand-made records).  From them the record gives the
-    multiplier of each block's optimality condition (``lam_x``, ``lam_z``),
-    which spectral rules need.  Records are read-only.
+    is read and then kept, so an iteration pays only for the norms something
+    reads.  The vectors are read-only views of the new iterates; ``z_prev``
+    and ``Ax_prev`` are those of the previous iterate (z^k, A x^k) and
+    ``inner`` is the problem's (., .)_M (None: Euclidean, for hand-made
+    records).  From them the record gives the multiplier of each block's
+    optimality condition (``lam_x``, ``lam_z``), which spectral rules need.
+    Records are read-only.
     """
 
-    __slots__ = ("k", "rho", "order", "primal_unit", "dual_unit", "time", "alpha", "inner_product", "_vals",
-                 "_ctx", "_x", "_z", "_lam", "_Ax", "_z_prev", "_Ax_prev", "_x_prev", "_lam_prev", "_r", "_hat")
+    # _d = (k, rho, time, x, z, lam, Ax, x_prev, z_prev, lam_prev, Ax_prev, hat);
+    # _vals = the 9 lazy norms; _cache = 6 read-only views, then r
+    __slots__ = ("_d", "_vals", "_ctx", "_cache")
 
     def __init__(self, k: int, rho: float, order: str, primal_residual: float, dual_residual: float,
                  rho_Ax_change: float, lam_change: float, x_change: float, x_norm: float, z_change: float,
@@ -156,19 +196,25 @@ class IterationRecord:
                  x: np.ndarray, z: np.ndarray, lam: np.ndarray, Ax: np.ndarray,
                  z_prev: np.ndarray | None = None, Ax_prev: np.ndarray | None = None,
                  inner: Callable[[np.ndarray, np.ndarray], float] | None = None):
-        put = object.__setattr__
-        for name, value in (("k", k), ("rho", rho), ("order", order), ("primal_unit", primal_unit),
-                            ("dual_unit", dual_unit), ("time", time), ("alpha", 1.0), ("inner_product", inner),
-                            ("_ctx", None), ("_x", x), ("_z", z), ("_lam", lam), ("_Ax", Ax), ("_z_prev", z_prev),
-                            ("_Ax_prev", Ax_prev), ("_x_prev", None), ("_lam_prev", None), ("_r", None),
-                            ("_hat", None)):
-            put(self, name, value)
-        put(self, "_vals", [primal_residual, dual_residual, rho_Ax_change, lam_change, x_change, x_norm,
-                            z_change, primal_scale, dual_scale])
+        _SET_D(self, (k, rho, time, x, z, lam, Ax, None, z_prev, None, Ax_prev, None))
+        _SET_VALS(self, [primal_residual, dual_residual, rho_Ax_change, lam_change, x_change, x_norm,
+                         z_change, primal_scale, dual_scale])
+        _SET_CACHE(self, [None] * 7)
+        _SET_CTX(self, _Given(order, primal_unit, dual_unit, inner))
 
     def __setattr__(self, name, value):
         raise AttributeError(f"IterationRecord is read-only (tried to set {name!r})")
 
+    k = _item(0, "The iteration number k (0-based).")
+    rho = _item(1, "rho_k, the penalty of this iteration.")
+    time = _item(2, "Seconds since the start of the run, after the two steps.")
+    _x, _z, _lam, _Ax = _item(3, ""), _item(4, ""), _item(5, ""), _item(6, "")
+    _x_prev, _z_prev, _lam_prev, _Ax_prev, _hat = _item(7, ""), _item(8, ""), _item(9, ""), _item(10, ""), _item(11, "")
+    order = _ctx_attr("order", "'xz' or 'zx'.")
+    alpha = _ctx_attr("alpha", "The over-relaxation parameter of the run.")
+    primal_unit = _ctx_attr("primal_unit", "||1||_M (Boyd's sqrt(p)).")
+    dual_unit = _ctx_attr("dual_unit", "sqrt(n) (order xz) or ||1||_M (order zx).")
+    inner = _ctx_attr("inner", "The problem's inner product (., .)_M (None: Euclidean).")
     primal_residual = _lazy("primal_residual", "||A x^{k+1} - z^{k+1} - c||_M.")
     dual_residual = _lazy("dual_residual", "Boyd's dual residual (see the class docstring).")
     rho_Ax_change = _lazy("rho_Ax_change", "rho_k ||A x^{k+1} - A x^k||_M.")
@@ -178,48 +224,20 @@ class IterationRecord:
     z_change = _lazy("z_change", "||z^{k+1} - z^k||_M.")
     primal_scale = _lazy("primal_scale", "max(||A x^{k+1}||_M, ||z^{k+1}||_M, ||c||_M).")
     dual_scale = _lazy("dual_scale", "||A^T M lam^{k+1}|| (order xz) or ||lam^{k+1}||_M (order zx).")
-    x = _view("x", "x^{k+1} (read-only).")
-    z = _view("z", "z^{k+1} (read-only).")
-    lam = _view("lam", "lam^{k+1} (read-only).")
-    Ax = _view("Ax", "A x^{k+1} (read-only).")
-    z_prev = _view("z_prev", "z^k (read-only; None in a hand-made record that did not give it).")
-    Ax_prev = _view("Ax_prev", "A x^k (read-only; None in a hand-made record that did not give it).")
-
-    @classmethod
-    def _from_loop(cls, ctx: RunContext, k: int, rho: float, t: float, x, z, lam, Ax, x_prev, z_prev, lam_prev,
-                   Ax_prev, r, hat) -> "IterationRecord":
-        """The loop's lazy record (no norm computed yet)."""
-        rec = object.__new__(cls)
-        put = object.__setattr__
-        put(rec, "k", k)
-        put(rec, "rho", rho)
-        put(rec, "order", ctx.order)
-        put(rec, "primal_unit", ctx.primal_unit)
-        put(rec, "dual_unit", ctx.dual_unit)
-        put(rec, "time", t)
-        put(rec, "alpha", ctx.alpha)
-        put(rec, "inner_product", ctx.inner)
-        put(rec, "_vals", [None] * 9)
-        put(rec, "_ctx", ctx)
-        put(rec, "_x", x)
-        put(rec, "_z", z)
-        put(rec, "_lam", lam)
-        put(rec, "_Ax", Ax)
-        put(rec, "_z_prev", z_prev)
-        put(rec, "_Ax_prev", Ax_prev)
-        put(rec, "_x_prev", x_prev)
-        put(rec, "_lam_prev", lam_prev)
-        put(rec, "_r", r)
-        put(rec, "_hat", hat)
-        return rec
+    x = _view(3, 0, "x^{k+1} (read-only).")
+    z = _view(4, 1, "z^{k+1} (read-only).")
+    lam = _view(5, 2, "lam^{k+1} (read-only).")
+    Ax = _view(6, 3, "A x^{k+1} (read-only).")
+    z_prev = _view(8, 4, "z^k (read-only; None in a hand-made record that did not give it).")
+    Ax_prev = _view(10, 5, "A x^k (read-only; None in a hand-made record that did not give it).")
 
     def _residual(self) -> np.ndarray:
         """r = A x^{k+1} - z^{k+1} - c (the dual update's vector when alpha = 1)."""
-        if self._r is None:
+        r = self._cache[6]
+        if r is None:
             ctx = self._ctx
-            r = self._Ax - self._z if ctx.c_is_zero else self._Ax - self._z - ctx.c
-            object.__setattr__(self, "_r", r)
-        return self._r
+            r = self._cache[6] = self._Ax - self._z if ctx.c_is_zero else self._Ax - self._z - ctx.c
+        return r
 
     def complete(self) -> "IterationRecord":
         """Compute every norm not yet computed (what the eager loop computed); return self."""
@@ -231,14 +249,10 @@ class IterationRecord:
         """The lazy fields as they stand: a number where computed, None where not (no computation)."""
         return tuple(self._vals)
 
-    @property
-    def inner(self) -> Callable[[np.ndarray, np.ndarray], float] | None:
-        """The problem's inner product (., .)_M (None: Euclidean)."""
-        return self.inner_product
-
     def dot(self, a: np.ndarray, b: np.ndarray) -> float:
         """(a, b)_M, the problem's inner product of the constraint space (Euclidean if not given)."""
-        return float(np.dot(a, b)) if self.inner_product is None else float(self.inner_product(a, b))
+        inner = self._ctx.inner
+        return float(np.dot(a, b)) if inner is None else float(inner(a, b))
 
     @property
     def lam_x(self) -> np.ndarray:
@@ -308,3 +322,21 @@ def ratio(a: float, b: float) -> float:
 
 
 _ratio = ratio
+
+
+_SET_D = IterationRecord.__dict__["_d"].__set__
+_SET_VALS = IterationRecord.__dict__["_vals"].__set__
+_SET_CTX = IterationRecord.__dict__["_ctx"].__set__
+_SET_CACHE = IterationRecord.__dict__["_cache"].__set__
+_NEW = object.__new__
+
+
+def loop_record(ctx: RunContext, data: tuple, r) -> IterationRecord:
+    """The loop's lazy record of ``data`` = (k, rho, time, x, z, lam, Ax, x_prev, z_prev, lam_prev, Ax_prev, hat)
+    (``hat`` None when alpha = 1) and r = A x^{k+1} - z^{k+1} - c if known (else None); no norm is computed yet."""
+    rec = _NEW(IterationRecord)
+    _SET_D(rec, data)
+    _SET_VALS(rec, [None] * 9)
+    _SET_CTX(rec, ctx)
+    _SET_CACHE(rec, [None, None, None, None, None, None, r])
+    return rec
