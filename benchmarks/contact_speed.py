@@ -33,7 +33,7 @@ from admmkit.linsolve import available_backends, factorize
 
 from problems.contact.assembly import assemble
 from problems.contact.problem import contact_problem
-from .machine import machine_info
+from .machine import machine_info, median_time
 from .report import h_label
 from problems.contact.scene import example1, example2
 from problems.contact.schur import available_schur_backends
@@ -52,24 +52,14 @@ def backend_worlds() -> list[str]:
     return [b for b in ("cholmod", "superlu") if b in both]
 
 
-def _median_time(fn, repeats):
-    """Median wall and CPU seconds of ``fn()`` over ``repeats`` calls, and the last result."""
-    walls, cpus, out = [], [], None
-    for _ in range(repeats):
-        t0, c0 = time.perf_counter(), time.process_time()
-        out = fn()
-        walls.append(time.perf_counter() - t0)
-        cpus.append(time.process_time() - c0)
-    return statistics.median(walls), statistics.median(cpus), out
-
-
 def time_factor_solve(K, f, backend="auto", repeats=3):
     """Median (wall, CPU) seconds of factorize(K, backend) + one solve(f), after one untimed
     warm-up (the first factorisations in a process were up to 2x slower)."""
     def once():
         return factorize(K, backend=backend)(f)
     once()
-    return _median_time(once, repeats)[:2]
+    timing = median_time(once, repeats)
+    return timing.wall, timing.cpu
 
 
 def time_sadmm(ops, mode, backend="auto", rho=1e3, repeats=3):

@@ -12,7 +12,6 @@ solves with SADMM (rho_0 = 1e3, the paper's stopping rule), and writes
 """
 from __future__ import annotations
 
-import csv
 import time
 from pathlib import Path
 
@@ -26,6 +25,7 @@ from problems.contact.methods import solve_scene
 from admmkit.figures import pyplot, save_figure
 
 from .machine import machine_info
+from .report import write_csv
 
 DEFAULT_KS = (10, 20, 40, 80)
 #: the issue's targets: a within 1 %, p0 within 2 %, on a mesh of at most 1e5 unknowns
@@ -61,7 +61,7 @@ def run_hertz_study(out="out/scale", ks=DEFAULT_KS, case: HertzCase | None = Non
                   f"a {row['a_h']:.6f} vs {row['a_hertz']:.6f} ({row['a_err']:+.2%})  "
                   f"p0 {row['p0_h']:.6f} vs {row['p0_hertz']:.6f} ({row['p0_err']:+.2%})  "
                   f"[{row['iterations']} it, {row['assemble_s'] + row['solve_s']:.1f} s]", flush=True)
-    _write_csv(out / "hertz.csv", rows)
+    write_csv(out / "hertz.csv", [_values(r) for r in rows], COLUMNS, float_format=".8g")
     _write_markdown(out / "hertz.md", rows, case, command)
     _figure_pressure(out / "hertz_pressure.png", rows, case)
     _figure_errors(out / "hertz_errors.png", rows)
@@ -74,15 +74,6 @@ COLUMNS = ["k", "h_c", "n_free", "n_c", "P", "a_h", "a_hertz", "a_err", "p0_h", 
 
 def _values(row):
     return row | {"edge_in": row["a_bracket"][0], "edge_out": row["a_bracket"][1]}
-
-
-def _write_csv(path: Path, rows) -> None:
-    with open(path, "w", newline="") as fh:
-        w = csv.writer(fh)
-        w.writerow(COLUMNS)
-        for row in rows:
-            v = _values(row)
-            w.writerow([f"{v[c]:.8g}" if isinstance(v[c], float) else v[c] for c in COLUMNS])
 
 
 def _write_markdown(path: Path, rows, case: HertzCase, command: str) -> None:

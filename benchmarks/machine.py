@@ -1,11 +1,14 @@
-"""The machine and library versions, recorded beside every benchmark figure."""
+"""The machine and library versions recorded beside every benchmark figure, and the one timer of the studies."""
 from __future__ import annotations
 
 import datetime
 import os
 import platform
+import statistics
 import subprocess
+import time
 from pathlib import Path
+from typing import Any, Callable, NamedTuple
 
 LIBRARIES = ("numpy", "scipy", "ngsolve", "pyamg", "cvxpy", "clarabel", "osqp", "matplotlib")
 
@@ -56,3 +59,29 @@ def machine_info() -> dict:
     except OSError:
         pass
     return info
+
+
+class Timing(NamedTuple):
+    """Median wall and CPU seconds over the repeats, the CPU seconds of each repeat, the last output."""
+
+    wall: float
+    cpu: float
+    cpus: list[float]
+    out: Any
+
+
+def median_time(fn: Callable[[], Any], repeats: int, long_run: float = float("inf")) -> Timing:
+    """Time ``fn()`` ``repeats`` times (fewer if the first call takes longer than ``long_run`` seconds).
+
+    CPU seconds are those of this process (``time.process_time``): on a shared
+    machine they are less distorted than wall seconds, which are kept beside them.
+    """
+    walls, cpus, out = [], [], None
+    for _ in range(max(1, repeats)):
+        t0, c0 = time.perf_counter(), time.process_time()
+        out = fn()
+        walls.append(time.perf_counter() - t0)
+        cpus.append(time.process_time() - c0)
+        if walls[0] > long_run:
+            break
+    return Timing(statistics.median(walls), statistics.median(cpus), cpus, out)

@@ -22,6 +22,7 @@ import time
 import numpy as np
 import scipy.sparse as sp
 
+from .machine import median_time
 from .families import Discrete, clarabel_solve, cvxpy_duals, cvxpy_problem, pdas_form
 from .sweep import clean_float
 
@@ -44,19 +45,6 @@ def _osqp_tolerances(d: Discrete, tol: float) -> dict:
     return {"eps_abs": 0.0, "eps_rel": tol} if d.kind != "qp" else {"eps_abs": tol, "eps_rel": tol}
 
 
-def _timed(fn, repeats: int, long_run: float):
-    """(median CPU seconds, CPU seconds of each repeat, median wall seconds, the last output)."""
-    cpus, walls, out = [], [], None
-    for i in range(repeats):
-        t0, c0 = time.perf_counter(), time.process_time()
-        out = fn()
-        walls.append(time.perf_counter() - t0)
-        cpus.append(time.process_time() - c0)
-        if walls[0] > long_run:
-            break
-    return statistics.median(cpus), cpus, statistics.median(walls), out
-
-
 def run_peer(d: Discrete, peer: str, *, repeats: int = 3, long_run: float = 10.0, time_limit: float = 60.0,
              max_iter: int = 20_000) -> dict:
     """Run one peer on problem ``d``; return {"points": [...], ...} for the work-precision chart."""
@@ -70,7 +58,7 @@ def run_peer(d: Discrete, peer: str, *, repeats: int = 3, long_run: float = 10.0
             fn = lambda: _cvxpy_osqp(d, tol, time_limit, max_iter)  # noqa: E731
         else:
             fn = lambda: _osqp(d, tol, time_limit, max_iter)  # noqa: E731
-        t, times, wall, (x, y, status, solver_time, iters) = _timed(fn, repeats, long_run)
+        wall, t, times, (x, y, status, solver_time, iters) = median_time(fn, repeats, long_run)
         point = {"tol": tol, "time": t, "times": times, "wall": wall, "solver_time": clean_float(solver_time),
                  "iterations": iters, "status": status}
         if x is not None and np.all(np.isfinite(x)):

@@ -31,8 +31,13 @@ def machine_markdown(info: dict) -> str:
     return "\n".join(lines)
 
 
-def write_csv(path: Path, rows: list[dict], columns: list[str] | None = None) -> Path:
-    """Rows of dicts as CSV (columns: the given ones, else the union in first-seen order)."""
+def write_csv(path: Path, rows: list[dict], columns: list[str] | None = None, float_format: str | None = None) -> Path:
+    """Rows of dicts as CSV, written whole or not at all.
+
+    Columns: the given ones, else the union in first-seen order.  Floats are
+    written with ``repr`` (exact) unless ``float_format`` (e.g. ".6g") is given;
+    None and NaN become empty cells.
+    """
     path.parent.mkdir(parents=True, exist_ok=True)
     if columns is None:
         columns = []
@@ -42,15 +47,15 @@ def write_csv(path: Path, rows: list[dict], columns: list[str] | None = None) ->
         writer = csv.DictWriter(fh, fieldnames=columns, extrasaction="ignore")
         writer.writeheader()
         for row in rows:
-            writer.writerow({k: _csv_value(row.get(k)) for k in columns})
+            writer.writerow({k: _csv_value(row.get(k), float_format) for k in columns})
     return path
 
 
-def _csv_value(v):
+def _csv_value(v, float_format: str | None = None):
     if v is None:
         return ""
     if isinstance(v, float):
-        return "" if math.isnan(v) else repr(v)
+        return "" if math.isnan(v) else (format(v, float_format) if float_format else repr(v))
     return v
 
 

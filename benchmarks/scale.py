@@ -9,7 +9,6 @@ ideal linear slope), and checks the issue's target at the largest size: at most
 """
 from __future__ import annotations
 
-import csv
 import math
 import time
 from pathlib import Path
@@ -17,6 +16,7 @@ from pathlib import Path
 from admmkit.figures import pyplot, save_figure
 
 from .machine import machine_info
+from .report import write_csv
 from .scale_runs import run_in_subprocess
 
 #: 1.7e3, 6.6e3, 2.6e4, 1.0e5, 4.1e5 and 1.0e6 free unknowns on Example 1 (P1)
@@ -44,7 +44,7 @@ def run_scale_bench(out="out/scale", hs=DEFAULT_HS, example="ex1", mode="iterati
         rows.append(row)
         print("        " + _line(row), flush=True)
     wall = time.perf_counter() - start
-    _write_csv(out / "scale.csv", rows)
+    write_csv(out / "scale.csv", [_flat(r) for r in rows], COLUMNS, float_format=".6g")
     _write_markdown(out / "scale.md", rows, example, mode, command, wall)
     done = [r for r in rows if r.get("status") == "converged"]
     if len(done) >= 2:
@@ -69,16 +69,6 @@ COLUMNS = ["h", "n_free", "n_c", "status", "iterations", "rho_changes", "cg_iter
 
 def _flat(r: dict) -> dict:
     return r | {k: r.get("counters", {}).get(k) for k in ("cg_iterations", "amg_setups", "amg_refreshes")}
-
-
-def _write_csv(path: Path, rows) -> None:
-    with open(path, "w", newline="") as fh:
-        w = csv.writer(fh)
-        w.writerow(COLUMNS)
-        for r in rows:
-            f = _flat(r)
-            w.writerow(["" if f.get(c) is None else (f"{f[c]:.6g}" if isinstance(f[c], float) else f[c])
-                        for c in COLUMNS])
 
 
 def _slope(rows, key) -> float:
