@@ -9,7 +9,8 @@ from ngsolve.meshes import MakeStructured3DMesh
 from admmkit import RelativeChange
 from admmkit.cli import main
 from problems.contact import solve_scene
-from problems.contact.scene3d import FACES_3D, Scene3D, assemble3d, block_mesh, example2_3d, memory_need3d
+from problems.contact.memory import memory_need3d
+from problems.contact.scene3d import FACES_3D, Scene3D, assemble3d, block_mesh, example2_3d
 
 
 def test_block_mesh_is_makestructured3dmesh_with_outward_faces():

@@ -13,7 +13,8 @@ from policies.paper_methods import PAPER_METHODS as METHODS, method  # noqa: F40
 
 from .assembly import ContactOperators, assemble
 from .problem import contact_problem
-from .scene import Scene, check_memory
+from .memory import check_memory
+from .scene import Scene
 
 @dataclass
 class ContactSolution:

@@ -292,8 +292,9 @@ def auto_mode(ops: ContactOperators, backend: str = "auto") -> str:
 
 def _direct_would_not_fit(ops: ContactOperators, mode: str) -> bool:
     """Whether the memory estimate of a direct mode exceeds the available memory."""
-    from .scene import Scene, available_memory, memory_need
-    from .scene3d import Scene3D, memory_need3d
+    from .memory import available_memory, memory_need, memory_need3d
+    from .scene import Scene
+    from .scene3d import Scene3D
     if isinstance(ops.scene, Scene):
         need = memory_need(ops.scene, mode)
     elif isinstance(ops.scene, Scene3D):

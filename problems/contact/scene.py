@@ -12,161 +12,16 @@ import math
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Mapping
+from typing import Any, Mapping
 
-from .mesh import BOUNDARY_NAMES, grid_counts
+from .expressions import as_function as _as_func, expression, finite_positive as _finite_positive
+from .memory import available_memory, estimate_memory, rectangle_measure
+from .memory import memory_need  # noqa: F401  (re-exported for benchmarks/scale_runs.py until it imports .memory)
+from .mesh import BOUNDARY_NAMES
 
 MESH_KINDS = ("structured", "unstructured")
 TANGENTIAL = ("frictionless", "stick")
 SCENES_DIR = Path(__file__).with_name("scenes")
-
-# ---------------------------------------------------------------- expressions
-_MATH_NAMES = ("sqrt", "sin", "cos", "tan", "exp", "log", "atan", "pi")
-
-
-def expression(text: str) -> Callable:
-    """Turn a string in x and y (e.g. ``"0.003*(x-1.5)**2 + 0.001"``) into f(x, y).
-
-    f works on floats and on NGSolve coefficient functions (ngsolve.x, ngsolve.y).
-    """
-    try:
-        code = compile(text, "<expression>", "eval")
-    except SyntaxError as err:
-        raise ValueError(f"expression {text!r} is not valid Python syntax: {err.msg}") from None
-    unknown = set(code.co_names) - set(_MATH_NAMES) - {"x", "y", "abs", "min", "max"}
-    if unknown:
-        raise ValueError(f"expression {text!r} uses unknown names {sorted(unknown)}; "
-                         f"allowed: x, y, abs, {', '.join(_MATH_NAMES)}")
-
-    def f(x, y):
-        if isinstance(x, (int, float)):
-            ns = {n: getattr(math, n) for n in _MATH_NAMES}
-        else:
-            import ngsolve
-            ns = {n: getattr(ngsolve, n) for n in _MATH_NAMES if n != "pi"} | {"pi": math.pi}
-        return eval(code, {"__builtins__": {"abs": abs, "min": min, "max": max}}, ns | {"x": x, "y": y})
-
-    f.expression = text
-    return f
-
-
-def _as_func(value, name: str):
-    """A number, a callable or an expression string -> a number or a callable."""
-    if isinstance(value, str):
-        return expression(value)
-    if callable(value):
-        return value
-    if isinstance(value, (int, float)) and not isinstance(value, bool):
-        return float(value)
-    raise ValueError(f"{name} must be a number, a callable f(x, y) or an expression string, got {value!r}")
-
-
-# ---------------------------------------------------------------- memory guard
-def available_memory() -> int:
-    """Bytes of available memory (MemAvailable in /proc/meminfo; 8 GiB if unreadable)."""
-    try:
-        for line in Path("/proc/meminfo").read_text().splitlines():
-            if line.startswith("MemAvailable:"):
-                return int(line.split()[1]) * 1024
-    except OSError:
-        pass
-    return 8 * 2**30
-
-
-SOLVERS = ("direct", "iterative")
-
-
-def estimate_memory(area: float, perimeter: float, h: float, order: int, kind: str, solver: str = "direct") -> int:
-    """Rough bytes for the assembled system (NGSolve + scipy copies) and a sparse LU.
-
-    Vertices ~ area/h^2 (structured) or ~1.2 area/h^2 (netgen), dofs = 2 * order^2 *
-    vertices; ~14 (P1) / ~26 (P2) nonzeros per row, 12 bytes each, 3 copies; fill of a
-    nested-dissection factor of a 2D problem ~ 8 n log2 n nonzeros.  With
-    ``solver="iterative"`` (the AMG-CG x-step, admmkit.iterative) the factor is
-    replaced by what that solver holds, linear in n (:func:`iterative_solver_bytes`).
-    """
-    if solver not in SOLVERS:
-        raise ValueError(f"solver = {solver!r}; accepted: {', '.join(SOLVERS)}")
-    vertices = (1.0 if kind == "structured" else 1.2) * area / h**2 + perimeter / h
-    n = 2 * order**2 * vertices
-    nnz_row = 14 if order == 1 else 26
-    system = 3 * 12 * nnz_row * n
-    if solver == "iterative":
-        return int(system + iterative_solver_bytes(n, nnz_row * n, blocksize=2))
-    factor = 12 * 8 * n * math.log2(max(n, 2.0))
-    return int(system + factor)
-
-
-def iterative_solver_bytes(n: float, nnz: float, blocksize: int = 2) -> float:
-    """Bytes the AMG-CG x-step holds for n unknowns and a matrix with nnz nonzeros.
-
-    The permuted K and D (12 bytes a nonzero), K + rho D on one pattern (index,
-    K, D and current values: 4 + 3 * 8 bytes a nonzero), the smoothed-aggregation
-    hierarchy (coarse operators ~0.45 nnz and prolongators ~0.5 nnz at 12 bytes,
-    block diagonal inverses) and temporaries of the setup, and ~40 vectors of n
-    doubles (projection basis and K times it, CG, near-null space, right-hand
-    sides), CSR copies of the coarse levels and their R D P.  Calibrated against
-    ru_maxrss of Example 1: 2.52 GB measured at 1.0e6 unknowns, 1.16 GB at
-    4.1e5 (docs/results/scale/scale.md).
-    """
-    per_nnz = 110.0
-    return per_nnz * nnz + 40 * 8 * n + 8 * blocksize * n
-
-
-#: resident memory of a Python process with numpy, scipy, NGSolve and pyamg loaded (measured: 0.17-0.18 GB)
-PROCESS_BASELINE = 200_000_000
-#: factorisations the full mode keeps: one per rho value, and SADMM changed rho 3-6 times in the runs measured
-CACHED_FACTORS = 4
-
-
-def memory_need(scene: "Scene", mode: str) -> int:
-    """Estimated peak bytes of a contact run of the scene in a mode (0 if the geometry is not a rectangle).
-
-    The process baseline (Python and the libraries) plus: ``"iterative"`` the
-    iterative estimate; ``"full"`` the system and CACHED_FACTORS sparse
-    factorisations (one per rho value met); ``"condensed"`` the system, one LU
-    (L and U: twice a Cholesky factor), the copy of U that S is read from,
-    and the dense n_c x n_c matrices (about 5 n_c^2 doubles).  For Example 1
-    at 4.1e5 unknowns the runs peaked at 0.96 (iterative), 1.54 (condensed,
-    METIS-ordered then) and 2.92 GB (full); the condensed set-up with
-    SuperLU's minimum degree ordering peaked at 4.1 GB at 6.4e5 unknowns,
-    which this estimate gives.
-    """
-    if scene.geometry is not None:
-        return 0
-    area, perim = _rectangle_measure(scene)
-    if mode == "iterative":
-        return PROCESS_BASELINE + estimate_memory(area, perim, scene.h, scene.order, scene.mesh_kind, solver="iterative")
-    if mode not in ("full", "condensed"):
-        raise ValueError(f"mode = {mode!r}; accepted: full, condensed, iterative")
-    direct = estimate_memory(area, perim, scene.h, scene.order, scene.mesh_kind)
-    vertices = (1.0 if scene.mesh_kind == "structured" else 1.2) * area / scene.h**2 + perim / scene.h
-    n = 2 * scene.order**2 * vertices
-    system = 3 * 12 * (14 if scene.order == 1 else 26) * n
-    factor = direct - system
-    if mode == "full":
-        return int(PROCESS_BASELINE + system + CACHED_FACTORS * factor)
-    n_c = scene.order * (scene.L if scene.contact in ("bottom", "top") else scene.H) / scene.h
-    return int(PROCESS_BASELINE + system + 3 * factor + 5 * 8 * n_c**2)
-
-
-def check_memory(scene: "Scene", mode: str) -> None:
-    """Raise ValueError with the estimate if a run in ``mode`` would not fit in the available memory."""
-    need, have = memory_need(scene, mode), available_memory()
-    if need > have:
-        other = "" if mode == "iterative" else \
-            f"; mode 'iterative' needs about {memory_need(scene, 'iterative') / 2**30:.3g} GiB"
-        raise ValueError(f"mode = {mode!r} at h = {scene.h:g} needs about {need / 2**30:.3g} GiB, only "
-                         f"{have / 2**30:.3g} GiB available{other}; choose a larger h or another mode")
-
-
-def _rectangle_measure(scene: "Scene") -> tuple[float, float]:
-    """Area and perimeter of the meshed rectangle."""
-    if scene.mesh_kind == "structured":
-        nx, ny = grid_counts(scene.L, scene.H, scene.h)
-        return nx * ny * scene.h**2, 2 * (nx + ny) * scene.h
-    return scene.L * scene.H, 2 * (scene.L + scene.H)
-
 
 # ---------------------------------------------------------------- scene
 class FrozenDict(dict):
@@ -259,7 +114,7 @@ class Scene:
             if self.h > min(self.L, self.H):
                 raise ValueError(f"h = {self.h} is larger than the rectangle; accepted 0 < h <= "
                                  f"min(L, H) = {min(self.L, self.H)}")
-            area, perim = _rectangle_measure(self)
+            area, perim = rectangle_measure(self)
             need = estimate_memory(area, perim, self.h, self.order, self.mesh_kind, solver="iterative")
             have = available_memory()
             if need > have:   # refused before anything is assembled; the direct modes check again (memory_need)
@@ -296,11 +151,6 @@ class Scene:
                     raise ValueError(f"gap: g({x:g}, {y:g}) failed: {err}") from None
                 if not math.isfinite(value):
                     raise ValueError(f"gap: g({x:g}, {y:g}) = {value} is not finite; accepted: finite values")
-
-
-def _finite_positive(value, name: str, accepted: str) -> None:
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value <= 0:
-        raise ValueError(f"{name} = {value!r} is outside the accepted range {accepted}")
 
 
 def _unit_pair(value, name: str) -> tuple[float, float]:

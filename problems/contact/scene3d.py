@@ -31,8 +31,9 @@ import numpy as np
 import scipy.sparse as sp
 
 from .assembly import ContactOperators, _csr, lame
-from .scene import (CACHED_FACTORS, PROCESS_BASELINE, FrozenDict, _as_func, _finite_positive, available_memory,
-                    expression, iterative_solver_bytes)
+from .expressions import as_function, expression, finite_positive
+from .memory import available_memory, estimate_memory3d, memory_need3d  # noqa: F401  (memory_need3d: this scene's)
+from .scene import FrozenDict
 
 FACES_3D = ("back", "front", "left", "right", "bottom", "top")
 #: the 6 tetrahedra of a cube (local corners as in MakeStructured3DMesh: 0 = (i,j,k), 1 = k+1,
@@ -87,24 +88,6 @@ def block_mesh(Lx: float, Ly: float, Lz: float, h: float) -> ng.Mesh:
     return ng.Mesh(mesh)
 
 
-# ---------------------------------------------------------------- memory
-def estimate_memory3d(nx: int, ny: int, nz: int, solver: str = "direct") -> int:
-    """Rough bytes of a 3D P1 contact run on nx x ny x nz cubes.
-
-    n = 3 (nx+1)(ny+1)(nz+1) dofs, ~45 nonzeros per row (a vertex of the Kuhn
-    mesh has 14 neighbours), 12 bytes each, 3 copies; the iterative x-step adds
-    :func:`iterative_solver_bytes`; a sparse Cholesky factor of this 3D problem
-    has ~ 20 n^(4/3) nonzeros (CHOLMOD, nested dissection: 11.8, 13.5 and 14.4
-    n^(4/3) measured at 5.8e3, 1.8e4 and 4.2e4 unknowns; SuperLU's MMD ordering
-    filled 44, 30 and 70 n^(4/3), so without CHOLMOD this is an underestimate).
-    """
-    n = 3.0 * (nx + 1) * (ny + 1) * (nz + 1)
-    system = 3 * 12 * 45 * n
-    if solver == "iterative":
-        return int(system + iterative_solver_bytes(n, 45 * n, blocksize=3))
-    return int(system + 12 * 20.0 * n ** (4 / 3))
-
-
 # ---------------------------------------------------------------- the scene
 @dataclass(frozen=True)
 class Scene3D:
@@ -129,7 +112,7 @@ class Scene3D:
             set_("dirichlet", (self.dirichlet,))
         set_("dirichlet", tuple(self.dirichlet))
         set_("tractions", FrozenDict({k: _traction3(v, f"tractions[{k!r}]") for k, v in dict(self.tractions).items()}))
-        set_("gap", _as_func(self.gap, "gap"))
+        set_("gap", as_function(self.gap, "gap"))
         self.validate()
 
     @property
@@ -149,12 +132,12 @@ class Scene3D:
     def validate(self) -> None:
         """Raise ValueError naming the offending parameter and its accepted range."""
         for name in ("Lx", "Ly", "Lz", "E"):
-            _finite_positive(getattr(self, name), name, f"{name} > 0")
+            finite_positive(getattr(self, name), name, f"{name} > 0")
         if not (isinstance(self.nu, (int, float)) and -1.0 < self.nu < 0.5):
             raise ValueError(f"nu = {self.nu!r} is outside the accepted range -1 < nu < 0.5")
         if self.order != 1:
             raise ValueError(f"order = {self.order!r}; accepted: 1 (P1 tetrahedra)")
-        _finite_positive(self.h, "h", "0 < h (finite)")
+        finite_positive(self.h, "h", "0 < h (finite)")
         if self.h > min(self.Lx, self.Ly, self.Lz):
             raise ValueError(f"h = {self.h} is larger than the block; accepted 0 < h <= {min(self.Lx, self.Ly, self.Lz)}")
         for what, labels in (("dirichlet", self.dirichlet), ("tractions", tuple(self.tractions)), ("contact", (self.contact,))):
@@ -200,22 +183,6 @@ def example2_3d(h: float = 1 / 8, **changes) -> Scene3D:
                   tractions={"front": (0.0, 0.0, -2.0)}, contact="bottom",
                   gap=expression("0.003*(x - 1.5)**2 + 0.003*(y - 0.5)**2 + 0.001"), name="example2_3d")
     return Scene3D(**(fields | changes))
-
-
-def memory_need3d(scene: Scene3D, mode: str) -> int:
-    """Estimated peak bytes of a run of the scene in a contact mode (as :func:`scene.memory_need` in 2D:
-    the full mode keeps CACHED_FACTORS factorisations, the condensed one an LU and 5 n_c^2 doubles)."""
-    nx, ny, nz = scene.counts
-    if mode == "iterative":
-        return PROCESS_BASELINE + estimate_memory3d(nx, ny, nz, "iterative")
-    if mode not in ("full", "condensed"):
-        raise ValueError(f"mode = {mode!r}; accepted: full, condensed, iterative")
-    n = 3.0 * (nx + 1) * (ny + 1) * (nz + 1)
-    system = 3 * 12 * 45 * n
-    factor = estimate_memory3d(nx, ny, nz) - system
-    if mode == "full":
-        return int(PROCESS_BASELINE + system + CACHED_FACTORS * factor)
-    return int(PROCESS_BASELINE + system + 2 * factor + 5 * 8 * ((nx + 1) * (ny + 1)) ** 2)
 
 
 # ---------------------------------------------------------------- assembly
