@@ -2,17 +2,25 @@
 
 The framework core: the problem protocol (:class:`Problem`), one loop
 (:func:`solve`) for both orders, the penalty-policy protocol (:class:`Policy`),
-composable stopping rules, the per-iteration history and the result.  Penalty
+composable stopping rules, the per-iteration history and the result; and
+building blocks for new problems: :class:`LinearMap` (A, M and the derived
+adjoint), :class:`QuadraticXStep` (the x-step of a quadratic f, cached per
+rho), :mod:`admmkit.prox` (z-steps from proximal operators) and
+:class:`SplitProblem` (a problem assembled from them).  Penalty
 rules live in the ``policies`` package and plug-ins in ``problems``; this
 package imports neither.
 """
+from . import prox
 from .history import History
+from .operators import LinearMap
 from .policy import Policy, make_policy, policy_names, register_policy
 from .problem import Problem
 from .record import IterationRecord
 from .result import Result, Status
 from .solver import solve
+from .split import SplitProblem
 from .stopping import AllOf, AnyOf, RelativeChange, ResidualTolerance, StoppingRule, default_stop
+from .xstep import QuadraticXStep
 
 __version__ = "0.1.0"
 
@@ -20,4 +28,5 @@ __all__ = [
     "solve", "Problem", "Policy", "IterationRecord", "Result", "Status", "History",
     "StoppingRule", "RelativeChange", "ResidualTolerance", "AnyOf", "AllOf", "default_stop",
     "register_policy", "make_policy", "policy_names", "__version__",
+    "LinearMap", "QuadraticXStep", "SplitProblem",
 ]
