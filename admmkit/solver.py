@@ -260,7 +260,7 @@ def _result(problem, stop, x, z, lam, rec, status, message, stopped_by, history_
     accuracy = None
     if status is Status.CONVERGED and stop.tolerance is not None:
         with np.errstate(over="ignore", invalid="ignore"):
-            accuracy = kkt_measures(problem, x, z, lam, rec)
+            accuracy = kkt_measures(problem, x_final, z, lam, rec)   # the user's solution, as kkt() sees it
         worst = max(accuracy.items(), key=lambda kv: kv[1], default=None)
         if worst is not None and worst[1] > INACCURATE_FACTOR * stop.tolerance:
             status = Status.CONVERGED_INACCURATE

@@ -152,6 +152,24 @@ class ObstacleProblem(Problem):
             "complementarity": _inf(lam * slack),
         }
 
+    def kkt_relative(self, x, z, lam):
+        """The KKT residuals relative to the problem's scales, which the framework compares with the
+        stopping rule's tolerance (a run whose worst measure is above 10x that says ``converged_inaccurate``).
+
+        infeasibility / max(||psi||, ||u||), stationarity ||K u - F + M lam|| / max(||F||, ||K u||, ||M lam||),
+        sign and complementarity / ||lam|| (complementarity also / max(||psi||, ||u||)); inf-norms.
+        """
+        slack = self.sign * (x - self.psi)
+        Ku, Mlam = self.K @ x, self.m * lam
+        u_scale = max(_inf(self.psi), _inf(x), 1e-300)
+        lam_scale = max(_inf(lam), 1e-300)
+        return {
+            "infeasibility": _inf(np.maximum(-slack, 0.0)) / u_scale,
+            "stationarity": _inf(Ku - self.F + Mlam) / max(_inf(self.F), _inf(Ku), _inf(Mlam), 1e-300),
+            "sign": _inf(np.maximum(self.sign * lam, 0.0)) / lam_scale,
+            "complementarity": _inf(lam * slack) / (lam_scale * u_scale),
+        }
+
     def counters(self):
         """Factorisations (or AMG setups and CG iterations) and solves of K + rho M so far."""
         if isinstance(self._solver, IterativeXSolver):
