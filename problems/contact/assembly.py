@@ -1,4 +1,7 @@
-"""Discrete contact operators: min 1/2 u'Ku - f'u  subject to  B u <= g.
+"""Discrete contact operators: min 1/2 u'Ku - f'u [+ j(T u)]  subject to  B u <= g.
+
+With friction T maps u to its tangential components at the contact nodes and
+j is the Tresca functional (:mod:`problems.contact.friction`).
 
 The pairing (v_n, q)_Gc is approximated by nodal quadrature, sum_i mc_i v_n(x_i) q_i,
 over the contact nodes x_i (vertices, and for P2 also edge midpoints, of Gamma_C
@@ -12,6 +15,7 @@ import ngsolve as ng
 import numpy as np
 import scipy.sparse as sp
 
+from .friction import Friction, friction_of, tangent_frames
 from .mesh import geometry_mesh, structured_rectangle, unstructured_rectangle
 from .scene import Scene
 
@@ -31,6 +35,9 @@ class ContactOperators:
     mesh: ng.Mesh
     fes: ng.comp.FESpace
     scene: Scene
+    T: sp.csr_matrix | None = None     # ((d-1) n_c, n_free): u_free -> u.t at the contact nodes, by component
+    tangents: np.ndarray | None = None  # (n_c, d-1, d) unit tangents t = (-n_y, n_x) in 2D (friction.tangent_frames)
+    friction: Friction | None = None    # the friction law at the contact nodes (None: frictionless or stick)
 
     @property
     def n_free(self) -> int:
@@ -199,5 +206,9 @@ def assemble(scene: Scene) -> ContactOperators:
     Bfull = sp.hstack([sp.diags(normals[:, 0]) @ E, sp.diags(normals[:, 1]) @ E]).tocsc()
     B = Bfull[:, free].tocsr()
     B.eliminate_zeros()
+    tangents = tangent_frames(normals)
+    T = sp.hstack([sp.diags(tangents[:, 0, 0]) @ E, sp.diags(tangents[:, 0, 1]) @ E]).tocsc()[:, free].tocsr()
+    T.eliminate_zeros()
     return ContactOperators(K=K, f=f, B=B, mc=mc, g=g, xc=xc, normals=normals, free=free,
-                            mesh=mesh, fes=fes, scene=scene)
+                            mesh=mesh, fes=fes, scene=scene, T=T, tangents=tangents,
+                            friction=friction_of(scene, xc))

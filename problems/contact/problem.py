@@ -8,6 +8,12 @@ M_c, so that (the paper's eqs. (11)-(13))
     x-step:  (K + rho B'M_c B) u = f + B'M_c (rho p - lam)             (12)
     dual:    lam <- lam + rho (B u - p)      (in admmkit's loop)        (13)
 
+With friction (Tresca, or each step of Coulomb's fixed point) B is replaced by
+A = [B; T], T the tangential components at the contact nodes, z = (p, p_t),
+M_c acts on every block, and the z-step adds the shrink of the tangential part
+(:mod:`problems.contact.friction`, eq. (11t)); every mode below works
+unchanged with A in place of B (the condensed one on d n_c contact unknowns).
+
 The x norm is the energy norm ||u||_K = sqrt(u'Ku), the norm of V in which
 the paper's convergence theorem is stated; the paper's stopping rule
 ||u^{k+1} - u^k|| <= 1e-5 ||u^{k+1}|| is measured in it.
@@ -43,6 +49,7 @@ from admmkit.iterative import IterativeXSolver
 from admmkit.linsolve import CachedFactorization
 
 from .assembly import ContactOperators
+from .friction import friction_z_step, stick_slip
 from .iterative import near_null_space
 from .schur import SCHUR_BACKENDS, BoundarySchur
 
@@ -56,53 +63,92 @@ ITERATIVE_MIN_N_3D = 30_000
 
 
 class _ContactBase(Problem):
-    """What both modes share: the z-step, the M_c inner product, diagnostics."""
+    """What all modes share: the z-step, the M_c inner product, diagnostics.
+
+    Frictionless (or stick): A = B, the constraint space is R^{n_c} with M_c.
+    With friction: A = [B; T] (normal, then the tangential components, each a
+    block of n_c), the inner product M_c on every block, and the z-step is the
+    projection plus Tresca's shrink (:func:`problems.contact.friction.friction_z_step`).
+    """
 
     c = 0.0
 
     def __init__(self, ops: ContactOperators):
         self.ops = ops
         self.mc, self.g = ops.mc, ops.g
-        self._BBt = None   # B B', built on the first adjoint_norm (only order xz needs it)
+        self.friction = ops.friction
+        if self.friction is None:
+            self.A, self.w = ops.B, ops.mc
+        else:
+            self.A = sp.vstack([ops.B, ops.T]).tocsr()
+            self.w = np.tile(ops.mc, self.A.shape[0] // ops.n_c)
+        self._AAt = None   # A A', built on the first adjoint_norm (only order xz needs it)
 
     def z_step(self, Ax, lam, rho, z):
-        """p = min(g, u_n + lam/rho), eq. (11)."""
-        return np.minimum(self.g, Ax + lam / rho)
+        """p = min(g, u_n + lam/rho), eq. (11); with friction also the shrink (11t) of the tangential part."""
+        if self.friction is None:
+            return np.minimum(self.g, Ax + lam / rho)
+        return friction_z_step(Ax + lam / rho, self.g, self.friction.s, rho, self.friction.slide)
 
     def inner(self, a, b):
-        """(a, b)_Gc with the lumped boundary mass."""
-        return float(np.dot(self.mc * a, b))
+        """(a, b)_Gc with the lumped boundary mass (on every component block)."""
+        return float(np.dot(self.w * a, b))
 
     def adjoint_norm(self, y):
-        """||B' M_c y||_2 (Boyd's dual residual for order xz)."""
-        if self._BBt is None:
-            self._BBt = (self.ops.B @ self.ops.B.T).tocsr()   # ||B'v||^2 = v'BB'v
-        v = self.mc * y
-        return float(np.sqrt(max(v @ (self._BBt @ v), 0.0)))
+        """||A' M y||_2 (Boyd's dual residual for order xz)."""
+        if self._AAt is None:
+            self._AAt = (self.A @ self.A.T).tocsr()   # ||A'v||^2 = v'AA'v
+        v = self.w * y
+        return float(np.sqrt(max(v @ (self._AAt @ v), 0.0)))
 
     def objective(self, u, z):
-        """J(u) = 1/2 u'Ku - f'u."""
-        return float(0.5 * u @ (self.ops.K @ u) - self.ops.f @ u)
+        """J(u) = 1/2 u'Ku - f'u, plus the Tresca term sum_i mc_i s_i |u_t,i - w_i| with friction."""
+        J = float(0.5 * u @ (self.ops.K @ u) - self.ops.f @ u)
+        if self.friction is not None:
+            J += float(self.mc @ (self.friction.s * np.linalg.norm(self.slip(u), axis=0)))
+        return J
+
+    def slip(self, u) -> np.ndarray:
+        """(d-1, n_c): the tangential displacement relative to the foundation, T u - w."""
+        n_c = self.ops.n_c
+        w = 0.0 if self.friction.slide is None else self.friction.slide.T
+        return (self.ops.T @ u).reshape(-1, n_c) - w
 
     def kkt(self, u, z, lam):
         """KKT residuals of the discrete problem at the full displacement u.
 
-        stationarity ||K u - f + B'M_c lam||_inf / ||f||_inf, penetration
-        max (B u - g)^+, negative pressure max (-lam)^+, complementarity
-        max |lam (g - B u)|; also the total contact force sum M_c lam and the
+        stationarity ||K u - f + A'M lam||_inf / ||f||_inf, penetration
+        max (B u - g)^+, negative pressure max (-lam_n)^+, complementarity
+        max |lam_n (g - B u)|; also the total contact force sum M_c lam_n and the
         number of active nodes (where the last z-step put p on the obstacle, p = g).
+        With friction also: the friction bound max (|q| - s)^+ and the slip
+        complementarity max |s |u_t - w| - q.(u_t - w)| (q = lam_t, the tangential
+        traction), the tangential force sum M_c q and the stick and slip node counts.
         """
-        ops = self.ops
+        ops, n_c = self.ops, self.ops.n_c
         un = ops.B @ u
-        stat = ops.K @ u - ops.f + ops.B.T @ (self.mc * lam)
-        return {
+        lam_n = lam[:n_c]
+        stat = ops.K @ u - ops.f + self.A.T @ (self.w * lam)
+        out = {
             "stationarity": float(np.abs(stat).max() / max(np.abs(ops.f).max(), 1e-300)),
             "penetration": float(np.maximum(un - self.g, 0.0).max(initial=0.0)),
-            "negative_pressure": float(np.maximum(-lam, 0.0).max(initial=0.0)),
-            "complementarity": float(np.abs(lam * (self.g - un)).max(initial=0.0)),
-            "contact_force": float(self.mc @ lam),
-            "active_nodes": int(np.count_nonzero(z >= self.g)),
+            "negative_pressure": float(np.maximum(-lam_n, 0.0).max(initial=0.0)),
+            "complementarity": float(np.abs(lam_n * (self.g - un)).max(initial=0.0)),
+            "contact_force": float(self.mc @ lam_n),
+            "active_nodes": int(np.count_nonzero(z[:n_c] >= self.g)),
         }
+        if self.friction is not None:
+            q = lam[n_c:].reshape(-1, n_c)
+            s, slip = self.friction.s, self.slip(u)
+            zone = stick_slip(z, self.g, self.friction.slide)
+            out |= {"friction_bound": float(np.maximum(np.linalg.norm(q, axis=0) - s, 0.0).max(initial=0.0)),
+                    "slip_complementarity": float(np.abs(s * np.linalg.norm(slip, axis=0)
+                                                         - np.sum(q * slip, axis=0)).max(initial=0.0)),
+                    **({"tangential_force": float(self.mc @ q[0])} if len(q) == 1 else
+                       {f"tangential_force_{j + 1}": float(self.mc @ qj) for j, qj in enumerate(q)}),
+                    "stick_nodes": int(np.count_nonzero(zone == 1)),
+                    "slip_nodes": int(np.count_nonzero(zone == 2))}
+        return out
 
 
 class FullContact(_ContactBase):
@@ -113,18 +159,18 @@ class FullContact(_ContactBase):
     def __init__(self, ops: ContactOperators, backend: str = "auto"):
         super().__init__(ops)
         self.n = ops.n_free
-        K, B = ops.K.tocsc(), ops.B.tocsc()
-        BtMB = (B.T @ sp.diags(self.mc) @ B).tocsc()
-        self._solver = CachedFactorization(lambda rho: (K + rho * BtMB).tocsc(), backend=backend)
+        K, A = ops.K.tocsc(), self.A.tocsc()
+        AtMA = (A.T @ sp.diags(self.w) @ A).tocsc()
+        self._solver = CachedFactorization(lambda rho: (K + rho * AtMA).tocsc(), backend=backend)
 
     def x_step(self, z, lam, rho, u):
-        """Solve (K + rho B'M_c B) u = f + B'M_c (rho p - lam), eq. (12)."""
-        rhs = self.ops.f + self.ops.B.T @ (self.mc * (rho * z - lam))
+        """Solve (K + rho B'M_c B) u = f + B'M_c (rho p - lam), eq. (12) (A = [B; T] with friction)."""
+        rhs = self.ops.f + self.A.T @ (self.w * (rho * z - lam))
         return self._solver.solve(rho, rhs)
 
     def apply_A(self, u):
-        """u_n = B u at the contact nodes."""
-        return self.ops.B @ u
+        """u_n = B u at the contact nodes (and T u with friction)."""
+        return self.A @ u
 
     def x_norm(self, u):
         """Energy norm sqrt(u'Ku)."""
@@ -142,12 +188,12 @@ class CondensedContact(_ContactBase):
 
     def __init__(self, ops: ContactOperators, backend: str = "auto"):
         super().__init__(ops)
-        self.n = ops.n_c + 1
-        self.schur = BoundarySchur(ops.K, ops.B, backend=backend)   # "auto", "cholmod" or "superlu"
+        self.n = self.A.shape[0] + 1
+        self.schur = BoundarySchur(ops.K, self.A, backend=backend)   # "auto", "cholmod" or "superlu"
         u0 = self.schur.solve(ops.f)
-        self.d0 = ops.B @ u0                       # B K^{-1} f
+        self.d0 = self.A @ u0                      # A K^{-1} f
         self.e0 = float(ops.f @ u0)                # ||u0||_K^2
-        self.C = self.schur.compliance(ops.B)      # B K^{-1} B'
+        self.C = self.schur.compliance(self.A)     # A K^{-1} A'
         self._cholesky: dict[float, tuple] = {}
         self._recent_Cw: deque = deque(maxlen=2)  # (x, C w) of the last x-steps: one C-matvec per iteration
         self.factorizations = 0
@@ -157,7 +203,7 @@ class CondensedContact(_ContactBase):
         """(M_c^{-1} + rho C) w = rho p - lam - rho d0, s = 1: eq. (12) on Gamma_C."""
         key = float(rho)
         if key not in self._cholesky:
-            self._cholesky[key] = sla.cho_factor(np.diag(1.0 / self.mc) + rho * self.C)
+            self._cholesky[key] = sla.cho_factor(np.diag(1.0 / self.w) + rho * self.C)
             self.factorizations += 1
         self.solves += 1
         # LAPACK's potrs directly: cho_solve's checks cost 0.25 ms at n_c = 600 and its wrapper ~40 us at
@@ -192,12 +238,13 @@ class CondensedContact(_ContactBase):
 
     def finalize(self, x):
         """The full displacement u = K^{-1}(s f + B'w): one solve, once."""
-        return self.schur.solve(x[0] * self.ops.f + self.ops.B.T @ x[1:])
+        return self.schur.solve(x[0] * self.ops.f + self.A.T @ x[1:])
 
     def initial_point(self):
         """u^0 = 0 (s = 0, w = 0), p^0 = 0, lam^0 = 0."""
         x0 = np.zeros(self.n)
-        return x0, np.zeros(self.ops.n_c), np.zeros(self.ops.n_c)
+        m = self.A.shape[0]
+        return x0, np.zeros(m), np.zeros(m)
 
     def counters(self):
         """Dense factorisations (one per rho) and solves on Gamma_C."""
@@ -212,18 +259,18 @@ class IterativeContact(_ContactBase):
     def __init__(self, ops: ContactOperators, **options):
         super().__init__(ops)
         self.n = ops.n_free
-        BtMB = (ops.B.T @ sp.diags(self.mc) @ ops.B).tocsr()
+        AtMA = (self.A.T @ sp.diags(self.w) @ self.A).tocsr()
         modes, blocks = near_null_space(ops)
-        self.solver = IterativeXSolver(ops.K, BtMB, near_null=modes, blocks=blocks, **options)
+        self.solver = IterativeXSolver(ops.K, AtMA, near_null=modes, blocks=blocks, **options)
 
     def x_step(self, z, lam, rho, u):
         """Solve (K + rho B'M_c B) u = f + B'M_c (rho p - lam), eq. (12), by AMG-CG warm-started."""
-        rhs = self.ops.f + self.ops.B.T @ (self.mc * (rho * z - lam))
+        rhs = self.ops.f + self.A.T @ (self.w * (rho * z - lam))
         return self.solver.solve(rho, rhs, x0=u)
 
     def apply_A(self, u):
-        """u_n = B u at the contact nodes."""
-        return self.ops.B @ u
+        """u_n = B u at the contact nodes (and T u with friction)."""
+        return self.A @ u
 
     def x_norm(self, u):
         """Energy norm sqrt(u'Ku) (K u from the x-step's CG residual when u is a recent iterate)."""
@@ -281,7 +328,8 @@ def auto_mode(ops: ContactOperators, backend: str = "auto") -> str:
     3D scene the iterative mode beat both direct modes from between 1.8e4 and
     4.2e4 unknowns on (docs/results/scale/contact3d.md).
     """
-    direct = "condensed" if ops.n_c <= CONDENSED_MAX_NC and backend in ("auto",) + SCHUR_BACKENDS else "full"
+    m = ops.n_c * (ops.mesh.dim if ops.friction is not None else 1)   # rows of A: normal (and tangential) parts
+    direct = "condensed" if m <= CONDENSED_MAX_NC and backend in ("auto",) + SCHUR_BACKENDS else "full"
     dim = ops.mesh.dim
     if dim == 3 and ops.n_free >= ITERATIVE_MIN_N_3D:
         return "iterative"

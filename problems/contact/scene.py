@@ -1,4 +1,4 @@
-"""Declarative description of a 2D plane-strain frictionless contact problem.
+"""Declarative description of a 2D plane-strain contact problem (frictionless, stick, Tresca or Coulomb).
 
 A :class:`Scene` says *what* is solved (geometry, mesh, material, boundary
 conditions, gap); :func:`problems.contact.assembly.assemble` turns it into matrices.
@@ -15,13 +15,15 @@ from pathlib import Path
 from typing import Any, Mapping
 
 from .expressions import as_function as _as_func, expression, finite_positive as _finite_positive
+from .friction import TANGENTIAL, check_friction_fields
 from .memory import available_memory, estimate_memory, rectangle_measure
 from .memory import memory_need  # noqa: F401  (re-exported for benchmarks/scale_runs.py until it imports .memory)
 from .mesh import BOUNDARY_NAMES
 
 MESH_KINDS = ("structured", "unstructured")
-TANGENTIAL = ("frictionless", "stick")
 SCENES_DIR = Path(__file__).with_name("scenes")
+#: more cells than this is refused outright (the memory check refuses far fewer; this keeps its arithmetic finite)
+MAX_CELLS = 1e12
 
 # ---------------------------------------------------------------- scene
 class FrozenDict(dict):
@@ -42,8 +44,12 @@ class Scene:
 
     Boundary conditions: u = 0 on the ``dirichlet`` labels, sigma n = t on the labels
     of ``tractions`` (a constant 2-vector or a pair/callable of (x, y)), unmentioned
-    labels are traction free; contact u.n <= g on ``contact``; tangentially either
-    sigma_t = 0 (``"frictionless"``) or u_t = 0 (``"stick"``, the paper's eq. (1)).
+    labels are traction free; contact u.n <= g on ``contact``; tangentially
+    sigma_t = 0 (``"frictionless"``, the default), u_t = 0 (``"stick"``, the paper's eq. (1)),
+    Tresca friction |sigma_t| <= s with the slip bound ``slip_bound`` = s(x, y) >= 0
+    (``"tresca"``) or Coulomb friction |sigma_t| <= mu |sigma_n| with the coefficient ``mu`` >= 0
+    (``"coulomb"``); ``obstacle_slide`` moves the foundation by that tangential displacement
+    (along t = (-n_y, n_x); friction only), see :mod:`problems.contact.friction`.
     ``gap`` and ``body_force`` likewise accept numbers, callables or expressions in x, y.
     ``contact_normal``: None measures u.n along the body's outward normal at each contact
     node; a pair (nx, ny) measures it along that fixed direction instead, the outward
@@ -67,6 +73,9 @@ class Scene:
     geometry: Any = None
     name: str = ""
     contact_normal: Any = None
+    slip_bound: Any = None
+    mu: Any = None
+    obstacle_slide: float = 0.0
 
     def __post_init__(self):
         set_ = lambda k, v: object.__setattr__(self, k, v)  # noqa: E731 (frozen)
@@ -79,6 +88,8 @@ class Scene:
         set_("gap", _as_func(self.gap, "gap"))
         if self.contact_normal is not None:
             set_("contact_normal", _unit_pair(self.contact_normal, "contact_normal"))
+        if self.slip_bound is not None:
+            set_("slip_bound", _as_func(self.slip_bound, "slip_bound"))
         self.validate()
 
     # -- derived quantities
@@ -114,6 +125,9 @@ class Scene:
             if self.h > min(self.L, self.H):
                 raise ValueError(f"h = {self.h} is larger than the rectangle; accepted 0 < h <= "
                                  f"min(L, H) = {min(self.L, self.H)}")
+            if (self.L / self.h) * (self.H / self.h) > MAX_CELLS:   # before any count overflows a float
+                raise ValueError(f"h = {self.h!r} is too small: (L/h)(H/h) = {(self.L / self.h) * (self.H / self.h):.3g} "
+                                 f"cells; accepted: h with at most {MAX_CELLS:.0e} cells")
             area, perim = rectangle_measure(self)
             need = estimate_memory(area, perim, self.h, self.order, self.mesh_kind, solver="iterative")
             have = available_memory()
@@ -151,6 +165,22 @@ class Scene:
                     raise ValueError(f"gap: g({x:g}, {y:g}) failed: {err}") from None
                 if not math.isfinite(value):
                     raise ValueError(f"gap: g({x:g}, {y:g}) = {value} is not finite; accepted: finite values")
+        points = _edge_points(self.contact, self.L, self.H) if self.geometry is None else []
+        check_friction_fields(self.tangential, self.slip_bound, self.mu, points)
+        check_slide(self.obstacle_slide, self.tangential, 1)
+
+
+def check_slide(value, tangential: str, components: int) -> None:
+    """Check obstacle_slide: finite (a number in 2D, a pair in 3D), nonzero only with friction."""
+    parts = (value,) if components == 1 else value
+    ok = isinstance(parts, (list, tuple)) and len(parts) == components and all(
+        isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in parts)
+    if not ok:
+        what = "a finite number" if components == 1 else f"{components} finite numbers"
+        raise ValueError(f"obstacle_slide = {value!r}; accepted: {what}")
+    if any(parts) and tangential not in ("tresca", "coulomb"):
+        raise ValueError(f"obstacle_slide = {value!r} moves the foundation tangentially, which acts only "
+                         f"with friction (tangential = 'tresca' or 'coulomb'), got tangential = {tangential!r}")
 
 
 def _unit_pair(value, name: str) -> tuple[float, float]:
@@ -216,7 +246,7 @@ def example2(h: float = 1 / 40, **changes) -> Scene:
 
 
 # ---------------------------------------------------------------- TOML
-_TOML_KEYS = {  # key: (accepted types, description)
+TOML_KEYS = {  # key: (accepted types, description); every key is optional, defaults are Scene's (docs/scenes.md)
     "name": ((str,), "a string"),
     "L": ((int, float), "a number"), "H": ((int, float), "a number"),
     "h": ((int, float), "a number"),
@@ -227,42 +257,56 @@ _TOML_KEYS = {  # key: (accepted types, description)
     "body_force": ((list,), "a pair [fx, fy]"),
     "contact": ((str,), "a label"),
     "gap": ((int, float, str), "a number or an expression in x, y"),
-    "tangential": ((str,), "'frictionless' or 'stick'"),
+    "tangential": ((str,), f"one of {', '.join(TANGENTIAL)}"),
     "contact_normal": ((list,), "a pair [nx, ny]"),
+    "slip_bound": ((int, float, str), "a number or an expression in x, y (tangential = 'tresca')"),
+    "mu": ((int, float), "a number (tangential = 'coulomb')"),
+    "obstacle_slide": ((int, float), "a number"),
 }
-_REQUIRED = ("L", "H", "E", "nu", "dirichlet", "contact", "gap")
 
 
 def load_scene(path, **changes) -> Scene:
-    """Read a Scene from a TOML file (keys = Scene fields; see scenes/ex1.toml).
+    """Read a Scene from a TOML file (keys = Scene fields, all optional; docs/scenes.md).
 
     A bare name such as ``"ex1"`` refers to problems/contact/scenes/ex1.toml.
-    ``changes`` override file values (e.g. ``h=1/80``).
+    The keys may sit at the top level or in a ``[scene]`` table.  ``changes``
+    override file values (e.g. ``h=1/80``).  Every problem with the file (not
+    found, not UTF-8 text, malformed TOML, an unknown key, a value of the
+    wrong type or out of range) raises ValueError naming the file and the key.
     """
     path = Path(path)
     if not path.exists() and (SCENES_DIR / f"{path.name}.toml").exists():
         path = SCENES_DIR / f"{path.name}.toml"
+    if not path.is_file():
+        known = ", ".join(sorted(p.stem for p in SCENES_DIR.glob("*.toml")))
+        raise ValueError(f"{path}: no such scene file; give the path of a TOML file or one of {known}")
     try:
-        data = tomllib.loads(path.read_text())
+        data = tomllib.loads(path.read_bytes().decode("utf-8"))
+    except UnicodeDecodeError as err:
+        raise ValueError(f"{path}: not a TOML text file (not UTF-8: {err.reason} at byte {err.start})") from None
     except tomllib.TOMLDecodeError as err:
         raise ValueError(f"{path}: malformed TOML: {err}") from None
-    data = data.get("scene", data)
+    if "scene" in data:
+        if not isinstance(data["scene"], dict):
+            raise ValueError(f"{path}: key 'scene' must be a table [scene] holding the scene's keys, "
+                             f"got {data['scene']!r}")
+        if len(data) > 1:
+            raise ValueError(f"{path}: keys {', '.join(sorted(set(data) - {'scene'}))} outside the [scene] table")
+        data = data["scene"]
     for key, value in data.items():
-        if key not in _TOML_KEYS:
-            raise ValueError(f"{path}: unknown key {key!r}; known keys: {', '.join(_TOML_KEYS)}")
-        types, what = _TOML_KEYS[key]
+        if key not in TOML_KEYS:
+            raise ValueError(f"{path}: unknown key {key!r}; known keys: {', '.join(TOML_KEYS)}")
+        types, what = TOML_KEYS[key]
         if isinstance(value, bool) or not isinstance(value, types):
             raise ValueError(f"{path}: key {key!r} must be {what}, got {value!r}")
-    missing = [k for k in _REQUIRED if k not in data]
-    if missing:
-        raise ValueError(f"{path}: missing key(s) {', '.join(map(repr, missing))}")
     for label, t in data.get("tractions", {}).items():
         if not (isinstance(t, list) and len(t) == 2 and all(isinstance(c, (int, float, str)) for c in t)):
             raise ValueError(f"{path}: key 'tractions.{label}' must be a pair [tx, ty], got {t!r}")
     if "dirichlet" in data and isinstance(data["dirichlet"], list):
         data["dirichlet"] = tuple(data["dirichlet"])
-    if "contact_normal" in data:
-        data["contact_normal"] = tuple(data["contact_normal"])
+    for key in ("contact_normal", "body_force"):
+        if key in data:
+            data[key] = tuple(data[key])
     try:
         return Scene(**(data | changes))
     except ValueError as err:

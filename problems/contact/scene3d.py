@@ -33,7 +33,8 @@ import scipy.sparse as sp
 from .assembly import ContactOperators, _csr, lame
 from .expressions import as_function, expression, finite_positive
 from .memory import available_memory, estimate_memory3d, memory_need3d  # noqa: F401  (memory_need3d: this scene's)
-from .scene import FrozenDict
+from .friction import check_friction_fields, friction_of, tangent_frames
+from .scene import MAX_CELLS, FrozenDict, check_slide
 
 FACES_3D = ("back", "front", "left", "right", "bottom", "top")
 #: the 6 tetrahedra of a cube (local corners as in MakeStructured3DMesh: 0 = (i,j,k), 1 = k+1,
@@ -91,7 +92,13 @@ def block_mesh(Lx: float, Ly: float, Lz: float, h: float) -> ng.Mesh:
 # ---------------------------------------------------------------- the scene
 @dataclass(frozen=True)
 class Scene3D:
-    """Linear elastic block on a rigid foundation, small deformations, frictionless (3D)."""
+    """Linear elastic block on a rigid foundation, small deformations (3D).
+
+    Tangentially on the contact face: ``"frictionless"`` (default), ``"stick"``
+    (u_x = u_y = 0 there), ``"tresca"`` with ``slip_bound`` s(x, y) >= 0 or
+    ``"coulomb"`` with ``mu`` >= 0, as in the 2D :class:`~problems.contact.scene.Scene`;
+    ``obstacle_slide`` = (w_x, w_y) moves the foundation tangentially (friction only).
+    """
 
     Lx: float = 3.0
     Ly: float = 1.0
@@ -105,6 +112,10 @@ class Scene3D:
     gap: Any = 0.0
     name: str = ""
     order: int = 1
+    tangential: str = "frictionless"
+    slip_bound: Any = None
+    mu: Any = None
+    obstacle_slide: tuple[float, float] = (0.0, 0.0)
 
     def __post_init__(self):
         set_ = lambda k, v: object.__setattr__(self, k, v)  # noqa: E731 (frozen)
@@ -113,6 +124,10 @@ class Scene3D:
         set_("dirichlet", tuple(self.dirichlet))
         set_("tractions", FrozenDict({k: _traction3(v, f"tractions[{k!r}]") for k, v in dict(self.tractions).items()}))
         set_("gap", as_function(self.gap, "gap"))
+        if self.slip_bound is not None:
+            set_("slip_bound", as_function(self.slip_bound, "slip_bound"))
+        if isinstance(self.obstacle_slide, list):
+            set_("obstacle_slide", tuple(self.obstacle_slide))
         self.validate()
 
     @property
@@ -140,6 +155,9 @@ class Scene3D:
         finite_positive(self.h, "h", "0 < h (finite)")
         if self.h > min(self.Lx, self.Ly, self.Lz):
             raise ValueError(f"h = {self.h} is larger than the block; accepted 0 < h <= {min(self.Lx, self.Ly, self.Lz)}")
+        cells = (self.Lx / self.h) * (self.Ly / self.h) * (self.Lz / self.h)
+        if cells > MAX_CELLS:   # before any count overflows a float
+            raise ValueError(f"h = {self.h!r} is too small: {cells:.3g} cubes; accepted: h with at most {MAX_CELLS:.0e} cubes")
         for what, labels in (("dirichlet", self.dirichlet), ("tractions", tuple(self.tractions)), ("contact", (self.contact,))):
             for label in labels:
                 if label not in FACES_3D:
@@ -161,6 +179,9 @@ class Scene3D:
                 value = self.gap_at(float(x), float(y))
                 if not math.isfinite(value):
                     raise ValueError(f"gap: g({x:g}, {y:g}) = {value} is not finite; accepted: finite values")
+        face = [(float(x), float(y)) for x in np.linspace(0, self.Lx, 7) for y in np.linspace(0, self.Ly, 7)]
+        check_friction_fields(self.tangential, self.slip_bound, self.mu, face)
+        check_slide(self.obstacle_slide, self.tangential, 2)
 
     def with_h(self, h: float) -> "Scene3D":
         """The same scene with mesh size h."""
@@ -189,7 +210,8 @@ def example2_3d(h: float = 1 / 8, **changes) -> Scene3D:
 def assemble3d(scene: Scene3D) -> ContactOperators:
     """K, f, B, mc, g on the free dofs of the 3D scene (n = (0, 0, -1) on the contact face)."""
     mesh = block_mesh(scene.Lx, scene.Ly, scene.Lz, scene.h)
-    fes = ng.VectorH1(mesh, order=1, dirichlet="|".join(scene.dirichlet))
+    stick = {"dirichletx": scene.contact, "dirichlety": scene.contact} if scene.tangential == "stick" else {}
+    fes = ng.VectorH1(mesh, order=1, dirichlet="|".join(scene.dirichlet), **stick)
     u, v = fes.TnT()
     mu, lam = lame(scene.E, scene.nu)
     eps = lambda w: ng.Sym(ng.Grad(w))  # noqa: E731
@@ -222,5 +244,13 @@ def assemble3d(scene: Scene3D) -> ContactOperators:
     # u.n at node i = -u_z(node i); VectorH1 numbers the z-component dofs 2 nv + vertex
     Bfull = sp.csr_matrix((-np.ones(len(nodes)), (np.arange(len(nodes)), 2 * nv + nodes)), shape=(len(nodes), fes.ndof))
     B = Bfull[:, free].tocsr()
+    # u.t1 = u_x, u.t2 = u_y at node i (tangent_frames of n = (0, 0, -1)), stacked by component
+    tangents = tangent_frames(normals)
+    rows = np.arange(2 * len(nodes))
+    Tfull = sp.csr_matrix((np.ones(2 * len(nodes)), (rows, np.concatenate([nodes, nv + nodes]))),
+                          shape=(2 * len(nodes), fes.ndof))
+    T = Tfull[:, free].tocsr()
+    T.eliminate_zeros()
     return ContactOperators(K=K, f=f, B=B, mc=mc, g=g, xc=xc, normals=normals, free=free,
-                            mesh=mesh, fes=fes, scene=scene)
+                            mesh=mesh, fes=fes, scene=scene, T=T, tangents=tangents,
+                            friction=friction_of(scene, xc))
