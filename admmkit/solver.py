@@ -26,8 +26,11 @@ from .steps import dual_update, policy_step, relax_Ax, relax_z, x_step, z_step
 from .stopping import StoppingRule, default_stop
 
 #: a run that a stopping rule ended is ``converged_inaccurate`` when a relative KKT measure
-#: exceeds INACCURATE_FACTOR times the rule's tolerance (OSQP's "solved inaccurate" uses 10x too)
+#: exceeds INACCURATE_FACTOR * max(the rule's tolerance, INACCURATE_FLOOR) (OSQP's "solved
+#: inaccurate" uses 10x too); the floor keeps round-off (relative KKT residuals of 1e-11 at a
+#: requested 1e-12) from counting as inaccurate
 INACCURATE_FACTOR = 10.0
+INACCURATE_FLOOR = 1e-9
 ORDERS = checks.ORDERS
 
 
@@ -262,10 +265,10 @@ def _result(problem, stop, x, z, lam, rec, status, message, stopped_by, history_
         with np.errstate(over="ignore", invalid="ignore"):
             accuracy = kkt_measures(problem, x_final, z, lam, rec)   # the user's solution, as kkt() sees it
         worst = max(accuracy.items(), key=lambda kv: kv[1], default=None)
-        if worst is not None and worst[1] > INACCURATE_FACTOR * stop.tolerance:
+        if worst is not None and worst[1] > INACCURATE_FACTOR * max(stop.tolerance, INACCURATE_FLOOR):
             status = Status.CONVERGED_INACCURATE
             message += (f", but the relative KKT measure {worst[0]} = {worst[1]:.2e} is more than "
-                        f"{INACCURATE_FACTOR:g} x the rule's tolerance {stop.tolerance:g}")
+                        f"{INACCURATE_FACTOR:g} x max(the rule's tolerance {stop.tolerance:g}, {INACCURATE_FLOOR:g})")
     return Result(
         x=x_final, z=z, lam=lam, status=status, message=message, stopped_by=stopped_by,
         iterations=len(history_log), rho=rho, history=history_log, timings=timings, rho_changes=rho_changes,

@@ -148,9 +148,9 @@ def steady_allocator() -> bool:
         return False
 
 
-def main(argv=None) -> int:
+def main(argv=None, prog: str = "admmkit bench loop-overhead") -> int:
     """Run the benchmark, print the table and write loop_overhead.csv and loop_overhead.md under --out."""
-    parser = argparse.ArgumentParser(prog="admmkit bench loop-overhead", description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(prog=prog, description=__doc__.splitlines()[0])
     parser.add_argument("--out", default="out/loop_overhead", help="output folder (default ./out/loop_overhead/)")
     parser.add_argument("--sizes", default="10,100000,1000000", help="comma-separated n (default 10,1e5,1e6)")
     parser.add_argument("--iterations", default="3000,3000,300",
@@ -167,7 +167,7 @@ def main(argv=None) -> int:
         os.environ.setdefault(var, "1")
     from threadpoolctl import threadpool_limits
     steady = steady_allocator()
-    command = "admmkit bench loop-overhead " + " ".join(shlex.quote(a) for a in (argv if argv is not None else sys.argv[1:]))
+    command = prog + " " + " ".join(shlex.quote(a) for a in (argv if argv is not None else sys.argv[1:]))
     rows = []
     with threadpool_limits(1):                             # BLAS on one thread for every loop alike
         for n, k in zip(sizes, its):
@@ -196,4 +196,4 @@ def main(argv=None) -> int:
 
 
 if __name__ == "__main__":
-    raise SystemExit(main())
+    raise SystemExit(main(prog="python benchmarks/loop_overhead.py"))
