@@ -1,10 +1,20 @@
 """The QP plug-in: min 1/2 x'Px + q'x + r subject to l <= A x <= u (OSQP's form).
 
 Splitting: f(x) = 1/2 x'Px + q'x, g(z) = indicator of the box [l, u],
-constraint A x - z = 0 with the Euclidean inner product (M = I).
+constraint A x - z = 0 with the inner product (a, b)_M = sum_i w_i a_i b_i
+(M = diag(w); w = 1 by default, OSQP's per-row penalty with
+``row_weights="osqp"``: w_i = RHO_EQ_OVER_RHO_INEQ = 1e3 on equality rows,
+FREE_ROW_WEIGHT on rows with both bounds infinite, 1 otherwise, so that
+rho w_i is OSQP's rho_vec).
 
-    x-step: (P + sigma I + rho A'A) x = sigma x^k - q + A'(rho z - lam)
-    z-step: z = clip(A x + lam/rho, l, u)
+    x-step: (P + sigma I + rho A'MA) x = sigma x^k - q + A'M(rho z - lam)   (Q1)
+    z-step: z = clip(A x + lam/rho, l, u)                                   (Q2)
+
+lam is stored in M's inner product; the QP's multiplier is y = M lam (Q3)
+(docs/qp.md derives it).  With ``scaling=k`` the loop iterates on the
+Ruiz-equilibrated problem (:mod:`problems.qp.scaling`) and ``finalize``,
+``objective``, ``kkt`` and :meth:`QP.unscaled` give the user's numbers:
+x = D xb, z = E^-1 zb, y = E M lam / c.
 
 The proximal term sigma/2 ||x - x^k||^2 (OSQP's sigma, default 1e-6) keeps the
 x-step uniquely solvable when P + rho A'A is singular (an LP-like QP); with
@@ -49,6 +59,29 @@ def reduced_nnz_bound(P: sp.spmatrix, A: sp.spmatrix) -> float:
     return float(sp.csc_matrix(P).nnz + (rows ** 2).sum())
 
 
+#: OSQP_RHO_EQ_OVER_RHO_INEQ: weight of an equality row
+EQ_ROW_WEIGHT = 1e3
+#: weight of a row with both bounds infinite: rho w = OSQP's RHO_MIN = 1e-6 at OSQP's rho_0 = 0.1
+FREE_ROW_WEIGHT = 1e-5
+#: OSQP_RHO_TOL: a row with u - l below this (in the scaled problem) is an equality row
+EQ_TOL = 1e-4
+ROW_WEIGHTS = ("uniform", "osqp")
+
+
+def row_weights(l: np.ndarray, u: np.ndarray, kind: str = "osqp") -> np.ndarray | None:
+    """The diagonal w of M: None for "uniform"; for "osqp" 1e3 on equality rows, FREE_ROW_WEIGHT on free rows, else 1."""
+    if kind not in ROW_WEIGHTS:
+        raise ValueError(f"row_weights must be one of {', '.join(ROW_WEIGHTS)}, got {kind!r}")
+    if kind == "uniform":
+        return None
+    free = np.isinf(l) & np.isinf(u)
+    with np.errstate(invalid="ignore"):
+        eq = ~free & (u - l < EQ_TOL)
+    w = np.ones(l.size)
+    w[eq], w[free] = EQ_ROW_WEIGHT, FREE_ROW_WEIGHT
+    return w
+
+
 class QP(Problem):
     """A convex QP, validated on construction.
 
@@ -56,11 +89,16 @@ class QP(Problem):
     l <= u (infinite bounds allowed, equal bounds are equality rows), r a
     constant, sigma >= 0 the proximal weight, backend the sparse solver,
     xstep the form of the x-step system ("auto", "reduced" or "kkt"; see the
-    module docstring).
+    module docstring), scaling the number of Ruiz iterations (0: none;
+    OSQP uses 10), row_weights "uniform" (M = I) or "osqp" (OSQP's penalty
+    per row, see :func:`row_weights`).  ``P, q, A, l, u`` stay the user's
+    data; the loop works on ``Ps, qs, As, ls, us`` (the same objects when
+    scaling = 0).
     """
 
     def __init__(self, P, q, A, l, u, r: float = 0.0, *, sigma: float = 1e-6, backend: str = "auto",
-                 name: str = "qp", xstep: str = "auto"):
+                 name: str = "qp", xstep: str = "auto", scaling: int = 0, row_weights: str = "uniform"):
+        from .scaling import ruiz
         self.P, self.q, self.A, self.l, self.u = _validate(P, q, A, l, u)
         self.r = float(r)
         if not (math.isfinite(sigma) and sigma >= 0):
@@ -72,65 +110,118 @@ class QP(Problem):
         self.n = self.P.shape[0]
         self.m = self.A.shape[0]
         self.c = 0.0
+        self.options = dict(sigma=self.sigma, backend=backend, xstep=xstep, scaling=scaling, row_weights=row_weights)
+        self.scaling, Ps, qs, As = ruiz(self.P, self.q, self.A, scaling)                          # (S1)
+        self.scaled = scaling > 0
+        if self.scaled:
+            self.Ps, self.qs, self.As = Ps, qs, As
+            self.ls, self.us = self.scaling.E * self.l, self.scaling.E * self.u
+        else:
+            self.Ps, self.qs, self.As, self.ls, self.us = self.P, self.q, self.A, self.l, self.u
+        self.w = globals()["row_weights"](self.ls, self.us, row_weights)
         self.At = self.A.T.tocsr()      # A' once: scipy builds a new matrix on every A.T (~40 us)
+        self.Ats = self.As.T.tocsr() if self.scaled else self.At
         if xstep == "auto":
             xstep = "kkt" if reduced_nnz_bound(self.P, self.A) > REDUCED_MAX_NNZ else "reduced"
         self.xstep = xstep
-        base = (self.P + self.sigma * sp.identity(self.n, format="csc")).tocsc()
+        self._x_in = None               # the x^k of the last x-step (x_prev for the infeasibility test)
+        base = (self.Ps + self.sigma * sp.identity(self.n, format="csc")).tocsc()
+        w = np.ones(self.m) if self.w is None else self.w
         if xstep == "reduced":
-            AtA = (self.At @ self.A).tocsc()
-            self._solver = CachedFactorization(lambda rho: (base + rho * AtA).tocsc(), backend=backend)
+            AtMA = (self.Ats @ sp.diags(w) @ self.As).tocsc() if self.w is not None else (self.Ats @ self.As).tocsc()
+            self._solver = CachedFactorization(lambda rho: (base + rho * AtMA).tocsc(), backend=backend)
         else:
             kkt_backend = _kkt_backend(backend)
-            top = sp.bmat([[base, self.A.T], [self.A, None]], format="csc")
-            minus_I = sp.diags(np.r_[np.zeros(self.n), -np.ones(self.m)], format="csc")
-            self._solver = CachedFactorization(lambda rho: (top + minus_I / rho).tocsc(), backend=kkt_backend)
+            top = sp.bmat([[base, self.As.T], [self.As, None]], format="csc")
+            minus_inv_w = sp.diags(np.r_[np.zeros(self.n), -1.0 / w], format="csc")
+            self._solver = CachedFactorization(lambda rho: (top + minus_inv_w / rho).tocsc(), backend=kkt_backend)
+
+    def with_options(self, **options) -> "QP":
+        """The same data with some constructor options changed (a new QP, its own factorisations)."""
+        merged = {**self.options, **options}
+        return QP(self.P, self.q, self.A, self.l, self.u, self.r, name=self.name, **merged)
 
     # -- the splitting --------------------------------------------------------
     def x_step(self, z, lam, rho, x):
-        """Solve (P + sigma I + rho A'A) x = sigma x^k - q + A'(rho z - lam), in either form."""
+        """Solve (Q1), in either form (KKT: [P + sigma I, A'; A, -(rho M)^-1] [x; v] = [sigma x^k - q; z - lam/rho])."""
+        self._x_in = x
         if self.xstep == "kkt":
-            rhs = np.concatenate([self.sigma * x - self.q, z - lam / rho])
+            rhs = np.concatenate([self.sigma * x - self.qs, z - lam / rho])
             return self._solver.solve(rho, rhs)[:self.n]
-        rhs = self.sigma * x - self.q + self.At @ (rho * z - lam)
+        v = rho * z - lam
+        rhs = self.sigma * x - self.qs + self.Ats @ (v if self.w is None else self.w * v)
         return self._solver.solve(rho, rhs)
 
     def z_step(self, Ax, lam, rho, z):
-        """Project A x + lam/rho onto the box [l, u]."""
-        return np.clip(Ax + lam / rho, self.l, self.u)
+        """Project A x + lam/rho onto the box [l, u] (Q2; M is diagonal, so it does not enter)."""
+        return np.clip(Ax + lam / rho, self.ls, self.us)
 
     def apply_A(self, x):
-        """A x."""
-        return self.A @ x
+        """A x (the scaled A when scaling)."""
+        return self.As @ x
+
+    def inner(self, a, b):
+        """(a, b)_M = sum_i w_i a_i b_i."""
+        return float(np.dot(a, b)) if self.w is None else float(np.dot(self.w * a, b))
+
+    def norm(self, y):
+        """||y||_M."""
+        return math.sqrt(max(self.inner(y, y), 0.0))
 
     def adjoint_norm(self, y):
-        """||A' y||_2 (Boyd's dual residual for order xz)."""
-        return float(np.linalg.norm(self.At @ y))
+        """||A' M y||_2 (Boyd's dual residual for order xz)."""
+        return float(np.linalg.norm(self.Ats @ (y if self.w is None else self.w * y)))
+
+    def finalize(self, x):
+        """The user's x = D xb."""
+        return self.scaling.unscale_x(x) if self.scaled else x
+
+    # -- between the loop's iterates and the user's numbers -------------------
+    def multiplier(self, lam):
+        """The QP's multiplier of the loop's lam in the user's problem: y = E M lam / c (Q3)."""
+        yb = lam if self.w is None else self.w * lam
+        return self.scaling.unscale_y(yb) if self.scaled else yb
+
+    def unscaled(self, x, z, lam):
+        """(x, z, y) of the user's problem from the loop's iterate (x, z, lam)."""
+        if not self.scaled:
+            return x, z, self.multiplier(lam)
+        return self.scaling.unscale_x(x), self.scaling.unscale_z(z), self.multiplier(lam)
+
+    def iterate_from(self, x, y):
+        """The loop's (x, z, lam) for a user's (x, y), as OSQP's warm start: xb = D^-1 x, z = A xb, lam = M^-1 c E^-1 y."""
+        xb = self.scaling.scale_x(x) if self.scaled else np.asarray(x, dtype=float)
+        yb = self.scaling.scale_y(y) if self.scaled else np.asarray(y, dtype=float)
+        lam = yb if self.w is None else yb / self.w
+        return xb, self.As @ xb, lam
 
     # -- diagnostics ----------------------------------------------------------
     def objective(self, x, z):
-        """1/2 x'Px + q'x + r."""
+        """1/2 x'Px + q'x + r at the user's x."""
         return float(0.5 * x @ (self.P @ x) + self.q @ x + self.r)
 
     def kkt(self, x, z, lam):
-        """KKT residuals (inf-norms) of the QP at (x, lam), OSQP's definitions and more.
+        """KKT residuals (inf-norms) of the user's QP at the user's x and the loop's (z, lam), OSQP's definitions and more.
 
         primal: ||A x - z||_inf (OSQP), infeasibility: distance of A x to the box,
-        dual: ||P x + q + A' lam||_inf, complementarity: max of lam_i times the
-        slack of the bound it pushes against, sign: max ``|lam_i|`` pushing against
-        an infinite bound.
+        dual: ||P x + q + A' y||_inf, complementarity: max of y_i times the
+        slack of the bound it pushes against, sign: max ``|y_i|`` pushing against
+        an infinite bound; y = E M lam / c and z = E^-1 zb are the user's.
         """
+        if self.scaled:
+            z = self.scaling.unscale_z(z)
+        y = self.multiplier(lam)
         Ax = self.A @ x
-        lam_pos, lam_neg = np.maximum(lam, 0.0), np.maximum(-lam, 0.0)
+        y_pos, y_neg = np.maximum(y, 0.0), np.maximum(-y, 0.0)
         fin_u, fin_l = np.isfinite(self.u), np.isfinite(self.l)
-        comp_u = lam_pos[fin_u] * np.abs(self.u[fin_u] - Ax[fin_u])
-        comp_l = lam_neg[fin_l] * np.abs(Ax[fin_l] - self.l[fin_l])
+        comp_u = y_pos[fin_u] * np.abs(self.u[fin_u] - Ax[fin_u])
+        comp_l = y_neg[fin_l] * np.abs(Ax[fin_l] - self.l[fin_l])
         return {
             "primal": _inf(Ax - z),
             "infeasibility": _inf(Ax - np.clip(Ax, self.l, self.u)),
-            "dual": _inf(self.P @ x + self.q + self.At @ lam),
+            "dual": _inf(self.P @ x + self.q + self.At @ y),
             "complementarity": max(_inf(comp_u), _inf(comp_l)),
-            "sign": max(_inf(lam_pos[~fin_u]), _inf(lam_neg[~fin_l])),
+            "sign": max(_inf(y_pos[~fin_u]), _inf(y_neg[~fin_l])),
         }
 
     def counters(self):
