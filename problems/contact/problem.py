@@ -150,6 +150,29 @@ class _ContactBase(Problem):
                     "slip_nodes": int(np.count_nonzero(zone == 2))}
         return out
 
+    def kkt_relative(self, u, z, lam):
+        """The residuals of :meth:`kkt` relative to the problem's scales (inf-norms), which the framework
+        compares with the stopping rule's tolerance (``converged_inaccurate`` above 10x it).
+
+        stationarity / ||f||, penetration / max(||g||, ||B u||), negative pressure / ||lam_n||,
+        complementarity / (||lam_n|| max(||g||, ||B u||)); with friction also the friction bound / max s
+        and the slip complementarity / (max s max |u_t - w|).
+        """
+        kkt, n_c = self.kkt(u, z, lam), self.ops.n_c
+        gap_scale = max(float(np.abs(self.g).max(initial=0.0)), float(np.abs(self.ops.B @ u).max(initial=0.0)),
+                        1e-300)
+        lam_scale = max(float(np.abs(lam[:n_c]).max(initial=0.0)), 1e-300)
+        out = {"stationarity": kkt["stationarity"],
+               "penetration": kkt["penetration"] / gap_scale,
+               "negative_pressure": kkt["negative_pressure"] / lam_scale,
+               "complementarity": kkt["complementarity"] / (lam_scale * gap_scale)}
+        if self.friction is not None:
+            s_scale = max(float(np.max(self.friction.s, initial=0.0)), 1e-300)
+            slip_scale = max(float(np.linalg.norm(self.slip(u), axis=0).max(initial=0.0)), 1e-300)
+            out |= {"friction_bound": kkt["friction_bound"] / s_scale,
+                    "slip_complementarity": kkt["slip_complementarity"] / (s_scale * slip_scale)}
+        return out
+
 
 class FullContact(_ContactBase):
     """Full-space mode: x = u, one cached sparse factorisation per rho."""
