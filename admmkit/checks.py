@@ -104,7 +104,7 @@ def check_requirements(problem, order: str, adjoint: bool, parts) -> None:
         missing = [name for name in getattr(obj, "requires", ()) if name in NEEDS_ADJOINT]
         if missing:
             raise ValueError(
-                f"{role} {obj!r} reads {', '.join(missing)}, which in order 'xz' is Boyd's dual residual "
+                f"{role} {obj!r} needs Boyd's dual residual (it reads {', '.join(missing)}), which in order 'xz' is "
                 f"rho ||A^T M (z^(k+1) - z^k)||: implement {type(problem).__name__}.adjoint_norm(y) to return "
                 f"||A^T M y|| (a float, in the dual norm of the x space; the Euclidean norm for x in R^n), "
                 f"or give A as an admmkit.operators.LinearMap (which derives it), or use order 'zx'"

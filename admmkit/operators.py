@@ -38,19 +38,12 @@ def _weights(w, size: int | None, name: str):
 
 
 class LinearMap:
-    """A (matrix, sparse matrix, LinearOperator or None for the identity of size ``n``) with the weights M of its range.
+    """A (a matrix, sparse matrix, LinearOperator, or None for the identity of size ``n``) with the weights M of its range.
 
-    Parameters
-    ----------
-    A : array_like, scipy sparse matrix, scipy LinearOperator or None
-        The constraint map (None: the identity on R^n; give ``n``).
-    M : None, float or array of shape (p,)
-        The diagonal of the constraint space's inner product (None: identity).
-    x_weights : None or array of shape (n,)
-        The diagonal W of the x space's norm ||x||_W, whose dual norm
-        ``adjoint_norm`` uses (None: Euclidean).
-    n : int
-        Size of x when ``A`` is None.
+    ``M`` is None (the identity), a number or an array with the diagonal of the
+    constraint space's inner product; ``x_weights`` is None (Euclidean) or the
+    diagonal W of the x space's norm ||x||_W, whose dual norm ``adjoint_norm``
+    uses; ``n`` is the size of x when ``A`` is None.
     """
 
     def __init__(self, A=None, *, M=None, x_weights=None, n: int | None = None):

@@ -70,7 +70,7 @@ def solve(
     order : str
         ``"xz"`` (ADMM1: x-step first) or ``"zx"`` (ADMM2: z-step first).
     stop : StoppingRule or None
-        A stopping rule; default :func:`admmkit.stopping.default_stop`,
+        A stopping rule; default :func:`admmkit.default_stop`,
         Boyd's residuals ``ResidualTolerance(1e-6, 1e-5)``.  The paper's
         methods pass ``RelativeChange(1e-5)``.
     max_iter : int
@@ -98,7 +98,7 @@ def solve(
         ``"lean"`` (default): keep the norms something read, NaN for the
         others, the last row complete; ``"full"``: compute every norm
         of every iteration (about nine extra vector norms per iteration).
-    warm_start : Result or None
+    warm_start : admmkit.Result or None
         A previous result: start from its ``x_iterate``, ``z``, ``lam``
         and rho (each overridden by x0, z0, lam0, rho if given).
     """
@@ -283,7 +283,7 @@ def kkt_measures(problem, x, z, lam, rec: IterationRecord | None) -> dict[str, f
     """The relative KKT measures a stop is checked against (finite values only).
 
     ``problem.kkt_relative(x, z, lam)`` if the problem has it (the building
-    blocks' :class:`admmkit.split.SplitProblem` does: OSQP-style relative
+    blocks' :class:`admmkit.SplitProblem` does: OSQP-style relative
     residuals of the three optimality conditions); otherwise Boyd's residuals
     of the last record relative to unit + scale: ||r||_M / (primal_unit +
     primal_scale) and ||s|| / (dual_unit + dual_scale), which are at most the

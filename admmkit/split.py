@@ -24,7 +24,7 @@ from .xstep import QuadraticXStep
 
 
 class SplitProblem(Problem):
-    """f (a :class:`QuadraticXStep`, which carries A and M) + g (a :class:`admmkit.prox.Prox`), A x - z = c."""
+    """f (a :class:`admmkit.QuadraticXStep`, which carries A and M) + g (an ``admmkit.prox`` operator), A x - z = c."""
 
     def __init__(self, x_step: QuadraticXStep, g: Prox, *, c=0.0):
         if not isinstance(x_step, QuadraticXStep):

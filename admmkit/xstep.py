@@ -39,20 +39,17 @@ SOLVERS = ("auto", "direct", "diagonal", "amg", "cg")
 class QuadraticXStep:
     """Solve (P + sigma I + rho A'MA) x = -q + sigma x^k + A'M (rho (z + c) - lam), cached per rho.
 
-    Parameters
-    ----------
-    P : array, sparse matrix, LinearOperator or None (0)
-        The Hessian of f, symmetric positive semidefinite.
-    q : array or None (0)
-        The linear term of f.
-    A : LinearMap, array, sparse matrix, LinearOperator or None
-        The constraint map (None: the identity); ``M`` the weights of its range.
-    sigma : float
-        Proximal weight >= 0 (OSQP uses 1e-6; needed when P + rho A'MA is singular).
-    solver : "auto", "direct", "diagonal", "amg" or "cg" (module docstring).
-    backend : the factorisation backend of the "direct" solver.
-    cg_tol, cg_maxiter : the tolerance and cap of the "cg" solver.
-    near_null : the near-null space given to the AMG ("amg").
+    ``P`` is the Hessian of f (a dense array, a sparse matrix, a scipy
+    LinearOperator, or None for 0), symmetric positive semidefinite; ``q``
+    the linear term (None: 0).  ``A`` is the constraint map: an
+    :class:`admmkit.LinearMap`, or anything ``LinearMap`` accepts (None: the
+    identity of size ``n``), with ``M`` the weights of its range.  ``sigma``
+    >= 0 is the proximal weight (OSQP uses 1e-6; needed when P + rho A'MA is
+    singular).  ``solver`` is one of ``"auto"``, ``"direct"``,
+    ``"diagonal"``, ``"amg"`` or ``"cg"`` (see the module docstring);
+    ``backend`` the factorisation backend of the direct solver; ``cg_tol`` and
+    ``cg_maxiter`` the relative tolerance and cap of plain CG; ``near_null`` the
+    near-null space given to the AMG.
     """
 
     def __init__(self, P=None, q=None, A=None, *, M=None, n: int | None = None, sigma: float = 0.0,

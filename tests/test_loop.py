@@ -149,7 +149,7 @@ def test_non_finite_iterates_give_diverged():
 def test_a_rule_needing_the_adjoint_is_refused_at_the_start():
     with pytest.raises(ValueError, match=r"implement Exploding.adjoint_norm\(y\) to return"):
         solve(Exploding(), order="xz")                     # the default stop reads the dual residual
-    with pytest.raises(ValueError, match="policy .* reads dual_residual"):
+    with pytest.raises(ValueError, match="policy .* needs Boyd.s dual residual"):
         solve(Exploding(), order="xz", policy="residual_balancing", stop=RelativeChange(1e-5))
 
 
