@@ -15,8 +15,14 @@ host imports no plug-in: this package's own ``pyproject.toml`` declares the
 built-in commands the same way a third-party package would.
 
 This module also holds the options every ``solve`` shares (policy, order, rho,
-stopping rule, history, progress) and the one place that turns an error into
-one line on stderr and a non-zero exit code.
+stopping rule, history, progress, quiet, JSON and CSV outputs; docs/cli.md)
+and the one place that turns an error into one line on stderr and an exit code:
+
+- 0: the run converged (status ``converged``);
+- 1: the run ended otherwise (``max_iter``, ``diverged``, ``converged_inaccurate``,
+  ``stalled``, ...): the summary says why, the files asked for are written;
+- 2: bad input (an option out of range, an unknown name, an output path that
+  cannot be written): one line on stderr, nothing computed, nothing written.
 """
 from __future__ import annotations
 
@@ -25,8 +31,12 @@ import shlex
 import sys
 from fractions import Fraction
 from importlib.metadata import entry_points
+from pathlib import Path
 
 from . import __version__
+from .cli_output import (Progress, check_output_folder, exit_code, print_summary,  # noqa: F401  (re-exported)
+                         provenance, write_result_csv, write_result_json)
+from .io import check_writable
 from .policy import make_policy, policy_names
 from .result import Result
 from .solver import solve
@@ -37,6 +47,8 @@ GROUP = "admmkit.commands"
 #: commands that group others (``admmkit solve NAME``, ``admmkit bench NAME``)
 GROUPS = {"solve": "solve one problem and print a summary",
           "bench": "benchmarks and studies: print figures and write them where --out says (default ./out/STUDY/)"}
+#: exit codes (docs/cli.md)
+EXIT_CONVERGED, EXIT_NOT_CONVERGED, EXIT_BAD_INPUT = 0, 1, 2
 
 
 def positive_float(text: str) -> float:
@@ -61,21 +73,37 @@ def positive_int(text: str) -> int:
     return value
 
 
-def add_common_options(parser: argparse.ArgumentParser, *, policy: str = "summable", order: str = "zx",
-                       rho: float = 1.0) -> None:
-    """Options every ``solve`` sub-command shares: policy, order, rho_0 and the stop options.
+class _DeprecatedAlias(argparse.Action):
+    """Store into ``dest`` like the new option, with a note on stderr (``--method`` -> ``--policy``)."""
 
-    The ``--policy`` choices are the rules registered when the parser is built:
-    a plug-in's command module imports ``policies`` before calling this.
+    def __call__(self, parser, namespace, values, option_string=None):
+        print(f"admmkit: {option_string} is deprecated; use {self.metavar}", file=sys.stderr)
+        setattr(namespace, self.dest, values)
+
+
+def add_common_options(parser: argparse.ArgumentParser, *, policy: str = "summable", order: str = "zx",
+                       rho: float = 1.0, methods: dict | None = None, max_iter: int = 10_000) -> None:
+    """Options every ``solve`` sub-command shares: policy, order, rho_0, the stop and output options.
+
+    ``methods`` maps extra names to ``(order, factory)`` (the paper's
+    ``admm1``/``admm2``/``sadmm``: ``policies.paper_methods.PAPER_METHODS``);
+    such a name runs in its own order unless ``--order`` is given, a
+    registered rule in ``order``.  ``--method`` stays as a deprecated alias.
     """
-    parser.add_argument("--policy", default=policy, choices=policy_names(), help=f"penalty rule (default {policy})")
-    parser.add_argument("--order", default=order, choices=["xz", "zx"], help=f"xz = ADMM1, zx = ADMM2 (default {order})")
+    names = [*(methods or {}), *policy_names()]
+    parser.add_argument("--policy", default=policy, metavar="NAME",
+                        help=f"penalty rule or method: {', '.join(names)} (default {policy})")
+    parser.add_argument("--method", dest="policy", action=_DeprecatedAlias, metavar="--policy",
+                        help=argparse.SUPPRESS)
+    parser.add_argument("--order", default=None, choices=["xz", "zx"],
+                        help=f"xz = ADMM1, zx = ADMM2 (default: the method's own, else {order})")
     parser.add_argument("--rho", type=positive_float, default=rho, help=f"initial penalty rho_0 > 0 (default {rho:g})")
-    add_stop_options(parser)
+    parser.set_defaults(policy_methods=dict(methods or {}), default_order=order)
+    add_stop_options(parser, max_iter=max_iter)
 
 
 def add_stop_options(parser: argparse.ArgumentParser, *, max_iter: int = 10_000) -> None:
-    """Stopping rule, iteration cap, history and progress options (read by :func:`stop_rule`)."""
+    """Stopping rule, iteration cap, history, progress and quiet options (read by :func:`stop_rule`)."""
     parser.add_argument("--tol", type=positive_float, default=None,
                         help="relative-change tolerance in the problem's x norm (the paper's rule; "
                              "default 1e-5 unless --eps-abs is given)")
@@ -83,8 +111,70 @@ def add_stop_options(parser: argparse.ArgumentParser, *, max_iter: int = 10_000)
     parser.add_argument("--eps-rel", type=float, default=None,
                         help="Boyd's residual test: relative tolerance (default 0; needs --eps-abs)")
     parser.add_argument("--max-iter", type=positive_int, default=max_iter, help=f"iteration cap (default {max_iter})")
-    parser.add_argument("--history", metavar="CSV", default=None, help="write the per-iteration history to this CSV file")
-    parser.add_argument("--progress", type=int, default=0, metavar="N", help="print a line every N iterations")
+    add_output_file(parser, "--history", "CSV", "write the per-iteration history to this CSV file")
+    parser.add_argument("--progress", type=int, default=0, metavar="N",
+                        help="print a line of residuals every N iterations (default: a progress bar on "
+                             "stderr when a run takes more than 2 s)")
+    parser.add_argument("-q", "--quiet", action="store_true", help="no progress bar or lines (the summary stays)")
+
+
+def add_output_file(parser: argparse.ArgumentParser, flag: str, metavar: str, help: str, suffix: str = "") -> None:
+    """Add an output-file option that :func:`main` checks before any work (folder exists and is writable).
+
+    ``suffix`` is appended when the name lacks it (``--vtk out/u`` writes ``out/u.vtu``).
+    """
+    parser.add_argument(flag, metavar=metavar, default=None, help=help)
+    dest = flag.lstrip("-").replace("-", "_")
+    files = dict(parser.get_default("output_files") or {})
+    files[dest] = (flag, suffix)
+    parser.set_defaults(output_files=files)
+
+
+def add_result_outputs(parser: argparse.ArgumentParser, json_help: str, csv_help: str) -> None:
+    """``--json FILE`` and ``--csv FILE``, the same two names in every ``solve``."""
+    add_output_file(parser, "--json", "FILE", json_help)
+    add_output_file(parser, "--csv", "FILE", csv_help)
+
+
+def output_path(value: str, suffix: str = "") -> Path:
+    """The file an output option writes (``suffix`` appended when missing)."""
+    path = Path(value)
+    return path if not suffix or path.suffix == suffix else path.with_name(path.name + suffix)
+
+
+def check_options(args) -> None:
+    """Refuse bad input before any work: the policy name, the stop options and every output path."""
+    if hasattr(args, "default_order"):           # add_common_options was used
+        resolve_policy(args)
+        stop_rule(args)
+    check_outputs(args)
+
+
+def check_outputs(args) -> None:
+    """Refuse output files whose folder is missing or read-only, or that are folders, and a ``--out`` that is a file."""
+    for dest, (flag, suffix) in (getattr(args, "output_files", None) or {}).items():
+        value = getattr(args, dest, None)
+        if value:
+            check_writable(output_path(value, suffix), flag)
+    if isinstance(getattr(args, "out", None), str):
+        check_output_folder(args.out, "--out")
+
+
+def resolve_policy(args) -> tuple[str, object, str]:
+    """(order, fresh policy, name) from ``--policy`` and ``--order``; ValueError naming ``--policy``."""
+    name = args.policy if isinstance(args.policy, str) else None
+    if name is None:                                           # a Policy object (from Python)
+        return args.order or args.default_order, args.policy, type(args.policy).__name__
+    key = name.strip().lower().replace("-", "_")
+    methods = getattr(args, "policy_methods", None) or {}
+    if key in methods:
+        own_order, make = methods[key]
+        return args.order or own_order, make(), key
+    try:
+        return args.order or getattr(args, "default_order", "zx"), make_policy(key), key
+    except ValueError:
+        raise ValueError(f"--policy: unknown name {name!r}; give one of "
+                         f"{', '.join([*methods, *policy_names()])}") from None
 
 
 def stop_rule(args) -> StoppingRule:
@@ -105,18 +195,27 @@ def progress_callback(every: int):
         return None
 
     def show(rec) -> None:
-        if rec.k % every == 0:
-            print(f"  k={rec.k:6d}  rho={rec.rho:.3e}  primal={rec.primal_residual:.3e}  "
+        if (rec.k + 1) % every == 0:
+            print(f"  iteration {rec.k + 1:6d}  rho={rec.rho:.3e}  primal={rec.primal_residual:.3e}  "
                   f"dual={rec.dual_residual:.3e}  rel.change={rec.rel_change:.3e}", file=sys.stderr)
     return show
 
 
+def progress(args, total: int) -> Progress:
+    """The progress display the options ask for: ``--progress N`` lines, else a bar after 2 s; none if ``-q``."""
+    lines = 0 if getattr(args, "quiet", False) else getattr(args, "progress", 0)
+    return Progress(total, enabled=not getattr(args, "quiet", False), lines=progress_callback(lines))
+
+
 def run_solve(problem, args) -> Result:
     """Solve with the common options, print the summary, write the history if asked."""
-    policy = make_policy(args.policy) if isinstance(args.policy, str) else args.policy
-    result = solve(problem, rho=args.rho, policy=policy, order=args.order, stop=stop_rule(args),
-                   max_iter=args.max_iter, callback=progress_callback(args.progress))
-    print(result.summary())
+    order, policy, name = resolve_policy(args)
+    stop = stop_rule(args)
+    with progress(args, args.max_iter) as show:
+        result = solve(problem, rho=args.rho, policy=policy, order=order, stop=stop,
+                       max_iter=args.max_iter, callback=show)
+    args.resolved = {"policy": name, "order": order, "policy_repr": repr(policy), "stop": stop.name}
+    print_summary(result, name, args.rho)
     if args.history:
         print(f"history      {result.history.to_csv(args.history)}")
     return result
@@ -129,7 +228,9 @@ def commands() -> dict[str, object]:
 
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser with every installed sub-command."""
-    parser = argparse.ArgumentParser(prog="admmkit", description="ADMM with adaptive penalty parameters.")
+    parser = argparse.ArgumentParser(prog="admmkit", description="ADMM with adaptive penalty parameters.",
+                                     epilog="exit codes: 0 converged, 1 the run ended otherwise "
+                                            "(max_iter, diverged, converged_inaccurate, ...), 2 bad input")
     parser.add_argument("--version", action="version", version=f"admmkit {__version__}")
     top = parser.add_subparsers(dest="command", metavar="COMMAND")
     found = commands()
@@ -151,19 +252,23 @@ def command_line(argv: list[str]) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Entry point of the ``admmkit`` console script: one line on stderr and exit 2 for bad input."""
+    """Entry point of the ``admmkit`` console script; returns the exit code (0, 1 or 2, see the module)."""
     argv = list(sys.argv[1:] if argv is None else argv)
     parser = build_parser()
-    args = parser.parse_args(argv)
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as stop:                  # argparse: usage and one error line already on stderr
+        return int(stop.code or 0)
     if not getattr(args, "func", None):
         parser.print_help()
         return 0
     args.command_line = command_line(argv)
     try:
+        check_options(args)
         return int(args.func(args) or 0)
     except (ValueError, OSError) as err:
         print(f"admmkit: error: {_one_line(err)}", file=sys.stderr)
-        return 2
+        return EXIT_BAD_INPUT
     except KeyboardInterrupt:
         print("admmkit: interrupted", file=sys.stderr)
         return 130

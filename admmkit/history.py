@@ -19,6 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .io import atomic_open
 from .record import LAZY_FIELDS, SCALAR_FIELDS, IterationRecord, ratio, relative_change
 
 #: columns of the history, in CSV order
@@ -82,10 +83,54 @@ class History:
     def to_csv(self, path: str | Path) -> Path:
         """Write the history as CSV (header row, one row per iteration) and return the path."""
         path = Path(path)
-        with path.open("w", newline="") as fh:
+        with atomic_open(path, "w", newline="") as fh:     # whole or not at all (admmkit/io.py)
             writer = csv.writer(fh)
             writer.writerow(COLUMNS)
             for row in self._rows:
                 writer.writerow([int(v) if isinstance(v, (bool, np.bool_)) else repr(float(v)) if isinstance(v, float) else v
                                  for v in self._row(row)])
         return path
+
+    def to_pandas(self):
+        """The history as a ``pandas.DataFrame`` indexed by the iteration ``k`` (pandas is optional).
+
+        Columns as in :data:`COLUMNS`; NaN where a lean row did not compute a norm.
+        """
+        try:
+            import pandas as pd
+        except ImportError:
+            raise ImportError("History.to_pandas() needs pandas: pip install pandas "
+                              "(or use History.as_dict() / History.to_csv())") from None
+        return pd.DataFrame(self.as_dict()).set_index("k")
+
+    def __repr__(self) -> str:
+        if not self._rows:
+            return f"History(mode={self.mode!r}, 0 iterations)"
+        last = self._row(self._rows[-1])
+        rho = self["rho"]
+        return (f"History(mode={self.mode!r}, {len(self)} iterations, rho {rho.min():.3g}..{rho.max():.3g}, "
+                f"last primal_residual {last[COLUMNS.index('primal_residual')]:.3e}, "
+                f"rel_change {last[COLUMNS.index('rel_change')]:.3e})")
+
+    def _repr_html_(self) -> str:
+        """Jupyter: the first and last three rows of the main columns in a table."""
+        import html
+        cols = ("k", "rho", "primal_residual", "dual_residual", "rel_change", "rho_changed")
+        n = len(self._rows)
+        picked = list(range(min(n, 3))) + (list(range(max(3, n - 3), n)) if n > 3 else [])
+        head = "".join(f"<th>{c}</th>" for c in cols)
+        body = []
+        for i, j in enumerate(picked):
+            if i and j != picked[i - 1] + 1:
+                body.append(f"<tr><td colspan='{len(cols)}'>... {j - picked[i - 1] - 1} rows ...</td></tr>")
+            row = dict(zip(COLUMNS, self._row(self._rows[j])))
+            body.append("<tr>" + "".join(f"<td>{_cell(row[c])}</td>" for c in cols) + "</tr>")
+        return (f"<div><b>History</b> ({html.escape(self.mode)}, {n} iterations; columns: "
+                f"{', '.join(COLUMNS)})<table><tr>{head}</tr>{''.join(body)}</table></div>")
+
+
+def _cell(value) -> str:
+    """One table cell: integers and booleans as such, other numbers with 4 significant digits."""
+    if isinstance(value, (bool, np.bool_, int, np.integer)):
+        return str(value)
+    return f"{float(value):.4g}"

@@ -33,7 +33,7 @@ class Result:
     ``solve(problem, warm_start=result)`` restarts from it), ``z`` and ``lam``
     the last auxiliary variable and (unscaled) multiplier.  ``accuracy`` holds
     the relative KKT measures compared with the stopping rule's tolerance when
-    a rule fired (see :data:`admmkit.solver.INACCURATE_FACTOR`).  ``timings``
+    a rule fired (see ``admmkit.solver.INACCURATE_FACTOR``).  ``timings``
     splits the wall time into x_step, z_step, policy, residuals and total
     seconds.  ``kkt`` holds the problem's KKT residuals at the stop, when the
     plug-in provides them.
@@ -97,3 +97,28 @@ class Result:
 
     def __repr__(self) -> str:
         return f"Result(status={self.status.value!r}, iterations={self.iterations}, stopped_by={self.stopped_by!r})"
+
+    def _repr_html_(self) -> str:
+        """Jupyter: the summary as a two-column table (status, iterations, rho, KKT, work, time)."""
+        import html
+        rows = [("status", f"{self.status.value} ({self.message})"), ("method", f"order {self.order}, {self.policy}"),
+                ("iterations", str(self.iterations)), ("rho", f"final {self.rho:.4g}, {self.rho_changes} changes")]
+        if self.objective is not None:
+            rows.append(("objective", f"{self.objective:.10g}"))
+        if self.kkt:
+            rows.append(("KKT", ", ".join(f"{k} {_number(v)}" for k, v in self.kkt.items())))
+        if self.counters:
+            rows.append(("work", ", ".join(f"{k} {v}" for k, v in self.counters.items())))
+        rows.append(("time", f"{self.timings.get('total', float('nan')):.4g} s"))
+        rows.append(("x", f"{self.x.shape[0]} values, z and lam {self.z.shape[0]}; history: {len(self.history)} rows "
+                          "(result.history.to_pandas())"))
+        body = "".join(f"<tr><th style='text-align:left'>{html.escape(k)}</th><td style='text-align:left'>"
+                       f"{html.escape(v)}</td></tr>" for k, v in rows)
+        return f"<div><b>admmkit.Result</b><table>{body}</table></div>"
+
+
+def _number(value) -> str:
+    """Integers as integers, other numbers with 4 significant digits."""
+    if isinstance(value, (bool, np.bool_, int, np.integer)):
+        return str(value)
+    return f"{float(value):.3e}"

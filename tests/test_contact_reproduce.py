@@ -13,14 +13,16 @@ from problems.contact.plot import vertex_displacement
 
 def test_solve_contact_writes_files(tmp_path, capsys):
     j, c, p, v = tmp_path / "u.json", tmp_path / "gc.csv", tmp_path / "fig.png", tmp_path / "disp"
-    rc = main(["solve", "contact", "--scene", "ex1", "--h", "1/10", "--method", "sadmm", "--rho", "1e3",
+    rc = main(["solve", "contact", "--scene", "ex1", "--h", "1/10", "--policy", "sadmm", "--rho", "1e3",
                "--json", str(j), "--csv", str(c), "--plot", str(p), "--vtk", str(v)])
     out = capsys.readouterr().out
     assert rc == 0
     assert "converged" in out and "n_free 440" in out and "n_c 20" in out and "mode condensed" in out
     data = json.loads(j.read_text())
-    assert data["status"] == "converged" and len(data["u"]) == 440
-    assert len(data["lam"]) == len(data["p"]) == len(data["g"]) == len(data["contact_x"]) == 20
+    # the JSON is nested since issue #18: provenance, scene, result, sizes, arrays (tests/test_exports.py)
+    assert data["result"]["status"] == "converged" and len(data["arrays"]["u"]) == 440
+    arrays = data["arrays"]
+    assert len(arrays["contact_pressure"]) == len(arrays["gap"]) == len(arrays["initial_gap"]) == len(arrays["contact_xy"]) == 20
     rows = list(csv.DictReader(c.open()))
     assert len(rows) == 20 and set(rows[0]) >= {"x", "u_n", "g", "lam"}
     assert p.stat().st_size > 10_000

@@ -1,17 +1,17 @@
 """``admmkit solve contact`` and ``admmkit demo`` (the studies of this plug-in are in benchmarks/).
 
-    admmkit solve contact --scene ex1 --h 1/40 --method sadmm --rho 1e3 [--mode auto|full|condensed]
-                          [--json FILE] [--csv FILE] [--plot FILE.png] [--vtk BASENAME]
+    admmkit solve contact --scene ex1 --h 1/40 --policy sadmm --rho 1e3 [--mode auto|full|condensed]
+                          [--json FILE] [--csv FILE] [--plot FILE.png] [--vtk FILE.vtu] [-q]
     admmkit demo [--out out/demo]
 """
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
-from admmkit.cli import add_stop_options, positive_float, progress_callback, stop_rule
+from admmkit.cli import (add_common_options, add_output_file, add_result_outputs, exit_code, positive_float,
+                         print_summary, progress, resolve_policy, stop_rule, write_result_csv)
 
-from .methods import METHODS, method as resolve_method
+from .methods import METHODS
 from .problem import MODES
 
 
@@ -22,20 +22,18 @@ def register(subparsers) -> None:
     p.add_argument("--scene", default="ex1",
                    help="ex1, ex2 (the paper's examples) or a path to a scene TOML file (default ex1)")
     p.add_argument("--h", type=positive_float, default=None, help="mesh size, fractions allowed (default: the scene's)")
-    p.add_argument("--method", default="sadmm",
-                   help=f"{', '.join(METHODS)} or a registered penalty policy (order zx) (default sadmm)")
-    p.add_argument("--rho", type=positive_float, default=1e3, help="initial penalty rho_0 > 0 (default 1e3)")
-    p.add_argument("--order", choices=["xz", "zx"], default=None, help="override the method's update order")
     p.add_argument("--mode", choices=list(MODES), default="auto",
                    help="full: sparse x-steps; condensed: dense x-steps on Gamma_C (default auto)")
-    add_stop_options(p, max_iter=20_000)  # the stop is in the energy norm (docs/contact.md)
-    p.add_argument("--json", metavar="FILE", default=None,
-                   help="write u (free dofs), contact nodes, lam, p, g and the run's summary as JSON")
-    p.add_argument("--csv", metavar="FILE", default=None, help="write the contact-boundary table x, y, u_n, g, lam, p")
-    p.add_argument("--plot", metavar="FILE.png", default=None, help="write the deformed body and the pressure/gap plot")
+    # the stop is in the energy norm (docs/contact.md); --policy takes admm1, admm2, sadmm or a rule (order zx)
+    add_common_options(p, policy="sadmm", order="zx", rho=1e3, methods=METHODS, max_iter=20_000)
+    add_result_outputs(p, json_help="write the run as JSON: provenance (version, date, command, scene, policy, "
+                                    "stop), summary, u on the free dofs with its map to mesh points, contact arrays",
+                       csv_help="write the contact-boundary table x, y, u_n, g, gap, lam, p, active")
+    add_output_file(p, "--plot", "FILE.png", "write the deformed body and the pressure/gap plot")
     p.add_argument("--magnify", type=positive_float, default=None,
                    help="displacement magnification in --plot (default 10 for ex1, 20 otherwise)")
-    p.add_argument("--vtk", metavar="BASENAME", default=None, help="write the displacement for ParaView (VTK)")
+    add_output_file(p, "--vtk", "FILE.vtu", "write a VTU file for ParaView and meshio: displacement at the "
+                    "mesh vertices, contact pressure, gap and status on Gamma_C", suffix=".vtu")
     p.set_defaults(func=run)
 
 
@@ -56,66 +54,46 @@ def _scene(args):
 
 
 def run(args) -> int:
-    """Build the scene, solve it, print the summary and write the requested files."""
-    import numpy as np
-
+    """Build the scene, solve it, print the summary and write the requested files; 0 only if converged."""
+    from .export import boundary_fields, write_json, write_vtu
     from .methods import solve_scene
 
-    if args.max_iter < 1:
-        raise ValueError(f"--max-iter must be an integer >= 1, got {args.max_iter}")
-    try:
-        resolve_method(args.method)
-    except ValueError as err:
-        raise ValueError(f"--method: {err}") from None
+    order, _, name = resolve_policy(args)          # refuses an unknown --policy before anything is built
+    stop = stop_rule(args)
     scene = _scene(args)
-    sol = solve_scene(scene, args.method, args.rho, mode=args.mode, stop=stop_rule(args),
-                      max_iter=args.max_iter, order=args.order, callback=progress_callback(args.progress))
+    with progress(args, args.max_iter) as show:
+        sol = solve_scene(scene, name, args.rho, mode=args.mode, stop=stop, max_iter=args.max_iter,
+                          order=order, callback=show)
     ops, r = sol.ops, sol.result
+    args.resolved = {"policy": name, "order": r.order, "policy_repr": r.policy, "stop": stop.name}
     print(f"problem      contact/{scene.name or args.scene}: h = {scene.h:.6g}, P{scene.order} {scene.mesh_kind}, "
           f"{ops.mesh.ne} triangles")
     print(f"size         n_free {ops.n_free}   n_c {ops.n_c}   mode {sol.mode}   setup {sol.setup_time:.4f} s")
-    print(f"method       {args.method}, rho_0 = {args.rho:g}")
-    print(r.summary())
-    un = ops.B @ r.x
-    active = int(np.count_nonzero(ops.g - un <= 1e-4 * max(float(np.abs(ops.g).max()), 1e-300)))
-    kkt = r.kkt or {}
-    print(f"contact      force {kkt.get('contact_force', float(ops.mc @ r.lam)):.6g}   "
-          f"active nodes {active}/{ops.n_c} (g - u_n <= 1e-4 max g)   max u_n {un.max():.4e}")
+    print_summary(r, name, args.rho)
+    fields = boundary_fields(ops, r.x, r.lam, r.z)
+    active = int(fields["contact_status"].sum())
+    print(f"contact      force {float(ops.mc @ fields['contact_pressure']):.6g}   active nodes {active}/{ops.n_c} (p = g: on the "
+          f"obstacle after the last z-step)   max u_n {fields['normal_displacement'].max():.4e}")
     if args.history:
         print(f"history      {r.history.to_csv(args.history)}")
     if args.json:
-        data = {"scene": scene.name or str(args.scene), "h": scene.h, "method": args.method, "rho0": args.rho,
-                "mode": sol.mode, "status": r.status.value, "iterations": int(r.iterations),
-                "rho_final": float(r.rho), "rho_changes": int(r.rho_changes), "counters": dict(r.counters),
-                "time": dict(r.timings), "setup_time": sol.setup_time, "kkt": kkt,
-                "n_free": int(ops.n_free), "n_c": int(ops.n_c),
-                "u": r.x.tolist(), "contact_x": ops.xc[:, 0].tolist(), "contact_xy": ops.xc.tolist(),
-                "lam": r.lam.tolist(), "p": r.z.tolist(), "g": ops.g.tolist(), "u_n": un.tolist()}
-        Path(args.json).write_text(json.dumps(data, indent=1))
-        print(f"json         {args.json}")
+        print(f"json         {write_json(args.json, sol, args)}")
     if args.csv:
-        import csv
-        with open(args.csv, "w", newline="") as fh:
-            w = csv.writer(fh)
-            w.writerow(["x", "y", "u_n", "g", "gap", "lam", "p"])
-            for (x, y), a, b, lam, p in zip(ops.xc, un, ops.g, r.lam, r.z):
-                w.writerow([f"{x:.10g}", f"{y:.10g}", f"{a:.10e}", f"{b:.10e}", f"{b - a:.10e}",
-                            f"{lam:.10e}", f"{p:.10e}"])
-        print(f"csv          {args.csv}")
+        columns = {"x": ops.xc[:, 0], "y": ops.xc[:, 1], "u_n": fields["normal_displacement"],
+                   "g": fields["initial_gap"], "gap": fields["gap"], "lam": fields["contact_pressure"],
+                   "p": r.z[:ops.n_c],
+                   "active": fields["contact_status"]}
+        print(f"csv          {write_result_csv(args.csv, columns)}")
     if args.plot:
         from .plot import figure_solution
         magnify = args.magnify or (10.0 if scene.name == "example1" else 20.0)
-        figure_solution(ops, r.x, r.lam, magnify,
-                        f"{scene.name or args.scene}: {args.method}, rho_0 = {args.rho:g}, h = {scene.h:.4g}, "
-                        f"u x{magnify:g}", args.plot)
+        figure_solution(ops, r.x, fields["contact_pressure"], magnify,
+                        f"{scene.name or args.scene}: {name}, rho_0 = {args.rho:g}, h = {scene.h:.4g}, "
+                        f"u x{magnify:g}", args.plot, p=r.z[:ops.n_c])
         print(f"plot         {args.plot}")
     if args.vtk:
-        import ngsolve as ng
-        gf = ops.to_gridfunction(r.x)
-        written = ng.VTKOutput(ops.mesh, coefs=[gf], names=["displacement"], filename=str(args.vtk)).Do()
-        written = str(written or args.vtk)
-        print(f"vtk          {written if written.endswith('.vtu') else written + '.vtu'}")
-    return 0 if r.converged else 1
+        print(f"vtk          {write_vtu(args.vtk, ops, r.x, fields)}")
+    return exit_code(r) if getattr(sol, "converged", r.converged) else 1   # with friction: the outer loop too
 
 
 def register_demo(commands) -> None:

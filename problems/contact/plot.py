@@ -45,20 +45,27 @@ def plot_deformed(ax, ops: ContactOperators, u_free: np.ndarray, magnify: float,
     return pc
 
 
-def plot_pressure_gap(axes, ops: ContactOperators, u_free: np.ndarray, lam: np.ndarray):
-    """lam and the gap g - u_n along Gamma_C against x (two axes)."""
+def plot_pressure_gap(axes, ops: ContactOperators, u_free: np.ndarray, lam: np.ndarray, p: np.ndarray | None = None):
+    """The contact pressure lam and the gap g - u_n along Gamma_C against x (two axes).
+
+    With ``p`` (the last z-step, ``result.z``) the active nodes are marked: p = g,
+    the one definition of :func:`problems.contact.export.contact_status`.
+    """
+    from .export import contact_status
     x = ops.xc[:, 0]
     un = ops.B @ u_free
     gap = ops.g - un
-    active = gap <= 1e-4 * max(float(np.abs(ops.g).max()), 1e-300)  # the stop leaves gaps ~1e-7 g
     ax1, ax2 = axes
     ax1.plot(x, lam, "b.-", ms=3, label="contact pressure lam")
-    ax1.plot(x[active], lam[active], "o", mfc="none", mec="r", ms=5, label="in contact (g - u_n <= 1e-4 max g)")
-    ax1.set_ylabel("lam"); ax1.legend(fontsize=8); ax1.grid(alpha=0.3)
+    if p is not None:
+        active = contact_status(ops, p)
+        ax1.plot(x[active], lam[active], "o", mfc="none", mec="r", ms=5,
+                 label=f"active ({int(active.sum())} nodes: p = g after the last z-step)")
+    ax1.set_ylabel("contact pressure lam"); ax1.legend(fontsize=8); ax1.grid(alpha=0.3)
     ax2.plot(x, gap, "g.-", ms=3, label="gap g - u_n")
     ax2.plot(x, ops.g, "k--", lw=0.8, label="initial gap g")
     ax2.axhline(0, color="k", lw=0.5)
-    ax2.set_ylabel("g - u_n"); ax2.set_xlabel("x on Gamma_C (y = 0)"); ax2.legend(fontsize=8); ax2.grid(alpha=0.3)
+    ax2.set_ylabel("gap g - u_n"); ax2.set_xlabel("x on Gamma_C (y = 0)"); ax2.legend(fontsize=8); ax2.grid(alpha=0.3)
 
 
 def figure_deformed(ops, u, magnify, title, path, svg=True):
@@ -72,18 +79,18 @@ def figure_deformed(ops, u, magnify, title, path, svg=True):
     return save_figure(fig, path, ("png", "svg") if svg else ("png",))
 
 
-def figure_pressure_gap(ops, u, lam, title, path, svg=True):
-    """lam and g - u_n along Gamma_C."""
+def figure_pressure_gap(ops, u, lam, title, path, svg=True, p=None):
+    """The contact pressure lam and the gap g - u_n along Gamma_C (active nodes marked when ``p`` is given)."""
     plt = pyplot()
     fig, axes = plt.subplots(2, 1, figsize=(8, 5.5), sharex=True)
-    plot_pressure_gap(axes, ops, u, lam)
+    plot_pressure_gap(axes, ops, u, lam, p)
     axes[0].set_title(title)
     fig.tight_layout()
     return save_figure(fig, path, ("png", "svg") if svg else ("png",))
 
 
-def figure_solution(ops, u, lam, magnify, title, path):
-    """Deformed body over pressure/gap in one PNG (the CLI's --plot)."""
+def figure_solution(ops, u, lam, magnify, title, path, p=None):
+    """Deformed body over contact pressure and gap in one PNG (the CLI's --plot; active nodes marked with ``p``)."""
     plt = pyplot()
     fig = plt.figure(figsize=(9, 8.5))
     gs = fig.add_gridspec(3, 1, height_ratios=[2.2, 1, 1])
@@ -91,6 +98,6 @@ def figure_solution(ops, u, lam, magnify, title, path):
     pc = plot_deformed(ax0, ops, u, magnify, title)
     fig.colorbar(pc, ax=ax0, label="|u|", fraction=0.025, pad=0.02)
     ax1 = fig.add_subplot(gs[1]); ax2 = fig.add_subplot(gs[2], sharex=ax1)
-    plot_pressure_gap((ax1, ax2), ops, u, lam)
+    plot_pressure_gap((ax1, ax2), ops, u, lam, p)
     fig.tight_layout()
     return save_figure(fig, path, ("png",))[0]

@@ -2,7 +2,9 @@
 from __future__ import annotations
 
 import policies  # noqa: F401  (registers the rules the --policy option offers)
-from admmkit.cli import add_common_options, positive_float, run_solve
+from admmkit.cli import (add_common_options, add_output_file, add_result_outputs, exit_code, positive_float,
+                         run_solve, write_result_csv, write_result_json)
+from policies.paper_methods import PAPER_METHODS
 
 from .plot import plot_solution
 from .problem import DEFAULT_BACKEND, make_problem
@@ -16,20 +18,23 @@ def register(subparsers) -> None:
                    help=f"named scene: {', '.join(SCENES)} (default radial)")
     p.add_argument("--h", type=positive_float, default=1 / 16, help="cell size, fractions allowed (default 1/16)")
     p.add_argument("--backend", default=DEFAULT_BACKEND, help=f"sparse solver of K + rho M, or iterative for AMG-preconditioned CG (default {DEFAULT_BACKEND})")
-    p.add_argument("--plot", metavar="FILE", default=None, help="write a plot of u, psi and the contact set (PNG)")
-    add_common_options(p, policy="summable", order="zx")
+    add_output_file(p, "--plot", "FILE", "write a plot of u, psi and the contact set (PNG)")
+    add_common_options(p, policy="summable", order="zx", methods=PAPER_METHODS)
+    add_result_outputs(p, json_help="write the run (provenance, scene, summary, errors, u on the free nodes) as JSON",
+                       csv_help="write one row per free node: x, y, u, psi, in_contact")
     p.set_defaults(func=run)
 
 
 def run(args) -> int:
-    """Build the scene, solve it, print the summary and the errors against the exact solution."""
+    """Build the scene, solve it, print the summary and the errors against the exact solution; 0 only if converged."""
     problem = make_problem(named_scene(args.scene, h=args.h), backend=args.backend)
     nx, ny = problem.scene.counts
     print(f"problem      obstacle/{args.scene}: h = {args.h:.6g} ({nx} x {ny} squares), "
           f"{problem.n} free nodes, side {problem.scene.side}")
     result = run_solve(problem, args)
     contact = problem.contact_set(result.z)
-    print(f"contact set  {contact.sum()} nodes, area {problem.contact_area(result.z):.6g}")
+    print(f"contact set  {int(contact.sum())} nodes, area {problem.contact_area(result.z):.6g}")
+    err = radius = None
     if problem.scene.exact is not None:
         err = problem.errors(result.x)
         radius = problem.contact_radius(result.z)
@@ -38,4 +43,16 @@ def run(args) -> int:
               f"difference {radius - A_STAR:+.3e}")
     if args.plot:
         print(f"plot         {plot_solution(problem, result.x, result.z, args.plot)}")
-    return 0
+    if args.json:
+        scene = {"name": args.scene, "h": args.h, "counts": [nx, ny], "side": problem.scene.side,
+                 "backend": args.backend, "n_free": problem.n}
+        arrays = {"u": result.x, "z": result.z, "lam": result.lam, "free_nodes": problem.free,
+                  "node_xy": problem.nodes[problem.free]}
+        extra = {"contact_nodes": int(contact.sum()), "errors": err, "contact_radius": radius}
+        print(f"json         {write_result_json(args.json, result, args, problem=scene | extra, arrays=arrays)}")
+    if args.csv:
+        xy = problem.nodes[problem.free]
+        columns = {"node": problem.free, "x": xy[:, 0], "y": xy[:, 1], "u": result.x, "psi": problem.psi,
+                   "in_contact": contact.astype(int)}
+        print(f"csv          {write_result_csv(args.csv, columns)}")
+    return exit_code(result)
