@@ -28,8 +28,8 @@ import scipy.sparse as sp
 from ngsolve.meshes import MakeStructured2DMesh
 
 from admmkit import Problem
-from admmkit.iterative import IterativeXSolver
-from admmkit.linsolve import CachedFactorization
+from admmkit.prox import Box, UpperBound
+from admmkit.xstep import QuadraticXStep
 
 from .scene import A_STAR, Scene, check_boundary, radial_exact_cf
 
@@ -95,21 +95,22 @@ class ObstacleProblem(Problem):
         self._energy0 = float(0.5 * self.u_D @ (Kfull @ self.u_D) - Ffull @ self.u_D)
         self.n = self.free.size
         self.c = 0.0
-        K, m = self.K, self.m
-        if backend == "iterative":   # AMG-preconditioned CG (admmkit.iterative); near-null space: constants
-            self._solver = IterativeXSolver(K, sp.diags(m), near_null=np.ones((self.n, 1)))
+        # f(u) = 1/2 u'Ku - F'u with A = I in the lumped mass: (K + rho M) u = F + M (rho z - lam), by a
+        # factorisation per rho or by AMG-preconditioned CG (near-null space: the constants)
+        if backend == "iterative":
+            self._xstep = QuadraticXStep(self.K, -self.F, M=self.m, solver="amg", near_null=np.ones((self.n, 1)))
         else:
-            self._solver = CachedFactorization(lambda rho: (K + rho * sp.diags(m)).tocsc(), backend=backend)
+            self._xstep = QuadraticXStep(self.K, -self.F, M=self.m, solver="direct", backend=backend)
+        self._g = Box(lower=self.psi) if self.sign > 0 else UpperBound(self.psi)   # g = indicator of the obstacle
 
     # -- the splitting --------------------------------------------------------
     def x_step(self, z, lam, rho, x):
-        """Solve (K + rho M) u = F + M (rho z - lam)."""
-        return self._solver.solve(rho, self.F + self.m * (rho * z - lam))
+        """Solve (K + rho M) u = F + M (rho z - lam) (admmkit.xstep.QuadraticXStep)."""
+        return self._xstep(z, lam, rho, x)
 
     def z_step(self, Ax, lam, rho, z):
-        """Project u + lam/rho pointwise onto {z >= psi} (or {z <= psi})."""
-        w = Ax + lam / rho
-        return np.maximum(self.psi, w) if self.sign > 0 else np.minimum(self.psi, w)
+        """Project u + lam/rho pointwise onto {z >= psi} (or {z <= psi}): the prox of the obstacle's indicator."""
+        return self._g.prox(Ax + lam / rho, 1.0 / rho, self.m)
 
     def apply_A(self, x):
         """A = I."""
@@ -170,11 +171,13 @@ class ObstacleProblem(Problem):
             "complementarity": _inf(lam * slack) / (lam_scale * u_scale),
         }
 
+    def begin_run(self):
+        """Count the x-step's work from the start of a run (called by admmkit.solve)."""
+        self._xstep.begin_run()
+
     def counters(self):
-        """Factorisations (or AMG setups and CG iterations) and solves of K + rho M so far."""
-        if isinstance(self._solver, IterativeXSolver):
-            return self._solver.counters()
-        return {"factorizations": self._solver.factorizations, "solves": self._solver.solves}
+        """Factorisations (or AMG setups and CG iterations) and solves of K + rho M in this run."""
+        return self._xstep.counters()
 
     # -- finite element helpers -------------------------------------------------
     @property
