@@ -16,11 +16,31 @@ def _out(p, study: str) -> None:
     p.add_argument("--out", default=f"out/{study}", help=f"output folder (default out/{study})")
 
 
+def _executor_options(p, workers: int = 2) -> None:
+    """Where a sweep's cases run: local processes (--workers) or Dask (--dask-workers, --scheduler)."""
+    p.add_argument("--workers", type=positive_int, default=workers,
+                   help=f"local worker processes, one BLAS thread each (default {workers}"
+                        + (" = the cores of this machine)" if workers == 2 else ")"))
+    where = p.add_mutually_exclusive_group()
+    where.add_argument("--dask-workers", type=positive_int, default=None, metavar="N",
+                       help="run on a Dask LocalCluster of N single-threaded worker processes (needs dask[distributed])")
+    where.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                       help="run on the Dask cluster of this scheduler, e.g. tcp://head:8786 (docs/sweeps.md)")
+    p.add_argument("--case-timeout", type=positive_float, default=None, metavar="SECONDS",
+                   help="record a case that runs longer than this as a timeout and go on (default: no limit)")
+
+
+def _executor(args):
+    """The sweep executor of the parsed options."""
+    from .sweep import Executor
+    return Executor(workers=args.workers, dask_workers=args.dask_workers, scheduler=args.scheduler,
+                    timeout=args.case_timeout)
+
+
 def _sweep_options(p, study: str) -> None:
     """The options of the resumable sweeps (benchmarks.sweep)."""
     _out(p, study)
-    p.add_argument("--workers", type=positive_int, default=2,
-                   help="worker processes, one BLAS thread each (default 2 = the cores of this machine)")
+    _executor_options(p)
     p.add_argument("--quick", action="store_true", help="a tiny grid (the smoke test)")
     p.add_argument("--no-progress", dest="progress", action="store_false", help="no progress line")
     p.add_argument("--report-only", action="store_true",
@@ -83,7 +103,8 @@ def paper_compare(targets) -> None:
 def _paper_compare(args) -> int:
     from . import paper_compare
     _print_files(paper_compare.run(args.out, repeats=args.repeats, workers=args.workers, quick=args.quick,
-                                   progress=args.progress, command=args.command_line, report_only=args.report_only))
+                                   progress=args.progress, command=args.command_line, report_only=args.report_only,
+                                   executor=_executor(args)))
     return 0
 
 
@@ -112,7 +133,7 @@ def _precision(args) -> int:
     _print_files(precision.run(args.out, quick=args.quick, workers=args.workers, repeats=args.repeats,
                                scenes=args.scenes, hs=tuple(args.hs) if args.hs else None,
                                methods=_methods(args.methods), progress=args.progress, command=args.command_line,
-                               time_limit=args.time_limit, report_only=args.report_only))
+                               time_limit=args.time_limit, report_only=args.report_only, executor=_executor(args)))
     return 0
 
 
@@ -129,7 +150,8 @@ def stability(targets) -> None:
 def _stability(args) -> int:
     from . import stability
     _print_files(stability.run(args.out, quick=args.quick, workers=args.workers, methods=_methods(args.methods),
-                               progress=args.progress, command=args.command_line, report_only=args.report_only))
+                               progress=args.progress, command=args.command_line, report_only=args.report_only,
+                               executor=_executor(args)))
     return 0
 
 
@@ -139,10 +161,9 @@ def policies_fe(targets) -> None:
     b = targets.add_parser("policies", help="penalty rules on contact Ex.1 and the radial obstacle, rho_0 over 12 decades",
                            description="Iterations, factorisations and the error at the stop of the penalty rules "
                                        "on contact Example 1 (h = 1/20) and the radial obstacle (h = 1/16).")
-    _out(b, "policies")
+    _sweep_options(b, "policies")
     b.add_argument("--rules", default=",".join(RULES), help=f"comma-separated rules (default {','.join(RULES)})")
-    b.add_argument("--quick", action="store_true", help="coarse meshes and three rho_0 (smoke test)")
-    b.add_argument("--quiet", action="store_true", help="no progress lines")
+    b.add_argument("--quiet", dest="progress", action="store_false", help="no progress lines (as --no-progress)")
     b.set_defaults(func=_policies_fe)
 
 
@@ -154,7 +175,8 @@ def _policies_fe(args) -> int:
     unknown = [r for r in rules if r not in admmkit.policy_names()]
     if unknown or not rules:
         raise ValueError(f"--rules: unknown {unknown}; known: {', '.join(admmkit.policy_names())}")
-    run(args.out, rules=rules, quick=args.quick, command=args.command_line, progress=not args.quiet)
+    run(args.out, rules=rules, quick=args.quick, command=args.command_line, progress=args.progress,
+        executor=_executor(args), report_only=args.report_only)
     return 0
 
 
@@ -177,10 +199,11 @@ def maros_meszaros(targets) -> None:
     b.add_argument("--max-iter", type=positive_int, default=mm.MAX_ITER, help=f"iteration cap (default {mm.MAX_ITER})")
     b.add_argument("--time-limit", type=positive_float, default=mm.TIME_LIMIT,
                    help=f"seconds per problem and configuration (default {mm.TIME_LIMIT:g})")
-    b.add_argument("--workers", type=positive_int, default=1, help="worker processes (default 1)")
+    _executor_options(b, workers=1)
     b.add_argument("--problems", default=None, help="comma-separated problem names (default: all)")
     b.add_argument("--no-osqp", action="store_true", help="do not run OSQP itself")
-    b.add_argument("--resume", action="store_true", help="keep the problems already in OUT/results.csv")
+    b.add_argument("--resume", action="store_true",
+                   help="keep the cases already in OUT/results.jsonl (without it the sweep starts afresh)")
     b.add_argument("--quiet", action="store_true", help="no progress lines")
     b.set_defaults(func=_maros_meszaros)
 
@@ -190,7 +213,7 @@ def _maros_meszaros(args) -> int:
     run_benchmark(args.data, args.out, policy_names=_split(args.policies), orders=_split(args.orders) or (),
                   eps=tuple(args.eps) if args.eps else EPS, max_iter=args.max_iter, time_limit=args.time_limit,
                   workers=args.workers, only=_split(args.problems), osqp_direct=not args.no_osqp,
-                  resume=args.resume, command=args.command_line, progress=not args.quiet)
+                  resume=args.resume, command=args.command_line, progress=not args.quiet, executor=_executor(args))
     return 0
 
 

@@ -30,14 +30,20 @@ alpha = 1.6, a rho per constraint type, its adaptive rho every 50 iterations)
 except: no polishing, no duality-gap test, the termination checked every
 iteration (so iteration counts compare), the same accuracy, iteration cap and
 time limit.
+
+The runs go through the sweep runner (:mod:`benchmarks.sweep`): one case per
+(problem, configuration), the cases of one problem in one task (the MAT file
+is read once per worker), every finished case kept in ``results.jsonl``
+(``--resume`` continues an interrupted run), on local processes or Dask;
+``results.csv`` and the report are written from those records, atomically.
+The report (statistics, profiles, tables) is :mod:`benchmarks.maros_meszaros_report`.
 """
 from __future__ import annotations
 
-import csv
 import datetime
 import math
+import os
 import time
-from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
 
 import numpy as np
@@ -49,17 +55,19 @@ import policies
 from admmkit import Status
 
 from .machine import machine_info
+from .maros_meszaros_report import (FIELDS, OSQP_DIRECT, RHO0, SHIFT, performance_profile,  # noqa: F401
+                                    plot_profiles, read_rows, shifted_geometric_mean, summarize, write_report,
+                                    write_rows)
+from .sweep import Executor, case_id, run_sweep
 
 from problems.qp.mat import list_problems, load_mat
 from problems.qp.problem import QP, REDUCED_MAX_NNZ, reduced_nnz_bound
 from problems.qp.termination import OSQPTermination, osqp_relative_residuals, osqp_residuals
 
-RHO0 = 0.1
 EPS = (1e-3, 1e-6)
 ORDERS = ("xz", "zx")
 MAX_ITER = 20_000
 TIME_LIMIT = 10.0
-SHIFT = 10.0
 #: a wall-time cap of WALL_FACTOR x the (CPU) time limit, against a stalled machine
 WALL_FACTOR = 20.0
 #: skip a problem whose x-step matrix would have more nonzeros than this in both forms (reduced: at most
@@ -67,11 +75,8 @@ WALL_FACTOR = 20.0
 NNZ_LIMIT = 2e7
 #: the extra configuration of OSQP's rule with OSQP's exact QP normalisation
 OSQP_QP = "osqp_qp"
-#: the label of OSQP called directly
-OSQP_DIRECT = "OSQP"
-
-FIELDS = ("problem", "n", "m", "solver", "order", "eps", "solved", "status", "iterations", "time", "setup_time",
-          "factorizations", "rho_changes", "rho_final", "rho_max", "primal_res", "dual_res")
+#: the folder of the MAT files, for the workers (set by the driver through the sweep's env)
+DATA_ENV = "ADMMKIT_QP_DATA"
 
 
 def default_policies() -> list[str]:
@@ -205,201 +210,70 @@ def run_problem(path: str, configs: list[tuple[str, str]], eps=EPS, max_iter: in
     return rows
 
 
-# ---------------------------------------------------------------- statistics
-def shifted_geometric_mean(values, shift: float = SHIFT) -> float:
-    """exp(mean(log(v + shift))) - shift (Mittelmann's shifted geometric mean)."""
-    v = np.asarray(list(values), dtype=float)
-    if v.size == 0:
-        return math.nan
-    return float(np.exp(np.mean(np.log(v + shift))) - shift)
+# ---------------------------------------------------------------- the sweep's cases
+def build_cases(paths, configs, eps, max_iter: int, time_limit: float, osqp_direct: bool) -> list[dict]:
+    """One case per (problem, rule, order) and per (problem, OSQP accuracy); a problem's cases are a group."""
+    cases = []
+    for path in paths:
+        base = {"target": "maros_meszaros", "problem": path.stem, "file": path.name, "max_iter": max_iter,
+                "time_limit": time_limit, "group": path.stem}
+        for policy, order in configs:
+            cases.append(base | {"solver": policy, "order": order, "eps": list(eps)})
+        if osqp_direct:
+            cases += [base | {"solver": OSQP_DIRECT, "order": "-", "eps": e} for e in sorted(eps)]
+    return cases
 
 
-def solver_keys(rows: list[dict]) -> list[tuple[str, str]]:
-    """(solver, order) pairs in first-seen order."""
-    return list(dict.fromkeys((r["solver"], r["order"]) for r in rows))
+_QP: dict = {}
 
 
-def summarize(rows: list[dict], max_iter: int, time_limit: float) -> list[dict]:
-    """One line per (solver, order, eps): successes, shifted geometric means, factorisations, statuses."""
-    out = []
-    for eps in sorted({r["eps"] for r in rows}, reverse=True):
-        for solver, order in solver_keys(rows):
-            sel = [r for r in rows if r["solver"] == solver and r["order"] == order and r["eps"] == eps]
-            if not sel:
-                continue
-            solved = [r for r in sel if _true(r["solved"])]
-            statuses: dict[str, int] = {}
-            for r in sel:
-                if not _true(r["solved"]):
-                    statuses[r["status"]] = statuses.get(r["status"], 0) + 1
-            facts = [float(r["factorizations"]) for r in sel]
-            out.append({
-                "eps": eps, "solver": solver, "order": order, "problems": len(sel), "solved": len(solved),
-                "rate": len(solved) / len(sel),
-                "sgm_iterations": shifted_geometric_mean(
-                    float(r["iterations"]) if _true(r["solved"]) else max_iter for r in sel),
-                "sgm_time": shifted_geometric_mean(
-                    float(r["time"]) if _true(r["solved"]) else time_limit for r in sel),
-                "factorizations_mean": float(np.mean(facts)), "factorizations_max": int(max(facts)),
-                "failures": statuses,
-                "runaway": sum(1 for r in sel if _finite(r["rho_max"]) and float(r["rho_max"]) > 1e20 * RHO0),
-            })
-    return out
+def run_case(case: dict) -> dict:
+    """Worker entry point: one configuration on one QP; {"rows": one row per accuracy}."""
+    path = Path(os.environ.get(DATA_ENV, ".")) / case["file"]
+    if _QP.get("path") != path:
+        _QP.clear()
+        _QP.update(path=path, qp=load_mat(path))
+    qp = _QP["qp"]
+    if case["solver"] == OSQP_DIRECT:
+        return {"rows": [run_osqp(qp, case["eps"], case["max_iter"], case["time_limit"])]}
+    return {"rows": run_admmkit(qp, case["solver"], case["order"], tuple(case["eps"]), case["max_iter"],
+                                case["time_limit"])}
 
 
-def performance_profile(rows: list[dict], metric: str, eps: float):
-    """Dolan-More profile: {(solver, order): (taus, fraction of problems solved within tau x the best)}."""
-    sel = [r for r in rows if r["eps"] == eps]
-    problems = sorted({r["problem"] for r in sel})
-    keys = solver_keys(sel)
-    table = np.full((len(problems), len(keys)), np.inf)
-    index = {p: i for i, p in enumerate(problems)}
-    for r in sel:
-        if _true(r["solved"]):
-            table[index[r["problem"]], keys.index((r["solver"], r["order"]))] = max(float(r[metric]), 1e-9)
-    best = table.min(axis=1, keepdims=True)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        ratio = np.where(np.isfinite(best), table / best, np.inf)
-    finite = ratio[np.isfinite(ratio)]
-    top = max(float(finite.max()) if finite.size else 2.0, 2.0)
-    taus = np.logspace(0, math.log10(top) + 0.05, 400)
-    return {key: (taus, (ratio[:, j][:, None] <= taus[None, :]).mean(axis=0)) for j, key in enumerate(keys)}
-
-
-def _true(v) -> bool:
-    return v is True or str(v) == "True"
-
-
-def _finite(v) -> bool:
-    try:
-        return math.isfinite(float(v))
-    except (TypeError, ValueError):
-        return False
-
-
-# ---------------------------------------------------------------- output
-def plot_profiles(rows: list[dict], path_stem: Path) -> list[Path]:
-    """Performance profiles (rows: accuracies, columns: iterations and time) as PNG and SVG."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    epss = sorted({r["eps"] for r in rows}, reverse=True)
-    names = list(dict.fromkeys(r["solver"] for r in rows))
-    colors = {name: plt.cm.tab10(i % 10) for i, name in enumerate(n for n in names if n != OSQP_DIRECT)}
-    colors[OSQP_DIRECT] = "black"
-    styles = {"xz": "-", "zx": "--", "-": "-"}
-    fig, axes = plt.subplots(len(epss), 2, figsize=(13, 4.6 * len(epss)), squeeze=False)
-    for i, eps in enumerate(epss):
-        for j, (metric, label) in enumerate([("iterations", "iterations"), ("time", "time")]):
-            ax = axes[i][j]
-            for (solver, order), (taus, frac) in performance_profile(rows, metric, eps).items():
-                ax.step(taus, frac, where="post", color=colors[solver], linestyle=styles.get(order, "-"),
-                        linewidth=2.2 if solver == OSQP_DIRECT else 1.4,
-                        label=solver if order == "-" else f"{solver} ({order})")
-            ax.set_xscale("log", base=2)
-            ax.set_ylim(0, 1.02)
-            ax.grid(True, which="both", alpha=0.3)
-            ax.set_xlabel(f"tau: within tau x the best {label}")
-            ax.set_ylabel("fraction of problems")
-            ax.set_title(f"{label}, eps_abs = eps_rel = {eps:g}")
-    handles, labels = axes[0][0].get_legend_handles_labels()
-    fig.legend(handles, labels, loc="center right", fontsize=8, frameon=False)
-    fig.suptitle("Performance profiles on the Maros-Meszaros QPs (solid: order xz, dashed: zx)")
-    fig.tight_layout(rect=(0, 0, 0.83, 0.97))
-    paths = []
-    for ext in ("png", "svg"):
-        p = path_stem.with_suffix(f".{ext}")
-        fig.savefig(p, dpi=110)
-        paths.append(p)
-    plt.close(fig)
-    return paths
-
-
-def _fmt_failures(failures: dict) -> str:
-    return ", ".join(f"{k} {v}" for k, v in sorted(failures.items())) or "-"
-
-
-def markdown(summary: list[dict], skipped: dict[str, str], meta: dict, command: str, n_run: int,
-             figure: str, kkt_form: dict[str, str] | None = None) -> str:
-    """The report: settings, one table per accuracy, the KKT-form and the skipped problems, the machine."""
-    lines = [
-        "# Penalty rules on the Maros-Meszaros QPs",
-        "",
-        f"Command (from the repository root): `{command}`",
-        "",
-        f"{n_run} problems run, {len(skipped)} skipped (listed below).  Every admmkit rule starts from "
-        f"rho_0 = {RHO0:g}; iteration cap {meta['max_iter']}, time limit {meta['time_limit']:g} s per problem and "
-        f"configuration.  Times are CPU seconds of the process (setup + solve, BLAS on one thread): the 2-core "
-        f"machine was shared ({meta['workers']} worker process(es) here and other jobs), and wall time would "
-        "charge a run for the other processes.  "
-        "Solved means OSQP's test with eps_abs = eps_rel = eps on the unscaled QP (docs/policies.md).  "
-        f"Shifted geometric means use shift {SHIFT:g} and count a failure as the cap / the limit.  "
-        "Factorisations: of the x-step matrix during the run up to that accuracy (OSQP: 1 + rho updates).  "
-        "'runaway': runs where rho exceeded 1e20 rho_0.  Per-run data: `results.csv`.",
-        "",
-        f"![performance profiles]({figure})",
-        "",
-    ]
-    for eps in sorted({s["eps"] for s in summary}, reverse=True):
-        lines += [f"## eps = {eps:g}", "",
-                  "| rule | order | solved | rate | SGM iterations | SGM time [s] | factorisations mean / max "
-                  "| failures | runaway |",
-                  "|---|---|---|---|---|---|---|---|---|"]
-        rows = sorted((s for s in summary if s["eps"] == eps), key=lambda s: (-s["rate"], s["sgm_time"]))
-        for s in rows:
-            lines.append(f"| {s['solver']} | {s['order']} | {s['solved']}/{s['problems']} | {100 * s['rate']:.1f}% "
-                         f"| {s['sgm_iterations']:.1f} | {s['sgm_time']:.3f} | {s['factorizations_mean']:.1f} / "
-                         f"{s['factorizations_max']} | {_fmt_failures(s['failures'])} | {s['runaway']} |")
-        lines.append("")
-    lines += ["## x-step in KKT form", "",
-              "A dense row of A makes A'A dense; these problems ran with OSQP's KKT form of the x-step "
-              "(`QP(xstep=\"auto\")`, factorised by qdldl or SuperLU):", ""]
-    lines += [f"- {name}: {why}" for name, why in sorted((kkt_form or {}).items())] or ["- none"]
-    lines += ["", "## Skipped", ""]
-    lines += [f"- {name}: {why}" for name, why in sorted(skipped.items())] or ["- none"]
-    lines += ["", "## Machine", ""] + [f"- {k}: {v}" for k, v in meta["machine"].items()]
-    lines += [f"- started {meta['started']}, wall time {meta['wall']:.0f} s", ""]
-    return "\n".join(lines)
-
-
-def write_rows(rows: list[dict], path: Path, append: bool = False) -> None:
-    """Write (or append) per-run rows as CSV."""
-    new = not (append and path.exists())
-    with path.open("a" if append else "w", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=FIELDS)
-        if new:
-            w.writeheader()
-        for r in rows:
-            w.writerow({k: (f"{r[k]:.6g}" if isinstance(r[k], float) else r[k]) for k in FIELDS})
-
-
-def read_rows(path: Path) -> list[dict]:
-    """Rows written by :func:`write_rows`, numbers parsed."""
-    rows = []
-    with path.open(newline="") as fh:
-        for r in csv.DictReader(fh):
-            for k in ("n", "m", "iterations", "factorizations", "rho_changes"):
-                r[k] = int(r[k])
-            for k in ("eps", "time", "setup_time", "rho_final", "rho_max", "primal_res", "dual_res"):
-                r[k] = float(r[k])
-            r["solved"] = _true(r["solved"])
-            rows.append(r)
-    return rows
+def case_rows(record: dict) -> list[dict]:
+    """The per-run rows of a record; a case that raised, timed out or lost its worker fails at every accuracy."""
+    result = record.get("result")
+    if result is not None:
+        return [dict(r) for r in result["rows"]]
+    case = record["case"]
+    error = (record.get("error") or "error").split(":")[0]
+    eps = case["eps"] if isinstance(case["eps"], list) else [case["eps"]]
+    return [{"problem": case["problem"], "n": -1, "m": -1, "solver": case["solver"], "order": case["order"],
+             "eps": e, "solved": False, "status": error, "iterations": case["max_iter"], "time": case["time_limit"],
+             "setup_time": math.nan, "factorizations": 0, "rho_changes": 0, "rho_final": math.nan,
+             "rho_max": math.nan, "primal_res": math.nan, "dual_res": math.nan} for e in eps]
 
 
 # ---------------------------------------------------------------- the benchmark
 def run_benchmark(folder, out, *, policy_names=None, orders=ORDERS, eps=EPS, max_iter: int = MAX_ITER,
                   time_limit: float = TIME_LIMIT, workers: int = 1, only=None, osqp_direct: bool = True,
-                  resume: bool = False, nnz_limit: float = NNZ_LIMIT, command: str = "", progress: bool = True
-                  ) -> dict:
-    """Run the benchmark on every MAT file of ``folder``; write results.csv, README.md and profiles to ``out``."""
+                  resume: bool = False, nnz_limit: float = NNZ_LIMIT, command: str = "", progress: bool = True,
+                  executor: Executor | None = None) -> dict:
+    """Run the benchmark on every MAT file of ``folder``; write results.csv, README.md and profiles to ``out``.
+
+    ``resume``: keep the cases already in ``out/results.jsonl`` (else start
+    afresh); ``executor``: where the cases run (default ``workers`` local processes).
+    """
     if isinstance(max_iter, bool) or not isinstance(max_iter, int) or max_iter < 1:
         raise ValueError(f"max_iter must be an integer >= 1, got {max_iter!r}")
     if not (math.isfinite(time_limit) and time_limit > 0):
         raise ValueError(f"time_limit must be a finite number > 0 seconds, got {time_limit!r}")
-    if isinstance(workers, bool) or not isinstance(workers, int) or not 1 <= workers <= 2:
-        raise ValueError(f"workers must be 1 or 2 (a shared 2-core machine), got {workers!r}")
+    if executor is None:
+        if isinstance(workers, bool) or not isinstance(workers, int) or not 1 <= workers <= 2:
+            raise ValueError(f"workers must be 1 or 2 (a shared 2-core machine), got {workers!r}")
+        executor = Executor(workers=workers)
+    elif not executor.dask and not 1 <= executor.workers <= 2:
+        raise ValueError(f"workers must be 1 or 2 (a shared 2-core machine), got {executor.workers!r}")
     eps = tuple(sorted({float(e) for e in eps}, reverse=True))
     if not eps or not all(0 < e < 1 for e in eps):
         raise ValueError(f"eps must be numbers in (0, 1), got {eps!r}")
@@ -422,12 +296,12 @@ def run_benchmark(folder, out, *, policy_names=None, orders=ORDERS, eps=EPS, max
         raise ValueError(f"no MAT files in {folder}")
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    csv_path = out / "results.csv"
+    results = out / "results.jsonl"
     configs = [(n, o) for n in names for o in orders]
 
     started = datetime.datetime.now().isoformat(timespec="seconds")
     t_start = time.perf_counter()
-    skipped, kkt_form = {}, {}
+    skipped, kkt_form, costs = {}, {}, {}
     todo = []
     for p in paths:
         sizes = x_step_sizes(p)   # one read of P and A per file
@@ -436,57 +310,26 @@ def run_benchmark(folder, out, *, policy_names=None, orders=ORDERS, eps=EPS, max
             skipped[p.stem] = why
         else:
             todo.append(p)
+            costs[p.stem] = float(min(sizes[0], sizes[1]))
             kkt_why = kkt_form_reason(p, sizes)
             if kkt_why:
                 kkt_form[p.stem] = kkt_why
-    done = set()
-    if resume and csv_path.exists():
-        done = {r["problem"] for r in read_rows(csv_path)}
-    elif csv_path.exists():
-        csv_path.unlink()
-    pending = [p for p in todo if p.stem not in done]
+    if not resume:
+        results.unlink(missing_ok=True)
+    cases = build_cases(todo, configs, eps, max_iter, time_limit, osqp_direct)
     if progress:
-        print(f"{len(todo)} problems to run ({len(done)} already in {csv_path}), {len(skipped)} skipped; "
-              f"{len(configs)} admmkit configurations{' + OSQP' if osqp_direct else ''}, "
-              f"cap {max_iter} iterations / {time_limit:g} s, {workers} worker(s)", flush=True)
-    args = dict(eps=eps, max_iter=max_iter, time_limit=time_limit, osqp_direct=osqp_direct)
-
-    def report(i, path, rows):
-        write_rows(rows, csv_path, append=True)
-        if progress:
-            elapsed = time.perf_counter() - t_start
-            solved = sum(1 for r in rows if r["solved"] and r["eps"] == min(eps))
-            total = sum(1 for r in rows if r["eps"] == min(eps))
-            eta = elapsed / i * (len(pending) - i)
-            print(f"[{i:3d}/{len(pending)}] {path.stem:12s} solved {solved:2d}/{total} at eps={min(eps):g}  "
-                  f"elapsed {elapsed:6.0f} s, ETA {eta:6.0f} s", flush=True)
-
-    if workers == 1:
-        for i, p in enumerate(pending, 1):
-            report(i, p, run_problem(str(p), configs, **args))
-    else:
-        with ProcessPoolExecutor(max_workers=workers) as pool:
-            futures = {pool.submit(run_problem, str(p), configs, **args): p for p in pending}
-            for i, fut in enumerate(as_completed(futures), 1):
-                report(i, futures[fut], fut.result())
-
-    rows = read_rows(csv_path) if csv_path.exists() else []
-    rows.sort(key=lambda r: (r["problem"], r["solver"], r["order"], -r["eps"]))
-    write_rows(rows, csv_path)
-    summary = summarize(rows, max_iter, time_limit)
-    meta = {"max_iter": max_iter, "time_limit": time_limit, "workers": workers, "machine": machine_info(),
-            "started": started, "wall": time.perf_counter() - t_start}
-    figures = plot_profiles(rows, out / "profiles") if rows else []
-    text = markdown(summary, skipped, meta, command, len({r["problem"] for r in rows}), "profiles.png", kkt_form)
-    (out / "README.md").write_text(text)
-    with (out / "summary.csv").open("w", newline="") as fh:
-        w = csv.writer(fh)
-        w.writerow(["eps", "solver", "order", "problems", "solved", "rate", "sgm_iterations", "sgm_time",
-                    "factorizations_mean", "factorizations_max", "failures", "runaway"])
-        for s in summary:
-            w.writerow([s["eps"], s["solver"], s["order"], s["problems"], s["solved"], f"{s['rate']:.4f}",
-                        f"{s['sgm_iterations']:.2f}", f"{s['sgm_time']:.4f}", f"{s['factorizations_mean']:.2f}",
-                        s["factorizations_max"], _fmt_failures(s["failures"]), s["runaway"]])
+        print(f"{len(todo)} problems to run, {len(skipped)} skipped; {len(configs)} admmkit configurations"
+              f"{' + OSQP' if osqp_direct else ''}, cap {max_iter} iterations / {time_limit:g} s", flush=True)
+    records = run_sweep(cases, "benchmarks.maros_meszaros:run_case", results, executor=executor,
+                        env={DATA_ENV: str(Path(folder).resolve())}, progress=progress, cost=lambda c: costs[c["problem"]],
+                        label=lambda c: f"{c['problem']} {c['solver']}/{c['order']}",
+                        table=lambda rec: [{"id": rec["id"], **r} for r in case_rows(rec)])
+    rows = [r for c in cases if case_id(c) in records for r in case_rows(records[case_id(c)])]
+    meta = {"max_iter": max_iter, "time_limit": time_limit, "machine": machine_info(), "started": started,
+            "wall": time.perf_counter() - t_start,
+            "workers": executor.describe(len(todo))}
+    report = write_report(rows, out, skipped=skipped, kkt_form=kkt_form, meta=meta, command=command)
     if progress:
-        print(text)
-    return {"rows": rows, "summary": summary, "skipped": skipped, "kkt_form": kkt_form, "figures": figures, "out": out}
+        print(report["text"])
+    return {"rows": rows, "summary": report["summary"], "skipped": skipped, "kkt_form": kkt_form,
+            "figures": report["figures"], "out": out}

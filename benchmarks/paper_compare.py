@@ -28,7 +28,7 @@ import time
 from pathlib import Path
 
 from .report import NOISE_NOTE, fmt, machine_info, machine_markdown, md_table, pyplot, save_figure, write_csv
-from .sweep import finished, run_sweep
+from .sweep import Executor, finished, run_sweep
 
 METHODS = ("admm1", "admm2", "sadmm")
 LABELS = {"admm1": "ADMM1", "admm2": "ADMM2", "sadmm": "SADMM"}
@@ -251,14 +251,15 @@ def _figure(speed_rows, out: Path) -> list[Path]:
 
 def run(out="out/paper-compare", *, repeats: int = 3, workers: int = 2, quick: bool = False,
         progress: bool = True, command: str = "admmkit bench paper-compare",
-        reproduction: Path = REPRODUCTION, report_only: bool = False) -> list[Path]:
-    """Run (or resume) the paper's grid and write the comparison."""
+        reproduction: Path = REPRODUCTION, report_only: bool = False,
+        executor: Executor | None = None) -> list[Path]:
+    """Run (or resume) the paper's grid and write the comparison (``executor``: where the cases run)."""
     out = Path(out)
     cases = build_cases(repeats=repeats, hs=(1 / 10,) if quick else None, rhos=(1.0, 1e3) if quick else None)
     t0 = time.perf_counter()
     records = finished(cases, out / "results.jsonl") if report_only else run_sweep(
                         cases, "benchmarks.paper_compare:run_case", out / "results.jsonl", workers=workers,
-                        progress=progress, cost=lambda c: 1 / c["h"] ** 2,
+                        executor=executor, progress=progress, cost=lambda c: 1 / c["h"] ** 2,
                         label=lambda c: f"{c['scene']} h={c['h']:.4g} {c['method']} rho={c['rho']:g}")
     return summarise(records, out, command=command, wall=None if report_only else time.perf_counter() - t0,
                      reproduction=reproduction)

@@ -15,12 +15,15 @@ iterations, the factorisations of the x-step matrix until then, and, from the
 same run (a stopping rule does not change the iterates), the iteration at
 which the paper's rule (relative change 1e-5) would have fired and the error
 there.  Writes README.md (tables), sweep.csv and sweep.png/.svg.
+
+The runs go through the sweep runner (:mod:`benchmarks.sweep`): one case per
+(problem, rule, order, rho_0), the cases of one problem in one task (the
+reference solution is computed once per worker), finished cases kept in
+``results.jsonl`` (an interrupted sweep resumes), local processes or Dask.
 """
 from __future__ import annotations
 
-import csv
 import math
-import time
 from pathlib import Path
 
 import numpy as np
@@ -28,6 +31,9 @@ import numpy as np
 import admmkit
 import policies  # noqa: F401  (registers the rules)
 from admmkit import RelativeChange
+
+from .report import write_csv, write_text
+from .sweep import Executor, run_sweep
 
 #: the rules of this table: the literature rules, the wrappers, and the paper's baselines
 RULES = ("fixed", "summable", "wohlberg", "osqp", "aadmm", "summable_steps", "quantized")
@@ -69,36 +75,74 @@ def obstacle_case(h: float = 1 / 16):
             tuple(10.0 ** j for j in range(-6, 7)), "lumped L2 norm")
 
 
-def sweep(case, rules=RULES, orders=ORDERS, rhos=None, max_iter: int = MAX_ITER, progress: bool = True
-          ) -> list[dict]:
-    """Every rule x order x rho_0 on one case; one row per run (see the module docstring)."""
-    name, make, error, default_rhos, _ = case
-    rows = []
-    for rule in rules:
-        for order in orders:
-            t0 = time.perf_counter()
-            for rho0 in rhos or default_rhos:
-                problem = make()
-                paper = {}
+#: the problems of the study: name -> (builder of the (name, make, error, rho_0 values, norm) tuple)
+PROBLEMS = {"contact": contact_case, "obstacle": obstacle_case}
+DEFAULT_H = {"contact": 1 / 20, "obstacle": 1 / 16}
+QUICK_H = {"contact": 1 / 10, "obstacle": 1 / 4}
 
-                def watch(rec, problem=problem, paper=paper):
-                    err = error(problem, rec.x)
-                    if not paper and rec.x_change <= TOL * rec.x_norm:
-                        paper.update(iterations=rec.k + 1, error=err)
-                    return err <= ORACLE
-                res = admmkit.solve(problem, rho=rho0, policy=rule, order=order, stop=RelativeChange(1e-300),
-                                    max_iter=max_iter, callback=watch)
-                rows.append({"case": name, "rule": rule, "order": order, "rho0": rho0,
-                             "reached": res.status.value == "stopped", "iterations": res.iterations,
-                             "factorizations": res.factorizations or 0, "rho_changes": res.rho_changes,
-                             "rho_final": res.rho, "paper_iterations": paper.get("iterations", math.nan),
-                             "paper_error": paper.get("error", math.nan)})
-            if progress:
-                sel = [r for r in rows if r["rule"] == rule and r["order"] == order]
-                print(f"  {name}: {rule:>15s} {order}  iterations {min(r['iterations'] for r in sel)}-"
-                      f"{max(r['iterations'] for r in sel)}  factorisations "
-                      f"{max(r['factorizations'] for r in sel)} max  ({time.perf_counter() - t0:.1f} s)", flush=True)
-    return rows
+
+def build_cases(rules=RULES, orders=ORDERS, *, quick: bool = False, max_iter: int = MAX_ITER) -> list[dict]:
+    """One case per (problem, rule, order, rho_0); the cases of one problem form a group."""
+    cases = []
+    for problem in PROBLEMS:
+        h = (QUICK_H if quick else DEFAULT_H)[problem]
+        decades = range(-4, 9) if problem == "contact" else range(-6, 7)
+        rhos = [10.0 ** j for j in decades]
+        if quick:
+            rhos = [rhos[0], rhos[6], rhos[-1]]
+        for rule in rules:
+            for order in orders:
+                for rho0 in rhos:
+                    cases.append({"target": "policies", "problem": problem, "h": h, "rule": rule, "order": order,
+                                  "rho0": rho0, "max_iter": max_iter, "oracle": ORACLE, "tol": TOL,
+                                  "policy_version": _version(rule), "group": f"{problem}-h{h:.6g}"})
+    return cases
+
+
+def _version(rule: str) -> str:
+    from .methods import method_label, policy_version
+    return policy_version(method_label(rule, "zx"))
+
+
+def case_cost(case: dict) -> float:
+    """Unknowns of the problem, roughly (the cheaper problem starts first)."""
+    return (4.0 if case["problem"] == "obstacle" else 1.0) / case["h"] ** 2
+
+
+_CASES: dict = {}
+
+
+def run_case(case: dict) -> dict:
+    """Worker entry point: one rule, order and rho_0 on one problem, to the oracle's stop (one row)."""
+    key = (case["problem"], case["h"])
+    if key not in _CASES:
+        _CASES.clear()          # one problem (and its reference) per worker at a time
+        _CASES[key] = PROBLEMS[case["problem"]](case["h"])
+    name, make, error, _, _ = _CASES[key]
+    problem = make()
+    paper = {}
+
+    def watch(rec):
+        err = error(problem, rec.x)
+        if not paper and rec.x_change <= case["tol"] * rec.x_norm:
+            paper.update(iterations=rec.k + 1, error=err)
+        return err <= case["oracle"]
+    res = admmkit.solve(problem, rho=case["rho0"], policy=case["rule"], order=case["order"],
+                        stop=RelativeChange(1e-300), max_iter=case["max_iter"], callback=watch)
+    return {"case": name, "rule": case["rule"], "order": case["order"], "rho0": case["rho0"],
+            "reached": res.status.value == "stopped", "iterations": res.iterations,
+            "factorizations": res.factorizations or 0, "rho_changes": res.rho_changes,
+            "rho_final": res.rho, "paper_iterations": paper.get("iterations", math.nan),
+            "paper_error": paper.get("error", math.nan)}
+
+
+def _row(result: dict) -> dict:
+    """A result as a table row (JSON keeps NaN; None from other writers becomes NaN)."""
+    row = dict(result)
+    for k in ("paper_iterations", "paper_error"):
+        if row.get(k) is None:
+            row[k] = math.nan
+    return row
 
 
 def table(rows: list[dict], key: str) -> list[str]:
@@ -108,8 +152,8 @@ def table(rows: list[dict], key: str) -> list[str]:
              "|---|---|" + "---|" * (len(rhos) + 1)]
     for rule, order in dict.fromkeys((r["rule"], r["order"]) for r in rows):
         sel = {r["rho0"]: r for r in rows if r["rule"] == rule and r["order"] == order}
-        cells = [f"{sel[x][key]}" + ("" if sel[x]["reached"] else "*") for x in rhos]
-        lines.append(f"| {rule} | {order} | " + " | ".join(cells) + f" | {max(sel[x][key] for x in rhos)} |")
+        cells = ["" if x not in sel else f"{sel[x][key]}" + ("" if sel[x]["reached"] else "*") for x in rhos]
+        lines.append(f"| {rule} | {order} | " + " | ".join(cells) + f" | {max(r[key] for r in sel.values())} |")
     return lines
 
 
@@ -169,32 +213,57 @@ def plot(results: dict, stem: Path) -> list[Path]:
     handles, labels = axes[0][0].get_legend_handles_labels()
     fig.legend(handles, labels, loc="center right", fontsize=8, frameon=False)
     fig.tight_layout(rect=(0, 0, 0.83, 1))
+    from admmkit.io import atomic_path
     paths = []
     for ext in ("png", "svg"):
         paths.append(stem.with_suffix(f".{ext}"))
-        fig.savefig(paths[-1], dpi=110)
+        with atomic_path(paths[-1]) as tmp:
+            fig.savefig(tmp, dpi=110)
     plt.close(fig)
     return paths
 
 
 def run(out="out/policies", rules=RULES, quick: bool = False, command: str = "",
-        progress: bool = True, max_iter: int = MAX_ITER) -> dict:
-    """Run both cases (``quick``: coarser meshes, three rho_0, for the smoke test) and write the report."""
+        progress: bool = True, max_iter: int = MAX_ITER, *, workers: int = 2, executor: Executor | None = None,
+        report_only: bool = False) -> dict:
+    """Run (or resume) the sweep of both problems (``quick``: coarser meshes, three rho_0) and write the report.
+
+    Returns {problem name: (rows, norm name)}.
+    """
+    from .sweep import finished
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    cases = [contact_case(1 / 10), obstacle_case(1 / 4)] if quick else [contact_case(), obstacle_case()]
+    cases = build_cases(rules, quick=quick, max_iter=max_iter)
+    if report_only:
+        records = finished(cases, out / "results.jsonl")
+    else:
+        records = run_sweep(cases, "benchmarks.policies_fe:run_case", out / "results.jsonl", workers=workers,
+                            executor=executor, progress=progress, cost=case_cost,
+                            label=lambda c: f"{c['problem']} {c['rule']}/{c['order']} rho0={c['rho0']:g}")
+    norms = {"contact": "energy norm", "obstacle": "lumped L2 norm"}
     results = {}
-    for case in cases:
-        rhos = (case[3][0], case[3][6], case[3][-1]) if quick else None
-        results[case[0]] = (sweep(case, rules=rules, rhos=rhos, max_iter=max_iter, progress=progress), case[4])
+    for c in cases:   # the cases' order: problem, rule, order, rho_0
+        rec = records.get(_id(c))
+        if rec is None or rec.get("result") is None:
+            continue
+        row = _row(rec["result"])
+        results.setdefault(row["case"], ([], norms[c["problem"]]))[0].append(row)
+    failed = [r for r in records.values() if r.get("error")]
     rows = [r for rs, _ in results.values() for r in rs]
-    with (out / "sweep.csv").open("w", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=list(rows[0]))
-        w.writeheader()
-        w.writerows(rows)
+    if not rows:
+        raise RuntimeError(f"no case of the policies sweep finished; see {out / 'results.jsonl'}")
+    write_csv(out / "sweep.csv", rows)
     plot(results, out / "sweep")
     text = markdown(results, command, max_iter)
-    (out / "README.md").write_text(text)
+    if failed or len(records) < len(cases):
+        text += (f"\n**{len(cases) - len(records)} cases not run, {len(failed)} raised** "
+                 "(their errors are in results.jsonl).\n")
+    write_text(out / "README.md", text)
     if progress:
         print(text)
     return results
+
+
+def _id(case: dict) -> str:
+    from .sweep import case_id
+    return case_id(case)

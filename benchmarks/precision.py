@@ -32,7 +32,7 @@ from .peers import PEERS, applicable, run_peer
 from .report import (NOISE_NOTE, fmt, machine_info, machine_markdown, md_table, method_styles, pyplot,
                      save_figure, write_csv)
 from .families import CONTACT_SCENES, OBSTACLE_SCENES, QP_SCENES, discrete, kind_of, mm_folder, problem_key
-from .sweep import finished, run_sweep
+from .sweep import Executor, finished, run_sweep
 
 HS = (1 / 20, 1 / 40, 1 / 80, 1 / 160)
 QUICK_HS = (1 / 10,)
@@ -295,8 +295,11 @@ def _readme(out: Path, per_problem, refs, failures, command, wall, skipped, file
 
 def run(out="out/precision", *, quick: bool = False, workers: int = 2, repeats: int = 3,
         scenes=None, hs=None, methods=None, progress: bool = True, command: str = "admmkit bench precision",
-        time_limit: float = 60.0, report_only: bool = False) -> list[Path]:
-    """Build the cases, run (or resume) the sweep, write the summaries; return the files written."""
+        time_limit: float = 60.0, report_only: bool = False, executor: Executor | None = None) -> list[Path]:
+    """Build the cases, run (or resume) the sweep, write the summaries; return the files written.
+
+    ``executor``: where the cases run (:class:`benchmarks.sweep.Executor`; default ``workers`` local processes).
+    """
     out = Path(out)
     if scenes is None:
         scenes = list(CONTACT_SCENES + OBSTACLE_SCENES) + [s for s in QP_SCENES
@@ -316,7 +319,8 @@ def run(out="out/precision", *, quick: bool = False, workers: int = 2, repeats: 
         records = finished(cases, out / "results.jsonl")
     else:
         records = run_sweep(cases, "benchmarks.precision:run_case", out / "results.jsonl", workers=workers,
-                            progress=progress, cost=case_cost,
+                            executor=executor, env={CACHE_ENV: os.environ[CACHE_ENV]}, progress=progress,
+                            cost=case_cost,
                             label=lambda c: f"{_problem_label(c)} {c['method']}")
     wall = None if report_only else time.perf_counter() - t0
     return summarise(records, out, command=command, wall=wall, skipped=methods_mod.skipped_policies(),

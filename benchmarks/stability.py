@@ -33,7 +33,7 @@ import numpy as np
 from . import methods as methods_mod
 from .report import NOISE_NOTE, fmt, machine_info, machine_markdown, md_table, pyplot, save_figure, write_csv
 from .families import discrete, problem_key
-from .sweep import clean_float, finished, run_sweep
+from .sweep import Executor, clean_float, finished, run_sweep
 
 RHO_SCALES = tuple(10.0 ** k for k in range(-6, 7))
 RHO_H = 1 / 40
@@ -363,8 +363,8 @@ def summarise(records, out: Path, *, command: str, wall: float, skipped, missing
 
 def run(out="out/stability", *, quick: bool = False, workers: int = 2, methods=None,
         progress: bool = True, command: str = "admmkit bench stability", report_only: bool = False,
-        **grid) -> list[Path]:
-    """Build the cases, run (or resume) the sweep, write the summaries."""
+        executor: Executor | None = None, **grid) -> list[Path]:
+    """Build the cases, run (or resume) the sweep, write the summaries (``executor``: where the cases run)."""
     out = Path(out)
     admm = list(methods) if methods is not None else methods_mod.admm_methods()
     if quick:
@@ -377,7 +377,8 @@ def run(out="out/stability", *, quick: bool = False, workers: int = 2, methods=N
         records = finished(cases, out / "results.jsonl")
     else:
         records = run_sweep(cases, "benchmarks.stability:run_case", out / "results.jsonl", workers=workers,
-                            progress=progress, cost=case_cost,
+                            executor=executor, env={CACHE_ENV: os.environ[CACHE_ENV]}, progress=progress,
+                            cost=case_cost,
                             label=lambda c: (f"{c['sweep']} {c['scene']} h={_h_label(c['h'])} nu={c['nu']} "
                                              f"P{c['p']} s={c['rho_scale']:g} {c['method']}"))
     return summarise(records, out, command=command, wall=None if report_only else time.perf_counter() - t0,

@@ -1,4 +1,4 @@
-"""A resumable, parallel sweep runner: cases in, one JSON line per finished case out.
+"""A resumable sweep runner: cases in, one JSON line per finished case out, on local processes or Dask.
 
 A *case* is a small JSON-serialisable dict (e.g. ``{"scene": "ex1", "h": 0.025,
 "method": "sadmm"}``); its id is a hash of its sorted JSON, so the same case
@@ -6,34 +6,41 @@ always has the same id.  :func:`run_sweep`
 
 - skips the cases whose id is already in the results file (resume after an
   interruption without redoing finished cases);
-- runs the rest on ``workers`` processes (spawned, BLAS pinned to one thread
-  each, so two workers use the two cores without oversubscription);
-- starts the cheapest groups first;
+- runs the rest on an :class:`Executor`: ``workers`` local processes (spawned,
+  BLAS pinned to one thread each, :mod:`benchmarks.sweep_local`; the
+  default) or Dask (a ``LocalCluster`` of single-threaded workers, or a
+  running cluster at a scheduler address, :mod:`benchmarks.sweep_dask`);
 - keeps the cases of one *group* (``case["group"]``, e.g. one discrete
   problem) together in one task, so a worker assembles a problem and its
-  reference solution once for all the solvers run on it;
-- appends each finished case, from the worker that ran it and as soon as it
-  is done, as one line ``{"id": ..., "case": ..., "result": ...}`` with a
-  single ``write`` on a file opened with O_APPEND, then fsync, so an
-  interrupted sweep leaves whole lines only (a torn last line, e.g. from a
-  power cut, is ignored on reading);
-- prints a progress line (done / total, elapsed, estimated time left, the last case).
+  reference solution once for all the solvers run on it, and starts the
+  cheapest groups first;
+- has the workers return a record per case and appends it *in the driver
+  alone*, as one line ``{"id": ..., "case": ..., "result": ..., "seconds": ...}``
+  with a single ``write`` on a file opened with O_APPEND, then fsync; an id
+  already in the file is never written again, and a torn last line (a power
+  cut) is ended before the next append, so it costs only itself;
+- records a case that raises, overruns ``Executor.timeout`` or keeps killing
+  its worker as that case's outcome (``record["error"]``) and goes on;
+- prints a progress line (done / total, elapsed, estimated time left, the last case);
+- writes the records as one flat table at the end, ``results.parquet`` (or
+  ``results.csv`` without pyarrow) beside the results file
+  (:mod:`benchmarks.sweep_table`), atomically.
+
+``pandas.read_json(results_path, lines=True)`` loads the results file as it is.
 """
 from __future__ import annotations
 
 import hashlib
 import json
 import math
-import multiprocessing as mp
 import os
 import sys
 import time
-import traceback
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable, Iterable
 
-#: environment of the worker processes: one BLAS / OpenMP thread each
-THREAD_ENV = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", "MPLBACKEND": "Agg"}
+from .sweep_worker import THREAD_ENV  # noqa: F401  (the workers' environment; re-exported)
 
 
 def case_id(case: dict) -> str:
@@ -67,13 +74,20 @@ def load_results(path: str | Path) -> dict[str, dict]:
 
 
 def append_result(path: str | Path, record: dict) -> None:
-    """Append one record as one JSON line: a single write, then flush and fsync."""
-    line = json.dumps(record, sort_keys=True, default=_json_default) + "\n"
+    """Append one record as one JSON line: a single write, then fsync.
+
+    If the file does not end with a newline (a torn last line), the line
+    starts with one, so the torn fragment stays a line of its own (skipped
+    on reading) instead of swallowing this record.
+    """
+    data = (json.dumps(record, sort_keys=True, default=_json_default) + "\n").encode()
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd = os.open(path, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o644)
+    fd = os.open(path, os.O_RDWR | os.O_APPEND | os.O_CREAT, 0o644)
     try:
-        data = line.encode()
+        size = os.fstat(fd).st_size
+        if size and os.pread(fd, 1, size - 1) != b"\n":
+            data = b"\n" + data
         written = os.write(fd, data)
         if written != len(data):  # a regular file takes the whole write; be loud if not
             raise OSError(f"short write to {path}: {written} of {len(data)} bytes")
@@ -104,45 +118,6 @@ def clean_float(v):
         return None
     v = float(v)
     return v if math.isfinite(v) else None
-
-
-# ---------------------------------------------------------------- workers
-_QUEUE = None   # in a worker: where finished case ids are announced to the parent
-
-
-def _init_worker(queue=None) -> None:
-    global _QUEUE
-    _QUEUE = queue
-    os.environ.update(THREAD_ENV)
-    try:
-        from threadpoolctl import threadpool_limits
-        threadpool_limits(1)
-    except Exception:  # pragma: no cover - threadpoolctl is a dependency
-        pass
-
-
-def _run_group(args, notify=None) -> int:
-    """Run the cases of one group in this process, appending each result as soon as it is done."""
-    func_path, results_path, cases = args
-    module_name, func_name = func_path.split(":")
-    import importlib
-    func = getattr(importlib.import_module(module_name), func_name)
-    for cid, case in cases:
-        t0 = time.perf_counter()
-        try:
-            result, error = func(case), None
-        except Exception as err:  # a failing case is recorded, the sweep goes on
-            result, error = None, f"{type(err).__name__}: {err}\n{traceback.format_exc(limit=4)}"
-        rec = {"id": cid, "case": case, "result": result, "seconds": time.perf_counter() - t0}
-        if error:
-            rec["error"] = error
-        append_result(results_path, rec)
-        message = (cid, bool(error))
-        if notify is not None:
-            notify(message)
-        elif _QUEUE is not None:
-            _QUEUE.put(message)
-    return len(cases)
 
 
 def _fmt_seconds(s: float) -> str:
@@ -198,22 +173,79 @@ def finished(cases: Iterable[dict], results_path: str | Path) -> dict[str, dict]
     return {cid: done[cid] for cid in map(case_id, cases) if cid in done}
 
 
+@dataclass(frozen=True)
+class Executor:
+    """Where a sweep's cases run.
+
+    - ``workers``: local worker processes (spawned, one BLAS thread each; 1 =
+      in this process), used when neither of the next two is given;
+    - ``dask_workers``: start a Dask ``LocalCluster`` of this many
+      single-threaded worker processes for the sweep;
+    - ``scheduler``: the address of a running Dask scheduler ("tcp://host:8786");
+    - ``timeout``: seconds per case; a case that runs longer is recorded as a
+      ``CaseTimeout`` error (None: no limit);
+    - ``retries``: how often a case whose worker died is run again before it
+      is recorded as a ``WorkerDied`` error.
+    """
+
+    workers: int = 2
+    dask_workers: int | None = None
+    scheduler: str | None = None
+    timeout: float | None = None
+    retries: int = 1
+
+    def __post_init__(self):
+        for name in ("workers", "dask_workers", "retries"):
+            v = getattr(self, name)
+            low = 0 if name == "retries" else 1
+            if (v is not None or name != "dask_workers") and (isinstance(v, bool) or not isinstance(v, int) or v < low):
+                raise ValueError(f"{name} must be an integer >= {low}, got {v!r}")
+        if self.dask_workers is not None and self.scheduler:
+            raise ValueError("give either dask_workers (start a LocalCluster) or scheduler (connect to one), not both")
+        if self.scheduler is not None and (not isinstance(self.scheduler, str) or not self.scheduler.strip()):
+            raise ValueError(f"scheduler must be an address such as 'tcp://host:8786', got {self.scheduler!r}")
+        if self.timeout is not None and not (isinstance(self.timeout, (int, float)) and 0 < self.timeout < math.inf):
+            raise ValueError(f"timeout must be a number of seconds > 0 or None, got {self.timeout!r}")
+
+    @property
+    def dask(self) -> bool:
+        """True if the cases run on Dask."""
+        return self.dask_workers is not None or bool(self.scheduler)
+
+    def describe(self, tasks: int) -> str:
+        """"2 local worker(s)", "a Dask LocalCluster of 2 workers", "Dask at tcp://..."."""
+        if self.scheduler:
+            return f"the Dask cluster at {self.scheduler}"
+        if self.dask_workers is not None:
+            return f"a Dask LocalCluster of {self.dask_workers} worker(s)"
+        return f"{min(self.workers, max(tasks, 1))} local worker(s)"
+
+
 def run_sweep(cases: Iterable[dict], func: str, results_path: str | Path, *, workers: int = 2,
-              progress: bool = True, label: Callable[[dict], str] | None = None,
-              cost: Callable[[dict], float] | None = None) -> dict[str, dict]:
+              executor: Executor | None = None, progress: bool = True, label: Callable[[dict], str] | None = None,
+              cost: Callable[[dict], float] | None = None, env: dict | None = None,
+              table: bool | Callable[[dict], list[dict]] = True) -> dict[str, dict]:
     """Run every case not yet in ``results_path`` and return {id: record} of all cases.
 
-    ``func`` is "module:function" (importable by the spawned workers); it takes
-    a case and returns a JSON-serialisable dict.  Cases with the same
+    ``func`` is "module:function" (importable by the workers); it takes a
+    case and returns a JSON-serialisable dict.  Cases with the same
     ``case["group"]`` run in one task, in the given order; groups are started
     cheapest first (``cost(case)`` summed over the group), so that an
-    interrupted sweep has covered the most problems.  ``workers=1``
-    runs in this process (no spawning).  A case that raises is recorded with
-    its error (``record["error"]``) and not retried on resume; delete its line
-    to retry it.
+    interrupted sweep has covered the most problems.  ``executor`` says where
+    (default: ``Executor(workers=workers)``; ``workers=1`` runs in this
+    process).  ``env``: environment variables set in every worker before its
+    cases run.  A case that raises, times out or kills its worker is recorded
+    with its error (``record["error"]``) and not retried on resume; delete
+    its line to retry it.  ``table``: write ``results.parquet`` (or .csv)
+    beside the results file at the end, one row per record (a function of a
+    record returning rows replaces the default flattening; False: no table).
     """
-    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
-        raise ValueError(f"workers must be an integer >= 1, got {workers!r}")
+    if executor is None:
+        if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
+            raise ValueError(f"workers must be an integer >= 1, got {workers!r}")
+        executor = Executor(workers=workers)
+    elif not isinstance(executor, Executor):
+        raise TypeError(f"executor must be a benchmarks.sweep.Executor, got {type(executor).__name__}")
     cases = list(cases)
     results_path = Path(results_path)
     done = load_results(results_path)
@@ -225,51 +257,40 @@ def run_sweep(cases: Iterable[dict], func: str, results_path: str | Path, *, wor
     for cid, c in todo:
         groups.setdefault(str(c.get("group", cid)), []).append((cid, c))
     # cheapest groups first: a sweep that is interrupted (or time-boxed) has covered the most problems
-    order = sorted(groups.values(), key=lambda g: sum((cost or (lambda _c: 1.0))(c) for _, c in g))
+    tasks = sorted(groups.values(), key=lambda g: sum((cost or (lambda _c: 1.0))(c) for _, c in g))
     bar = Progress(len(cases), len(cases) - len(todo), enabled=progress)
     name = label or (lambda c: " ".join(f"{k}={v}" for k, v in c.items() if k != "group"))
     by_id = dict(todo)
+    written: set[str] = set()
 
-    def announce(message):
-        cid, failed = message
-        bar.update(name(by_id.get(cid, {})) + (" FAILED" if failed else ""), failed=failed)
+    def emit(rec: dict) -> None:
+        """In the driver: append a finished case's record (once) and redraw the progress line."""
+        cid = rec["id"]
+        if cid in written or cid not in by_id:
+            return                      # never a duplicated line
+        append_result(results_path, rec)
+        written.add(cid)
+        failed = bool(rec.get("error"))
+        bar.update(name(by_id[cid]) + (" FAILED" if failed else ""), failed=failed)
 
-    tasks = [(func, str(results_path), g) for g in order]
     if progress:
         print(f"sweep: {len(cases)} cases, {len(cases) - len(todo)} already in {results_path}, {len(todo)} to run "
-              f"in {len(tasks)} groups on {min(workers, max(len(tasks), 1))} worker(s); a line per finished case",
+              f"in {len(tasks)} groups on {executor.describe(len(tasks))}; a line per finished case",
               file=sys.stderr, flush=True)
-    if tasks and workers == 1:
-        _init_worker()
-        for task in tasks:
-            _run_group(task, notify=announce)
-    elif tasks:
-        env_before = {k: os.environ.get(k) for k in THREAD_ENV}
-        os.environ.update(THREAD_ENV)      # inherited by the spawned workers from the start
-        try:
-            ctx = mp.get_context("spawn")
-            queue = ctx.Queue()
-            with ctx.Pool(min(workers, len(tasks)), initializer=_init_worker, initargs=(queue,)) as pool:
-                pending = pool.map_async(_run_group, tasks, chunksize=1)
-                import queue as queue_module
-                while True:
-                    try:
-                        announce(queue.get(timeout=0.5))
-                    except queue_module.Empty:
-                        if pending.ready():
-                            break
-                pending.get()          # re-raise a worker crash
-                while True:
-                    try:
-                        announce(queue.get_nowait())
-                    except queue_module.Empty:
-                        break
-        finally:
-            for k, v in env_before.items():
-                if v is None:
-                    os.environ.pop(k, None)
-                else:
-                    os.environ[k] = v
+    if tasks:
+        results_path.parent.mkdir(parents=True, exist_ok=True)
+        if executor.dask:
+            from .sweep_dask import run_dask
+            run_dask(tasks, func, emit, scheduler=executor.scheduler, n_workers=executor.dask_workers, env=env,
+                     timeout=executor.timeout, retries=executor.retries)
+        else:
+            from .sweep_local import run_local
+            run_local(tasks, func, emit, workers=executor.workers, env=env, timeout=executor.timeout,
+                      retries=executor.retries)
     bar.close()
     done = load_results(results_path)
-    return {cid: done[cid] for cid in ids if cid in done}
+    records = {cid: done[cid] for cid in ids if cid in done}
+    if table and records:
+        from .sweep_table import write_table
+        write_table(records.values(), results_path.with_suffix(""), rows=table if callable(table) else None)
+    return records
