@@ -115,25 +115,16 @@ def solve_3d(h: float, rho: float = 1e3) -> dict:
             "solve_s": t3 - t2, "total_s": t3 - t0, "peak_rss_bytes": peak_rss_bytes()}
 
 
-def write_vtk(ops, u: np.ndarray, lam: np.ndarray, base: Path) -> Path:
-    """VTK (ParaView) file with the displacement and the contact pressure (zero off the contact face)."""
-    import ngsolve as ng
-    gf = ops.to_gridfunction(u)
-    pressure = ng.GridFunction(ng.H1(ops.mesh, order=1))   # P1: dof i is vertex i
-    values = np.zeros(ops.mesh.nv)
-    values[_contact_vertices(ops)] = lam
-    pressure.vec.FV().NumPy()[:] = values
+def write_vtk(ops, u: np.ndarray, lam: np.ndarray, base: Path, p: np.ndarray | None = None) -> Path:
+    """VTU file (ParaView, meshio) in double precision: displacement at the vertices; contact pressure, gap and
+    status on the contact face (problems/contact/export.py; NaN, or -1 for the status, off the face)."""
+    from problems.contact.export import boundary_fields, write_vtu
+    base = Path(base)
     base.parent.mkdir(parents=True, exist_ok=True)
-    ng.VTKOutput(ops.mesh, coefs=[gf, pressure], names=["displacement", "contact_pressure"],
-                 filename=str(base), floatsize="single").Do()
-    return base.with_suffix(".vtu")
-
-
-def _contact_vertices(ops) -> np.ndarray:
-    """Vertex numbers of the contact nodes (B's rows select -u_z of those vertices)."""
-    nv = ops.mesh.nv
-    cols = ops.free[ops.B.tocsr().indices]          # one nonzero per row, the z dof 2 nv + vertex
-    return cols - 2 * nv
+    fields = boundary_fields(ops, u, lam, ops.g if p is None else p)
+    if p is None:
+        del fields["contact_status"]          # no z-step given: no status rather than a guess
+    return write_vtu(base, ops, u, fields)
 
 
 def figure_3d(ops, u: np.ndarray, lam: np.ndarray, p: np.ndarray, path: Path, magnify: float = 20.0) -> list[Path]:
@@ -193,7 +184,7 @@ def run_sadmm_modes(hs, modes=("full", "condensed", "iterative"), timeout=600.0)
 def run_contact3d(out="out/scale", h=DEFAULT_H, probe_hs=PROBE_HS, timeout=600.0,
                   command="admmkit bench contact3d", sadmm_hs=SADMM_HS, vtk="out/contact3d/contact3d") -> dict:
     """All measurements; print them; write contact3d.md, the figure and the VTK file (``vtk``.vtu:
-    single precision, about 70 MB at h = 1/32, so outside docs/ and not committed)."""
+    double precision, written by meshio; large at h = 1/32, so outside docs/ and not committed)."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     sadmm = run_sadmm_modes(sadmm_hs, timeout=timeout) if sadmm_hs else []
@@ -219,7 +210,7 @@ def run_contact3d(out="out/scale", h=DEFAULT_H, probe_hs=PROBE_HS, timeout=600.0
     print(f"        n = {ops.n_free}  n_c = {ops.n_c}  {res.status.value}, {res.iterations} iterations, "
           f"{c['cg_iterations']} CG, total {run['total_s']:.1f} s  peak {run['peak_rss_bytes'] / 1e9:.2f} GB", flush=True)
     figs = figure_3d(ops, res.x, res.lam, res.z, out / "contact3d.png")
-    vtu = write_vtk(ops, res.x, res.lam, Path(vtk))
+    vtu = write_vtk(ops, res.x, res.lam, Path(vtk), p=res.z)
     print(f"        figure {figs[0]}, VTK {vtu}", flush=True)
     _write_md(out / "contact3d.md", probes, run, command, figs, vtu, sadmm)
     return {"probes": probes, "run": run, "sadmm": sadmm}

@@ -35,6 +35,27 @@ class ContactSolution:
         """Contact pressure lam at the contact nodes."""
         return self.result.lam
 
+    def __repr__(self) -> str:
+        r, ops = self.result, self.ops
+        name = getattr(ops.scene, "name", "") or "scene"
+        return (f"ContactSolution({name}, h={ops.scene.h:.4g}, n_free={ops.n_free}, n_c={ops.n_c}, mode={self.mode!r}, "
+                f"status={r.status.value!r}, iterations={r.iterations}, active_nodes={self.active_nodes})")
+
+    @property
+    def active_nodes(self) -> int:
+        """Number of active contact nodes (p = g; :func:`problems.contact.export.contact_status`)."""
+        from .export import contact_status
+        return int(contact_status(self.ops, self.result.z).sum())
+
+    def _repr_html_(self) -> str:
+        """Jupyter: the scene and sizes, then the result's table."""
+        import html
+        ops = self.ops
+        head = html.escape(f"{getattr(ops.scene, 'name', '') or 'scene'}: h = {ops.scene.h:.4g}, "
+                           f"{ops.n_free} free dofs, {ops.n_c} contact nodes ({self.active_nodes} active), "
+                           f"mode {self.mode}, setup {self.setup_time:.3g} s")
+        return f"<div><b>ContactSolution</b> {head}{self.result._repr_html_()}</div>"
+
 
 def solve_scene(scene: Scene | ContactOperators, method_name: str = "sadmm", rho: float = 1e3, *,
                 mode: str = "auto", stop: admmkit.StoppingRule | None = None, max_iter: int = 20_000,
