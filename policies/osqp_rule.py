@@ -32,7 +32,11 @@ scale, so no clamp is applied unless ``rho_min``/``rho_max`` are given.
 
 A plug-in that knows OSQP's exact normalisation can pass it as
 ``residuals``, a function of the record returning (r_rel, s_rel); the QP
-plug-in has one (``problems.qp.termination.osqp_relative_residuals``).  The
+plug-in has one (``problems.qp.termination.osqp_relative_residuals``: OSQP
+1.x's ``compute_rho_estimate``, inf-norms in the scaled problem with the
+multiplier y = M lam).  With it, ``rho_min=1e-6, rho_max=1e6`` (OSQP's
+clamp, applied before the tolerance test as in ``adapt_rho``), interval 50
+and tolerance 5, the rule is OSQP 1.x's (``problems.qp.solve_qp`` sets it up).  The
 difference matters where lam = 0 (no constraint active yet): then
 ||A^T M lam|| = 0 and the record's dual ratio is infinite, while OSQP's
 still has ||P x|| and ||q|| in its denominator.
@@ -75,8 +79,17 @@ class OSQPRule(Policy):
         return rec.primal_residual_rel, rec.dual_residual_rel
 
     def estimate(self, rec: IterationRecord) -> float:
-        """rho_est = rho_k sqrt(r_rel / s_rel), each normalised residual clamped to [DIVISION_TOL, 1/DIVISION_TOL]."""
+        """rho_est = rho_k sqrt(r_rel / s_rel).
+
+        With the record's residuals each normalised residual is clamped to
+        [DIVISION_TOL, 1/DIVISION_TOL]; with ``residuals`` (OSQP's own
+        normalisation) the ratio is taken as OSQP 1.x takes it (s_rel = 0 gives
+        an infinite estimate, clamped to ``rho_max`` by :meth:`update`).
+        """
         r, s = self.relative_residuals(rec)
+        if self.residuals is not None:
+            ratio = r / s if s > 0 else (math.inf if r > 0 else math.nan)
+            return rec.rho * math.sqrt(ratio)
         r = min(max(r, DIVISION_TOL), 1 / DIVISION_TOL)
         s = min(max(s, DIVISION_TOL), 1 / DIVISION_TOL)
         return rec.rho * math.sqrt(r / s)

@@ -97,7 +97,8 @@ class QP(Problem):
     """
 
     def __init__(self, P, q, A, l, u, r: float = 0.0, *, sigma: float = 1e-6, backend: str = "auto",
-                 name: str = "qp", xstep: str = "auto", scaling: int = 0, row_weights: str = "uniform"):
+                 name: str = "qp", xstep: str = "auto", scaling: int = 0, row_weights: str = "uniform",
+                 x_relaxation: float = 1.0):
         from .scaling import ruiz
         self.P, self.q, self.A, self.l, self.u = _validate(P, q, A, l, u)
         self.r = float(r)
@@ -110,7 +111,11 @@ class QP(Problem):
         self.n = self.P.shape[0]
         self.m = self.A.shape[0]
         self.c = 0.0
-        self.options = dict(sigma=self.sigma, backend=backend, xstep=xstep, scaling=scaling, row_weights=row_weights)
+        if not (isinstance(x_relaxation, (int, float)) and 0 < x_relaxation < 2):
+            raise ValueError(f"x_relaxation must be a number in (0, 2), got {x_relaxation!r}")
+        self.x_relaxation = float(x_relaxation)
+        self.options = dict(sigma=self.sigma, backend=backend, xstep=xstep, scaling=scaling, row_weights=row_weights,
+                            x_relaxation=self.x_relaxation)
         self.scaling, Ps, qs, As = ruiz(self.P, self.q, self.A, scaling)                          # (S1)
         self.scaled = scaling > 0
         if self.scaled:
@@ -124,7 +129,7 @@ class QP(Problem):
         if xstep == "auto":
             xstep = "kkt" if reduced_nnz_bound(self.P, self.A) > REDUCED_MAX_NNZ else "reduced"
         self.xstep = xstep
-        self._x_in = None               # the x^k of the last x-step (x_prev for the infeasibility test)
+        self.begin_run()
         base = (self.Ps + self.sigma * sp.identity(self.n, format="csc")).tocsc()
         w = np.ones(self.m) if self.w is None else self.w
         if xstep == "reduced":
@@ -142,15 +147,48 @@ class QP(Problem):
         return QP(self.P, self.q, self.A, self.l, self.u, self.r, name=self.name, **merged)
 
     # -- the splitting --------------------------------------------------------
+    def begin_run(self):
+        """Forget the iterates of a previous run (called by :func:`admmkit.solve` at the start)."""
+        self._x_in = self._x_last = self._x_rel = self._x_rel_prev = None
+
     def x_step(self, z, lam, rho, x):
-        """Solve (Q1), in either form (KKT: [P + sigma I, A'; A, -(rho M)^-1] [x; v] = [sigma x^k - q; z - lam/rho])."""
+        """Solve (Q1), in either form (KKT: [P + sigma I, A'; A, -(rho M)^-1] [x; v] = [sigma x^k - q; z - lam/rho]).
+
+        With ``x_relaxation`` a != 1 (OSQP relaxes x too), x^k in the proximal
+        term is OSQP's x^k = a xt^k + (1 - a) x^{k-1}, kept here (Q4); the loop's
+        iterate stays xt (the x-step's solution).
+        """
         self._x_in = x
+        relax = self.x_relaxation != 1.0
+        xp = self._x_rel if relax and self._x_rel is not None else x
         if self.xstep == "kkt":
-            rhs = np.concatenate([self.sigma * x - self.qs, z - lam / rho])
-            return self._solver.solve(rho, rhs)[:self.n]
-        v = rho * z - lam
-        rhs = self.sigma * x - self.qs + self.Ats @ (v if self.w is None else self.w * v)
-        return self._solver.solve(rho, rhs)
+            rhs = np.concatenate([self.sigma * xp - self.qs, z - lam / rho])
+            x_new = self._solver.solve(rho, rhs)[:self.n]
+        else:
+            v = rho * z - lam
+            rhs = self.sigma * xp - self.qs + self.Ats @ (v if self.w is None else self.w * v)
+            x_new = self._solver.solve(rho, rhs)
+        if relax:
+            a = self.x_relaxation
+            self._x_rel_prev, self._x_rel, self._x_last = xp, a * x_new + (1.0 - a) * xp, x_new      # (Q4)
+        return x_new
+
+    def relaxed_x(self, x):
+        """OSQP's x for the loop's iterate ``x`` (the relaxed one of (Q4) when ``x`` is the last x-step's, else x)."""
+        if self._is_last(x):
+            return self._x_rel
+        return x
+
+    def _is_last(self, x) -> bool:
+        """``x`` is the last x-step's output (or a view of it, as a record's ``x``)."""
+        last = self._x_last
+        return last is not None and (x is last or (x.shape == last.shape and x.ctypes.data == last.ctypes.data))
+
+    def delta_x(self, x):
+        """x^{k+1} - x^k of the loop's last iterate ``x`` (OSQP's relaxed x under (Q4)), or None if unknown."""
+        if self._is_last(x):
+            return self._x_rel - self._x_rel_prev
+        return None if self._x_in is None else x - self._x_in
 
     def z_step(self, Ax, lam, rho, z):
         """Project A x + lam/rho onto the box [l, u] (Q2; M is diagonal, so it does not enter)."""
@@ -173,7 +211,8 @@ class QP(Problem):
         return float(np.linalg.norm(self.Ats @ (y if self.w is None else self.w * y)))
 
     def finalize(self, x):
-        """The user's x = D xb."""
+        """The user's x = D xb (xb OSQP's relaxed x under (Q4))."""
+        x = self.relaxed_x(x)
         return self.scaling.unscale_x(x) if self.scaled else x
 
     # -- between the loop's iterates and the user's numbers -------------------
@@ -184,6 +223,7 @@ class QP(Problem):
 
     def unscaled(self, x, z, lam):
         """(x, z, y) of the user's problem from the loop's iterate (x, z, lam)."""
+        x = self.relaxed_x(x)
         if not self.scaled:
             return x, z, self.multiplier(lam)
         return self.scaling.unscale_x(x), self.scaling.unscale_z(z), self.multiplier(lam)

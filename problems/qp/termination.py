@@ -1,4 +1,5 @@
-"""OSQP's termination test for the QP plug-in, at one or several accuracies in one run.
+"""OSQP's termination tests for the QP plug-in: :class:`QPTermination` (OSQP 1.x's, with the duality gap and
+infeasibility detection, the QP's default) and :class:`OSQPTermination` (residuals only, several accuracies in one run).
 
 OSQP (Stellato et al. 2020, section 3.4) declares a QP solved at (x, z, y) when
 
@@ -26,33 +27,30 @@ import numpy as np
 
 from admmkit import IterationRecord, StoppingRule
 
+from .infeasibility import DIVISION_TOL, dual_certificate, iterate_deltas, primal_certificate
 from .problem import QP
+from .residuals import iterate_residuals, osqp_residuals  # noqa: F401  (osqp_residuals: re-exported)
 
 
-def _inf(v: np.ndarray) -> float:
-    return float(np.max(np.abs(v), initial=0.0))
-
-
-def osqp_residuals(qp: QP, x: np.ndarray, z: np.ndarray, y: np.ndarray, Ax: np.ndarray | None = None) -> dict:
-    """OSQP's primal and dual residuals (inf-norms) and the norms its relative tolerances scale with."""
-    Ax = qp.A @ x if Ax is None else Ax
-    Px = qp.P @ x
-    Aty = qp.At @ y
-    return {
-        "primal": _inf(Ax - z), "primal_scale": max(_inf(Ax), _inf(z)),
-        "dual": _inf(Px + qp.q + Aty), "dual_scale": max(_inf(Px), _inf(Aty), _inf(qp.q)),
-    }
+def _iterate(qp: QP, rec: IterationRecord, scaled: bool = False) -> dict:
+    """OSQP's residuals of the user's problem at the record's iterate, with y from ``rec.lam_z`` (and OSQP's
+    relaxed x when the QP relaxes x)."""
+    x = qp.relaxed_x(rec.x)
+    Ax = rec.Ax if x is rec.x else None
+    return iterate_residuals(qp, x, rec.z, rec.lam_z, Ax, scaled=scaled)
 
 
 def osqp_relative_residuals(qp: QP):
-    """A function record -> (r_rel, s_rel) with OSQP's normalisation, for ``policies.OSQPRule(residuals=...)``.
+    """A function record -> (r_rel, s_rel) with OSQP 1.x's normalisation, for ``policies.OSQPRule(residuals=...)``.
 
-    As OSQP's ``compute_rho_estimate``: ||A x - z||_inf / (max(||A x||_inf, ||z||_inf) + 1e-10) and
-    ||P x + q + A'y||_inf / (max(||P x||_inf, ||A'y||_inf, ||q||_inf) + 1e-10), with y = ``rec.lam_z``.
+    As OSQP 1.x's ``compute_rho_estimate``, in the problem the loop iterates on (the scaled one when
+    ``qp.scaling``): ||A x - z||_inf / (max(||A x||_inf, ||z||_inf) + 1e-30) and
+    ||P x + q + A'y||_inf / (max(||P x||_inf, ||A'y||_inf, ||q||_inf) + 1e-30), with y = M ``rec.lam_z``.
     """
     def relative(rec: IterationRecord) -> tuple[float, float]:
-        res = osqp_residuals(qp, rec.x, rec.z, rec.lam_z, rec.Ax)
-        return (res["primal"] / (res["primal_scale"] + 1e-10), res["dual"] / (res["dual_scale"] + 1e-10))
+        res = _iterate(qp, rec, scaled=True)
+        return (res["scaled_primal"] / (res["scaled_primal_scale"] + DIVISION_TOL),
+                res["scaled_dual"] / (res["scaled_dual_scale"] + DIVISION_TOL))
     return relative
 
 
@@ -90,7 +88,7 @@ class OSQPTermination(StoppingRule):
 
     def fired(self, rec: IterationRecord) -> str | None:
         """Record each accuracy when first met; fire at the tightest."""
-        res = osqp_residuals(self.qp, rec.x, rec.z, rec.lam_z, rec.Ax)
+        res = _iterate(self.qp, rec)
         self.last = res
         for eps in self.eps:
             if eps in self.met:
@@ -100,3 +98,82 @@ class OSQPTermination(StoppingRule):
             self.met[eps] = (rec.k + 1, self.clock() - self.t0,
                              int(self.qp.counters().get("factorizations", 0)))
         return self.name if self.eps[-1] in self.met else None
+
+
+#: the tests a QPTermination reports as fired
+SOLVED, PRIMAL_INFEASIBLE, DUAL_INFEASIBLE = "solved", "primal_infeasible", "dual_infeasible"
+
+
+class QPTermination(StoppingRule):
+    """OSQP 1.x's ``check_termination``: residuals (R1), (R2), the duality gap (R3) and infeasibility (I1), (I2).
+
+    Fires when, in the user's problem (unscaled),
+
+        primal <= eps_abs + eps_rel primal_scale,  dual <= eps_abs + eps_rel dual_scale
+        and (if ``gap``) |gap| <= eps_abs + eps_rel gap_scale                              -> "solved"
+
+    or else, when the primal test failed and dy = y^{k+1} - y^k is a certificate
+    (I1) -> "primal_infeasible", or the dual test failed and dx is one (I2) ->
+    "dual_infeasible" (``infeasibility=False`` skips both).  After it fired,
+    ``outcome`` is one of those three, ``certificate`` the normalised dy or dx
+    (None when solved), ``last`` the residuals of the last check and
+    ``passed`` which of the primal, dual and gap tests held there.
+
+    ``tolerance`` is None: the test is itself a KKT test in the user's
+    problem, so :func:`admmkit.solve`'s second check (``converged_inaccurate``)
+    is not asked for; an infeasibility stop would fail it by nature.
+    """
+
+    tolerance = None
+
+    def __init__(self, qp: QP, eps_abs: float = 1e-3, eps_rel: float = 1e-3, *, gap: bool = True,
+                 infeasibility: bool = True, eps_prim_inf: float = 1e-4, eps_dual_inf: float = 1e-4):
+        self.qp = qp
+        for name, v in (("eps_abs", eps_abs), ("eps_rel", eps_rel)):
+            if not (math.isfinite(v) and v >= 0):
+                raise ValueError(f"{name} must be a finite number >= 0, got {v!r}")
+        if eps_abs == 0 and eps_rel == 0:
+            raise ValueError("eps_abs and eps_rel cannot both be 0 (the test could never pass)")
+        for name, v in (("eps_prim_inf", eps_prim_inf), ("eps_dual_inf", eps_dual_inf)):
+            if not (math.isfinite(v) and v > 0):
+                raise ValueError(f"{name} must be a finite number > 0, got {v!r}")
+        self.eps_abs, self.eps_rel = float(eps_abs), float(eps_rel)
+        self.gap, self.infeasibility = bool(gap), bool(infeasibility)
+        self.eps_prim_inf, self.eps_dual_inf = float(eps_prim_inf), float(eps_dual_inf)
+        tests = "primal+dual+gap" if self.gap else "primal+dual"
+        self.name = f"osqp_{tests}(eps_abs={self.eps_abs:g}, eps_rel={self.eps_rel:g})"
+        self.names = {SOLVED: self.name, PRIMAL_INFEASIBLE: f"primal_infeasible(eps={self.eps_prim_inf:g})",
+                      DUAL_INFEASIBLE: f"dual_infeasible(eps={self.eps_dual_inf:g})"}
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget the last check (a rule object can serve several runs)."""
+        self.outcome: str | None = None
+        self.certificate: np.ndarray | None = None
+        self.last: dict | None = None
+        self.passed: dict | None = None
+
+    def fired(self, rec: IterationRecord) -> str | None:
+        """The name of the test that fired at this record (see the class docstring), or None."""
+        qp = self.qp
+        res = _iterate(qp, rec)
+        self.last = res
+        primal = qp.m == 0 or res["primal"] <= self.eps_abs + self.eps_rel * res["primal_scale"]
+        dual = res["dual"] <= self.eps_abs + self.eps_rel * res["dual_scale"]
+        gap = not self.gap or abs(res["gap"]) <= self.eps_abs + self.eps_rel * res["gap_scale"]
+        self.passed = {"primal": primal, "dual": dual, "gap": gap}
+        if primal and dual and gap:
+            self.outcome, self.certificate = SOLVED, None
+            return self.names[SOLVED]
+        if not self.infeasibility or (primal and dual):
+            return None
+        dx, dy = iterate_deltas(qp, rec)
+        cert = None if primal else primal_certificate(qp, dy, self.eps_prim_inf)
+        if cert is not None:
+            self.outcome, self.certificate = PRIMAL_INFEASIBLE, cert
+            return self.names[PRIMAL_INFEASIBLE]
+        cert = None if (dual or dx is None) else dual_certificate(qp, dx, self.eps_dual_inf)
+        if cert is not None:
+            self.outcome, self.certificate = DUAL_INFEASIBLE, cert
+            return self.names[DUAL_INFEASIBLE]
+        return None

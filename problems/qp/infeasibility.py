@@ -1,0 +1,106 @@
+"""Infeasibility certificates from successive ADMM iterates (Banjac, Goulart, Stellato & Boyd 2019; OSQP ``auxil.c``).
+
+When a QP is primal infeasible, dy = y^{k+1} - y^k converges to a nonzero
+certificate; when it is dual infeasible (unbounded below), dx = x^{k+1} - x^k
+does.  Both are tested in the user's problem, normalised by their inf-norm:
+
+    primal:  A'dy ~ 0  and  S(dy) = u' max(dy, 0) + l' min(dy, 0) < 0,                       (I1)
+             ||A'dy||_inf < eps_prim_inf ||dy||_inf, after dy is projected onto the
+             polar of the recession cone of [l, u] (OSQP_ZERO... as OSQP);
+    dual:    q'dx < 0,  ||P dx||_inf < eps_dual_inf ||dx||_inf  and  A dx in the recession     (I2)
+             cone of [l, u]: (A dx)_i <= eps ||dx|| where u_i < inf, >= -eps ||dx|| where l_i > -inf.
+
+A primal certificate proves that no x has l <= A x <= u (Farkas: for such x,
+dy'A x <= S(dy) < 0 contradicts A'dy = 0); a dual one is a direction along
+which the objective decreases without bound while staying feasible.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .problem import QP
+
+#: OSQP_DIVISION_TOL = 1 / OSQP_INFTY
+DIVISION_TOL = 1e-30
+
+
+def _inf(v: np.ndarray) -> float:
+    return float(np.max(np.abs(v), initial=0.0))
+
+
+def project_polar_recession_cone(dy: np.ndarray, l: np.ndarray, u: np.ndarray) -> np.ndarray:
+    """dy with components pushing against an infinite bound set to 0 (OSQPVectorf_project_polar_reccone)."""
+    dy = np.where(np.isinf(u), np.minimum(dy, 0.0), dy)
+    return np.where(np.isinf(l), np.maximum(dy, 0.0), dy)
+
+
+def _support(dy: np.ndarray, l: np.ndarray, u: np.ndarray) -> float:
+    pos, neg = np.maximum(dy, 0.0), np.minimum(dy, 0.0)
+    return float(np.where(pos > 0, u, 0.0) @ pos + np.where(neg < 0, l, 0.0) @ neg)
+
+
+def primal_certificate(qp: QP, dy: np.ndarray, eps: float) -> np.ndarray | None:
+    """The normalised certificate (I1) if ``dy`` (a change of the user's y) proves primal infeasibility, else None."""
+    dy = project_polar_recession_cone(np.asarray(dy, dtype=float), qp.l, qp.u)
+    norm = _inf(dy)
+    if norm <= DIVISION_TOL:
+        return None
+    dy = dy / norm
+    if _support(dy, qp.l, qp.u) < 0.0 and _inf(qp.At @ dy) < eps:
+        return dy
+    return None
+
+
+def dual_certificate(qp: QP, dx: np.ndarray, eps: float) -> np.ndarray | None:
+    """The normalised certificate (I2) if ``dx`` (a change of the user's x) proves dual infeasibility, else None."""
+    dx = np.asarray(dx, dtype=float)
+    norm = _inf(dx)
+    if norm <= DIVISION_TOL:
+        return None
+    dx = dx / norm
+    if not (qp.q @ dx < 0.0 and _inf(qp.P @ dx) < eps):
+        return None
+    Adx = qp.A @ dx
+    if np.any(np.isfinite(qp.u) & (Adx > eps)) or np.any(np.isfinite(qp.l) & (Adx < -eps)):
+        return None
+    return dx
+
+
+def check_primal_certificate(qp: QP, y: np.ndarray) -> dict:
+    """What makes ``y`` a primal infeasibility certificate, normalised by ||y||_inf: ||A'y||_inf and S(y) (want ~0 and < 0)."""
+    y = np.asarray(y, dtype=float) / max(_inf(y), DIVISION_TOL)
+    return {"At_y": _inf(qp.At @ y), "support": _support(y, qp.l, qp.u),
+            "pushes_infinite_bound": bool(np.any((y > 0) & np.isinf(qp.u)) or np.any((y < 0) & np.isinf(qp.l)))}
+
+
+def check_dual_certificate(qp: QP, x: np.ndarray) -> dict:
+    """What makes ``x`` a dual infeasibility certificate, normalised: ||P x||_inf, q'x (< 0), and the worst violation of
+    A x in the recession cone of [l, u]."""
+    x = np.asarray(x, dtype=float) / max(_inf(x), DIVISION_TOL)
+    Ax = qp.A @ x
+    up = np.where(np.isfinite(qp.u), np.maximum(Ax, 0.0), 0.0)
+    lo = np.where(np.isfinite(qp.l), np.maximum(-Ax, 0.0), 0.0)
+    return {"P_x": _inf(qp.P @ x), "q_x": float(qp.q @ x), "cone_violation": max(_inf(up), _inf(lo))}
+
+
+def iterate_deltas(qp: QP, rec) -> tuple[np.ndarray | None, np.ndarray]:
+    """(dx, dy) of the user's problem between the record's iterate and the previous one.
+
+    dy from the dual update's vector (public fields of the record): order xz
+    lam^{k+1} - lam^k = rho (alpha A x^{k+1} + (1 - alpha) z^k - z^{k+1}),
+    order zx rho (A x^{k+1} - alpha z^{k+1} - (1 - alpha) A x^k); dy = E M dlam / c.
+    dx = D (x^{k+1} - x^k) from :meth:`QP.delta_x` (OSQP's relaxed x when the QP relaxes
+    x), None when the QP does not know x^k.
+    """
+    a = rec.alpha
+    if rec.order == "xz":
+        hat = rec.Ax if a == 1.0 else a * rec.Ax + (1.0 - a) * rec.z_prev
+        dlam = rec.rho * (hat - rec.z)
+    else:
+        hat = rec.z if a == 1.0 else a * rec.z + (1.0 - a) * rec.Ax_prev
+        dlam = rec.rho * (rec.Ax - hat)
+    dy = qp.multiplier(dlam)
+    dx = qp.delta_x(rec.x)
+    if dx is not None and qp.scaled:
+        dx = qp.scaling.unscale_x(dx)
+    return dx, dy

@@ -1,0 +1,83 @@
+"""Settings of a QP solve, with OSQP 1.x's defaults as one preset (``osqp_settings()``) and admmkit's textbook loop.
+
+OSQP's defaults (``osqp.OSQP().settings`` of osqp 1.1: rho 0.1, sigma 1e-6,
+alpha 1.6, scaling 10, rho per row, eps_abs = eps_rel = 1e-3,
+eps_prim_inf = eps_dual_inf = 1e-4, check_termination 25, check_dualgap on,
+adaptive_rho 1 = every adaptive_rho_interval = 50 iterations with
+adaptive_rho_tolerance 5, max_iter 4000, polishing off, delta 1e-6,
+polish_refine_iter 3).  OSQP's rho rule (``policies.OSQPRule``) steers
+rho at a fixed iteration interval, so a run is deterministic.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class QPSettings:
+    """Everything :func:`problems.qp.solve_qp` needs besides the QP and the penalty rule (defaults: OSQP 1.x's)."""
+
+    rho: float = 0.1                   # rho_0 (clamped to [1e-6, 1e6] as OSQP does)
+    sigma: float = 1e-6                # proximal weight of the x-step
+    alpha: float = 1.6                 # over-relaxation
+    relax_x: bool = True               # relax x too, as OSQP (it enters the proximal term sigma and the residuals)
+    scaling: int = 10                  # Ruiz iterations (0: none)
+    row_weights: str = "osqp"          # "osqp": rho x 1e3 on equality rows, a floor on free rows; "uniform"
+    order: str = "xz"                  # OSQP's order: x-step first
+    eps_abs: float = 1e-3
+    eps_rel: float = 1e-3
+    gap: bool = True                   # OSQP 1.x's check_dualgap
+    infeasibility: bool = True         # detect primal / dual infeasibility
+    eps_prim_inf: float = 1e-4
+    eps_dual_inf: float = 1e-4
+    check_every: int = 25              # OSQP's check_termination
+    adaptive_rho_interval: int = 50    # OSQP's rule: every this many iterations
+    adaptive_rho_tolerance: float = 5.0
+    max_iter: int = 4000
+    polish: bool = False
+    polish_refine_iter: int = 3
+    delta: float = 1e-6                # regularisation of the polishing system
+    time_limit: float | None = None    # seconds (benchmarks only)
+
+    def __post_init__(self):
+        for name in ("rho", "alpha", "eps_prim_inf", "eps_dual_inf", "adaptive_rho_tolerance", "delta"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
+                raise ValueError(f"{name} must be a finite number > 0, got {v!r}")
+        if not 0 < self.alpha < 2:
+            raise ValueError(f"alpha must be in (0, 2), got {self.alpha!r}")
+        if self.adaptive_rho_tolerance < 1:
+            raise ValueError(f"adaptive_rho_tolerance must be >= 1, got {self.adaptive_rho_tolerance!r}")
+        for name in ("sigma", "eps_abs", "eps_rel"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
+                raise ValueError(f"{name} must be a finite number >= 0, got {v!r}")
+        for name, low in (("scaling", 0), ("check_every", 1), ("adaptive_rho_interval", 1), ("max_iter", 1),
+                          ("polish_refine_iter", 0)):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, int) or v < low:
+                raise ValueError(f"{name} must be an integer >= {low}, got {v!r}")
+        if self.order not in ("xz", "zx"):
+            raise ValueError(f"order must be 'xz' or 'zx', got {self.order!r}")
+        if self.time_limit is not None and not (math.isfinite(self.time_limit) and self.time_limit > 0):
+            raise ValueError(f"time_limit must be a finite number > 0 or None, got {self.time_limit!r}")
+
+    def replace(self, **changes) -> "QPSettings":
+        """A copy with some settings changed (unknown names raise TypeError)."""
+        unknown = sorted(set(changes) - {f.name for f in dataclasses.fields(self)})
+        if unknown:
+            known = ", ".join(f.name for f in dataclasses.fields(self))
+            raise TypeError(f"unknown QP setting(s) {', '.join(unknown)}; known: {known}")
+        return dataclasses.replace(self, **changes)
+
+
+def osqp_settings(**changes) -> QPSettings:
+    """OSQP 1.x's defaults (the preset), with ``changes`` applied."""
+    return QPSettings().replace(**changes)
+
+
+def textbook_settings(**changes) -> QPSettings:
+    """admmkit's textbook QP loop: no scaling, M = I, alpha = 1, the test at every iteration, rho_0 = 0.1."""
+    return QPSettings(scaling=0, row_weights="uniform", alpha=1.0, relax_x=False, check_every=1).replace(**changes)

@@ -1,0 +1,185 @@
+"""``solve_qp``: the QP plug-in with OSQP's machinery around :func:`admmkit.solve`.
+
+It builds the QP in the form the settings ask for (Ruiz scaling, penalty per
+row), runs the loop with over-relaxation, the termination test every
+``check_every`` iterations (:class:`problems.qp.termination.QPTermination`:
+residuals, duality gap, infeasibility) and a penalty rule (default OSQP's,
+fed OSQP 1.x's normalised residuals of the scaled problem), then, as OSQP:
+
+- at the iteration cap, the test once more at 10x the tolerances
+  ("solved inaccurate", "primal/dual infeasible inaccurate");
+- polishing if asked (:mod:`problems.qp.polish`);
+- every number in the user's problem: x, z, the multiplier y (in ``lam``),
+  the objective, the residuals.
+
+The result says which test fired (``termination``) and carries the
+infeasibility certificate.  ``warm_start=`` a previous result starts from its
+x, y and rho (OSQP's warm start: z = A x).
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass, field
+from enum import Enum
+
+import numpy as np
+
+import admmkit
+from admmkit import Result, Status
+
+from .polish import polish as polish_solution
+from .problem import QP
+from .residuals import iterate_residuals, neutral_residuals
+from .settings import QPSettings, osqp_settings
+from .termination import DUAL_INFEASIBLE, PRIMAL_INFEASIBLE, SOLVED, QPTermination, osqp_relative_residuals
+
+#: OSQP_RHO_MIN, OSQP_RHO_MAX
+RHO_MIN, RHO_MAX = 1e-6, 1e6
+#: OSQP's "inaccurate" tests use 10x the tolerances
+INACCURATE_FACTOR = 10.0
+
+
+class QPStatus(str, Enum):
+    """Outcomes of a QP solve that :class:`admmkit.Status` has no member for."""
+
+    PRIMAL_INFEASIBLE = "primal_infeasible"
+    DUAL_INFEASIBLE = "dual_infeasible"
+    PRIMAL_INFEASIBLE_INACCURATE = "primal_infeasible_inaccurate"
+    DUAL_INFEASIBLE_INACCURATE = "dual_infeasible_inaccurate"
+
+    def __str__(self) -> str:
+        return self.value
+
+
+@dataclass(repr=False)
+class QPResult(Result):
+    """An :class:`admmkit.Result` in the user's problem: ``x``, ``z``, ``lam`` (= the QP's multiplier y).
+
+    Extra fields: ``termination`` (the test that ended the run: "solved",
+    "primal_infeasible", "dual_infeasible", their "_inaccurate" forms at the
+    iteration cap, or None), ``certificate`` (the normalised dy or dx of an
+    infeasibility stop), ``residuals`` (OSQP's primal, dual and gap with their
+    scales at the last iterate), ``neutral`` (the neutral criteria at the
+    returned x, y), ``polish`` (None if not asked; else a dict whose
+    ``status`` is "succeeded" or "failed"), ``settings``.
+    """
+
+    termination: str | None = None
+    certificate: np.ndarray | None = None
+    residuals: dict | None = None
+    neutral: dict | None = None
+    polish: dict | None = None
+    settings: QPSettings | None = None
+
+    @property
+    def y(self) -> np.ndarray:
+        """The QP's multiplier (the same array as ``lam``)."""
+        return self.lam
+
+    @property
+    def solved(self) -> bool:
+        """True when the residual (and gap) test held at the requested accuracy."""
+        return self.termination == SOLVED
+
+
+def qp_for(qp: QP, settings: QPSettings) -> QP:
+    """``qp`` itself if it is built with the settings' sigma, scaling, row weights and x relaxation, else a copy that is."""
+    want = {"sigma": float(settings.sigma), "scaling": settings.scaling, "row_weights": settings.row_weights,
+            "x_relaxation": float(settings.alpha) if settings.relax_x else 1.0}
+    if all(qp.options.get(k) == v for k, v in want.items()):
+        return qp
+    return qp.with_options(**want)
+
+
+def default_policy(qp: QP, settings: QPSettings):
+    """OSQP's rule as OSQP 1.x runs it: every ``adaptive_rho_interval`` iterations, on the scaled problem's residuals."""
+    from policies import OSQPRule
+    return OSQPRule(interval=settings.adaptive_rho_interval, tolerance=settings.adaptive_rho_tolerance,
+                    rho_min=RHO_MIN, rho_max=RHO_MAX, residuals=osqp_relative_residuals(qp))
+
+
+def solve_qp(qp: QP, settings: QPSettings | None = None, *, policy="osqp", warm_start: Result | None = None,
+             rho: float | None = None, callback=None, **changes) -> QPResult:
+    """Solve ``qp`` with ``settings`` (default :func:`osqp_settings`; keyword ``changes`` override single settings).
+
+    ``policy``: "osqp" (default: OSQP's rule with OSQP's normalisation, see
+    :func:`default_policy`), None for a fixed rho, or any policy or registered
+    name :func:`admmkit.solve` accepts.  ``warm_start``: a previous result of
+    this QP (its x, y and rho).  ``rho`` overrides rho_0.
+    """
+    if not isinstance(qp, QP):
+        raise TypeError(f"qp must be a problems.qp.QP, got {type(qp).__name__}")
+    settings = (osqp_settings() if settings is None else settings).replace(**changes)
+    if not isinstance(settings, QPSettings):
+        raise TypeError(f"settings must be a QPSettings (e.g. osqp_settings()), got {type(settings).__name__}")
+    run_qp = qp_for(qp, settings)
+    rule = default_policy(run_qp, settings) if isinstance(policy, str) and policy == "osqp" else policy
+    x0 = z0 = lam0 = None
+    if warm_start is not None:
+        if not isinstance(warm_start, Result):
+            raise TypeError(f"warm_start must be a result of solve_qp, got {type(warm_start).__name__}")
+        x0, z0, lam0 = run_qp.iterate_from(warm_start.x, warm_start.lam)
+        rho = warm_start.rho if rho is None else rho
+    rho0 = min(max(settings.rho if rho is None else rho, RHO_MIN), RHO_MAX)
+    stop = QPTermination(run_qp, settings.eps_abs, settings.eps_rel, gap=settings.gap,
+                         infeasibility=settings.infeasibility, eps_prim_inf=settings.eps_prim_inf,
+                         eps_dual_inf=settings.eps_dual_inf)
+    last = [None]
+
+    def keep_last(rec):
+        last[0] = rec
+        return callback(rec) if callback is not None else None
+
+    res = admmkit.solve(run_qp, rho=rho0, policy=rule, order=settings.order, stop=stop, max_iter=settings.max_iter,
+                        alpha=settings.alpha, check_every=settings.check_every, x0=x0, z0=z0, lam0=lam0,
+                        time_limit=settings.time_limit, callback=keep_last)
+    return _qp_result(run_qp, settings, res, stop, last[0])
+
+
+def _qp_result(qp: QP, settings: QPSettings, res: Result, stop: QPTermination, rec) -> QPResult:
+    status, termination, message = res.status, None, res.message
+    if res.status is Status.CONVERGED and stop.outcome is not None:
+        termination = stop.outcome
+    elif res.status is Status.MAX_ITER and rec is not None:                 # OSQP: one more test at 10x
+        loose = QPTermination(qp, INACCURATE_FACTOR * settings.eps_abs, INACCURATE_FACTOR * settings.eps_rel,
+                              gap=settings.gap, infeasibility=settings.infeasibility,
+                              eps_prim_inf=INACCURATE_FACTOR * settings.eps_prim_inf,
+                              eps_dual_inf=INACCURATE_FACTOR * settings.eps_dual_inf)
+        if loose.fired(rec):
+            termination = loose.outcome + "_inaccurate"
+            stop = loose
+            message += f"; {loose.outcome} at 10x the tolerances"
+    if termination in (PRIMAL_INFEASIBLE, PRIMAL_INFEASIBLE + "_inaccurate",
+                       DUAL_INFEASIBLE, DUAL_INFEASIBLE + "_inaccurate"):
+        status = QPStatus(termination)
+    elif termination == SOLVED + "_inaccurate":
+        status = Status.CONVERGED_INACCURATE
+    lam_z = rec.lam_z if rec is not None else res.lam
+    zb = rec.z if rec is not None else res.z
+    xb = qp.relaxed_x(res.x_iterate)                                       # OSQP's x under (Q4)
+    x, z, y = qp.unscaled(xb, zb, lam_z)
+    finite = np.all(np.isfinite(xb)) and np.all(np.isfinite(lam_z))
+    residuals = iterate_residuals(qp, xb, zb, lam_z) if finite else None
+    objective, kkt = res.objective, (qp.kkt(x, zb, lam_z) if finite else None)
+    if status is QPStatus.PRIMAL_INFEASIBLE or status is QPStatus.PRIMAL_INFEASIBLE_INACCURATE:
+        objective = math.inf
+    elif status is QPStatus.DUAL_INFEASIBLE or status is QPStatus.DUAL_INFEASIBLE_INACCURATE:
+        objective = -math.inf
+    polish_info = None
+    if settings.polish:
+        if termination in (SOLVED, SOLVED + "_inaccurate"):
+            yb = lam_z if qp.w is None else qp.w * lam_z
+            xp, yp, polish_info = polish_solution(qp, xb, zb, yb, delta=settings.delta,
+                                                  refine=settings.polish_refine_iter)
+            if xp is not None:
+                x, y = xp, yp
+                z = np.clip(qp.A @ x, qp.l, qp.u)
+                objective = qp.objective(x, z)
+        else:
+            polish_info = {"status": "failed", "reason": f"not run: the run ended {termination or res.status.value}"}
+    neutral = neutral_residuals(qp, x, y) if finite else None
+    fields = {f.name: getattr(res, f.name) for f in dataclasses.fields(Result)}
+    fields.update(x=x, z=z, lam=y, status=status, message=message, objective=objective, kkt=kkt)
+    return QPResult(**fields, termination=termination, certificate=stop.certificate if termination else None,
+                    residuals=residuals, neutral=neutral, polish=polish_info, settings=settings)
