@@ -201,8 +201,8 @@ def progress_callback(every: int):
     return show
 
 
-def progress(args, total: int) -> Progress:
-    """The progress display the options ask for: ``--progress N`` lines, else a bar after 2 s; none if ``-q``."""
+def progress(args, total: int):
+    """A ``Progress`` context (admmkit/cli_output.py) as the options ask: ``--progress N`` lines, else a bar after 2 s; none if ``-q``."""
     lines = 0 if getattr(args, "quiet", False) else getattr(args, "progress", 0)
     return Progress(total, enabled=not getattr(args, "quiet", False), lines=progress_callback(lines))
 

@@ -94,7 +94,7 @@ class History:
     def to_pandas(self):
         """The history as a ``pandas.DataFrame`` indexed by the iteration ``k`` (pandas is optional).
 
-        Columns as in :data:`COLUMNS`; NaN where a lean row did not compute a norm.
+        Columns as in ``admmkit.history.COLUMNS``; NaN where a lean row did not compute a norm.
         """
         try:
             import pandas as pd

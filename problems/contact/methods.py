@@ -43,7 +43,7 @@ class ContactSolution:
 
     @property
     def active_nodes(self) -> int:
-        """Number of active contact nodes (p = g; :func:`problems.contact.export.contact_status`)."""
+        """Number of active contact nodes (p = g; ``contact_status`` in problems/contact/export.py)."""
         from .export import contact_status
         return int(contact_status(self.ops, self.result.z).sum())
 
