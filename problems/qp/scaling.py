@@ -11,7 +11,10 @@ diagonal matrices and c > 0 a number.  Each of the ``iterations`` Ruiz steps
 divides every column of the KKT matrix [[P, A'], [A, 0]] by the square root of
 its infinity norm (norms below MIN_SCALING count as 1, above MAX_SCALING as
 MAX_SCALING), then divides the cost by max(mean column norm of P, ||q||_inf)
-(limited the same way).  These are the numbers of OSQP 1.x, step for step.
+(limited the same way).  These are the numbers of OSQP 1.x, step for step,
+including one detail of its code: the column norms of P are those of the
+upper triangle OSQP stores (``OSQPMatrix_col_norm_inf`` on triu(P)), so an
+entry below the diagonal does not count in its column.
 """
 from __future__ import annotations
 
@@ -87,7 +90,7 @@ def ruiz(P: sp.spmatrix, q: np.ndarray, A: sp.spmatrix, iterations: int = 10):
     D, E, c = np.ones(n), np.ones(m), 1.0
     P, A, q = sp.csc_matrix(P), sp.csc_matrix(A), np.asarray(q, dtype=float).copy()
     for _ in range(int(iterations)):
-        d = np.maximum(_col_norms(P), _col_norms(A))                     # KKT columns 1..n
+        d = np.maximum(_col_norms(sp.triu(P, format="csc")), _col_norms(A))   # KKT columns 1..n (see below)
         e = _row_norms(A.tocsr())                                          # KKT columns n+1..n+m
         d, e = 1.0 / np.sqrt(_limit(d)), 1.0 / np.sqrt(_limit(e))
         Dd, De = sp.diags(d), sp.diags(e)
@@ -95,7 +98,7 @@ def ruiz(P: sp.spmatrix, q: np.ndarray, A: sp.spmatrix, iterations: int = 10):
         A = (De @ A @ Dd).tocsc()                                          # A <- E A D
         q = d * q
         D, E = D * d, E * e
-        mean_col = float(_col_norms(P).sum()) / n
+        mean_col = float(_col_norms(sp.triu(P, format="csc")).sum()) / n
         c_step = 1.0 / _limit_scalar(max(mean_col, _limit_scalar(float(np.max(np.abs(q), initial=0.0)))))
         P = (c_step * P).tocsc()
         q = c_step * q
