@@ -133,8 +133,8 @@ class LinearMap:
         if self.kind == "operator":
             raise TypeError("A^T M A of a LinearOperator is not formed; use QuadraticXStep(..., solver='cg')")
         A = sp.csr_matrix(self.A)
-        MA = A if self.m is None else sp.diags(self.m) @ A
-        return sp.csr_matrix(A.T @ MA)
+        AtM = A.T if self.m is None else A.T @ sp.diags(self.m)     # (A'M) A, as the plug-ins form it
+        return sp.csr_matrix(AtM @ A)
 
     def gram_operator(self) -> spla.LinearOperator:
         """A^T M A as a LinearOperator (any kind of A)."""

@@ -96,7 +96,7 @@ class QuadraticXStep:
     def _K(self) -> sp.csr_matrix:
         """P + sigma I as a sparse matrix."""
         P = sp.csr_matrix((self.n, self.n)) if self.P is None else sp.csr_matrix(self.P)
-        return sp.csr_matrix(P + self.sigma * sp.identity(self.n, format="csr"))
+        return P if self.sigma == 0 else sp.csr_matrix(P + self.sigma * sp.identity(self.n, format="csr"))
 
     def _diagonal(self):
         g = self.A.diagonal_gram()
