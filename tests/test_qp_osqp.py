@@ -119,22 +119,20 @@ def test_osqp_preset_takes_osqps_path(seed, kind):
         assert ref.info.status == "solved" and res.termination == "solved"
         assert res.iterations == ref.info.iter
         assert res.rho_changes == ref.info.rho_updates
-        # equal up to round-off, except on free rows: OSQP keeps their penalty at 1e-6, admmkit at rho x 1e-5
-        # (a fixed inner product M), which differ once rho has changed
-        free = np.isinf(qp.l) & np.isinf(qp.u)
-        tol = 1e-4 if free.any() and res.rho_changes else 1e-8
-        assert np.max(np.abs(res.x - ref.x)) < tol * max(1.0, np.max(np.abs(ref.x)))
+        assert np.max(np.abs(res.x - ref.x)) < 1e-8 * max(1.0, np.max(np.abs(ref.x)))   # equal up to round-off
 
 
-def test_osqp_preset_fixed_rho_iterates_equal_osqps():
+@pytest.mark.parametrize("xstep", ["reduced", "kkt"])
+def test_osqp_preset_iterates_equal_osqps_at_every_iteration(xstep):
     osqp = pytest.importorskip("osqp")
-    qp = random_qp(40, 40, kind="mixed", seed=2)
-    for iters in (1, 10, 60):
+    qp = random_qp(40, 40, kind="mixed", seed=2, xstep=xstep)
+    assert (np.isinf(qp.l) & np.isinf(qp.u)).any()              # free rows: OSQP's penalty 1e-6 whatever rho is
+    for iters in (1, 10, 60, 200):
         solver = osqp.OSQP()
-        solver.setup(qp.P, qp.q, qp.A, qp.l, qp.u, verbose=False, polishing=False, adaptive_rho=0, max_iter=iters,
+        solver.setup(qp.P, qp.q, qp.A, qp.l, qp.u, verbose=False, polishing=False, max_iter=iters,
                      eps_abs=1e-12, eps_rel=1e-12)
         ref = solver.solve()
-        res = solve_qp(qp, policy=None, max_iter=iters, eps_abs=1e-12, eps_rel=1e-12)
+        res = solve_qp(qp, max_iter=iters, eps_abs=1e-12, eps_rel=1e-12)
         assert np.max(np.abs(res.x - ref.x)) < 1e-9 and np.max(np.abs(res.lam - ref.y)) < 1e-8
 
 

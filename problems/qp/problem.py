@@ -8,6 +8,7 @@ FREE_ROW_WEIGHT on rows with both bounds infinite, 1 otherwise, so that
 rho w_i is OSQP's rho_vec).
 
     x-step: (P + sigma I + rho A'MA) x = sigma x^k - q + A'M(rho z - lam)   (Q1)
+            (with row_weights "osqp", a free row enters with penalty 1e-6 instead of rho w_i (Q5))
     z-step: z = clip(A x + lam/rho, l, u)                                   (Q2)
 
 lam is stored in M's inner product; the QP's multiplier is y = M lam (Q3)
@@ -61,8 +62,10 @@ def reduced_nnz_bound(P: sp.spmatrix, A: sp.spmatrix) -> float:
 
 #: OSQP_RHO_EQ_OVER_RHO_INEQ: weight of an equality row
 EQ_ROW_WEIGHT = 1e3
-#: weight of a row with both bounds infinite: rho w = OSQP's RHO_MIN = 1e-6 at OSQP's rho_0 = 0.1
+#: weight in M of a row with both bounds infinite (its residual and lam are 0 after one iteration)
 FREE_ROW_WEIGHT = 1e-5
+#: OSQP_RHO_MIN: the x-step's penalty of a free row, whatever rho is (Q5)
+FREE_ROW_PENALTY = 1e-6
 #: OSQP_RHO_TOL: a row with u - l below this (in the scaled problem) is an equality row
 EQ_TOL = 1e-4
 ROW_WEIGHTS = ("uniform", "osqp")
@@ -132,14 +135,30 @@ class QP(Problem):
         self.begin_run()
         base = (self.Ps + self.sigma * sp.identity(self.n, format="csc")).tocsc()
         w = np.ones(self.m) if self.w is None else self.w
+        # free rows (both bounds infinite) under "osqp": the x-step's penalty is RHO_MIN whatever rho is, as OSQP's
+        # rho_vec; their lam and residual are 0 from the first iteration on, so only the x-step sees it (Q5)
+        self._free = np.flatnonzero(np.isinf(self.ls) & np.isinf(self.us)) if self.w is not None else np.empty(0, int)
+        w_nf = w.copy()
+        w_nf[self._free] = 0.0
+        self._w_nf = w_nf
         if xstep == "reduced":
-            AtMA = (self.Ats @ sp.diags(w) @ self.As).tocsc() if self.w is not None else (self.Ats @ self.As).tocsc()
-            self._solver = CachedFactorization(lambda rho: (base + rho * AtMA).tocsc(), backend=backend)
+            G = (self.Ats @ sp.diags(w_nf) @ self.As).tocsc() if self.w is not None else (self.Ats @ self.As).tocsc()
+            if self._free.size:
+                Af = self.As[self._free]
+                base = (base + FREE_ROW_PENALTY * (Af.T @ Af)).tocsc()
+            self._solver = CachedFactorization(lambda rho: (base + rho * G).tocsc(), backend=backend)
         else:
             kkt_backend = _kkt_backend(backend)
             top = sp.bmat([[base, self.As.T], [self.As, None]], format="csc")
-            minus_inv_w = sp.diags(np.r_[np.zeros(self.n), -1.0 / w], format="csc")
-            self._solver = CachedFactorization(lambda rho: (top + minus_inv_w / rho).tocsc(), backend=kkt_backend)
+            self._solver = CachedFactorization(
+                lambda rho: (top + sp.diags(np.r_[np.zeros(self.n), -1.0 / self.penalty(rho)], format="csc")).tocsc(),
+                backend=kkt_backend)
+
+    def penalty(self, rho: float) -> np.ndarray:
+        """OSQP's rho_vec: rho w_i, and RHO_MIN on free rows under row_weights "osqp" (Q5)."""
+        R = rho * (np.ones(self.m) if self.w is None else self.w)
+        R[self._free] = FREE_ROW_PENALTY
+        return R
 
     def with_options(self, **options) -> "QP":
         """The same data with some constructor options changed (a new QP, its own factorisations)."""
@@ -162,12 +181,16 @@ class QP(Problem):
         relax = self.x_relaxation != 1.0
         xp = self._x_rel if relax and self._x_rel is not None else x
         if self.xstep == "kkt":
-            rhs = np.concatenate([self.sigma * xp - self.qs, z - lam / rho])
-            x_new = self._solver.solve(rho, rhs)[:self.n]
+            second = z - lam / rho
+            if self._free.size:
+                second[self._free] = z[self._free] - self.w[self._free] * lam[self._free] / FREE_ROW_PENALTY
+            x_new = self._solver.solve(rho, np.concatenate([self.sigma * xp - self.qs, second]))[:self.n]
         else:
             v = rho * z - lam
-            rhs = self.sigma * xp - self.qs + self.Ats @ (v if self.w is None else self.w * v)
-            x_new = self._solver.solve(rho, rhs)
+            v = v if self.w is None else self.w * v
+            if self._free.size:
+                v[self._free] = FREE_ROW_PENALTY * z[self._free] - self.w[self._free] * lam[self._free]
+            x_new = self._solver.solve(rho, self.sigma * xp - self.qs + self.Ats @ v)
         if relax:
             a = self.x_relaxation
             self._x_rel_prev, self._x_rel, self._x_last = xp, a * x_new + (1.0 - a) * xp, x_new      # (Q4)
