@@ -191,3 +191,34 @@ def test_records_are_read_only(vector_problem):
         recs[0].rho = 3.0
     with pytest.raises(ValueError):
         recs[0].x[0] = 1.0
+
+
+class Euclidean(admmkit.Problem):
+    """The conftest's problem with M = I and no inner/norm override: the loop's fast Euclidean norms apply."""
+
+    def __init__(self, seed=5, n=15):
+        r = np.random.default_rng(seed)
+        self.d, self.b, self.g, self.n = r.uniform(1, 3, n), r.uniform(-2, 4, n), r.uniform(0.2, 1, n), n
+
+    def x_step(self, z, lam, rho, x):
+        return (self.b - lam + rho * z) / (self.d + rho)
+
+    def z_step(self, Ax, lam, rho, z):
+        return np.minimum(self.g, Ax + lam / rho)
+
+    def apply_A(self, x):
+        return x.copy()
+
+    def adjoint_norm(self, y):
+        return float(np.linalg.norm(y))
+
+
+@pytest.mark.parametrize("order", ["xz", "zx"])
+def test_fast_euclidean_norms_are_bitwise_the_problems(order):
+    p = Euclidean()
+    stop = RelativeChange(1e-9)
+    _, ref_rows = eager_reference(p, 0.3, "summable", order, stop, 400)
+    res = solve(p, rho=0.3, policy="summable", order=order, stop=stop, max_iter=400, history="full")
+    h = res.history.as_dict()
+    for name in ref_rows[0]:
+        assert np.array_equal(h[name], np.array([row[name] for row in ref_rows])), name
