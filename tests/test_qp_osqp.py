@@ -234,3 +234,10 @@ def test_solve_qp_bad_input():
         QP(qp.P, qp.q, qp.A, qp.l, qp.u, x_relaxation=2.5)
     with pytest.raises(ValueError, match="eps_abs and eps_rel cannot both be 0"):
         QPTermination(qp, 0.0, 0.0)
+
+
+def test_setup_factorises_rho0_before_the_loop_and_counts_it():
+    qp = random_qp(30, 40, kind="mixed", seed=4)
+    res = solve_qp(qp, eps_abs=1e-6, eps_rel=1e-6)
+    assert res.counters["factorizations"] == res.rho_changes + 1      # setup at rho_0, one per rho update
+    assert res.counters["solves"] == res.iterations and res.timings["setup"] >= 0

@@ -154,6 +154,18 @@ class QP(Problem):
                 lambda rho: (top + sp.diags(np.r_[np.zeros(self.n), -1.0 / self.penalty(rho)], format="csc")).tocsc(),
                 backend=kkt_backend)
 
+    def setup(self, rho: float) -> int:
+        """Factorise the x-step matrix for ``rho`` now (OSQP's setup), unless cached; return the factorisations made.
+
+        The factorisation is not counted as a solve.
+        """
+        if float(rho) in self._solver:
+            return 0
+        size = self.n if self.xstep == "reduced" else self.n + self.m
+        self._solver.solve(rho, np.zeros(size))
+        self._solver.solves -= 1
+        return 1
+
     def penalty(self, rho: float) -> np.ndarray:
         """OSQP's rho_vec: rho w_i, and RHO_MIN on free rows under row_weights "osqp" (Q5)."""
         R = rho * (np.ones(self.m) if self.w is None else self.w)

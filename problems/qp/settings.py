@@ -17,7 +17,12 @@ from dataclasses import dataclass
 
 @dataclass(frozen=True)
 class QPSettings:
-    """Everything :func:`problems.qp.solve_qp` needs besides the QP and the penalty rule (defaults: OSQP 1.x's)."""
+    """Everything :func:`problems.qp.solve_qp` needs besides the QP and the penalty rule (defaults: OSQP 1.x's).
+
+    ``sigma``, ``scaling``, ``row_weights``, ``xstep`` and ``relax_x`` shape the
+    QP object (``solve_qp`` builds a copy of the QP with them if needed); the
+    others the run.
+    """
 
     rho: float = 0.1                   # rho_0 (clamped to [1e-6, 1e6] as OSQP does)
     sigma: float = 1e-6                # proximal weight of the x-step
@@ -26,6 +31,7 @@ class QPSettings:
     scaling: int = 10                  # Ruiz iterations (0: none)
     row_weights: str = "osqp"          # "osqp": rho x 1e3 on equality rows, a floor on free rows; "uniform"
     order: str = "xz"                  # OSQP's order: x-step first
+    xstep: str = "kkt"                 # OSQP's quasi-definite KKT system (qdldl if installed); "reduced", "auto"
     eps_abs: float = 1e-3
     eps_rel: float = 1e-3
     gap: bool = True                   # OSQP 1.x's check_dualgap
@@ -59,6 +65,8 @@ class QPSettings:
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int) or v < low:
                 raise ValueError(f"{name} must be an integer >= {low}, got {v!r}")
+        if self.xstep not in ("auto", "reduced", "kkt"):
+            raise ValueError(f"xstep must be one of auto, reduced, kkt, got {self.xstep!r}")
         if self.order not in ("xz", "zx"):
             raise ValueError(f"order must be 'xz' or 'zx', got {self.order!r}")
         if self.time_limit is not None and not (math.isfinite(self.time_limit) and self.time_limit > 0):
@@ -80,4 +88,5 @@ def osqp_settings(**changes) -> QPSettings:
 
 def textbook_settings(**changes) -> QPSettings:
     """admmkit's textbook QP loop: no scaling, M = I, alpha = 1, the test at every iteration, rho_0 = 0.1."""
-    return QPSettings(scaling=0, row_weights="uniform", alpha=1.0, relax_x=False, check_every=1).replace(**changes)
+    return QPSettings(scaling=0, row_weights="uniform", alpha=1.0, relax_x=False, check_every=1,
+                      xstep="auto").replace(**changes)
