@@ -28,13 +28,15 @@ def _executor_options(p, workers: int = 2) -> None:
                        help="run on the Dask cluster of this scheduler, e.g. tcp://head:8786 (docs/sweeps.md)")
     p.add_argument("--case-timeout", type=positive_float, default=None, metavar="SECONDS",
                    help="record a case that runs longer than this as a timeout and go on (default: no limit)")
+    p.add_argument("--chunk", type=positive_int, default=None, metavar="N",
+                   help="at most N cases per task (default: a group per task locally, 8 on Dask)")
 
 
 def _executor(args):
     """The sweep executor of the parsed options."""
     from .sweep import Executor
     return Executor(workers=args.workers, dask_workers=args.dask_workers, scheduler=args.scheduler,
-                    timeout=args.case_timeout)
+                    timeout=args.case_timeout, chunk=args.chunk)
 
 
 def _sweep_options(p, study: str) -> None:
@@ -214,6 +216,24 @@ def _maros_meszaros(args) -> int:
                   eps=tuple(args.eps) if args.eps else EPS, max_iter=args.max_iter, time_limit=args.time_limit,
                   workers=args.workers, only=_split(args.problems), osqp_direct=not args.no_osqp,
                   resume=args.resume, command=args.command_line, progress=not args.quiet, executor=_executor(args))
+    return 0
+
+
+def executors(targets) -> None:
+    """``admmkit bench executors``: the same sweep on local processes and on a Dask LocalCluster."""
+    e = targets.add_parser("executors", help="the bench-policies sweep on 2 local processes and a 2-worker Dask "
+                                             "LocalCluster: iterations identical?, wall-time ratio",
+                           description="Runs the cases of `admmkit bench policies` on both executors, one after "
+                                       "the other, and compares iteration counts and wall times (needs dask).")
+    _out(e, "executors")
+    e.add_argument("--quick", action="store_true", help="the coarse smoke grid of bench policies")
+    e.add_argument("--no-progress", dest="progress", action="store_false", help="no progress line")
+    e.set_defaults(func=_executors)
+
+
+def _executors(args) -> int:
+    from .executors import run
+    _print_files(run(args.out, quick=args.quick, progress=args.progress, command=args.command_line))
     return 0
 
 

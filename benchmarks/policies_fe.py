@@ -81,10 +81,14 @@ DEFAULT_H = {"contact": 1 / 20, "obstacle": 1 / 16}
 QUICK_H = {"contact": 1 / 10, "obstacle": 1 / 4}
 
 
-def build_cases(rules=RULES, orders=ORDERS, *, quick: bool = False, max_iter: int = MAX_ITER) -> list[dict]:
+def build_cases(rules=RULES, orders=ORDERS, *, quick: bool = False, max_iter: int = MAX_ITER,
+                problems=tuple(PROBLEMS)) -> list[dict]:
     """One case per (problem, rule, order, rho_0); the cases of one problem form a group."""
+    unknown = [p for p in problems if p not in PROBLEMS]
+    if unknown or not problems:
+        raise ValueError(f"problems must be among {', '.join(PROBLEMS)}, got {list(problems)!r}")
     cases = []
-    for problem in PROBLEMS:
+    for problem in problems:
         h = (QUICK_H if quick else DEFAULT_H)[problem]
         decades = range(-4, 9) if problem == "contact" else range(-6, 7)
         rhos = [10.0 ** j for j in decades]
@@ -225,15 +229,17 @@ def plot(results: dict, stem: Path) -> list[Path]:
 
 def run(out="out/policies", rules=RULES, quick: bool = False, command: str = "",
         progress: bool = True, max_iter: int = MAX_ITER, *, workers: int = 2, executor: Executor | None = None,
-        report_only: bool = False) -> dict:
+        report_only: bool = False, problems=tuple(PROBLEMS)) -> dict:
     """Run (or resume) the sweep of both problems (``quick``: coarser meshes, three rho_0) and write the report.
+
+    ``problems``: a subset of ("contact", "obstacle"); ``executor``: where the cases run.
 
     Returns {problem name: (rows, norm name)}.
     """
     from .sweep import finished
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    cases = build_cases(rules, quick=quick, max_iter=max_iter)
+    cases = build_cases(rules, quick=quick, max_iter=max_iter, problems=problems)
     if report_only:
         records = finished(cases, out / "results.jsonl")
     else:

@@ -173,6 +173,10 @@ def finished(cases: Iterable[dict], results_path: str | Path) -> dict[str, dict]
     return {cid: done[cid] for cid in map(case_id, cases) if cid in done}
 
 
+#: cases per task on Dask unless Executor.chunk says otherwise
+DASK_CHUNK = 8
+
+
 @dataclass(frozen=True)
 class Executor:
     """Where a sweep's cases run.
@@ -185,7 +189,13 @@ class Executor:
     - ``timeout``: seconds per case; a case that runs longer is recorded as a
       ``CaseTimeout`` error (None: no limit);
     - ``retries``: how often a case whose worker died is run again before it
-      is recorded as a ``WorkerDied`` error.
+      is recorded as a ``WorkerDied`` error;
+    - ``chunk``: at most this many cases per task; a larger group is split
+      (a worker that already holds the group's problem does not build it
+      again).  Default: a whole group per task on local processes (their
+      records stream back case by case), :data:`DASK_CHUNK` on Dask (a task's
+      records arrive when it ends: smaller tasks give a finer progress line
+      and resume point and spread a large group over the workers).
     """
 
     workers: int = 2
@@ -193,12 +203,14 @@ class Executor:
     scheduler: str | None = None
     timeout: float | None = None
     retries: int = 1
+    chunk: int | None = None
 
     def __post_init__(self):
-        for name in ("workers", "dask_workers", "retries"):
+        for name in ("workers", "dask_workers", "retries", "chunk"):
             v = getattr(self, name)
             low = 0 if name == "retries" else 1
-            if (v is not None or name != "dask_workers") and (isinstance(v, bool) or not isinstance(v, int) or v < low):
+            if (v is not None or name in ("workers", "retries")) and (isinstance(v, bool) or not isinstance(v, int)
+                                                                      or v < low):
                 raise ValueError(f"{name} must be an integer >= {low}, got {v!r}")
         if self.dask_workers is not None and self.scheduler:
             raise ValueError("give either dask_workers (start a LocalCluster) or scheduler (connect to one), not both")
@@ -206,6 +218,11 @@ class Executor:
             raise ValueError(f"scheduler must be an address such as 'tcp://host:8786', got {self.scheduler!r}")
         if self.timeout is not None and not (isinstance(self.timeout, (int, float)) and 0 < self.timeout < math.inf):
             raise ValueError(f"timeout must be a number of seconds > 0 or None, got {self.timeout!r}")
+
+    @property
+    def task_size(self) -> int | None:
+        """At most this many cases per task (None: a whole group)."""
+        return self.chunk if self.chunk is not None else (DASK_CHUNK if self.dask else None)
 
     @property
     def dask(self) -> bool:
@@ -258,6 +275,9 @@ def run_sweep(cases: Iterable[dict], func: str, results_path: str | Path, *, wor
         groups.setdefault(str(c.get("group", cid)), []).append((cid, c))
     # cheapest groups first: a sweep that is interrupted (or time-boxed) has covered the most problems
     tasks = sorted(groups.values(), key=lambda g: sum((cost or (lambda _c: 1.0))(c) for _, c in g))
+    size = executor.task_size
+    if size:
+        tasks = [g[i:i + size] for g in tasks for i in range(0, len(g), size)]
     bar = Progress(len(cases), len(cases) - len(todo), enabled=progress)
     name = label or (lambda c: " ".join(f"{k}={v}" for k, v in c.items() if k != "group"))
     by_id = dict(todo)
@@ -275,7 +295,7 @@ def run_sweep(cases: Iterable[dict], func: str, results_path: str | Path, *, wor
 
     if progress:
         print(f"sweep: {len(cases)} cases, {len(cases) - len(todo)} already in {results_path}, {len(todo)} to run "
-              f"in {len(tasks)} groups on {executor.describe(len(tasks))}; a line per finished case",
+              f"in {len(groups)} groups ({len(tasks)} tasks) on {executor.describe(len(tasks))}; a line per finished case",
               file=sys.stderr, flush=True)
     if tasks:
         results_path.parent.mkdir(parents=True, exist_ok=True)

@@ -16,6 +16,7 @@ from __future__ import annotations
 import ctypes
 import importlib
 import os
+import sys
 import threading
 import time
 import traceback
@@ -87,6 +88,20 @@ def deadline(seconds: float | None):
         timer.cancel()
 
 
+def peak_memory_mb() -> float | None:
+    """The peak resident memory of this process so far, in MB (None where the OS does not say).
+
+    Recorded with every case (``worker_peak_mb``): the largest value of a
+    sweep is what one worker needs (docs/sweeps.md, sizing the workers).
+    """
+    try:
+        import resource
+    except ImportError:  # pragma: no cover - Windows
+        return None
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    return round(peak / (2**20 if sys.platform == "darwin" else 2**10), 1)   # bytes on macOS, KB on Linux
+
+
 def run_case(func: Callable, cid: str, case: dict, timeout: float | None = None) -> dict:
     """Run one case and return its record; an exception or a timeout becomes the record's ``error``."""
     t0 = time.perf_counter()
@@ -98,6 +113,9 @@ def run_case(func: Callable, cid: str, case: dict, timeout: float | None = None)
     except Exception as err:  # a failing case is recorded, the sweep goes on
         result, error = None, f"{type(err).__name__}: {err}\n{traceback.format_exc(limit=4)}"
     rec = {"id": cid, "case": case, "result": result, "seconds": time.perf_counter() - t0}
+    peak = peak_memory_mb()
+    if peak is not None:
+        rec["worker_peak_mb"] = peak
     if error:
         rec["error"] = error
     return rec

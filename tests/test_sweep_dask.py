@@ -1,0 +1,131 @@
+"""The sweep runner on Dask (issue #17): a LocalCluster of 2 worker processes, an interrupted and resumed
+sweep, a worker killed mid-sweep, a study's command with --scheduler, the pandas tables.
+
+The cases are tiny: random QPs and contact Example 1 at h = 1/10 (:func:`benchmarks.executors.run_case`),
+paced by a short sleep so that the driver can be interrupted halfway.
+"""
+import json
+import logging
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+from pathlib import Path
+
+import pytest
+
+from benchmarks.executors import run_case, tiny_cases
+from benchmarks.sweep import Executor, case_id, load_results, run_sweep
+
+FUNC = f"{__name__}:paced_case"
+
+
+def paced_case(case):
+    """benchmarks.executors.run_case after ``pause`` seconds; ``die``: SIGKILL this worker (once, with a marker)."""
+    time.sleep(case.get("pause", 0.0))
+    marker = case.get("die_once")
+    if marker and not os.path.exists(marker):
+        Path(marker).touch()
+        os.kill(os.getpid(), signal.SIGKILL)
+    return run_case({k: v for k, v in case.items() if k not in ("pause", "die_once")})
+
+
+@pytest.fixture(scope="module")
+def cluster():
+    """A LocalCluster of 2 single-threaded worker processes (a dead task is retried once, then given up)."""
+    import dask
+    from distributed import LocalCluster
+    with dask.config.set({"distributed.scheduler.allowed-failures": 1}):
+        with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None,
+                          silence_logs=logging.ERROR) as c:
+            yield c
+
+
+def _ids_in_file(path):
+    ids = []
+    for line in Path(path).read_text().splitlines():
+        try:
+            ids.append(json.loads(line)["id"])
+        except (json.JSONDecodeError, KeyError, TypeError):
+            pass
+    return ids
+
+
+def test_interrupted_dask_sweep_resumes_with_every_case_once_and_local_iterations(tmp_path, cluster):
+    cases = [c | {"pause": 0.4} for c in tiny_cases(qp=6, contact=4)]
+    path = tmp_path / "dask" / "results.jsonl"
+    script = textwrap.dedent(f"""
+        import sys
+        sys.path[:0] = {sys.path!r}
+        from benchmarks.sweep import Executor, run_sweep
+        run_sweep({cases!r}, {FUNC!r}, {str(path)!r}, executor=Executor(dask_workers=2), progress=False)
+    """)
+    driver = subprocess.Popen([sys.executable, "-c", script], stderr=subprocess.DEVNULL)
+    deadline = time.time() + 90
+    while (not path.exists() or len(_ids_in_file(path)) < 3) and time.time() < deadline and driver.poll() is None:
+        time.sleep(0.05)
+    assert driver.poll() is None, "the sweep ended before it could be interrupted"
+    driver.send_signal(signal.SIGINT)                   # Ctrl-C halfway
+    assert driver.wait(60) != 0
+    before = _ids_in_file(path)
+    assert 3 <= len(before) < len(cases)
+    # resume on a running cluster (--scheduler): only the missing cases run
+    records = run_sweep(cases, FUNC, path, executor=Executor(scheduler=cluster.scheduler_address), progress=False)
+    ids = _ids_in_file(path)
+    assert ids[:len(before)] == before
+    assert sorted(ids) == sorted(case_id(c) for c in cases)          # every case exactly once
+    assert not any(r.get("error") for r in records.values())
+    # the same iterations as the local executor
+    local = run_sweep(cases, FUNC, tmp_path / "local" / "results.jsonl", workers=2, progress=False)
+    assert {cid: r["result"]["iterations"] for cid, r in local.items()} == \
+        {cid: r["result"]["iterations"] for cid, r in records.items()}
+    # the results load as one table
+    import pandas as pd
+    table = pd.read_parquet(path.with_suffix(".parquet"))
+    assert len(table) == len(cases) and sorted(table["id"]) == sorted(records)
+    assert set(table["result.iterations"]) == {r["result"]["iterations"] for r in records.values()}
+    assert len(pd.read_json(path, lines=True)) == len(cases)
+
+
+def test_a_killed_worker_loses_no_case(tmp_path, cluster):
+    marker = tmp_path / "killed-once"
+    cases = [c | {"pause": 0.2} for c in tiny_cases(qp=4, contact=2)]
+    cases[1] = cases[1] | {"die_once": str(marker)}       # its worker dies in the middle of the sweep
+    path = tmp_path / "results.jsonl"
+    records = run_sweep(cases, FUNC, path, executor=Executor(scheduler=cluster.scheduler_address), progress=False)
+    assert marker.exists()                                 # a worker was killed
+    assert sorted(_ids_in_file(path)) == sorted(case_id(c) for c in cases)
+    assert all(r["result"]["status"] in ("converged", "max_iter") and "error" not in r for r in records.values())
+    assert load_results(path).keys() == records.keys()
+
+
+def test_a_case_that_always_kills_its_worker_is_recorded(tmp_path, cluster):
+    cases = [{"kind": "qp", "n": 10, "m": 12, "seed": 0, "policy": "osqp", "order": "zx", "rho": 0.1,
+              "group": "g"}, {"kind": "qp", "n": 10, "m": 12, "seed": 1, "policy": "osqp", "order": "zx",
+                              "rho": 0.1, "group": "g", "die_always": True}]
+    records = run_sweep(cases, f"{__name__}:killer_case", tmp_path / "r.jsonl",
+                        executor=Executor(scheduler=cluster.scheduler_address), progress=False)
+    by_seed = {r["case"]["seed"]: r for r in records.values()}
+    assert by_seed[1]["error"].startswith("WorkerDied") and by_seed[1]["result"] is None
+    assert by_seed[0]["result"]["iterations"] > 0          # its group's other case still ran
+
+
+def killer_case(case):
+    """run_case, except that a case with ``die_always`` kills its worker every time."""
+    if case.get("die_always"):
+        os.kill(os.getpid(), signal.SIGKILL)
+    return run_case(case)
+
+
+def test_bench_command_runs_on_a_dask_scheduler(tmp_path, cluster):
+    from admmkit.cli import main
+    out = tmp_path / "paper"
+    assert main(["bench", "paper-compare", "--out", str(out), "--quick", "--repeats", "1", "--no-progress",
+                 "--scheduler", cluster.scheduler_address]) == 0
+    import pandas as pd
+    assert len(pd.read_csv(out / "times.csv")) == 2 * 3 * 2
+    assert len(pd.read_parquet(out / "results.parquet")) == 2 * 3 * 2
+    with pytest.raises(SystemExit):      # one executor at a time
+        main(["bench", "paper-compare", "--dask-workers", "2", "--scheduler", "tcp://x:1"])
