@@ -94,7 +94,7 @@ class QP(Problem):
     xstep the form of the x-step system ("auto", "reduced" or "kkt"; see the
     module docstring), scaling the number of Ruiz iterations (0: none;
     OSQP uses 10), row_weights "uniform" (M = I) or "osqp" (OSQP's penalty
-    per row, see :func:`row_weights`).  ``P, q, A, l, u`` stay the user's
+    per row, see ``problems.qp.problem.row_weights``).  ``P, q, A, l, u`` stay the user's
     data; the loop works on ``Ps, qs, As, ls, us`` (the same objects when
     scaling = 0).
     """

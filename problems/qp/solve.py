@@ -108,7 +108,7 @@ def solve_qp(qp: QP, settings: QPSettings | None = None, *, policy="osqp", warm_
     """Solve ``qp`` with ``settings`` (default :func:`osqp_settings`; keyword ``changes`` override single settings).
 
     ``policy``: "osqp" (default: OSQP's rule with OSQP's normalisation, see
-    :func:`default_policy`), None for a fixed rho, or any policy or registered
+    ``problems.qp.solve.default_policy``), None for a fixed rho, or any policy or registered
     name :func:`admmkit.solve` accepts.  ``warm_start``: a previous result of
     this QP (its x, y and rho).  ``rho`` overrides rho_0.
     """

@@ -110,7 +110,7 @@ class QPTermination(StoppingRule):
     Fires when, in the user's problem (unscaled),
 
         primal <= eps_abs + eps_rel primal_scale,  dual <= eps_abs + eps_rel dual_scale
-        and (if ``gap``) |gap| <= eps_abs + eps_rel gap_scale                              -> "solved"
+        and (if ``gap``) abs(gap) <= eps_abs + eps_rel gap_scale                              -> "solved"
 
     or else, when the primal test failed and dy = y^{k+1} - y^k is a certificate
     (I1) -> "primal_infeasible", or the dual test failed and dx is one (I2) ->
