@@ -138,36 +138,49 @@ def _rows(records) -> list[dict]:
 
 def _heatmap(ax, grid_iter, grid_out, row_labels, col_labels, title, value_label="iterations", log=True,
              vmin=None, vmax=None):
-    """Colour = log10(value); failures hatched grey with a letter; false convergence: value colour + red F."""
+    """Colour = log10(value) with the value written in the cell; failures hatched grey with a letter
+    (M max_iter, D diverged, S stalled, T time limit); false convergence: the value's colour, a red box and "F"."""
+    plt = pyplot()
     values = np.array([[np.nan if v is None else v for v in row] for row in grid_iter], dtype=float)
     shown = np.log10(np.maximum(values, 1e-300)) if log else values
-    cmap = pyplot().get_cmap("viridis").with_extremes(bad="0.85")
-    masked = np.ma.masked_invalid(shown)
-    im = ax.imshow(masked, aspect="auto", cmap=cmap, vmin=vmin, vmax=vmax, interpolation="nearest")
+    cmap = plt.get_cmap("viridis").with_extremes(bad="0.85")
+    im = ax.imshow(np.ma.masked_invalid(shown), aspect="auto", cmap=cmap, vmin=vmin, vmax=vmax, interpolation="nearest")
+    norm = im.norm
     for i in range(values.shape[0]):
         for j in range(values.shape[1]):
-            out = grid_out[i][j]
-            v = values[i, j]
+            out, v = grid_out[i][j], values[i, j]
+            dark = np.isfinite(shown[i, j]) and norm(shown[i, j]) < 0.55          # viridis: white text on the dark half
             if out in MARKS and out != "false_convergence":
-                ax.add_patch(pyplot().Rectangle((j - 0.5, i - 0.5), 1, 1, facecolor="0.8", edgecolor="0.5",
-                                                hatch="///", linewidth=0.3))
-                ax.text(j, i, MARKS[out], ha="center", va="center", fontsize=7, color="black", fontweight="bold")
+                ax.add_patch(plt.Rectangle((j - 0.5, i - 0.5), 1, 1, facecolor="0.82", edgecolor="0.55",
+                                           hatch="///", linewidth=0.3))
+                ax.text(j, i, MARKS[out], ha="center", va="center", fontsize=9, color="black", fontweight="bold")
             elif out == "false_convergence":
-                ax.add_patch(pyplot().Rectangle((j - 0.45, i - 0.45), 0.9, 0.9, fill=False, edgecolor="red",
-                                                linewidth=1.4))
-                ax.text(j, i, "F" if not np.isfinite(v) or value_label != "iterations" else f"F {int(v)}",
-                        ha="center", va="center", fontsize=6, color="red", fontweight="bold")
+                ax.add_patch(plt.Rectangle((j - 0.44, i - 0.42), 0.88, 0.84, fill=False, edgecolor="red", linewidth=1.6))
+                text = "F" if not np.isfinite(v) or value_label != "iterations" else f"F{int(v)}"
+                ax.text(j, i, text, ha="center", va="center", fontsize=7.5, fontweight="bold",
+                        color="white" if dark else "black")
             elif out is None:
-                ax.text(j, i, "?", ha="center", va="center", fontsize=6, color="0.4")
-            elif np.isfinite(v) and value_label == "iterations" and values.shape[1] <= 16:
-                ax.text(j, i, f"{int(v)}", ha="center", va="center", fontsize=5,
-                        color="white" if (np.isfinite(shown[i, j]) and shown[i, j] < (np.nanmean(shown))) else "black")
+                ax.text(j, i, "?", ha="center", va="center", fontsize=8, color="0.4")
+            elif np.isfinite(v) and value_label == "iterations":
+                ax.text(j, i, f"{int(v)}", ha="center", va="center", fontsize=7.5, color="white" if dark else "black")
+            elif np.isfinite(v):
+                mantissa, exponent = f"{v:.0e}".split("e")
+                ax.text(j, i, f"{mantissa}e{int(exponent)}", ha="center", va="center", fontsize=7.5,
+                        color="white" if dark else "black")
     ax.set_yticks(range(len(row_labels)))
-    ax.set_yticklabels(row_labels, fontsize=7)
+    ax.set_yticklabels(row_labels, fontsize=9)
     ax.set_xticks(range(len(col_labels)))
-    ax.set_xticklabels(col_labels, fontsize=6, rotation=90)
-    ax.set_title(title, fontsize=9)
+    ax.set_xticklabels(col_labels, fontsize=9)
+    ax.tick_params(length=2)
+    ax.set_title(title, fontsize=10.5)
     return im
+
+
+def _legend_text(what: str = "iterations") -> str:
+    return ("Cells: " + ("iterations to the paper's rule" if what == "iterations" else
+                         "the true error ||u - u*||_K / ||u*||_K at the stop (colour: its log10)") +
+            ". Red box F: false convergence (the rule fired with a true error > 1e-3). "
+            "Grey hatched: a failure, M = 20 000 iterations reached, D = diverged, S = stalled, T = time limit.")
 
 
 def _method_order(rows) -> list[str]:
@@ -187,7 +200,7 @@ def _h_label(h: float) -> str:
 
 
 def figure_rho(rows, out: Path) -> list[Path]:
-    """Heat-maps of iterations against rho_0/E, one panel per example."""
+    """Heat maps of iterations against rho_0/E, one panel per example, stacked (readable at the docs' page width)."""
     plt = pyplot()
     rho_rows = [r for r in rows if r["sweep"] == "rho"]
     if not rho_rows:
@@ -195,60 +208,62 @@ def figure_rho(rows, out: Path) -> list[Path]:
     examples = sorted({r["scene"] for r in rho_rows})
     scales = sorted({r["rho_scale"] for r in rho_rows})
     meths = _method_order(rho_rows)
-    fig, axes = plt.subplots(1, len(examples), figsize=(6.2 * len(examples) + 1, 0.32 * len(meths) + 2.2),
+    fig, axes = plt.subplots(len(examples), 1, figsize=(10, (0.3 * len(meths) + 1.3) * len(examples) + 1.4),
                              squeeze=False)
     index = {(r["scene"], r["method"], r["rho_scale"]): r for r in rho_rows}
     im = None
-    for ax, ex in zip(axes[0], examples):
+    for ax, ex in zip(axes[:, 0], examples):
         it = [[(index.get((ex, m, s)) or {}).get("iterations") for s in scales] for m in meths]
         oc = [[(index.get((ex, m, s)) or {}).get("outcome") for s in scales] for m in meths]
         im = _heatmap(ax, it, oc, meths, [_rho_label(s) for s in scales],
                       f"{ex}, h = {_h_label(rho_rows[0]['h'])}, P1: iterations against rho_0 / E",
                       vmin=0, vmax=math.log10(MAX_ITER))
-        ax.set_xlabel("rho_0 / E")
-    cb = fig.colorbar(im, ax=axes[0].tolist(), shrink=0.8)
-    cb.set_label("log10 iterations")
-    for ax in axes[0][1:]:
-        ax.set_yticklabels([])
-    fig.suptitle("F (red box) = false convergence: the paper's rule fired with true error > 1e-3;  "
-                 "M = max_iter, D = diverged, S = stalled, T = time limit", fontsize=8, y=1.0)
+        ax.set_xlabel("rho_0 / E", fontsize=10)
+    fig.tight_layout(rect=(0, 0.06, 1, 1))
+    cax = fig.add_axes((0.3, 0.035, 0.4, 0.012))
+    cb = fig.colorbar(im, cax=cax, orientation="horizontal")
+    cb.set_label("log10 iterations", fontsize=9)
+    fig.text(0.01, 0.0, _legend_text(), fontsize=8, va="top", wrap=True)
     return save_figure(fig, out / "rho_sweep")
 
 
 def figure_mesh(rows, out: Path, what: str = "iterations") -> list[Path]:
-    """Heat-maps over (nu, h) for each (example, P): iterations or the error at the stop."""
+    """Heat maps over (nu, h) for each (example, P), stacked: iterations or the error at the stop."""
     plt = pyplot()
     mesh_rows = [r for r in rows if r["sweep"] == "mesh"]
     if not mesh_rows:
         return []
     panels = sorted({(r["scene"], r["p"]) for r in mesh_rows})
-    cols = sorted({(r["nu"], -r["h"]) for r in mesh_rows})
-    cols = [(nu, -mh) for nu, mh in cols]
+    cols = [(nu, -mh) for nu, mh in sorted({(r["nu"], -r["h"]) for r in mesh_rows})]
     meths = _method_order(mesh_rows)
-    ncol = 2
-    nrow = math.ceil(len(panels) / ncol)
-    fig, axes = plt.subplots(nrow, ncol, figsize=(7.2 * ncol + 1, (0.3 * len(meths) + 2.4) * nrow), squeeze=False)
+    fig, axes = plt.subplots(len(panels), 1, figsize=(10, (0.27 * len(meths) + 1.5) * len(panels) + 1.2),
+                             squeeze=False)
     index = {(r["scene"], r["p"], r["method"], r["nu"], r["h"]): r for r in mesh_rows}
     im = None
-    for ax, (ex, p) in zip(axes.ravel(), panels):
+    for ax, (ex, p) in zip(axes[:, 0], panels):
         vals = [[(index.get((ex, p, m, nu, h)) or {}).get("iterations" if what == "iterations" else "err")
                  for nu, h in cols] for m in meths]
         oc = [[(index.get((ex, p, m, nu, h)) or {}).get("outcome") for nu, h in cols] for m in meths]
+        labels = [_h_label(h) for _, h in cols]
         if what == "iterations":
-            im = _heatmap(ax, vals, oc, meths, [f"nu={nu:g} h={_h_label(h)}" for nu, h in cols],
-                          f"{ex}, P{p}, rho_0 = E: iterations", vmin=0, vmax=math.log10(MAX_ITER))
+            im = _heatmap(ax, vals, oc, meths, labels, f"{ex}, P{p}, rho_0 = E: iterations",
+                          vmin=0, vmax=math.log10(MAX_ITER))
         else:
-            im = _heatmap(ax, vals, [[o if o != "false_convergence" else "false_convergence" for o in r] for r in oc],
-                          meths, [f"nu={nu:g} h={_h_label(h)}" for nu, h in cols],
-                          f"{ex}, P{p}, rho_0 = E: true error at the stop", value_label="error", vmin=-10, vmax=0)
-    for ax in axes.ravel()[len(panels):]:
-        ax.axis("off")
-    cb = fig.colorbar(im, ax=axes.ravel().tolist(), shrink=0.6)
-    cb.set_label("log10 iterations" if what == "iterations" else "log10 ||u - u*||_K / ||u*||_K")
-    for ax in axes[:, 1:].ravel():
-        ax.set_yticklabels([])
-    fig.suptitle("F (red box) = false convergence (true error > 1e-3 at the stop);  M = max_iter, "
-                 "D = diverged, S = stalled, T = time limit", fontsize=8, y=1.0)
+            im = _heatmap(ax, vals, oc, meths, labels, f"{ex}, P{p}, rho_0 = E: true error at the stop",
+                          value_label="error", vmin=-10, vmax=0)
+        nus = [nu for nu, _ in cols]
+        for nu in sorted(set(nus)):                 # the nu groups: a white rule between, the value above
+            js = [j for j, v in enumerate(nus) if v == nu]
+            ax.text((js[0] + js[-1]) / 2, -0.75, f"nu = {nu:g}", ha="center", va="bottom", fontsize=9)
+            if js[0] > 0:
+                ax.axvline(js[0] - 0.5, color="white", linewidth=2.5)
+        ax.set_xlabel("mesh size h (grouped by nu)", fontsize=10)
+        ax.set_title(ax.get_title(), fontsize=10.5, pad=17)
+    fig.tight_layout(rect=(0, 0.045, 1, 1), h_pad=1.5)
+    cax = fig.add_axes((0.3, 0.025, 0.4, 0.008))
+    cb = fig.colorbar(im, cax=cax, orientation="horizontal")
+    cb.set_label("log10 iterations" if what == "iterations" else "log10 ||u - u*||_K / ||u*||_K", fontsize=9)
+    fig.text(0.01, 0.0, _legend_text(what), fontsize=8, va="top", wrap=True)
     return save_figure(fig, out / ("mesh_sweep" if what == "iterations" else "mesh_error"))
 
 
