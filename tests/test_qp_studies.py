@@ -1,0 +1,33 @@
+"""The two QP studies run end to end on a tiny selection and write what they promise."""
+import csv
+from pathlib import Path
+
+import pytest
+
+MM = Path(__file__).resolve().parents[2] / "shared" / "data" / "maros_meszaros"
+
+
+@pytest.mark.skipif(not MM.is_dir(), reason=f"Maros-Meszaros data not found at {MM}")
+def test_qp_fidelity_on_two_problems(tmp_path):
+    pytest.importorskip("osqp")
+    from benchmarks import qp_fidelity
+    assert qp_fidelity.main(["--data", str(MM), "--problems", "HS21", "HS35", "--out", str(tmp_path),
+                             "--max-iter", "2000", "--rules", "fixed"]) == 0
+    rows = list(csv.DictReader((tmp_path / "qp_fidelity.csv").open()))
+    assert {r["solver"] for r in rows} == {"OSQP", "admmkit-osqp", "admmkit-fixed"} and len(rows) == 2 * 2 * 3
+    for eps in ("0.001", "1e-06"):
+        by = {(r["problem"], r["solver"]): r for r in rows if r["eps"] == eps}
+        for p in ("HS21", "HS35"):                    # the preset takes OSQP's path: same iterations
+            assert by[p, "OSQP"]["iterations"] == by[p, "admmkit-osqp"]["iterations"]
+    readme = (tmp_path / "README.md").read_text()
+    assert "Command: `admmkit bench qp-fidelity" in readme and "## Machine" in readme
+
+
+def test_qp_agreement_on_a_few_qps(tmp_path):
+    from benchmarks import qp_agreement
+    assert qp_agreement.main(["--count", "5", "--out", str(tmp_path), "--max-iter", "3000"]) == 0
+    rows = list(csv.DictReader((tmp_path / "qp_agreement.csv").open()))
+    assert len(rows) == 10 and {r["kind"] for r in rows} == set(qp_agreement.KINDS)
+    solved = [r for r in rows if r["status"] == "solved"]
+    assert solved and all(float(r["objective_error"]) < 1e-3 for r in solved)
+    assert "Command: `admmkit bench qp-agreement" in (tmp_path / "README.md").read_text()
