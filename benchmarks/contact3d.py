@@ -128,9 +128,18 @@ def write_vtk(ops, u: np.ndarray, lam: np.ndarray, base: Path, p: np.ndarray | N
 
 
 def figure_3d(ops, u: np.ndarray, lam: np.ndarray, p: np.ndarray, path: Path, magnify: float = 20.0) -> list[Path]:
-    """Deformed block (boundary surface, colour |u|) and contact pressure on the face z = 0."""
+    """The deformed block over the foundation (both x ``magnify``), and the contact pressure on the face z = 0.
+
+    Two stacked panels sized for the docs' page width: the 3D view from slightly
+    below the contact face, so that the foundation surface -g(x, y) (grey) and
+    the gap between it and the block are visible; then the pressure lam with the
+    active nodes (p = g, ``contact_status`` of problems/contact/export.py) and
+    gap contours.
+    """
     import ngsolve as ng
     from mpl_toolkits.mplot3d.art3d import Poly3DCollection
+
+    from problems.contact.export import contact_status
     plt = pyplot()
     nv = ops.mesh.nv
     full = ops.full_vector(u)
@@ -139,32 +148,42 @@ def figure_3d(ops, u: np.ndarray, lam: np.ndarray, p: np.ndarray, path: Path, ma
     tris = np.array([[v.nr for v in el.vertices] for el in ops.mesh.Elements(ng.BND)])
     Y = X + magnify * disp
     mag = np.linalg.norm(disp, axis=1)
-    fig = plt.figure(figsize=(14, 5.6))
-    ax = fig.add_subplot(1, 2, 1, projection="3d")
+    scene = ops.scene
+    fig = plt.figure(figsize=(10, 8.4))
+    ax = fig.add_axes((-0.04, 0.40, 0.94, 0.56), projection="3d")
+    # the foundation first (a little larger than the block, so its edges show), then the block
+    xx, yy = np.meshgrid(np.linspace(-0.15, scene.Lx + 0.15, 37), np.linspace(-0.25, scene.Ly + 0.25, 13))
+    gg = np.vectorize(scene.gap_at)(xx, yy)
+    ax.plot_surface(xx, yy, -magnify * gg, color="0.6", alpha=0.45, linewidth=0.3, edgecolor="0.35", shade=False)
     colours = plt.get_cmap("viridis")(mag[tris].mean(axis=1) / max(mag.max(), 1e-300))
     surface = Poly3DCollection(Y[tris], facecolors=colours, edgecolors="none", linewidths=0)
     surface.set_rasterized(True)          # keeps the SVG small (one bitmap instead of 1e5 polygons)
     ax.add_collection3d(surface)
-    lo, hi = Y.min(axis=0), Y.max(axis=0)
-    ax.set_xlim(lo[0], hi[0]); ax.set_ylim(lo[1], hi[1]); ax.set_zlim(lo[2] - 0.1, hi[2])
-    ax.set_box_aspect(hi - lo + [0, 0, 0.1])
-    xx, yy = np.meshgrid(np.linspace(0, 3, 31), np.linspace(0, 1, 11))
-    ax.plot_wireframe(xx, yy, -magnify * ops.scene.gap(xx, yy), color="k", lw=0.3, alpha=0.6)
-    ax.view_init(elev=18, azim=-60)
-    ax.set_title(f"deformed block (u x {magnify:g}) and the foundation -g(x, y) (x {magnify:g})")
+    lo = np.minimum(Y.min(axis=0), [xx.min(), yy.min(), -magnify * gg.max()])
+    hi = np.maximum(Y.max(axis=0), [xx.max(), yy.max(), 0.0])
+    ax.set_xlim(lo[0], hi[0]); ax.set_ylim(lo[1], hi[1]); ax.set_zlim(lo[2], hi[2])
+    ax.set_box_aspect(hi - lo, zoom=1.35)
+    ax.view_init(elev=8, azim=-62)
+    ax.set_xlabel("x", labelpad=6); ax.set_ylabel("y", labelpad=2); ax.set_zlabel("z", labelpad=2)
+    ax.tick_params(labelsize=8, pad=1)
+    ax.set_yticks([0, 0.5, 1.0]); ax.set_zticks([0, 0.5, 1.0])
     sm = plt.cm.ScalarMappable(cmap="viridis", norm=plt.Normalize(0, mag.max()))
-    fig.colorbar(sm, ax=ax, shrink=0.6, label="|u|")
-    ax2 = fig.add_subplot(1, 2, 2)
+    cb = fig.colorbar(sm, cax=fig.add_axes((0.88, 0.50, 0.018, 0.36)))
+    cb.set_label("|u|", fontsize=10)
+    fig.text(0.5, 0.985, f"Deformed block (u x {magnify:g}, colour |u|) above the rigid foundation z = -g(x, y) "
+             f"(grey, x {magnify:g})", ha="center", va="top", fontsize=11)
+    ax2 = fig.add_axes((0.08, 0.06, 0.74, 0.3))
     xc = ops.xc
-    tpc = ax2.tripcolor(xc[:, 0], xc[:, 1], lam, shading="gouraud", cmap="magma", rasterized=True)
-    fig.colorbar(tpc, ax=ax2, label="contact pressure lam")
-    active = p >= ops.g
-    ax2.plot(xc[active, 0], xc[active, 1], "c.", ms=2, label=f"active nodes ({active.sum()})")
-    ax2.tricontour(xc[:, 0], xc[:, 1], ops.g, levels=6, colors="w", linewidths=0.5)
+    tpc = ax2.tripcolor(xc[:, 0], xc[:, 1], lam[:ops.n_c], shading="gouraud", cmap="magma", rasterized=True)
+    cb2 = fig.colorbar(tpc, cax=fig.add_axes((0.84, 0.075, 0.018, 0.265)))
+    cb2.set_label("contact pressure lam", fontsize=10)
+    active = contact_status(ops, p)
+    ax2.plot(xc[active, 0], xc[active, 1], "c.", ms=2.5, label=f"active nodes ({int(active.sum())}: p = g)")
+    ax2.tricontour(xc[:, 0], xc[:, 1], ops.g, levels=6, colors="w", linewidths=0.6)
+    ax2.set_xlim(0, scene.Lx); ax2.set_ylim(0, scene.Ly); ax2.set_facecolor("0.85")   # grey: no contact node (clamped)
     ax2.set_aspect("equal"); ax2.set_xlabel("x"); ax2.set_ylabel("y")
-    ax2.set_title("pressure on the contact face z = 0 (white: gap contours)")
-    ax2.legend(loc="upper left", fontsize=8)
-    fig.tight_layout()
+    ax2.set_title("Contact pressure on the face z = 0 (white: contours of the gap g)", fontsize=11)
+    ax2.legend(loc="upper left", fontsize=9)
     return save_figure(fig, path)
 
 
