@@ -6,6 +6,7 @@ import math
 import numpy as np
 
 from .policy import Policy, make_policy
+from .problem import Problem
 
 ORDERS = {"xz": "xz", "zx": "zx", "admm1": "xz", "admm2": "zx"}
 #: record fields that order "xz" can only give with ``Problem.adjoint_norm``
@@ -20,14 +21,28 @@ class Fixed(Policy):
         return rec.rho
 
 
+#: the penalties admmkit accepts, from the user (rho_0) and from a policy (a rho outside ends the run as
+#: diverged): 60 decades, wide enough for any unit system, narrow enough that rho * ||r|| cannot under- or
+#: overflow silently (a rule returning 1e-300 or 1e300 has failed, whatever the iterates say)
+RHO_RANGE = (1e-30, 1e30)
+
+
+def rho_in_range(rho) -> bool:
+    """Whether ``rho`` is a number in :data:`RHO_RANGE`."""
+    return (isinstance(rho, (float, int, np.floating, np.integer)) and not isinstance(rho, bool)
+            and RHO_RANGE[0] <= rho <= RHO_RANGE[1])
+
+
 def check_rho(rho, name: str) -> float:
-    """float(rho) if it is finite and > 0, else ValueError naming ``name``."""
+    """float(rho) if it is a number in :data:`RHO_RANGE`, else ValueError naming ``name``."""
     try:
-        value = float(rho)
+        value = float(rho) if not isinstance(rho, (bool, str, bytes)) else math.nan
     except (TypeError, ValueError):
-        raise ValueError(f"{name} must be a finite number > 0, got {rho!r}") from None
+        value = math.nan
     if not (math.isfinite(value) and value > 0):
         raise ValueError(f"{name} must be a finite number > 0, got {rho!r}")
+    if not rho_in_range(value):
+        raise ValueError(f"{name} must be in [{RHO_RANGE[0]:g}, {RHO_RANGE[1]:g}] (admmkit's rho range), got {rho!r}")
     return value
 
 
@@ -70,10 +85,19 @@ def make(policy) -> Policy:
 
 def starting_point(problem, x0, z0, lam0):
     """(x0, z0, lam0) as float arrays: the given ones (checked) or the problem's defaults."""
+    own_start = type(problem).initial_point is not Problem.initial_point
+    if x0 is None and not own_start and not isinstance(getattr(problem, "n", None), (int, np.integer)):
+        raise TypeError(f"{type(problem).__name__} must set the attribute n (the number of x unknowns, an int) "
+                        f"or override initial_point(), or solve() must be given x0")
     dx, dz, dlam = problem.initial_point()
     out = []
     for name, given, default in (("x0", x0, dx), ("z0", z0, dz), ("lam0", lam0, dlam)):
-        v = np.array(default if given is None else given, dtype=float)
+        if given is not None and np.iscomplexobj(given):
+            raise ValueError(f"{name} must be real, got complex values")
+        try:
+            v = np.array(default if given is None else given, dtype=float)
+        except (TypeError, ValueError):
+            raise ValueError(f"{name} must be an array of numbers of shape {np.shape(default)}, got {given!r:.80}") from None
         if given is not None and v.shape != np.shape(default):
             raise ValueError(f"{name} must have shape {np.shape(default)}, got {v.shape}")
         if not np.all(np.isfinite(v)):

@@ -63,6 +63,9 @@ def policy_names() -> list[str]:
 
 def make_policy(name: str, **params) -> Policy:
     """Construct a registered policy by name with its parameters."""
+    if not isinstance(name, str):
+        known = ", ".join(policy_names()) or "none registered (import policies)"
+        raise TypeError(f"policy name must be a string, one of: {known}; got {type(name).__name__}")
     key = name.strip().lower().replace("-", "_")
     if key not in _REGISTRY:
         known = ", ".join(policy_names()) or "none registered (import policies)"

@@ -115,7 +115,9 @@ def solve(
     max_iter = checks.check_int("max_iter", max_iter, 1)
     check_every = checks.check_int("check_every", check_every, 1)
     history_log = History(history)
-    if time_limit is not None and not (math.isfinite(time_limit) and time_limit > 0):
+    if time_limit is not None and not (isinstance(time_limit, (int, float, np.integer, np.floating))
+                                       and not isinstance(time_limit, bool)
+                                       and math.isfinite(time_limit) and time_limit > 0):
         raise ValueError(f"time_limit must be a finite number > 0 seconds or None, got {time_limit!r}")
     if blas_threads is not None and (isinstance(blas_threads, bool) or not isinstance(blas_threads, int) or blas_threads < 1):
         raise ValueError(f"blas_threads must be an integer >= 1 or None, got {blas_threads!r}")
@@ -157,74 +159,94 @@ def solve(
     limits = ExitStack()
     if blas_threads is not None:
         limits.enter_context(limit_blas(blas_threads))   # a cached controller: ~15 us, not 0.5 ms
-    start = perf()
-    for k in range(max_iter):
-        rec = v = hat = None         # drop the last record and its vectors now: fewer arrays alive, less memory traffic
-        t0 = perf()
-        try:
-            if order_key == "xz":
-                x_new, Ax_new = x_step(problem, z, lam, rho, x)
-                t1 = perf()
-                hat = relax_Ax(alpha, Ax_new, z, c, c_zero) if relaxed else Ax_new
-                z_new = z_step(problem, hat, lam, rho, z)
-                t2 = perf()
-                tx += t1 - t0
-                tz += t2 - t1
-                lam_new, v = dual_update(lam, rho, hat, z_new, c, c_zero)            # eq. (13)
-            else:
-                z_new = z_step(problem, Ax, lam, rho, z)                            # eq. (11)
-                t1 = perf()
-                hat = relax_z(alpha, z_new, Ax, c, c_zero) if relaxed else z_new
-                x_new, Ax_new = x_step(problem, hat, lam, rho, x)                   # eq. (12)
-                t2 = perf()
-                tz += t1 - t0
-                tx += t2 - t1
-                lam_new, v = dual_update(lam, rho, Ax_new, hat, c, c_zero)          # eq. (13)
-        except (np.linalg.LinAlgError, ArithmeticError) as err:
-            status, message = Status.DIVERGED, f"a step failed at iteration {k}: {err}"
-            break
-        rec = loop_record(ctx, (k, rho, t2 - start, x_new, z_new, lam_new, Ax_new, x, z, lam, Ax,
-                                hat if relaxed else None), None if relaxed else v)
-        x, z, lam, Ax = x_new, z_new, lam_new, Ax_new
+    try:   # the BLAS thread count is restored however the loop ends (an exception, Ctrl-C)
+        start = perf()
+        for k in range(max_iter):
+            rec = v = hat = None         # drop the last record and its vectors now: fewer arrays alive, less memory traffic
+            t0 = perf()
+            try:
+                if order_key == "xz":
+                    x_new, Ax_new = x_step(problem, z, lam, rho, x)
+                    t1 = perf()
+                    hat = relax_Ax(alpha, Ax_new, z, c, c_zero) if relaxed else Ax_new
+                    z_new = z_step(problem, hat, lam, rho, z)
+                    t2 = perf()
+                    tx += t1 - t0
+                    tz += t2 - t1
+                    if k == 0:   # a step of the wrong shape would broadcast silently: stop at once
+                        _check_steps(problem, x, z, x_new, z_new, Ax_new)
+                    lam_new, v = dual_update(lam, rho, hat, z_new, c, c_zero)            # eq. (13)
+                else:
+                    z_new = z_step(problem, Ax, lam, rho, z)                            # eq. (11)
+                    t1 = perf()
+                    hat = relax_z(alpha, z_new, Ax, c, c_zero) if relaxed else z_new
+                    x_new, Ax_new = x_step(problem, hat, lam, rho, x)                   # eq. (12)
+                    t2 = perf()
+                    tz += t1 - t0
+                    tx += t2 - t1
+                    if k == 0:   # a step of the wrong shape would broadcast silently: stop at once
+                        _check_steps(problem, x, z, x_new, z_new, Ax_new)
+                    lam_new, v = dual_update(lam, rho, Ax_new, hat, c, c_zero)          # eq. (13)
+            except (np.linalg.LinAlgError, ArithmeticError) as err:
+                status, message = Status.DIVERGED, f"a step failed at iteration {k + 1}: {err}"
+                break
+            rec = loop_record(ctx, (k, rho, t2 - start, x_new, z_new, lam_new, Ax_new, x, z, lam, Ax,
+                                    hat if relaxed else None), None if relaxed else v)
+            x, z, lam, Ax = x_new, z_new, lam_new, Ax_new
 
-        final = None
-        if (k + 1) % check_every == 0 or k == max_iter - 1:
-            t3 = perf()
-            fired = stop.fired(rec)
-            if not _finite(rec._vals, watched) or not _finite_check(rec):
-                final = Status.DIVERGED, f"non-finite iterate at iteration {k}"
-            elif fired:
-                stopped_by = fired
-                final = Status.CONVERGED, f"{fired} fired at iteration {k}"
-            elif _stalled(rec):
-                final = Status.STALLED, f"iterates stopped changing at iteration {k} before {stop.name} fired"
-            t_check += perf() - t3
-        rho_next = rho
-        if final is None:
-            t3 = perf()
-            rho_next = policy_step(policy, rec)                                      # eq. (17)
-            t_policy += perf() - t3
-            if not (isinstance(rho_next, (float, int, np.floating, np.integer)) and math.isfinite(rho_next) and rho_next > 0):
-                final = Status.DIVERGED, f"policy {policy!r} returned rho={rho_next!r} at iteration {k}"
-        history_log.append(rec, rho_next)
-        if callback is not None and callback(rec) and final is None:
-            final = Status.STOPPED, f"callback stopped the run at iteration {k}"
-        if final is None and time_limit is not None and perf() - start > time_limit:
-            final = Status.TIME_LIMIT, f"time_limit={time_limit:g} s reached at iteration {k}"
-        if final is not None:
-            status, message = final
-            break
-        if rho_next != rho:
-            rho_changes += 1
-            rho = float(rho_next)
+            final = None
+            if (k + 1) % check_every == 0 or k == max_iter - 1:
+                t3 = perf()
+                fired = stop.fired(rec)
+                if not _finite(rec._vals, watched) or not _finite_check(rec):
+                    final = Status.DIVERGED, f"non-finite iterate at iteration {k + 1}"
+                elif fired:
+                    stopped_by = fired
+                    final = Status.CONVERGED, f"{fired} fired at iteration {k + 1}"
+                elif _stalled(rec):
+                    final = Status.STALLED, f"iterates stopped changing at iteration {k + 1} before {stop.name} fired"
+                t_check += perf() - t3
+            rho_next = rho
+            if final is None:
+                t3 = perf()
+                rho_next = policy_step(policy, rec)                                      # eq. (17)
+                t_policy += perf() - t3
+                if not checks.rho_in_range(rho_next):
+                    final = Status.DIVERGED, (f"policy {policy!r} returned rho={rho_next!r} at iteration {k + 1}, "
+                                              f"outside admmkit's rho range [{checks.RHO_RANGE[0]:g}, "
+                                              f"{checks.RHO_RANGE[1]:g}]")
+            history_log.append(rec, rho_next)
+            if callback is not None and callback(rec) and final is None:
+                final = Status.STOPPED, f"callback stopped the run at iteration {k + 1}"
+            if final is None and time_limit is not None and perf() - start > time_limit:
+                final = Status.TIME_LIMIT, f"time_limit={time_limit:g} s reached at iteration {k + 1}"
+            if final is not None:
+                status, message = final
+                break
+            if rho_next != rho:
+                rho_changes += 1
+                rho = float(rho_next)
 
-    total = perf() - start
-    limits.close()
+        total = perf() - start
+    finally:
+        limits.close()
     if rec is not None:
         history_log.replace_last(rec.complete())
     return _result(problem, stop, x, z, lam, rec, status, message, stopped_by, history_log, rho, rho_changes,
                    counters_before, dict(x_step=tx, z_step=tz, policy=t_policy, residuals=t_check, total=total),
                    order_key, policy, alpha)
+
+
+def _check_steps(problem, x, z, x_new, z_new, Ax_new) -> None:
+    """Refuse, at the first iteration, a step that returns something other than an array of the iterate's shape."""
+    name = type(problem).__name__
+    for step, got, want in (("x_step", x_new, x.shape), ("z_step", z_new, z.shape), ("apply_A", Ax_new, z.shape)):
+        if not isinstance(got, np.ndarray):
+            raise TypeError(f"{name}.{step}() returned {type(got).__name__}; it must return a numpy array "
+                            f"of shape {want}")
+        if got.shape != want:
+            raise ValueError(f"{name}.{step}() returned an array of shape {got.shape}; it must have shape {want} "
+                             f"(the shape of {'x' if step == 'x_step' else 'z'})")
 
 
 def _finite_check(rec: IterationRecord) -> bool:

@@ -39,11 +39,19 @@ class StoppingRule:
         return self.name
 
 
-def _positive(name: str, value: float) -> float:
-    value = float(value)
-    if not (math.isfinite(value) and value > 0):
-        raise ValueError(f"{name} must be a finite number > 0, got {value!r}")
-    return value
+def _number(name: str, value, low: str) -> float:
+    """float(value), or ValueError naming the parameter and its range (``low`` is "> 0" or ">= 0")."""
+    try:
+        number = float(value) if not isinstance(value, (bool, str, bytes)) else math.nan
+    except (TypeError, ValueError):
+        number = math.nan
+    if not (math.isfinite(number) and (number > 0 if low == "> 0" else number >= 0)):
+        raise ValueError(f"{name} must be a finite number {low}, got {value!r}")
+    return number
+
+
+def _positive(name: str, value) -> float:
+    return _number(name, value, "> 0")
 
 
 class RelativeChange(StoppingRule):
@@ -73,11 +81,8 @@ class ResidualTolerance(StoppingRule):
     requires = ("dual_residual", "dual_scale")
 
     def __init__(self, eps_abs: float = 1e-6, eps_rel: float = 1e-4):
-        self.eps_abs = float(eps_abs)
-        self.eps_rel = float(eps_rel)
-        for name, v in (("eps_abs", self.eps_abs), ("eps_rel", self.eps_rel)):
-            if not (math.isfinite(v) and v >= 0):
-                raise ValueError(f"{name} must be a finite number >= 0, got {v!r}")
+        self.eps_abs = _number("eps_abs", eps_abs, ">= 0")
+        self.eps_rel = _number("eps_rel", eps_rel, ">= 0")
         if self.eps_abs == 0 and self.eps_rel == 0:
             raise ValueError("eps_abs and eps_rel cannot both be 0 (the rule could never fire)")
         self.tolerance = max(self.eps_abs, self.eps_rel)

@@ -89,3 +89,81 @@ def test_summable_parameters(kwargs, match):
 def test_residual_balancing_parameters(kwargs, match):
     with pytest.raises(ValueError, match=match):
         make_policy("residual_balancing", **kwargs)
+
+
+# ---------------------------------------------------------------- issue #16: wrong types name the parameter
+def _no_n_problem():
+    from admmkit import Problem
+
+    class NoN(Problem):
+        def x_step(self, z, lam, rho, x): return z
+        def z_step(self, Ax, lam, rho, z): return Ax
+        def apply_A(self, x): return np.asarray(x, dtype=float)
+    return NoN()
+
+
+@pytest.mark.parametrize("call, error, needle", [
+    (lambda p: RelativeChange("x"), ValueError, "tol must be a finite number > 0, got 'x'"),
+    (lambda p: ResidualTolerance("a", 1e-3), ValueError, "eps_abs must be a finite number >= 0, got 'a'"),
+    (lambda p: ResidualTolerance(1e-3, "b"), ValueError, "eps_rel must be a finite number >= 0, got 'b'"),
+    (lambda p: solve(p, order="zx", time_limit="5"), ValueError, "time_limit must be a finite number > 0"),
+    (lambda p: solve(p, order="zx", x0="abc"), ValueError, "x0 must be an array of numbers"),
+    (lambda p: solve(p, order="zx", x0=np.ones(1) * 1j), ValueError, "x0 must be real"),
+    (lambda p: solve(p, order="zx", rho=1e-300), ValueError, r"rho must be in \[1e-30, 1e\+30\]"),
+    (lambda p: solve(p, order="zx", rho="1"), ValueError, "rho must be a finite number > 0"),
+    (lambda p: make_policy(None), TypeError, "policy name must be a string"),
+    (lambda p: solve(_no_n_problem(), order="zx"), TypeError, "must set the attribute n"),
+])
+def test_wrong_types_name_the_parameter(scalar_problem, call, error, needle):
+    with pytest.raises(error, match=needle):
+        call(scalar_problem)
+
+
+@pytest.mark.parametrize("returned, error, needle", [
+    (lambda x: None, TypeError, r"x_step\(\) returned NoneType"),
+    (lambda x: list(x), TypeError, r"x_step\(\) returned list"),
+    (lambda x: np.zeros(x.size + 1), ValueError, r"x_step\(\) returned an array of shape \(4,\); it must have shape \(3,\)"),
+])
+def test_a_step_of_the_wrong_shape_is_stopped_at_once(returned, error, needle):
+    from admmkit import Problem
+
+    class Bad(Problem):
+        n = 3
+        def x_step(self, z, lam, rho, x): return returned(x)
+        def z_step(self, Ax, lam, rho, z): return Ax
+        def apply_A(self, x): return np.asarray(x, dtype=float)
+    with pytest.raises(error, match=needle):
+        solve(Bad(), order="zx")
+
+
+@pytest.mark.parametrize("bad_rho", [1e-300, 1e300])
+def test_a_policy_outside_the_rho_range_ends_the_run_as_diverged(bad_rho):
+    from admmkit import Problem
+
+    class Obstacle1D(Problem):
+        n = 5
+        d, b, g = np.full(5, 2.0), np.arange(5.0), np.ones(5)
+        def x_step(self, z, lam, rho, x): return (self.b - lam + rho * z) / (self.d + rho)
+        def z_step(self, Ax, lam, rho, z): return np.minimum(self.g, Ax + lam / rho)
+        def apply_A(self, x): return x.copy()
+
+    class Wild(Policy):
+        def update(self, rec): return bad_rho
+    r = solve(Obstacle1D(), order="zx", policy=Wild(), stop=RelativeChange(1e-8))
+    assert r.status.value == "diverged" and "outside admmkit's rho range" in r.message
+
+
+def test_an_exception_in_the_loop_restores_the_blas_threads():
+    from threadpoolctl import threadpool_info
+
+    from admmkit import Problem
+
+    class Boom(Problem):
+        n = 2
+        def x_step(self, z, lam, rho, x): raise KeyboardInterrupt
+        def z_step(self, Ax, lam, rho, z): return Ax
+        def apply_A(self, x): return np.asarray(x, dtype=float)
+    before = [i["num_threads"] for i in threadpool_info()]
+    with pytest.raises(KeyboardInterrupt):
+        solve(Boom(), order="zx", blas_threads=1)
+    assert [i["num_threads"] for i in threadpool_info()] == before
