@@ -97,7 +97,7 @@ def test_a_killed_worker_loses_no_case(tmp_path, cluster):
     records = run_sweep(cases, FUNC, path, executor=Executor(scheduler=cluster.scheduler_address), progress=False)
     assert marker.exists()                                 # a worker was killed
     assert sorted(_ids_in_file(path)) == sorted(case_id(c) for c in cases)
-    assert all(r["result"]["status"] in ("converged", "max_iter") and "error" not in r for r in records.values())
+    assert all("error" not in r and r["result"]["iterations"] > 0 for r in records.values())
     assert load_results(path).keys() == records.keys()
 
 
@@ -119,7 +119,7 @@ def killer_case(case):
     return run_case(case)
 
 
-def test_bench_command_runs_on_a_dask_scheduler(tmp_path, cluster):
+def test_bench_command_runs_on_a_dask_scheduler(tmp_path, cluster, capsys):
     from admmkit.cli import main
     out = tmp_path / "paper"
     assert main(["bench", "paper-compare", "--out", str(out), "--quick", "--repeats", "1", "--no-progress",
@@ -127,5 +127,5 @@ def test_bench_command_runs_on_a_dask_scheduler(tmp_path, cluster):
     import pandas as pd
     assert len(pd.read_csv(out / "times.csv")) == 2 * 3 * 2
     assert len(pd.read_parquet(out / "results.parquet")) == 2 * 3 * 2
-    with pytest.raises(SystemExit):      # one executor at a time
-        main(["bench", "paper-compare", "--dask-workers", "2", "--scheduler", "tcp://x:1"])
+    assert main(["bench", "paper-compare", "--dask-workers", "2", "--scheduler", "tcp://x:1"]) == 2
+    assert "not allowed with argument --dask-workers" in capsys.readouterr().err     # one executor at a time
