@@ -202,7 +202,10 @@ def progress_callback(every: int):
 
 
 def progress(args, total: int):
-    """A ``Progress`` context (admmkit/cli_output.py) as the options ask: ``--progress N`` lines, else a bar after 2 s; none if ``-q``."""
+    """A ``Progress`` context (admmkit/cli_output.py) as the options ask.
+
+    ``--progress N``: a line every N iterations; otherwise a bar after 2 s; nothing with ``-q``.
+    """
     lines = 0 if getattr(args, "quiet", False) else getattr(args, "progress", 0)
     return Progress(total, enabled=not getattr(args, "quiet", False), lines=progress_callback(lines))
 

@@ -24,6 +24,8 @@ from .result import Result, Status
 
 #: a progress bar appears once a run has taken this many seconds of wall time
 PROGRESS_DELAY = 2.0
+#: and is refreshed every this many seconds
+PROGRESS_INTERVAL = 0.5
 
 
 class Progress:
@@ -32,39 +34,43 @@ class Progress:
     Nothing is shown for runs shorter than ``delay`` seconds (default
     :data:`PROGRESS_DELAY`); after that a
     tqdm bar (iterations of the ``total`` cap, rate, rho) is refreshed every
-    ``interval`` seconds.  ``lines`` (a callback printing every N iterations,
+    ``interval`` seconds (default :data:`PROGRESS_INTERVAL`).  ``lines`` (a callback printing every N iterations,
     ``--progress N``) replaces the bar.  The callback reads only ``rec.k`` and
     ``rec.rho`` (no norm is computed for it) and always returns None, so it
     never steers or stops a run.  ``enabled=False`` (``--quiet``) yields None.
     """
 
     def __init__(self, total: int, *, enabled: bool = True, lines=None, delay: float | None = None,
-                 interval: float = 0.5, file=None) -> None:
+                 interval: float | None = None, file=None) -> None:
         self.total, self.enabled, self.lines = int(total), enabled, lines
         self.delay = float(PROGRESS_DELAY if delay is None else delay)
-        self.interval = float(interval)
+        self.interval = float(PROGRESS_INTERVAL if interval is None else interval)
         self.file = file
         self.bar = None
-        self._next = math.inf
+        self._first, self._next = None, math.inf
 
     def __enter__(self):
         if not self.enabled:
             return None
         if self.lines is not None:
             return self.lines
+        self._first = None
         self._next = time.perf_counter() + self.delay
         return self
 
     def __call__(self, rec) -> None:
         now = time.perf_counter()
-        if now < self._next:
-            return None
+        if self._first is None:
+            self._first = now                             # the iterations start here (after the set-up)
+        if now < self._next or (self.bar is None and now - self._first < self.interval):
+            return None                                   # (a rate needs some iterations behind it)
         self._next = now + self.interval
         if self.bar is None:
             from tqdm import tqdm
             self.bar = tqdm(total=self.total, desc="ADMM", unit="it", file=self.file or sys.stderr, leave=False,
-                            dynamic_ncols=True, mininterval=0, bar_format="{desc}: {n}/{total} iterations (cap) "
-                            "[{elapsed}, {rate_fmt}{postfix}]")
+                            dynamic_ncols=True, mininterval=0, smoothing=0, delay=1e-3,
+                            bar_format="{desc}: {n}/{total} iterations (cap) [{elapsed}, {rate_fmt}{postfix}]")
+            self.bar.start_t -= now - self._first       # elapsed and rate count from the first iteration
         self.bar.n = rec.k + 1
         self.bar.set_postfix_str(f"rho={rec.rho:.3g}", refresh=False)
         self.bar.refresh()

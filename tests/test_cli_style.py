@@ -201,6 +201,7 @@ def test_progress_lines_every_n_iterations(capsys):
 
 def test_progress_bar_after_the_delay_and_quiet_silences_it(capsys, monkeypatch):
     monkeypatch.setattr("admmkit.cli_output.PROGRESS_DELAY", 0.0)
+    monkeypatch.setattr("admmkit.cli_output.PROGRESS_INTERVAL", 0.0)
     _, _, err = run(QP, capsys)
     assert "iterations (cap)" in err                       # tqdm's bar on stderr
     _, _, err = run([*QP, "-q"], capsys)

@@ -72,8 +72,8 @@ def run(args) -> int:
     print_summary(r, name, args.rho)
     fields = boundary_fields(ops, r.x, r.lam, r.z)
     active = int(fields["contact_status"].sum())
-    print(f"contact      force {float(ops.mc @ fields['contact_pressure']):.6g}   active nodes {active}/{ops.n_c} (p = g: on the "
-          f"obstacle after the last z-step)   max u_n {fields['normal_displacement'].max():.4e}")
+    print(f"contact      force {float(ops.mc @ fields['contact_pressure']):.6g}   active nodes {active}/{ops.n_c} "
+          f"(p = g: on the obstacle after the last z-step)   max u_n {fields['normal_displacement'].max():.4e}")
     if args.history:
         print(f"history      {r.history.to_csv(args.history)}")
     if args.json:
