@@ -13,7 +13,8 @@ interleaved in one process with BLAS on one thread:
   x_step, apply_A, then lam + rho (Ax - z)), order zx, no bookkeeping;
 - ``inline``: the same updates written out in numpy (no method calls, no copy
   in apply_A), for reference;
-- admmkit.solve in several configurations (fixed rho with Boyd's residual
+- admmkit.solve in several configurations (its loop, ``result.timings["total"]``;
+  the once-per-run set-up and finish are reported separately) (fixed rho with Boyd's residual
   test; the paper's SADMM: order zx, policy "summable", RelativeChange; each
   with the test every iteration and every 25).
 
@@ -115,8 +116,9 @@ def vector_op_times(n: int, repeats: int) -> tuple[float, float]:
     return best_dot, best_sub
 
 
-def run_admmkit(problem, config: dict, iterations: int) -> tuple[float, int]:
-    """Seconds of admmkit.solve (order zx, rho_0 = 1) and its iteration count."""
+def run_admmkit(problem, config: dict, iterations: int) -> tuple[float, int, float]:
+    """Seconds of admmkit.solve's loop (order zx, rho_0 = 1), its iteration count, and the seconds of the
+    whole call (the difference is the once-per-run set-up and finish: checks, policy reset, result, KKT)."""
     import admmkit
     import policies  # noqa: F401
 
@@ -125,7 +127,7 @@ def run_admmkit(problem, config: dict, iterations: int) -> tuple[float, int]:
     start = time.perf_counter()
     res = admmkit.solve(problem, rho=1.0, order="zx", policy=config["policy"], stop=stop, max_iter=iterations,
                         check_every=config["check_every"], blas_threads=None)
-    return time.perf_counter() - start, res.iterations
+    return res.timings["total"], res.iterations, time.perf_counter() - start
 
 
 def measure(n: int, iterations: int, repeats: int) -> list[dict]:
@@ -138,12 +140,13 @@ def measure(n: int, iterations: int, repeats: int) -> list[dict]:
     t_dot, t_sub = vector_op_times(n, repeats)
     rows = []
     for name, config in CONFIGS.items():
-        best = {"admmkit": np.inf, "bare": np.inf, "inline": np.inf}
+        best = {"admmkit": np.inf, "bare": np.inf, "inline": np.inf, "call": np.inf}
         counts = set()
         for _ in range(repeats):
-            seconds, its = run_admmkit(problem, config, iterations)
+            seconds, its, call = run_admmkit(problem, config, iterations)
             counts.add(its)
             best["admmkit"] = min(best["admmkit"], seconds / its)
+            best["call"] = min(best["call"], call - seconds)
             best["bare"] = min(best["bare"], bare(problem, 1.0, its) / its)
             best["inline"] = min(best["inline"], inline(problem, 1.0, its) / its)
         if len(counts) != 1:
@@ -156,6 +159,7 @@ def measure(n: int, iterations: int, repeats: int) -> list[dict]:
                      "bare_us": 1e6 * best["bare"], "inline_us": 1e6 * best["inline"],
                      "admmkit_us": 1e6 * best["admmkit"], "overhead_us": 1e6 * overhead,
                      "norms_read_us": 1e6 * norms, "overhead_beyond_norms_us": 1e6 * (overhead - norms),
+                     "per_run_setup_us": 1e6 * best["call"],
                      "overhead_pct_of_bare": 100 * overhead / best["bare"],
                      "target": "<= 10 us" if n <= 10 else "<= 15 %",
                      "met": (1e6 * overhead <= 10) if n <= 10 else (100 * overhead / best["bare"] <= 15)})
@@ -213,7 +217,9 @@ def main(argv=None, prog: str = "admmkit bench loop-overhead") -> int:
              f"glibc heap trimming off: {'yes' if steady else 'no (not glibc)'}; overhead = admmkit - bare; "
              "each figure the minimum of the repeats, all measured interleaved in one process.", "",
              "`norms read`: the time of the dot products and subtractions the rule and the policy read per "
-             "iteration (measured alone on arrays of length n), which no loop computing them can avoid.", "",
+             "iteration (measured alone on arrays of length n), which no loop computing them can avoid. "
+             "admmkit us/it is the loop (`result.timings['total']`); the once-per-run set-up and finish of "
+             "`solve` (checks, policy reset, the result and its KKT check) is in the CSV (`per_run_setup_us`).", "",
              "| n | configuration | iterations | bare us/it | inline us/it | admmkit us/it | overhead us/it "
              "| norms read us/it | % of bare | target | met |",
              "|---|---|---|---|---|---|---|---|---|---|---|"]
