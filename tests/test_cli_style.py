@@ -225,3 +225,11 @@ def test_the_progress_callback_never_steers(vector_problem):
     assert np.array_equal(shown.x, plain.x) and np.array_equal(shown.lam, plain.lam)
     with Progress(10, enabled=False) as show:
         assert show is None
+
+
+@pytest.mark.parametrize("argv", [QP, OBSTACLE, CONTACT])
+def test_fired_at_the_iteration_count(argv, capsys):
+    _, out, _ = run(argv, capsys)
+    fired = int(out.split("fired at iteration ")[1].split()[0].rstrip(",)"))
+    count = int(next(line for line in out.splitlines() if line.startswith("iterations")).split()[1])
+    assert fired == count
