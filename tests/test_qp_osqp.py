@@ -241,3 +241,15 @@ def test_setup_factorises_rho0_before_the_loop_and_counts_it():
     res = solve_qp(qp, eps_abs=1e-6, eps_rel=1e-6)
     assert res.counters["factorizations"] == res.rho_changes + 1      # setup at rho_0, one per rho update
     assert res.counters["solves"] == res.iterations and res.timings["setup"] >= 0
+
+
+@pytest.mark.skipif(not MM.is_dir(), reason=f"Maros-Meszaros data not found at {MM}")
+def test_osqps_dual_infeasibility_tolerance_misfires_on_primalc5_and_a_tighter_one_does_not():
+    # PRIMALC5 is bounded (Clarabel: -427.23); with OSQP's eps_dual_inf = 1e-4 OSQP 1.1.3 and the preset both
+    # declare it dual infeasible at iteration 75 (||P dx|| = 2.3e-5 ||dx||); with 1e-5 it is not declared
+    qp = load_mat(MM / "PRIMALC5.mat")
+    assert solve_qp(qp, max_iter=500).termination == "dual_infeasible"
+    assert solve_qp(qp, max_iter=2000, eps_dual_inf=1e-5, eps_prim_inf=1e-5).termination != "dual_infeasible"
+    for seed in range(2):                    # the tighter tolerance still finds the generated certificates
+        assert solve_qp(unbounded_qp(20, 30, seed=seed), eps_dual_inf=1e-5).termination == "dual_infeasible"
+        assert solve_qp(infeasible_qp(20, 30, seed=seed), eps_prim_inf=1e-5).termination == "primal_infeasible"
