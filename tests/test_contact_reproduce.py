@@ -69,8 +69,11 @@ def test_reproduce_small(tmp_path):
     # the paper's numbers are beside ours and the errors at the stop are small
     t1 = (tmp_path / "table1_ex1_time.md").read_text()
     assert "0.425" in t1 and "Ratio paper / ours" in t1
-    for r in res["runs"]:
-        assert r.status == "converged" and r.errors["err_u_energy"] < 1e-2
+    for r in res["runs"]:   # the paper's rule fired in every run; SADMM's stops are accurate, and a fixed-rho
+        # stop whose KKT residuals are over 10x the tolerance says so (converged_inaccurate)
+        assert r.status in ("converged", "converged_inaccurate") and r.errors["err_u_energy"] < 1e-2
+        if r.method == "sadmm":
+            assert r.status == "converged" and r.errors["err_u_energy"] < 1e-4
     for ref in res["references"].values():
         assert ref.kkt["stationarity"] < 1e-8
 
