@@ -203,6 +203,7 @@ def main(argv=None, prog: str = "admmkit bench loop-overhead") -> int:
     steady = steady_allocator()
     command = prog + " " + " ".join(shlex.quote(a) for a in (argv if argv is not None else sys.argv[1:]))
     rows = []
+    load_before = os.getloadavg() if hasattr(os, "getloadavg") else (float("nan"),) * 3
     with threadpool_limits(1):                             # BLAS on one thread for every loop alike
         for n, k in zip(sizes, its):
             rows.extend(measure(n, k, args.repeats))
@@ -214,6 +215,9 @@ def main(argv=None, prog: str = "admmkit bench loop-overhead") -> int:
         writer.writerows(rows)
     lines = [f"# Loop overhead of admmkit.solve (1-D obstacle problem, order zx, BLAS 1 thread)", "",
              f"Command: `{command}`", "",
+             f"Machine load (1-minute average, {os.cpu_count()} CPUs): {load_before[0]:.1f} at the start, "
+             f"{(os.getloadavg() if hasattr(os, 'getloadavg') else (float('nan'),))[0]:.1f} at the end "
+             "(other jobs share the machine; the loops are interleaved so that they share the load).", "",
              f"glibc heap trimming off: {'yes' if steady else 'no (not glibc)'}; overhead = admmkit - bare; "
              "each figure the minimum of the repeats, all measured interleaved in one process.", "",
              "`norms read`: the time of the dot products and subtractions the rule and the policy read per "
