@@ -97,7 +97,7 @@ def number(value) -> str:
 
 
 def summary_lines(result: Result, name: str | None = None, rho0: float | None = None) -> list[str]:
-    """:meth:`Result.summary` with the method line naming ``name`` and rho_0, and integers printed as integers."""
+    """:meth:`admmkit.Result.summary` with the method line naming ``name`` and rho_0, and integers printed as integers."""
     lines = []
     for line in result.summary().splitlines():
         label = line[:12].strip()
@@ -169,7 +169,7 @@ def provenance(args=None, **extra) -> dict:
 
 
 def result_record(result: Result) -> dict:
-    """The scalars of a :class:`Result` (status, iterations, rho, work, times, KKT) as a JSON-ready dict."""
+    """The scalars of a :class:`admmkit.Result` (status, iterations, rho, work, times, KKT) as a JSON-ready dict."""
     return jsonable({"status": result.status.value, "converged": result.converged, "message": result.message,
                      "stopped_by": result.stopped_by, "iterations": result.iterations, "rho_final": result.rho,
                      "rho_changes": result.rho_changes, "order": result.order, "policy": result.policy,

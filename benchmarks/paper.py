@@ -177,7 +177,7 @@ def _run_reproduction(out, hs, rhos, repeats, progress, examples, methods, mode,
             files += figure_pressure_gap(ops, sol.u, sol.pressure,
                                          f"{label}: contact pressure and gap on Gamma_C, SADMM rho_0 = "
                                          f"{rho_label(rho_fig)}, h = {h_label(h_fine)}",
-                                         out / f"pressure_gap_{ex}.png")
+                                         out / f"pressure_gap_{ex}.png", p=sol.result.z)
     files += write_error_table(out / "error_at_stop", runs, refs)
     wall = time.perf_counter() - start
     readme = write_readme(out, runs, refs, files, wall, hs, rhos, h_fig, h_fine, rho_fig, repeats, mode,

@@ -93,7 +93,7 @@ plt.show()
 
 # %%
 fig, axes = plt.subplots(2, 1, figsize=(8, 5), sharex=True)
-plot_pressure_gap(axes, ops, sol.u, sol.pressure)
+plot_pressure_gap(axes, ops, sol.u, sol.pressure, p=sol.result.z)   # p = g marks a node in contact
 plt.show()
 
 # %%

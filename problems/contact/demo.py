@@ -21,6 +21,7 @@ def run_demo(out: str | Path = "out/demo", h: float = 1 / 40, rho: float = 1e3) 
         print(sol.result.summary())
         path = out / f"{scene.name}.png"
         figure_solution(ops, sol.result.x, sol.result.lam, magnify,
-                        f"{name}: SADMM, rho_0 = {rho:g}, h = 1/{round(1 / h)}, u x{magnify:g}", path)
+                        f"{name}: SADMM, rho_0 = {rho:g}, h = 1/{round(1 / h)}, u x{magnify:g}", path,
+                        p=sol.result.z)
         print(f"figure       {path}\n")
     return 0
