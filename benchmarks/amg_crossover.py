@@ -26,6 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from admmkit.figures import pyplot, save_figure
+from admmkit.io import atomic_open, write_text
 
 from .machine import machine_info
 from .scale_runs import print_run, run_in_subprocess
@@ -122,7 +123,7 @@ def run_crossover(out="out/scale", hs=DEFAULT_HS, modes=MODES, reuse_h=1 / 160,
 
 
 def _write(out: Path, rows, reuse, summary, command) -> None:
-    with open(out / "amg_crossover.csv", "w", newline="") as fh:
+    with atomic_open(out / "amg_crossover.csv", "w", newline="") as fh:
         w = csv.writer(fh)
         cols = ["h", "mode", "n_free", "n_c", "status", "iterations", "setup_s", "solve_s", "total_s", "peak_rss_bytes"]
         w.writerow(cols)
@@ -164,7 +165,7 @@ def _write(out: Path, rows, reuse, summary, command) -> None:
                      f"{r['rebuild_its']} | {r['rebuild_prep_s']:.3f} | {per_it:.4f} | {r['break_even_solves']:.3g} |")
     lines += ["", "Machine (shared with other engineers during the run):", ""] + \
              [f"- {k}: {v}" for k, v in machine_info().items()]
-    (out / "amg_crossover.md").write_text("\n".join(lines) + "\n")
+    write_text(out / "amg_crossover.md", "\n".join(lines) + "\n")
 
     done = [r for r in rows if r.get("status") == "converged"]
     if not done:

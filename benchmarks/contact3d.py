@@ -25,6 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from admmkit.figures import pyplot, save_figure
+from admmkit.io import write_text
 
 from .machine import machine_info
 from .scale_runs import peak_rss_bytes
@@ -290,7 +291,7 @@ def _write_md(path, probes, run, command, figs, vtu, sadmm=()) -> None:
               "(displacement and contact pressure for ParaView; not committed: `*.vtu` is git-ignored)", "",
               "Machine (shared with other engineers during the run):", ""]
     lines += [f"- {k}: {v}" for k, v in machine_info().items()]
-    Path(path).write_text("\n".join(lines) + "\n")
+    write_text(Path(path), "\n".join(lines) + "\n")
 
 
 if __name__ == "__main__":  # child process of probe_in_subprocess

@@ -30,6 +30,7 @@ import policies
 from admmkit import RelativeChange
 from admmkit.blas import limit_blas
 from admmkit.linsolve import available_backends, factorize
+from admmkit.io import write_text
 
 from problems.contact.assembly import assemble
 from problems.contact.problem import contact_problem
@@ -184,5 +185,5 @@ def write_markdown(path: Path, rows, repeats, rho, wall, command, blas_threads=1
     lines += ["## Machine", ""] + [f"- {k}: {v}" for k, v in machine_info().items()]
     lines += ["", "Other processes may share the machine (see the load average); small times are noisy.", ""]
     path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text("\n".join(lines))
+    write_text(path, "\n".join(lines))
     return path

@@ -23,6 +23,7 @@ from problems.contact.assembly import assemble
 from problems.contact.hertz import HertzCase, hertz_pressure, measure
 from problems.contact.methods import solve_scene
 from admmkit.figures import pyplot, save_figure
+from admmkit.io import write_text
 
 from .machine import machine_info
 from .report import write_csv
@@ -108,7 +109,7 @@ def _write_markdown(path: Path, rows, case: HertzCase, command: str) -> None:
               "Figures: `hertz_pressure.png` (profiles against Hertz's ellipse), `hertz_errors.png` (errors "
               "against unknowns).", "", "Machine:", ""]
     lines += [f"- {k}: {v}" for k, v in machine_info().items()]
-    path.write_text("\n".join(lines) + "\n")
+    write_text(path, "\n".join(lines) + "\n")
 
 
 def _figure_pressure(path: Path, rows, case: HertzCase) -> None:

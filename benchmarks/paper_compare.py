@@ -27,6 +27,8 @@ import statistics
 import time
 from pathlib import Path
 
+from admmkit.io import write_text
+
 from .report import NOISE_NOTE, fmt, machine_info, machine_markdown, md_table, pyplot, save_figure, write_csv
 from .sweep import Executor, finished, run_sweep
 
@@ -154,7 +156,7 @@ def summarise(records: dict, out: Path, *, command: str, wall: float, reproducti
                 body.append(cells)
         md += [f"## {'Table 1, Example 1' if ex == 'ex1' else 'Table 2, Example 2'}", "",
                md_table(header, body, "ll" + "r" * len(hs)), ""]
-    (out / "times.md").write_text("\n".join(md))
+    write_text(out / "times.md", "\n".join(md))
     files.append(out / "times.md")
 
     sidx = {(r["example"], r["method"], r["h"], r["rho"]): r for r in speed_rows}
@@ -175,7 +177,7 @@ def summarise(records: dict, out: Path, *, command: str, wall: float, reproducti
                                  f"{r['our_iteration_ratio']:.2f}")
                 body.append(cells)
             md += [f"## {ex}: {LABELS[m]} / SADMM", "", md_table(header, body, "l" + "r" * len(hs)), ""]
-    (out / "speedups.md").write_text("\n".join(md))
+    write_text(out / "speedups.md", "\n".join(md))
     files.append(out / "speedups.md")
 
     iidx = {(r["example"], r["method"], r["h"], r["rho"]): r for r in iter_rows}
@@ -197,7 +199,7 @@ def summarise(records: dict, out: Path, *, command: str, wall: float, reproducti
                     cells.append("" if r is None else f"{r['ours']} / {fmt(r['reproduction'], 'd')}")
                 body.append(cells)
         md += [f"## {ex}", "", md_table(header, body, "ll" + "r" * len(hs)), ""]
-    (out / "iterations.md").write_text("\n".join(md))
+    write_text(out / "iterations.md", "\n".join(md))
     files.append(out / "iterations.md")
 
     files += _figure(speed_rows, out)
@@ -209,7 +211,7 @@ def summarise(records: dict, out: Path, *, command: str, wall: float, reproducti
               "- `speedups.{md,csv,png,svg}`: time(ADMM1 or ADMM2) / time(SADMM), paper against this run",
               "- `iterations.{md,csv}`: our iteration counts beside the committed reproduction", "",
               "![speed-ups](speedups.png)", "", machine_markdown(machine_info())]
-    (out / "README.md").write_text("\n".join(readme))
+    write_text(out / "README.md", "\n".join(readme))
     files.append(out / "README.md")
     return files
 

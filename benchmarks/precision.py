@@ -27,6 +27,8 @@ import os
 import time
 from pathlib import Path
 
+from admmkit.io import write_text
+
 from . import methods as methods_mod
 from .peers import PEERS, applicable, run_peer
 from .report import (NOISE_NOTE, fmt, machine_info, machine_markdown, md_table, pyplot,
@@ -159,7 +161,7 @@ def summarise(records: dict, out: Path, *, command: str, wall: float, skipped: l
           NOISE_NOTE, ""]
     for target, table in tables:
         md += [f"## Relative error {target:g}", "", table, ""]
-    (out / "time_to_error.md").write_text("\n".join(md))
+    write_text(out / "time_to_error.md", "\n".join(md))
     files.append(out / "time_to_error.md")
 
     files += _figures(per_problem, refs, out)
@@ -346,7 +348,7 @@ def _readme(out: Path, per_problem, refs, failures, command, wall, skipped, file
               "per finished case; the sweep resumes from it)", ""]
     lines.append(machine_markdown(machine_info()))
     path = out / "README.md"
-    path.write_text("\n".join(lines))
+    write_text(path, "\n".join(lines))
     return path
 
 

@@ -14,6 +14,7 @@ import time
 from pathlib import Path
 
 from admmkit.figures import pyplot, save_figure
+from admmkit.io import write_text
 
 from .machine import machine_info
 from .report import write_csv
@@ -118,7 +119,7 @@ def _write_markdown(path: Path, rows, example, mode, command, wall) -> None:
                   "", "Chart: `scale_growth.png` (log-log)."]
     lines += ["", "Machine (shared with other engineers during the run, so times are noisy; the load average "
               "says how busy it was):", ""] + [f"- {k}: {v}" for k, v in info.items()]
-    path.write_text("\n".join(lines) + "\n")
+    write_text(path, "\n".join(lines) + "\n")
 
 
 def _figure(path: Path, rows, example, mode) -> None:

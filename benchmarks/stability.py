@@ -30,6 +30,8 @@ from pathlib import Path
 
 import numpy as np
 
+from admmkit.io import write_text
+
 from . import methods as methods_mod
 from .report import NOISE_NOTE, fmt, machine_info, machine_markdown, md_table, pyplot, save_figure, write_csv
 from .families import discrete, problem_key
@@ -328,7 +330,7 @@ def summarise(records, out: Path, *, command: str, wall: float, skipped, missing
     out.mkdir(parents=True, exist_ok=True)
     rows = _rows(records)
     files = [write_csv(out / "stability.csv", rows)]
-    (out / "failures.md").write_text(failures_md(rows))
+    write_text(out / "failures.md", failures_md(rows))
     files.append(out / "failures.md")
     files += figure_rho(rows, out)
     files += figure_mesh(rows, out, "iterations")
@@ -371,7 +373,7 @@ def summarise(records, out: Path, *, command: str, wall: float, skipped, missing
         lines.insert(3, f"**{missing} cases of the sweep had not finished when these files were written "
                         "(--report-only); they are blank ('?') in the figures and missing from the tables.**\n")
     lines.append(machine_markdown(machine_info()))
-    (out / "README.md").write_text("\n".join(lines))
+    write_text(out / "README.md", "\n".join(lines))
     files.append(out / "README.md")
     return files
 
