@@ -1,7 +1,9 @@
 """Loader for QPs stored as MAT files (P, q, r, A, l, u), e.g. the Maros-Meszaros set.
 
 The files of the osqp_benchmarks / qpbenchmark conversion store infinite bounds
-as +-1e20; they are read as +-inf.  The data stays where it is: pass the folder.
+as +-1e20, some of them rounded to 9.999999999999998e19 (1036 bounds in 13
+problems, e.g. QPILOTNO, QSIERRA, POWELL20); every bound within a relative
+1e-9 of 1e20 is read as +-inf.  The data stays where it is: pass the folder.
 """
 from __future__ import annotations
 
@@ -14,6 +16,8 @@ import scipy.sparse as sp
 from .problem import QP
 
 INFINITY = 1e20
+#: bounds at least this large in magnitude are infinite (1e20 and its rounded forms)
+INFINITY_CUTOFF = INFINITY * (1 - 1e-9)
 FIELDS = ("P", "q", "A", "l", "u")
 
 
@@ -31,8 +35,8 @@ def load_mat(path: str | Path, **qp_options) -> QP:
         raise ValueError(f"{path} lacks the field(s) {', '.join(missing)}; a QP file needs P, q, A, l, u (and r)")
     l = np.asarray(data["l"], dtype=float).ravel()
     u = np.asarray(data["u"], dtype=float).ravel()
-    l[l <= -INFINITY] = -np.inf
-    u[u >= INFINITY] = np.inf
+    l[l <= -INFINITY_CUTOFF] = -np.inf
+    u[u >= INFINITY_CUTOFF] = np.inf
     r = float(np.asarray(data.get("r", 0.0)).ravel()[0]) if "r" in data else 0.0
     return QP(sp.csc_matrix(data["P"]), np.ravel(data["q"]), sp.csc_matrix(data["A"]), l, u, r,
               name=path.stem, **qp_options)

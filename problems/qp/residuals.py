@@ -9,7 +9,7 @@ OSQP 1.x (``src/auxil.c``), for x, z, y of the user's problem:
 with S(y) = u' max(y, 0) + l' min(y, 0), the support function of [l, u],
 after y is projected onto the polar of the recession cone of [l, u] (a
 component pushing against an infinite bound is set to 0) and entries below
-1e-10 are rounded to 0.  OSQP computes them on its scaled vectors and
+1e-15 are rounded to 0.  OSQP computes them on its scaled vectors and
 unscales the norms (E^-1, D^-1, 1/c); so does :func:`iterate_residuals`.
 
 The neutral criteria (qpbenchmark's, Caron et al.) judge any solver's (x, y)
@@ -26,8 +26,8 @@ import numpy as np
 
 from .problem import QP
 
-#: OSQP_ZERO_DEADZONE
-ZERO_DEADZONE = 1e-10
+#: OSQP_ZERO_DEADZONE in double precision
+ZERO_DEADZONE = 1e-15
 
 
 def _inf(v: np.ndarray) -> float:
