@@ -62,8 +62,12 @@ class SplitProblem(Problem):
         return self.map.norm(y)
 
     def adjoint_norm(self, y):
-        """||A'M y|| (derived from A)."""
+        """||A'M y|| in the dual of the x norm (derived from A)."""
         return self.map.adjoint_norm(y)
+
+    def x_norm(self, x):
+        """||x||_W, the x norm whose dual ``adjoint_norm`` uses (Euclidean unless the LinearMap has x_weights)."""
+        return self.map.x_norm(x)
 
     # -- diagnostics
     def objective(self, x, z):

@@ -48,13 +48,15 @@ class QuadraticXStep:
     singular).  ``solver`` is one of ``"auto"``, ``"direct"``,
     ``"diagonal"``, ``"amg"`` or ``"cg"`` (see the module docstring);
     ``backend`` the factorisation backend of the direct solver; ``cg_tol`` and
-    ``cg_maxiter`` the relative tolerance and cap of plain CG; ``near_null`` the
-    near-null space given to the AMG.
+    ``cg_maxiter`` the relative tolerance and cap of CG, ``cg_preconditioner``
+    its preconditioner (None, a LinearOperator approximating the inverse, or a
+    function rho -> such an operator, e.g. a Jacobi diagonal); ``near_null``
+    the near-null space given to the AMG.
     """
 
     def __init__(self, P=None, q=None, A=None, *, M=None, n: int | None = None, sigma: float = 0.0,
                  solver: str = "auto", backend: str = "auto", cg_tol: float = 1e-12, cg_maxiter: int = 10_000,
-                 near_null=None):
+                 cg_preconditioner=None, near_null=None):
         if solver not in SOLVERS:
             raise ValueError(f"solver must be one of {', '.join(SOLVERS)}, got {solver!r}")
         if A is None and n is None:
@@ -69,6 +71,7 @@ class QuadraticXStep:
             raise ValueError(f"q must have shape ({self.n},), got {self.q.shape}")
         self.P = _matrix(P, self.n)
         self.cg_tol, self.cg_maxiter = float(cg_tol), int(cg_maxiter)
+        self.cg_preconditioner = cg_preconditioner
         diag = self._diagonal() if solver in ("auto", "diagonal") else None
         if solver == "diagonal" and diag is None:
             raise ValueError("solver='diagonal' needs P and A'MA diagonal (A the identity or diagonal)")
@@ -148,7 +151,8 @@ class QuadraticXStep:
         def count(_):
             iterations[0] += 1
         op = spla.LinearOperator((n, n), matvec=matvec, dtype=float)
-        sol, info = spla.cg(op, b, x0=x, rtol=self.cg_tol, atol=0.0, maxiter=self.cg_maxiter, callback=count)
+        pre = self.cg_preconditioner(rho) if callable(self.cg_preconditioner) else self.cg_preconditioner
+        sol, info = spla.cg(op, b, x0=x, rtol=self.cg_tol, atol=0.0, maxiter=self.cg_maxiter, callback=count, M=pre)
         self.cg_iterations += iterations[0]
         if info > 0 and np.linalg.norm(matvec(sol) - b) > 1e3 * self.cg_tol * np.linalg.norm(b):
             raise np.linalg.LinAlgError(f"CG did not converge in {self.cg_maxiter} iterations")

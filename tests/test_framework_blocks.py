@@ -128,6 +128,21 @@ def test_quadratic_x_step_is_the_minimiser(solver):
         assert np.allclose(got, ref, atol=tol * np.abs(ref).max()), solver
 
 
+def test_cg_with_a_jacobi_preconditioner_per_rho():
+    n, p = 40, 60
+    B = rng.standard_normal((n, n))
+    P, A = B @ B.T / n + np.eye(n), rng.standard_normal((p, n))
+    q, z, lam, x = rng.standard_normal(n), rng.standard_normal(p), rng.standard_normal(p), np.zeros(n)
+    diag = lambda rho: np.diag(P) + rho * (A * A).sum(axis=0)                 # noqa: E731
+    jacobi = lambda rho: spla.LinearOperator((n, n), matvec=lambda v: np.ravel(v) / diag(rho))  # noqa: E731
+    plain = QuadraticXStep(spla.aslinearoperator(P), q, spla.aslinearoperator(A), solver="cg")
+    pre = QuadraticXStep(spla.aslinearoperator(P), q, spla.aslinearoperator(A), solver="cg", cg_preconditioner=jacobi)
+    ref = x_step_reference(P, q, A, np.ones(p), 0.0, z, lam, 5.0, x, 0.0)
+    for step in (plain, pre):
+        assert np.allclose(step(z, lam, 5.0, x), ref, atol=1e-9 * np.abs(ref).max())
+    assert pre.cg_iterations <= plain.cg_iterations
+
+
 def test_diagonal_x_step_is_chosen_for_a_diagonal_problem():
     d = rng.uniform(1, 2, 8)
     step = QuadraticXStep(sp.diags(d), -np.ones(8), None, M=np.full(8, 2.0))
