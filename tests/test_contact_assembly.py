@@ -252,8 +252,9 @@ TOML = """name = "t"\nL = 2.0\nH = 1.0\nE = 2000.0\nnu = 0.3\ndirichlet = ["left
 
 
 @pytest.mark.parametrize("text, key", [
-    (TOML.replace("E = 2000.0\n", ""), "'E'"),
-    (TOML + "mu = 3.0\n", "'mu'"),
+    (TOML.replace("E = 2000.0\n", 'E = "stiff"\n'), "'E'"),   # #18: a missing key takes Scene's default now
+    (TOML + "mue = 3.0\n", "'mue'"),                          # mu is Coulomb's coefficient now (#19)
+    (TOML + "mu = 3.0\n", "'coulomb'"),                       # ... and needs tangential = 'coulomb'
     (TOML.replace("nu = 0.3", 'nu = "0.3"'), "'nu'"),
     (TOML.replace('contact = "bottom"', "contact = 3"), "'contact'"),
     (TOML + "[tractions]\ntop = [1.0]\n", "tractions.top"),
@@ -265,6 +266,12 @@ def test_bad_toml_raises(tmp_path, text, key):
     path.write_text(text)
     with pytest.raises(ValueError, match=key):
         load_scene(path)
+
+
+def test_toml_missing_key_takes_the_scene_default(tmp_path):
+    path = tmp_path / "noE.toml"
+    path.write_text(TOML.replace("E = 2000.0\n", ""))
+    assert load_scene(path).E == Scene().E
 
 
 def test_toml_good_minimal(tmp_path):

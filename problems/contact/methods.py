@@ -12,18 +12,25 @@ from admmkit import RelativeChange
 from policies.paper_methods import PAPER_METHODS as METHODS, method  # noqa: F401  (re-exported)
 
 from .assembly import ContactOperators, assemble
-from .problem import contact_problem
+from .coulomb import CoulombReport, coulomb_fixed_point
 from .memory import check_memory
+from .problem import contact_problem
 from .scene import Scene
+
 
 @dataclass
 class ContactSolution:
-    """A solved scene: the admmkit result, the operators, the mode and the setup time."""
+    """A solved scene: the admmkit result, the operators, the mode and the setup time.
+
+    With Coulomb friction ``coulomb`` reports the outer fixed point (None otherwise)
+    and ``result`` is its last Tresca solve.
+    """
 
     result: admmkit.Result
     ops: ContactOperators
     mode: str
     setup_time: float
+    coulomb: CoulombReport | None = None
 
     @property
     def u(self):
@@ -32,8 +39,37 @@ class ContactSolution:
 
     @property
     def pressure(self):
-        """Contact pressure lam at the contact nodes."""
-        return self.result.lam
+        """Contact pressure lam_n = -sigma_n at the contact nodes."""
+        return self.result.lam[: self.ops.n_c]
+
+    @property
+    def tangential_traction(self):
+        """(d-1, n_c): q = lam_t = -sigma_t along the tangents, the friction force per unit length the body
+        exerts on the foundation (None without friction)."""
+        if self.ops.friction is None:
+            return None
+        return self.result.lam[self.ops.n_c:].reshape(-1, self.ops.n_c)
+
+    @property
+    def slip(self):
+        """(d-1, n_c): tangential displacement relative to the foundation, T u - w (None without friction)."""
+        if self.ops.friction is None:
+            return None
+        w = self.ops.friction.slide
+        return (self.ops.T @ self.u).reshape(-1, self.ops.n_c) - (0.0 if w is None else w.T)
+
+    @property
+    def zones(self):
+        """(n_c,) 0 separated, 1 stick, 2 slip (from the last z-step; None without friction)."""
+        from .friction import stick_slip
+        if self.ops.friction is None:
+            return None
+        return stick_slip(self.result.z, self.ops.g, self.ops.friction.slide)
+
+    @property
+    def converged(self) -> bool:
+        """The ADMM run converged (and, for Coulomb, the outer fixed point too)."""
+        return bool(self.result.converged and (self.coulomb is None or self.coulomb.converged))
 
     def __repr__(self) -> str:
         r, ops = self.result, self.ops
@@ -57,24 +93,49 @@ class ContactSolution:
         return f"<div><b>ContactSolution</b> {head}{self.result._repr_html_()}</div>"
 
 
-def solve_scene(scene: Scene | ContactOperators, method_name: str = "sadmm", rho: float = 1e3, *,
+def solve_scene(scene, method_name: str = "sadmm", rho: float = 1e3, *,
                 mode: str = "auto", stop: admmkit.StoppingRule | None = None, max_iter: int = 20_000,
-                order: str | None = None, callback=None) -> ContactSolution:
+                order: str | None = None, callback=None, coulomb_tol: float = 1e-4,
+                coulomb_max_outer: int = 30) -> ContactSolution:
     """Assemble (unless operators are given) and solve a scene with a named method.
 
+    ``scene`` is a 2D :class:`Scene`, a 3D :class:`~problems.contact.scene3d.Scene3D`
+    or assembled :class:`ContactOperators`.
     The default stop is the paper's RelativeChange(1e-5) in the energy norm.
     A direct ``mode`` whose memory estimate exceeds the available memory is
-    refused with the estimate before anything is assembled.
+    refused with the estimate before anything is assembled.  The scene's
+    ``tangential`` picks the model: frictionless, stick, Tresca (one ADMM run)
+    or Coulomb (the fixed point of :mod:`problems.contact.coulomb`, each step a
+    warm-started ADMM run with a fresh rule, until the relative change of the
+    slip bound is at most ``coulomb_tol`` or ``coulomb_max_outer`` steps).
     """
     import time
 
+    from .scene3d import Scene3D, assemble3d
     default_order, policy = method(method_name)
     if isinstance(scene, Scene) and mode in ("full", "condensed", "iterative"):
         check_memory(scene, mode)
-    ops = scene if isinstance(scene, ContactOperators) else assemble(scene)
+    if isinstance(scene, Scene3D):
+        ops = assemble3d(scene)
+    else:
+        ops = scene if isinstance(scene, ContactOperators) else assemble(scene)
     t0 = time.perf_counter()
     problem = contact_problem(ops, mode=mode)
     setup = time.perf_counter() - t0
-    result = admmkit.solve(problem, rho=rho, policy=policy, order=order or default_order,
-                           stop=stop or RelativeChange(1e-5), max_iter=max_iter, callback=callback)
-    return ContactSolution(result=result, ops=ops, mode=problem.mode, setup_time=setup)
+    stop = stop or RelativeChange(1e-5)
+    if ops.friction is None or ops.friction.law == "tresca":
+        result = admmkit.solve(problem, rho=rho, policy=policy, order=order or default_order,
+                               stop=stop, max_iter=max_iter, callback=callback)
+        return ContactSolution(result=result, ops=ops, mode=problem.mode, setup_time=setup)
+
+    def run(warm):   # one Tresca solve, a fresh rule each time, warm-started from the last one
+        order_, rule = method(method_name, order)
+        # z^0 from a z-step with the new slip bound: in order "xz" the first x-step would otherwise not
+        # see the new s, change u little, and let a relative-change stop fire at once (measured: the
+        # fixed point then "converged" after 2 steps with an error of 0.2)
+        z0 = None if warm is None else problem.z_step(problem.apply_A(warm.x_iterate), warm.lam, warm.rho, warm.z)
+        return admmkit.solve(problem, rho=None if warm is not None else rho, policy=rule, order=order_ or default_order,
+                             stop=stop, max_iter=max_iter, callback=callback, warm_start=warm, z0=z0)
+
+    result, report = coulomb_fixed_point(problem, run, ops.friction.mu, tol=coulomb_tol, max_outer=coulomb_max_outer)
+    return ContactSolution(result=result, ops=ops, mode=problem.mode, setup_time=setup, coulomb=report)

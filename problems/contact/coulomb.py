@@ -1,0 +1,90 @@
+"""Coulomb friction by the fixed point on the slip bound: each outer step a Tresca problem.
+
+Coulomb's law |sigma_t| <= mu |sigma_n| is Tresca's with the slip bound
+s = mu p_n, where p_n = lam_n is the (unknown) contact pressure.  The usual
+fixed point (Panagiotopoulos 1975; Haslinger, Hlavacek and Necas 1996,
+section 4) solves
+
+    s^0 = 0 (frictionless),  s^{j+1} = mu max(p_n(s^j), 0),
+
+each step a Tresca problem solved by ADMM, warm-started from the previous
+step's (u, z, lam) and final rho.  It converges for small enough mu (the
+Tresca-to-pressure map is then a contraction); the outer iteration stops when
+the M_c-weighted relative change of s is at most ``tol``, and its record
+(inner iterations and change of every outer step) is returned so that the
+convergence can be reported.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+
+
+@dataclass
+class CoulombReport:
+    """The outer iteration of a Coulomb solve.
+
+    ``inner_iterations[j]`` ADMM iterations of outer step j, ``changes[j]``
+    = ||s^{j+1} - s^j||_M / ||s^{j+1}||_M after it, ``converged`` whether the
+    last change is at most ``tol``.
+    """
+
+    tol: float
+    inner_iterations: list[int] = field(default_factory=list)
+    changes: list[float] = field(default_factory=list)
+    converged: bool = False
+
+    @property
+    def outer_iterations(self) -> int:
+        """Number of Tresca solves."""
+        return len(self.inner_iterations)
+
+    @property
+    def total_iterations(self) -> int:
+        """ADMM iterations over all outer steps."""
+        return int(sum(self.inner_iterations))
+
+    def summary(self) -> str:
+        """One line: outer steps, ADMM iterations, the last change of s."""
+        last = self.changes[-1] if self.changes else float("nan")
+        state = "converged" if self.converged else "NOT converged"
+        return (f"Coulomb fixed point {state}: {self.outer_iterations} Tresca solves, "
+                f"{self.total_iterations} ADMM iterations, last change of s {last:.2e} (tol {self.tol:g})")
+
+
+def _ended_by_a_rule(result) -> bool:
+    """The Tresca solve ended because its stopping rule fired (converged, or converged but less accurate
+    than the rule's tolerance in the KKT measures); not at max_iter, diverged or stalled."""
+    return str(result.status) in ("converged", "converged_inaccurate")
+
+
+def coulomb_fixed_point(problem, run: Callable, mu: float, tol: float = 1e-4, max_outer: int = 30):
+    """Iterate s^{j+1} = mu max(p_n^j, 0) on ``problem`` (a contact plug-in with Coulomb friction).
+
+    ``run(warm)`` solves the current Tresca problem (``warm`` = the previous
+    admmkit Result or None) and returns its Result; ``problem.friction.s`` is
+    the slip bound it reads.  Returns (last Result, CoulombReport).
+    """
+    if not (isinstance(tol, (int, float)) and 0 < tol < 1):
+        raise ValueError(f"coulomb tol = {tol!r}; accepted: 0 < tol < 1")
+    if not (isinstance(max_outer, int) and max_outer >= 1):
+        raise ValueError(f"coulomb max_outer = {max_outer!r}; accepted: an integer >= 1")
+    n_c, mc = problem.ops.n_c, problem.ops.mc
+    report = CoulombReport(tol=tol)
+    problem.friction.s = np.zeros(n_c)
+    result = None
+    for _ in range(max_outer):
+        result = run(result)
+        report.inner_iterations.append(int(result.iterations))
+        s_new = mu * np.maximum(result.lam[:n_c], 0.0)
+        ds = s_new - problem.friction.s
+        norm = np.sqrt(mc @ (s_new * s_new))
+        change = float(np.sqrt(mc @ (ds * ds)) / norm) if norm > 0 else float(np.sqrt(mc @ (ds * ds)) > 0)
+        report.changes.append(change)
+        problem.friction.s = s_new
+        if change <= tol or not _ended_by_a_rule(result):
+            break
+    report.converged = bool(report.changes[-1] <= tol and _ended_by_a_rule(result))
+    return result, report
