@@ -99,13 +99,13 @@ def solve_scene(scene, method_name: str = "sadmm", rho: float = 1e3, *,
                 coulomb_max_outer: int = 30) -> ContactSolution:
     """Assemble (unless operators are given) and solve a scene with a named method.
 
-    ``scene`` is a 2D :class:`Scene`, a 3D :class:`~problems.contact.scene3d.Scene3D`
+    ``scene`` is a 2D :class:`Scene`, a 3D ``Scene3D`` (problems/contact/scene3d.py)
     or assembled :class:`ContactOperators`.
     The default stop is the paper's RelativeChange(1e-5) in the energy norm.
     A direct ``mode`` whose memory estimate exceeds the available memory is
     refused with the estimate before anything is assembled.  The scene's
     ``tangential`` picks the model: frictionless, stick, Tresca (one ADMM run)
-    or Coulomb (the fixed point of :mod:`problems.contact.coulomb`, each step a
+    or Coulomb (the fixed point of problems/contact/coulomb.py, each step a
     warm-started ADMM run with a fresh rule, until the relative change of the
     slip bound is at most ``coulomb_tol`` or ``coulomb_max_outer`` steps).
     """

@@ -46,10 +46,10 @@ class Scene:
     of ``tractions`` (a constant 2-vector or a pair/callable of (x, y)), unmentioned
     labels are traction free; contact u.n <= g on ``contact``; tangentially
     sigma_t = 0 (``"frictionless"``, the default), u_t = 0 (``"stick"``, the paper's eq. (1)),
-    Tresca friction |sigma_t| <= s with the slip bound ``slip_bound`` = s(x, y) >= 0
-    (``"tresca"``) or Coulomb friction |sigma_t| <= mu |sigma_n| with the coefficient ``mu`` >= 0
+    Tresca friction (tangential traction at most s) with the slip bound ``slip_bound`` = s(x, y) >= 0
+    (``"tresca"``) or Coulomb friction (at most mu times the pressure) with the coefficient ``mu`` >= 0
     (``"coulomb"``); ``obstacle_slide`` moves the foundation by that tangential displacement
-    (along t = (-n_y, n_x); friction only), see :mod:`problems.contact.friction`.
+    (along t = (-n_y, n_x); friction only), see ``problems/contact/friction.py`` and docs/friction.md.
     ``gap`` and ``body_force`` likewise accept numbers, callables or expressions in x, y.
     ``contact_normal``: None measures u.n along the body's outward normal at each contact
     node; a pair (nx, ny) measures it along that fixed direction instead, the outward
@@ -284,8 +284,8 @@ def load_scene(path, **changes):
     """Read a Scene from a TOML file (keys = Scene fields, all optional; docs/scenes.md).
 
     A bare name such as ``"ex1"`` refers to problems/contact/scenes/ex1.toml.
-    ``dim = 3`` makes it a 3D block scene (:class:`~problems.contact.scene3d.Scene3D`,
-    keys :data:`TOML_KEYS_3D`); otherwise a 2D :class:`Scene`.  The keys may sit at the top level or in a ``[scene]`` table.  ``changes``
+    ``dim = 3`` makes it a 3D block scene (``Scene3D`` (problems/contact/scene3d.py),
+    keys ``TOML_KEYS_3D``); otherwise a 2D :class:`Scene`.  The keys may sit at the top level or in a ``[scene]`` table.  ``changes``
     override file values (e.g. ``h=1/80``).  Every problem with the file (not
     found, not UTF-8 text, malformed TOML, an unknown key, a value of the
     wrong type or out of range) raises ValueError naming the file and the key.
