@@ -41,7 +41,8 @@ def run_case(example: str, h: float, mode: str, rho: float = 1e3, max_iter: int 
     from admmkit import RelativeChange
 
     from problems.contact.problem import contact_problem
-    from problems.contact.scene import available_memory, example1, example2, memory_need
+    from problems.contact.memory import available_memory, memory_need
+    from problems.contact.scene import example1, example2
 
     if example not in EXAMPLES:
         raise ValueError(f"example must be one of {', '.join(EXAMPLES)}, got {example!r}")

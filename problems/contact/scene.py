@@ -17,7 +17,6 @@ from typing import Any, Mapping
 from .expressions import as_function as _as_func, expression, finite_positive as _finite_positive
 from .friction import TANGENTIAL, check_friction_fields
 from .memory import available_memory, estimate_memory, rectangle_measure
-from .memory import memory_need  # noqa: F401  (re-exported for benchmarks/scale_runs.py until it imports .memory)
 from .mesh import BOUNDARY_NAMES
 
 MESH_KINDS = ("structured", "unstructured")
