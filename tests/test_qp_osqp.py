@@ -253,3 +253,13 @@ def test_osqps_dual_infeasibility_tolerance_misfires_on_primalc5_and_a_tighter_o
     for seed in range(2):                    # the tighter tolerance still finds the generated certificates
         assert solve_qp(unbounded_qp(20, 30, seed=seed), eps_dual_inf=1e-5).termination == "dual_infeasible"
         assert solve_qp(infeasible_qp(20, 30, seed=seed), eps_prim_inf=1e-5).termination == "primal_infeasible"
+
+
+@pytest.mark.skipif(not MM.is_dir(), reason=f"Maros-Meszaros data not found at {MM}")
+def test_loader_reads_rounded_1e20_bounds_as_infinite():
+    import scipy.io
+    raw = np.ravel(scipy.io.loadmat(str(MM / "QPILOTNO.mat"), variable_names=("u",))["u"])
+    rounded = (raw > 9.9e19) & (raw < 1e20)
+    assert rounded.sum() == 24                                  # stored as 9.999999999999998e19
+    qp = load_mat(MM / "QPILOTNO.mat")
+    assert np.all(np.isinf(qp.u[rounded])) and np.all(np.isfinite(qp.u[raw < 1e19]))
