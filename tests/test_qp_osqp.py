@@ -263,3 +263,12 @@ def test_loader_reads_rounded_1e20_bounds_as_infinite():
     assert rounded.sum() == 24                                  # stored as 9.999999999999998e19
     qp = load_mat(MM / "QPILOTNO.mat")
     assert np.all(np.isinf(qp.u[rounded])) and np.all(np.isfinite(qp.u[raw < 1e19]))
+
+
+def test_osqps_primal_infeasibility_tolerance_misfires_on_a_feasible_random_qp():
+    # index 539 of the agreement study: feasible (Clarabel's optimum 21.21); at eps_prim_inf = 1e-4 the
+    # certificate test passes at iteration 275 (S(dy) = -1.3e-5, ||A'dy|| = 7.9e-5), OSQP 1.1.3 does the same
+    qp = random_qp(28, 116, kind="psd", density=0.127747, seed=1200778182)
+    assert solve_qp(qp, eps_abs=1e-6, eps_rel=1e-6, max_iter=1000).termination == "primal_infeasible"
+    strict = solve_qp(qp, eps_abs=1e-6, eps_rel=1e-6, max_iter=1000, eps_prim_inf=1e-6, eps_dual_inf=1e-6)
+    assert strict.termination is None and strict.status is Status.MAX_ITER
