@@ -187,7 +187,8 @@ class QP(Problem):
         self._x_in = self._x_last = self._x_rel = self._x_rel_prev = None
 
     def x_step(self, z, lam, rho, x):
-        """Solve (Q1), in either form (KKT: [P + sigma I, A'; A, -(rho M)^-1] [x; v] = [sigma x^k - q; z - lam/rho]).
+        """Solve (Q1), in either form (KKT: [P + sigma I, A'; A, -R^-1] [x; v] = [sigma x^k - q; z - R^-1 M lam],
+        R = :meth:`penalty` (rho), which is rho M but for the free rows (Q5)).
 
         With ``x_relaxation`` a != 1 (OSQP relaxes x too), x^k in the proximal
         term is OSQP's x^k = a xt^k + (1 - a) x^{k-1}, kept here (Q4); the loop's
