@@ -88,9 +88,11 @@ class QPResult(Result):
 
 def qp_for(qp: QP, settings: QPSettings) -> QP:
     """``qp`` itself if it is built with the settings' sigma, scaling, row weights, x relaxation and x-step form, else
-    a copy that is (the copy keeps the QP's backend)."""
+    a copy that is (the copy keeps the QP's backend).  x is relaxed only in order "xz" (OSQP's order; in
+    order "zx" the loop relaxes z and the x-step comes last)."""
     want = {"sigma": float(settings.sigma), "scaling": settings.scaling, "row_weights": settings.row_weights,
-            "x_relaxation": float(settings.alpha) if settings.relax_x else 1.0, "xstep": settings.xstep}
+            "x_relaxation": float(settings.alpha) if settings.relax_x and settings.order == "xz" else 1.0,
+            "xstep": settings.xstep}
     if all(qp.options.get(k) == v for k, v in want.items()):
         return qp
     return qp.with_options(**want)
