@@ -1,6 +1,7 @@
 """``admmkit solve contact`` and ``admmkit demo`` (the studies of this plug-in are in benchmarks/).
 
-    admmkit solve contact --scene ex1 --h 1/40 --policy sadmm --rho 1e3 [--mode auto|full|condensed]
+    admmkit solve contact --scene ex1 --h 1/40 --policy sadmm --rho 1e3 [--mode auto|full|condensed|iterative]
+                          [--tangential frictionless|stick|tresca|coulomb] [--mu MU] [--slip-bound S]
                           [--json FILE] [--csv FILE] [--plot FILE.png] [--vtk FILE.vtu] [-q]
     admmkit demo [--out out/demo]
 """
@@ -11,33 +12,46 @@ from pathlib import Path
 from admmkit.cli import (add_common_options, add_output_file, add_result_outputs, exit_code, positive_float,
                          print_summary, progress, resolve_policy, stop_rule, write_result_csv)
 
+from .friction import TANGENTIAL
 from .methods import METHODS
 from .problem import MODES
 
 
 def register(subparsers) -> None:
     """Register ``solve contact``."""
-    p = subparsers.add_parser("contact", help="2D frictionless elastic contact with a rigid foundation (NGSolve)",
+    p = subparsers.add_parser("contact", help="elastic contact with a rigid foundation, with or without friction "
+                                              "(NGSolve, 2D and 3D)",
                               description="Solve a contact scene with ADMM1, ADMM2, SADMM or any penalty policy.")
     p.add_argument("--scene", default="ex1",
                    help="ex1, ex2 (the paper's examples) or a path to a scene TOML file (default ex1)")
     p.add_argument("--h", type=positive_float, default=None, help="mesh size, fractions allowed (default: the scene's)")
     p.add_argument("--mode", choices=list(MODES), default="auto",
                    help="full: sparse x-steps; condensed: dense x-steps on Gamma_C (default auto)")
+    p.add_argument("--tangential", choices=list(TANGENTIAL), default=None,
+                   help="tangential condition on Gamma_C (default: the scene's; docs/friction.md)")
+    p.add_argument("--mu", default=None, metavar="MU",
+                   help="Coulomb's friction coefficient mu >= 0 (with coulomb; overrides the scene's)")
+    p.add_argument("--slip-bound", default=None, metavar="S",
+                   help="Tresca's slip bound s >= 0, a number or an expression in x, y "
+                        "(with tresca; overrides the scene's)")
     # the stop is in the energy norm (docs/contact.md); --policy takes admm1, admm2, sadmm or a rule (order zx)
     add_common_options(p, policy="sadmm", order="zx", rho=1e3, methods=METHODS, max_iter=20_000)
     add_result_outputs(p, json_help="write the run as JSON: provenance (version, date, command, scene, policy, "
                                     "stop), summary, u on the free dofs with its map to mesh points, contact arrays",
-                       csv_help="write the contact-boundary table x, y, u_n, g, gap, lam, p, active")
-    add_output_file(p, "--plot", "FILE.png", "write the deformed body and the pressure/gap plot")
+                       csv_help="write the contact-boundary table x, y, u_n, g, gap, lam, p, active "
+                                "(with friction also q, slip, s, zone)")
+    add_output_file(p, "--plot", "FILE.png", "write the deformed body and the pressure/gap plot "
+                    "(with friction also the tangential traction and the stick/slip zones; 2D scenes only)")
     p.add_argument("--magnify", type=positive_float, default=None,
                    help="displacement magnification in --plot (default 10 for ex1, 20 otherwise)")
     add_output_file(p, "--vtk", "FILE.vtu", "write a VTU file for ParaView and meshio: displacement at the "
-                    "mesh vertices, contact pressure, gap and status on Gamma_C", suffix=".vtu")
+                    "mesh vertices, contact pressure, gap and status on Gamma_C (with friction also the "
+                    "tangential traction, slip and stick/slip zone)", suffix=".vtu")
     p.set_defaults(func=run)
 
 
 def _scene(args):
+    from .cli_output import apply_friction_options
     from .scene import SCENES_DIR, load_scene
     name = str(args.scene)
     path = Path(name)
@@ -48,14 +62,19 @@ def _scene(args):
         raise ValueError(f"--scene: {name!r} is a directory, not a TOML scene file")
     changes = {} if args.h is None else {"h": args.h}
     try:
-        return load_scene(name, **changes)
+        scene = load_scene(name, **changes)
     except ValueError as err:
         raise ValueError(f"--scene {name}: {err}") from None
+    if args.plot and not hasattr(scene, "L"):
+        raise ValueError(f"--plot draws 2D scenes only; {scene.name or name} is a 3D scene (dim = 3): "
+                         f"write --vtk FILE.vtu and open it in ParaView")
+    return apply_friction_options(scene, args)
 
 
 def run(args) -> int:
     """Build the scene, solve it, print the summary and write the requested files; 0 only if converged."""
-    from .export import boundary_fields, write_json, write_vtu
+    from .cli_output import csv_columns, friction_line
+    from .export import boundary_fields, vtu_fields, write_json, write_vtu
     from .methods import solve_scene
 
     order, _, name = resolve_policy(args)          # refuses an unknown --policy before anything is built
@@ -66,34 +85,36 @@ def run(args) -> int:
                           order=order, callback=show)
     ops, r = sol.ops, sol.result
     args.resolved = {"policy": name, "order": r.order, "policy_repr": r.policy, "stop": stop.name}
+    cells = "tetrahedra" if ops.mesh.dim == 3 else "triangles"
     print(f"problem      contact/{scene.name or args.scene}: h = {scene.h:.6g}, P{scene.order} {scene.mesh_kind}, "
-          f"{ops.mesh.ne} triangles")
+          f"{ops.mesh.ne} {cells}, tangential {scene.tangential}")
     print(f"size         n_free {ops.n_free}   n_c {ops.n_c}   mode {sol.mode}   setup {sol.setup_time:.4f} s")
     print_summary(r, name, args.rho)
+    if sol.coulomb is not None:
+        print(f"coulomb      {sol.coulomb.summary()}")
     fields = boundary_fields(ops, r.x, r.lam, r.z)
     active = int(fields["contact_status"].sum())
     print(f"contact      force {float(ops.mc @ fields['contact_pressure']):.6g}   active nodes {active}/{ops.n_c} "
           f"(p = g: on the obstacle after the last z-step)   max u_n {fields['normal_displacement'].max():.4e}")
+    line = friction_line(sol, fields)
+    if line:
+        print(line)
     if args.history:
         print(f"history      {r.history.to_csv(args.history)}")
     if args.json:
         print(f"json         {write_json(args.json, sol, args)}")
     if args.csv:
-        columns = {"x": ops.xc[:, 0], "y": ops.xc[:, 1], "u_n": fields["normal_displacement"],
-                   "g": fields["initial_gap"], "gap": fields["gap"], "lam": fields["contact_pressure"],
-                   "p": r.z[:ops.n_c],
-                   "active": fields["contact_status"]}
-        print(f"csv          {write_result_csv(args.csv, columns)}")
+        print(f"csv          {write_result_csv(args.csv, csv_columns(sol, fields))}")
     if args.plot:
         from .plot import figure_solution
-        magnify = args.magnify or (10.0 if scene.name == "example1" else 20.0)
+        magnify = args.magnify or (10.0 if scene.name.startswith("example1") else 20.0)
         figure_solution(ops, r.x, fields["contact_pressure"], magnify,
                         f"{scene.name or args.scene}: {name}, rho_0 = {args.rho:g}, h = {scene.h:.4g}, "
-                        f"u x{magnify:g}", args.plot, p=r.z[:ops.n_c])
+                        f"u x{magnify:g}", args.plot, p=r.z[:ops.n_c], friction=fields)
         print(f"plot         {args.plot}")
     if args.vtk:
-        print(f"vtk          {write_vtu(args.vtk, ops, r.x, fields)}")
-    return exit_code(r) if getattr(sol, "converged", r.converged) else 1   # with friction: the outer loop too
+        print(f"vtk          {write_vtu(args.vtk, ops, r.x, vtu_fields(ops, fields))}")
+    return exit_code(r) if sol.converged else 1   # with Coulomb friction: the outer fixed point too
 
 
 def register_demo(commands) -> None:

@@ -8,7 +8,11 @@ body.  Point data:
 - ``displacement``: u at every point (3 components; z = 0 in 2D);
 - on the contact boundary Gamma_C (NaN elsewhere): ``contact_pressure``
   (lam), ``gap`` (g - u_n), ``initial_gap`` (g), ``normal_displacement``
-  (u_n); and ``contact_status``: 1 active, 0 inactive, -1 off Gamma_C.
+  (u_n); and ``contact_status``: 1 active, 0 inactive, -1 off Gamma_C;
+- with friction (Tresca or Coulomb), also on Gamma_C: ``tangential_traction``
+  (q = -sigma_t) and ``slip`` (T u - w) as vectors in x, y, z (3 components,
+  sum_j q_j t_j), and ``stick_slip_zone``: 0 separated, 1 stick, 2 slip,
+  -1 off Gamma_C (:func:`vtu_fields`).
 
 A node is *active* where the last z-step put p on the obstacle (p = g), the
 definition of the KKT's ``active_nodes`` count (problems/contact/problem.py)
@@ -120,10 +124,51 @@ def boundary_fields(ops, u_free: np.ndarray, lam: np.ndarray, p: np.ndarray) -> 
     """Per contact node: pressure lam, gap g - u_n, initial gap g, u_n and the status (1 active, 0 inactive).
 
     ``lam`` and ``p`` are the result's multiplier and z; their first n_c entries are the normal parts.
+    With friction (``ops.friction``) also :func:`friction_fields`.
     """
     un = ops.B @ np.asarray(u_free, dtype=float)
-    return {"contact_pressure": np.asarray(lam, dtype=float)[: ops.n_c], "gap": ops.g - un, "initial_gap": ops.g.copy(),
-            "normal_displacement": un, "contact_status": contact_status(ops, p).astype(np.int8)}
+    fields = {"contact_pressure": np.asarray(lam, dtype=float)[: ops.n_c], "gap": ops.g - un,
+              "initial_gap": ops.g.copy(), "normal_displacement": un,
+              "contact_status": contact_status(ops, p).astype(np.int8)}
+    if getattr(ops, "friction", None) is not None:
+        fields |= friction_fields(ops, u_free, lam, p)
+    return fields
+
+
+def friction_fields(ops, u_free: np.ndarray, lam: np.ndarray, z: np.ndarray) -> dict[str, np.ndarray]:
+    """Per contact node, with friction: ``tangential_traction`` q = lam_t, ``slip`` T u - w (both along the
+    tangents t of ``ops.tangents``: shape (n_c,) in 2D, (n_c, 2) in 3D), ``slip_bound`` s (the last one used:
+    Tresca's, or mu p_n of Coulomb's last fixed-point step) and ``stick_slip_zone`` (0 separated, 1 stick,
+    2 slip; :func:`problems.contact.friction.stick_slip`)."""
+    from .friction import stick_slip
+    n_c, friction = ops.n_c, ops.friction
+    lam, z = np.asarray(lam, dtype=float), np.asarray(z, dtype=float)
+    if lam.shape != (ops.T.shape[0] + n_c,) or z.shape != lam.shape:
+        raise ValueError(f"lam and z must hold the normal and tangential parts ({ops.T.shape[0] + n_c} values), "
+                         f"got shapes {lam.shape} and {z.shape}")
+    w = 0.0 if friction.slide is None else friction.slide.T
+    q = lam[n_c:].reshape(-1, n_c)
+    slip = (ops.T @ np.asarray(u_free, dtype=float)).reshape(-1, n_c) - w
+    squeeze = (lambda a: a[0]) if len(q) == 1 else (lambda a: a.T.copy())   # 2D: (n_c,); 3D: (n_c, 2)
+    return {"tangential_traction": squeeze(q), "slip": squeeze(slip), "slip_bound": friction.s.copy(),
+            "stick_slip_zone": stick_slip(z, ops.g, friction.slide).astype(np.int8)}
+
+
+def tangential_vector(ops, components: np.ndarray) -> np.ndarray:
+    """(n_c, 3): sum_j c_j t_j, the tangential components of :func:`friction_fields` as vectors in x, y, z."""
+    c = np.asarray(components, dtype=float).reshape(ops.n_c, -1)
+    vectors = np.einsum("ij,ijk->ik", c, ops.tangents)
+    return np.pad(vectors, ((0, 0), (0, 3 - vectors.shape[1])))
+
+
+def vtu_fields(ops, fields: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """The boundary fields as the VTU carries them: the tangential traction and the slip as 3-vectors in
+    x, y, z (:func:`tangential_vector`), so that ParaView draws them as glyphs; the rest unchanged."""
+    out = dict(fields)
+    for name in ("tangential_traction", "slip"):
+        if name in out:
+            out[name] = tangential_vector(ops, out[name])
+    return out
 
 
 def write_vtu(path: str | Path, ops, u_free: np.ndarray, boundary: dict[str, np.ndarray] | None = None) -> Path:
@@ -174,15 +219,34 @@ def write_json(path: str | Path, sol, args=None, **extra) -> Path:
     ``arrays``: ``u`` (free dofs), ``dof_component`` and ``dof_point``
     (free dof -> component and VTU point), ``contact_point`` (contact node ->
     VTU point), ``contact_xy`` and the boundary fields of :func:`boundary_fields`.
+    With friction also ``arrays.tangents`` (n_c, d-1, d), ``sizes.stick_nodes`` and
+    ``sizes.slip_nodes``, ``result.friction`` (law, mu, tangential force sum M_c q);
+    with Coulomb ``result.coulomb`` (the outer fixed point: Tresca solves, ADMM
+    iterations per solve, change of s per solve, converged) and ``result.converged``
+    then says whether both the last ADMM run and the fixed point converged.
     """
     ops, r = sol.ops, sol.result
     dofs = free_dof_map(ops)
     fields = boundary_fields(ops, r.x, r.lam, r.z)
     arrays = {"u": r.x, "dof_component": dofs["component"], "dof_point": dofs["point"],
               "contact_point": contact_point_index(ops), "contact_xy": ops.xc, "z": r.z, "lam": r.lam, **fields}
+    sizes = {"n_free": int(ops.n_free), "n_c": int(ops.n_c), "n_points": int(len(mesh_points(ops)[0])),
+             "active_nodes": int(fields["contact_status"].sum())}
+    record = result_record(r) | {"mode": sol.mode, "setup_time": sol.setup_time}
+    if ops.friction is not None:
+        arrays["tangents"] = ops.tangents
+        zones = fields["stick_slip_zone"]
+        sizes |= {"stick_nodes": int(np.sum(zones == 1)), "slip_nodes": int(np.sum(zones == 2))}
+        record["friction"] = {"law": ops.friction.law, "mu": ops.friction.mu,
+                              "tangential_force": ops.mc @ np.asarray(fields["tangential_traction"]).reshape(ops.n_c, -1)}
+    coulomb = getattr(sol, "coulomb", None)
+    if coulomb is not None:
+        record["coulomb"] = {"converged": coulomb.converged, "tol": coulomb.tol,
+                             "outer_iterations": coulomb.outer_iterations,
+                             "total_iterations": coulomb.total_iterations,
+                             "inner_iterations": coulomb.inner_iterations, "changes": coulomb.changes,
+                             "summary": coulomb.summary()}
+        record["converged"] = bool(sol.converged)
     data = {"provenance": provenance(args, **extra), "scene": scene_parameters(ops.scene),
-            "result": result_record(r) | {"mode": sol.mode, "setup_time": sol.setup_time},
-            "sizes": {"n_free": int(ops.n_free), "n_c": int(ops.n_c), "n_points": int(len(mesh_points(ops)[0])),
-                      "active_nodes": int(fields["contact_status"].sum())},
-            "arrays": jsonable(arrays)}
+            "result": jsonable(record), "sizes": sizes, "arrays": jsonable(arrays)}
     return write_text(path, json.dumps(data, indent=1) + "\n")

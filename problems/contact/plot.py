@@ -1,4 +1,5 @@
-"""Plots of a contact solution: the deformed body with the obstacle, and pressure and gap along Gamma_C."""
+"""Plots of a contact solution: the deformed body with the obstacle, pressure and gap along Gamma_C, and with
+friction the tangential traction with the stick and slip zones (2D scenes)."""
 from __future__ import annotations
 
 import numpy as np
@@ -68,6 +69,36 @@ def plot_pressure_gap(axes, ops: ContactOperators, u_free: np.ndarray, lam: np.n
     ax2.set_ylabel("gap g - u_n"); ax2.set_xlabel("x on Gamma_C (y = 0)"); ax2.legend(fontsize=8); ax2.grid(alpha=0.3)
 
 
+#: colours of the zones of problems.contact.friction.stick_slip: 0 separated, 1 stick, 2 slip
+ZONE_STYLE = {0: ("separated", "0.6"), 1: ("stick", "tab:green"), 2: ("slip", "tab:red")}
+
+
+def plot_friction(ax, ops: ContactOperators, fields: dict):
+    """The tangential traction q and the bounds +-s along Gamma_C against x, the stick and slip zones marked.
+
+    ``fields`` are :func:`problems.contact.export.boundary_fields` with friction
+    (``tangential_traction``, ``slip_bound``, ``stick_slip_zone``); each node is
+    marked by its zone and the stretches of Gamma_C where it sticks or slips are shaded.
+    """
+    x = ops.xc[:, 0]
+    q = np.asarray(fields["tangential_traction"], dtype=float)
+    s = np.asarray(fields["slip_bound"], dtype=float)
+    zones = np.asarray(fields["stick_slip_zone"])
+    ax.plot(x, q, "k-", lw=1.0, label="tangential traction q")
+    ax.plot(x, s, "k--", lw=0.7, label="slip bound +-s")
+    ax.plot(x, -s, "k--", lw=0.7)
+    spacing = np.diff(x).min(initial=0.0) / 2 if len(x) > 1 else 0.0
+    for zone, (label, colour) in ZONE_STYLE.items():
+        at = zones == zone
+        ax.plot(x[at], q[at], "o", ms=4, color=colour, label=f"{label} ({int(at.sum())} nodes)")
+        if zone:
+            for xi in x[at]:
+                ax.axvspan(xi - spacing, xi + spacing, color=colour, alpha=0.12, lw=0)
+    ax.axhline(0, color="k", lw=0.5)
+    ax.set_ylabel("tangential traction q"); ax.set_xlabel("x on Gamma_C")
+    ax.legend(fontsize=8, ncol=2); ax.grid(alpha=0.3)
+
+
 def figure_deformed(ops, u, magnify, title, path, svg=True):
     """The paper's Figs 1 / 3."""
     plt = pyplot()
@@ -89,15 +120,24 @@ def figure_pressure_gap(ops, u, lam, title, path, svg=True, p=None):
     return save_figure(fig, path, ("png", "svg") if svg else ("png",))
 
 
-def figure_solution(ops, u, lam, magnify, title, path, p=None):
-    """Deformed body over contact pressure and gap in one PNG (the CLI's --plot; active nodes marked with ``p``)."""
+def figure_solution(ops, u, lam, magnify, title, path, p=None, friction=None):
+    """Deformed body over contact pressure and gap in one PNG (the CLI's --plot; active nodes marked with ``p``).
+
+    ``friction``: the boundary fields with friction (:func:`problems.contact.export.friction_fields`) add a
+    panel with the tangential traction and the stick/slip zones (:func:`plot_friction`).  2D scenes only.
+    """
+    if ops.mesh.dim != 2:
+        raise ValueError("figure_solution draws 2D scenes only; write a VTU file (write_vtu) for a 3D one")
+    with_friction = friction is not None and "tangential_traction" in friction
     plt = pyplot()
-    fig = plt.figure(figsize=(9, 8.5))
-    gs = fig.add_gridspec(3, 1, height_ratios=[2.2, 1, 1])
+    fig = plt.figure(figsize=(9, 11.0 if with_friction else 8.5))
+    gs = fig.add_gridspec(4 if with_friction else 3, 1, height_ratios=[2.2, 1, 1] + [1.2] * with_friction)
     ax0 = fig.add_subplot(gs[0])
     pc = plot_deformed(ax0, ops, u, magnify, title)
     fig.colorbar(pc, ax=ax0, label="|u|", fraction=0.025, pad=0.02)
     ax1 = fig.add_subplot(gs[1]); ax2 = fig.add_subplot(gs[2], sharex=ax1)
     plot_pressure_gap((ax1, ax2), ops, u, lam, p)
+    if with_friction:
+        plot_friction(fig.add_subplot(gs[3], sharex=ax1), ops, friction)
     fig.tight_layout()
     return save_figure(fig, path, ("png",))[0]
