@@ -29,10 +29,14 @@ def parse_mu(text: str) -> float:
 
 def parse_slip_bound(text: str):
     """``--slip-bound``: a number >= 0 or an expression in x, y (its values are checked by the scene)."""
+    from .expressions import expression
     try:
         value = float(text)
     except ValueError:
-        return text                                     # an expression: the scene parses and samples it
+        try:
+            return expression(text)                     # an expression: the scene samples it along Gamma_C
+        except ValueError as err:
+            raise ValueError(f"--slip-bound {text}: {err}") from None
     if not (math.isfinite(value) and value >= 0):
         raise ValueError(f"--slip-bound {text}: expected Tresca's slip bound, a finite number s >= 0 "
                          f"or an expression in x, y")
@@ -72,7 +76,10 @@ def apply_friction_options(scene, args):
     try:
         return dataclasses.replace(scene, **changes)
     except ValueError as err:
-        option = "--slip-bound" if "slip_bound" in str(err) else "--mu" if "mu" in str(err) else "--tangential"
+        text = str(err)
+        option = (f"--slip-bound {args.slip_bound}" if args.slip_bound is not None and text.startswith("slip_bound")
+                  else f"--mu {args.mu}" if args.mu is not None and text.startswith("mu")
+                  else f"--tangential {changes['tangential']}")
         raise ValueError(f"{option}: {err}") from None
 
 
