@@ -86,7 +86,7 @@ def summary(rows: list[dict], eps: float) -> list[str]:
                           fmt(np.nanmedian(err)), fmt(np.nanmax(err)),
                           fmt(np.max(xerr)) if xerr.size else "-",
                           sum(r["neutral_ok"] for r in sel)])
-        lines += [f"### {config}", "",
+        lines += [f"## {config}", "",
                   md_table(["kind", "QPs", "solved", "objective error <= 1e-5", "<= 1e-4", "median objective error",
                             "max objective error", "max x error (unique kinds)", f"neutral criteria met (eps {eps:g})"],
                            table), ""]
