@@ -106,6 +106,8 @@ def main(argv=None, prog: str = "admmkit bench qp-agreement") -> int:
         parser.error("--count, --eps and --max-iter must be positive")
     for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
         os.environ.setdefault(var, "1")
+    from admmkit.io import write_text
+
     from .report import machine_info, machine_markdown, write_csv
     command = prog + " " + " ".join(shlex.quote(a) for a in (argv if argv is not None else sys.argv[1:]))
     rows, start = [], time.perf_counter()
@@ -124,7 +126,7 @@ def main(argv=None, prog: str = "admmkit bench qp-agreement") -> int:
              f"Clarabel failed on {len(failed_ref)} QPs (left out); wall time {time.perf_counter() - start:.0f} s.", ""]
     lines += summary(rows, args.eps)
     text = "\n".join(lines) + "\n\n" + machine_markdown(machine_info())
-    (out / "README.md").write_text(text)
+    write_text(out / "README.md", text)
     print(text)
     return 0
 

@@ -193,6 +193,8 @@ def main(argv=None, prog: str = "admmkit bench qp-fidelity") -> int:
     import admmkit
     import policies  # noqa: F401  (registers the rules)
     from threadpoolctl import threadpool_limits
+    from admmkit.io import write_text
+
     from .report import machine_info, machine_markdown, write_csv
     data = Path(args.data)
     rules = [r for r in ((admmkit.policy_names() if args.rules == [] else args.rules) or []) if r != "osqp"]
@@ -217,7 +219,7 @@ def main(argv=None, prog: str = "admmkit bench qp-fidelity") -> int:
                       f"{'on' if args.polish else 'off'}; wall time of the "
                       f"study {time.perf_counter() - start:.0f} s.", ""] + lines) + "\n"
     text += "\n" + machine_markdown(machine_info())
-    (out / "README.md").write_text(text)
+    write_text(out / "README.md", text)
     print(text)
     return 0
 
