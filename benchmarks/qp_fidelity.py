@@ -18,7 +18,9 @@ whether each answer passes the neutral criteria (qpbenchmark's: primal
 residual, dual residual and duality gap <= eps absolute, in inf-norms, for a
 run that reported solved).  ``--rules`` adds every registered penalty rule in
 OSQP's machinery (order xz), judged by the same criteria; ``--polish`` turns
-polishing on for every configuration.
+polishing on for every configuration; ``--preset textbook`` and ``--order zx``
+run the rules in admmkit's textbook loop and in the other order (OSQP and
+admmkit with OSQP's rule stay as they are, for the comparison).
 """
 from __future__ import annotations
 
@@ -75,18 +77,20 @@ def run_osqp(qp, eps: float, max_iter: int, time_limit: float, polish: bool = Fa
             "rho_updates": info.rho_updates, "time": info.solve_time, "x": res.x, "y": res.y}
 
 
-def run_admmkit(qp, eps: float, max_iter: int, time_limit: float, policy="osqp", polish: bool = False) -> dict:
-    """admmkit's solve_qp with the OSQP preset."""
-    from problems.qp import osqp_settings, solve_qp
-    res = solve_qp(qp, osqp_settings(eps_abs=eps, eps_rel=eps, max_iter=max_iter, time_limit=time_limit,
-                                     polish=polish), policy=policy)
+def run_admmkit(qp, eps: float, max_iter: int, time_limit: float, policy="osqp", polish: bool = False,
+                preset: str = "osqp", order: str = "xz") -> dict:
+    """admmkit's solve_qp with the OSQP preset (or admmkit's textbook loop) in the given order."""
+    from problems.qp import osqp_settings, solve_qp, textbook_settings
+    make = osqp_settings if preset == "osqp" else textbook_settings
+    res = solve_qp(qp, make(eps_abs=eps, eps_rel=eps, max_iter=max_iter, time_limit=time_limit, polish=polish,
+                            order=order), policy=policy)
     status = res.termination or res.status.value
     return {"status": status, "solved": res.termination == "solved", "iterations": res.iterations,
             "rho_updates": res.rho_changes, "time": res.timings["total"], "x": res.x, "y": res.lam}
 
 
 def measure(name: str, nnz: int, data: Path, eps_list, max_iter: int, time_limit: float, rules: list[str],
-            polish: bool = False) -> list[dict]:
+            polish: bool = False, preset: str = "osqp", order: str = "xz") -> list[dict]:
     """All runs of one problem."""
     from problems.qp import load_mat
     from problems.qp.residuals import neutral_residuals
@@ -95,7 +99,9 @@ def measure(name: str, nnz: int, data: Path, eps_list, max_iter: int, time_limit
     for eps in eps_list:
         runs = [("OSQP", lambda: run_osqp(qp, eps, max_iter, time_limit, polish)),
                 ("admmkit-osqp", lambda: run_admmkit(qp, eps, max_iter, time_limit, polish=polish))]
-        runs += [(f"admmkit-{r}", lambda r=r: run_admmkit(qp, eps, max_iter, time_limit, policy=r, polish=polish))
+        tag = "" if (preset, order) == ("osqp", "xz") else f"[{preset},{order}]"
+        runs += [(f"admmkit-{r}{tag}", lambda r=r: run_admmkit(qp, eps, max_iter, time_limit, policy=r, polish=polish,
+                                                               preset=preset, order=order))
                  for r in rules]
         for label, run in runs:
             try:
@@ -185,6 +191,9 @@ def main(argv=None, prog: str = "admmkit bench qp-fidelity") -> int:
                         help="also these registered rules in OSQP's machinery (no names: every registered rule; "
                              "'osqp' is always run, with OSQP's own normalisation)")
     parser.add_argument("--polish", action="store_true", help="polishing on, for OSQP and admmkit alike")
+    parser.add_argument("--preset", choices=("osqp", "textbook"), default="osqp",
+                        help="settings of the --rules runs: OSQP's machinery (default) or admmkit's textbook loop")
+    parser.add_argument("--order", choices=("xz", "zx"), default="xz", help="order of the --rules runs (default xz)")
     args = parser.parse_args(argv)
     if args.max_iter < 1 or args.time_limit <= 0 or args.max_nnz <= 0 or min(args.eps) <= 0:
         parser.error("--max-iter, --time-limit, --max-nnz and --eps must be positive")
@@ -197,7 +206,8 @@ def main(argv=None, prog: str = "admmkit bench qp-fidelity") -> int:
 
     from .report import machine_info, machine_markdown, write_csv
     data = Path(args.data)
-    rules = [r for r in ((admmkit.policy_names() if args.rules == [] else args.rules) or []) if r != "osqp"]
+    rules = [r for r in ((admmkit.policy_names() if args.rules == [] else args.rules) or [])
+             if r != "osqp" or (args.preset, args.order) != ("osqp", "xz")]
     command = prog + " " + " ".join(shlex.quote(a) for a in (argv if argv is not None else sys.argv[1:]))
     chosen = select(data, args.max_nnz, args.problems)
     print(f"{len(chosen)} problems; eps {args.eps}; rules {rules or 'OSQP rule only'}", flush=True)
@@ -205,7 +215,8 @@ def main(argv=None, prog: str = "admmkit bench qp-fidelity") -> int:
     out = Path(args.out)
     with threadpool_limits(1):
         for i, (name, nnz) in enumerate(chosen):
-            new = measure(name, nnz, data, args.eps, args.max_iter, args.time_limit, rules, args.polish)
+            new = measure(name, nnz, data, args.eps, args.max_iter, args.time_limit, rules, args.polish,
+                          args.preset, args.order)
             rows += new
             brief = "  ".join(f"{r['solver']}@{r['eps']:g}:{r['status']}/{r['iterations']}" for r in new[:4])
             print(f"[{i + 1}/{len(chosen)}] {name} ({time.perf_counter() - start:.0f} s)  {brief}", flush=True)
