@@ -98,17 +98,25 @@ def _vector_cf(t):
 
 
 def contact_nodes(mesh: ng.Mesh, scene: Scene):
-    """Contact nodes of Gamma_C without the clamped ones.
+    """Contact nodes of Gamma_C without the clamped ones (those on a ``scene.dirichlet`` label).
+
+    Returns (nodes, xc, mc, normals) as :func:`boundary_nodes`.
+    """
+    clamped = {v.nr for el in mesh.Elements(ng.BND) if el.mat in scene.dirichlet for v in el.vertices}
+    return boundary_nodes(mesh, scene.contact, scene.order, lambda key: key[0] == "V" and key[1] in clamped)
+
+
+def boundary_nodes(mesh: ng.Mesh, contact: str, order: int, clamped):
+    """The nodes of the 2D boundary ``contact`` for which ``clamped(key)`` is false.
 
     Returns (nodes, xc, mc, normals): nodes[i] = ("V", vertex) or ("E", edge) for a
     P2 midpoint; mc = trapezoid (P1) or Simpson (P2) weights; normals = length-weighted
     average of the outward normals of the adjacent contact edges, normalised.
     """
-    clamped = {v.nr for el in mesh.Elements(ng.BND) if el.mat in scene.dirichlet for v in el.vertices}
     point = lambda v: np.array(mesh[v].point[:2])  # noqa: E731
     weight, nsum, coords = {}, {}, {}
     for el in mesh.Elements(ng.BND):
-        if el.mat != scene.contact:
+        if el.mat != contact:
             continue
         va, vb = el.vertices
         pa, pb = point(va), point(vb)
@@ -119,17 +127,17 @@ def contact_nodes(mesh: ng.Mesh, scene: Scene):
         n = np.array([pb[1] - pa[1], pa[0] - pb[0]]) / ell
         if n @ ((pa + pb) / 2 - centre) < 0:       # make it point out of the body
             n = -n
-        ends = ell / 2 if scene.order == 1 else ell / 6
+        ends = ell / 2 if order == 1 else ell / 6
         parts = [(("V", va.nr), pa, ends), (("V", vb.nr), pb, ends)]
-        if scene.order == 2:
+        if order == 2:
             parts.append((("E", edge.nr), (pa + pb) / 2, 2 * ell / 3))
         for key, p, w in parts:
             weight[key] = weight.get(key, 0.0) + w
             nsum[key] = nsum.get(key, 0.0) + ell * n
             coords[key] = p
-    keys = [k for k in weight if not (k[0] == "V" and k[1] in clamped)]
+    keys = [k for k in weight if not clamped(k)]
     if not keys:
-        raise ValueError(f"contact: boundary {scene.contact!r} has no unclamped node on this mesh")
+        raise ValueError(f"contact: boundary {contact!r} has no unclamped node on this mesh")
     xc = np.array([coords[k] for k in keys])
     order = np.lexsort((xc[:, 1], xc[:, 0]))
     keys = [keys[i] for i in order]
@@ -197,18 +205,29 @@ def assemble(scene: Scene) -> ContactOperators:
         l += _vector_cf(scene.body_force) * v * ng.dx(bonus_intorder=2 * callable(scene.body_force))
     l.Assemble()
 
+    free, K, f = free_system(fes, a, l.vec.FV().NumPy())
+    B, T, tangents = normal_tangential_maps(mesh, scene.order, xc, normals, free)
+    return ContactOperators(K=K, f=f, B=B, mc=mc, g=g, xc=xc, normals=normals, free=free,
+                            mesh=mesh, fes=fes, scene=scene, T=T, tangents=tangents,
+                            friction=friction_of(scene, xc))
+
+
+def free_system(fes: ng.comp.FESpace, a: ng.BilinearForm, load: np.ndarray):
+    """(free, K, f): the free dofs of ``fes``, the assembled form ``a`` and the load (one value per dof) on them."""
     free = np.flatnonzero(np.array(fes.FreeDofs(), dtype=bool))
     K = _csr(a.mat)[free][:, free].tocsr()
-    f = l.vec.FV().NumPy()[free].copy()
+    f = np.asarray(load)[free].copy()
+    return free, K, f
 
+
+def normal_tangential_maps(mesh: ng.Mesh, order: int, xc: np.ndarray, normals: np.ndarray, free: np.ndarray):
+    """(B, T, tangents) of a 2D VectorH1 space of ``order``: u.n and u.t at the contact nodes xc, on the free dofs."""
     # u.n at x_i = n_x u_x(x_i) + n_y u_y(x_i); VectorH1 numbers the y-component dofs after all x ones
-    E = _point_evaluation(mesh, ng.H1(mesh, order=scene.order), xc)
+    E = _point_evaluation(mesh, ng.H1(mesh, order=order), xc)
     Bfull = sp.hstack([sp.diags(normals[:, 0]) @ E, sp.diags(normals[:, 1]) @ E]).tocsc()
     B = Bfull[:, free].tocsr()
     B.eliminate_zeros()
     tangents = tangent_frames(normals)
     T = sp.hstack([sp.diags(tangents[:, 0, 0]) @ E, sp.diags(tangents[:, 0, 1]) @ E]).tocsc()[:, free].tocsr()
     T.eliminate_zeros()
-    return ContactOperators(K=K, f=f, B=B, mc=mc, g=g, xc=xc, normals=normals, free=free,
-                            mesh=mesh, fes=fes, scene=scene, T=T, tangents=tangents,
-                            friction=friction_of(scene, xc))
+    return B, T, tangents

@@ -1,0 +1,191 @@
+"""Contact operators from your own NGSolve mesh, space and forms (issue #18).
+
+A :class:`~problems.contact.scene.Scene` describes a rectangle (or a netgen
+geometry) of an isotropic plane-strain material.  Anything else, an
+unstructured mesh of your own, an orthotropic or graded material, extra terms
+in the energy, a point load, is written in NGSolve and handed in here:
+
+    fes = ngsolve.VectorH1(mesh, order=1, dirichlet="left")
+    u, v = fes.TnT()
+    a = ngsolve.BilinearForm(fes); a += InnerProduct(C * strain(u), strain(v)) * dx
+    f = ngsolve.LinearForm(fes);   f += CF((0, -10)) * v * ds("top")
+    ops = contact_operators(fes, a, f, contact="bottom", gap=0.01)
+    sol = solve_scene(ops, "sadmm", rho=1e3)
+
+The discrete problem is the one of :func:`problems.contact.assembly.assemble`,
+min 1/2 u'Ku - f'u s.t. B u <= g (and Tresca's term with friction), with K
+and f your forms on the free dofs of your space (its Dirichlet flags clamp),
+and B, M_c, g built on the contact boundary exactly as there (the same
+functions: :func:`~problems.contact.assembly.boundary_nodes`,
+:func:`~problems.contact.assembly.normal_tangential_maps`).  The result is a
+:class:`~problems.contact.assembly.ContactOperators` that
+:func:`~problems.contact.methods.solve_scene` and
+:func:`~problems.contact.problem.contact_problem` take in every mode (full,
+condensed, iterative), and that the VTU and JSON exports write.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import ngsolve as ng
+import numpy as np
+
+from .assembly import ContactOperators, boundary_nodes, free_system, normal_tangential_maps
+from .expressions import as_function
+from .friction import TANGENTIAL, check_friction_fields, friction_of
+from .scene import _unit_pair, check_slide
+
+
+@dataclass(frozen=True)
+class CustomScene:
+    """What :func:`contact_operators` was given, in the fields the plug-in reads from a scene.
+
+    ``h`` is the longest edge of the mesh; ``gap`` as given (a number, a
+    callable f(x, y), an expression or an NGSolve CoefficientFunction).
+    """
+
+    contact: str
+    gap: Any
+    h: float
+    order: int
+    tangential: str = "frictionless"
+    slip_bound: Any = None
+    mu: Any = None
+    obstacle_slide: float = 0.0
+    contact_normal: Any = None
+    name: str = "custom"
+    mesh_kind: str = "user mesh"
+
+    def gap_at(self, x: float, y: float) -> float:
+        """g(x, y) for a number, callable or expression gap (a CoefficientFunction needs the mesh: ops.g)."""
+        if isinstance(self.gap, ng.CoefficientFunction):
+            raise ValueError("gap is a CoefficientFunction: read its values at the contact nodes from ops.g")
+        return float(self.gap(x, y)) if callable(self.gap) else float(self.gap)
+
+
+def contact_operators(fes, a, f, contact: str = "bottom", gap=0.0, *, normal=None, tangential: str = "frictionless",
+                      slip_bound=None, mu=None, obstacle_slide: float = 0.0, name: str = "custom") -> ContactOperators:
+    """Contact operators of your own NGSolve space and forms (module docstring).
+
+    ``fes``: an ``ngsolve.VectorH1`` of order 1 or 2 on a 2D mesh; its
+    Dirichlet flags are the clamped boundary (``dirichlet="left"``; for
+    ``tangential="stick"`` also ``dirichletx``/``dirichlety`` on the contact
+    boundary).  ``a``: an ``ngsolve.BilinearForm`` on ``fes``, the elastic
+    energy (symmetric, positive definite on the free dofs; assembled here if it
+    is not yet; not ``condense=True``).  ``f``: an ``ngsolve.LinearForm`` on
+    ``fes`` (assembled here if its vector is still zero) or an array of one
+    value per dof of ``fes``.  ``contact``: the boundary label of Gamma_C.
+    ``gap``: g >= u.n there, a number, a callable f(x, y), an expression in
+    x, y or a CoefficientFunction.  ``normal``: None measures u.n along the
+    body's outward normal at each contact node, a pair (nx, ny) along that
+    fixed direction (a flat obstacle).  ``tangential``, ``slip_bound``,
+    ``mu``, ``obstacle_slide``: as in :class:`~problems.contact.scene.Scene`.
+    Bad input raises TypeError or ValueError naming the parameter.
+    """
+    mesh = _check_space(fes)
+    order = int(fes.globalorder)
+    K_form = _check_bilinear(a, fes)
+    load = _load_vector(f, fes)
+    known = set(mesh.GetBoundaries())
+    if not isinstance(contact, str) or contact not in known:
+        raise ValueError(f"contact = {contact!r}: not a boundary label of the mesh; known labels: "
+                         f"{', '.join(sorted(known - {''}))}")
+    if tangential not in TANGENTIAL:
+        raise ValueError(f"tangential = {tangential!r}; accepted: {', '.join(TANGENTIAL)}")
+
+    freedofs = np.array(fes.FreeDofs(), dtype=bool)
+    kind = {"V": ng.VERTEX, "E": ng.EDGE}
+
+    def clamped(key) -> bool:                 # every dof of the node (all components) is a Dirichlet dof
+        return not freedofs[list(fes.GetDofNrs(ng.NodeId(kind[key[0]], key[1])))].any()
+
+    _, xc, mc, normals = boundary_nodes(mesh, contact, order, clamped)
+    if normal is not None:
+        normals = np.tile(np.asarray(_unit_pair(normal, "normal"), dtype=float), (len(xc), 1))
+    g = _gap_values(gap, mesh, xc)
+    slip = None if slip_bound is None else as_function(slip_bound, "slip_bound")
+    check_friction_fields(tangential, slip, mu, [tuple(x) for x in xc])
+    check_slide(obstacle_slide, tangential, 1)
+    scene = CustomScene(contact=contact, gap=gap, h=_longest_edge(mesh), order=order, tangential=tangential,
+                        slip_bound=slip, mu=mu, obstacle_slide=obstacle_slide,
+                        contact_normal=None if normal is None else tuple(normals[0]), name=name)
+
+    free, K, f_free = free_system(fes, K_form, load)
+    B, T, tangents = normal_tangential_maps(mesh, order, xc, normals, free)
+    if tangential == "stick" and T.nnz:
+        raise ValueError("tangential = 'stick' needs the tangential displacement clamped on the contact boundary "
+                         f"by the space: VectorH1(..., dirichletx={contact!r}) or dirichlety (u.t is free here)")
+    return ContactOperators(K=K, f=f_free, B=B, mc=mc, g=g, xc=xc, normals=normals, free=free, mesh=mesh, fes=fes,
+                            scene=scene, T=T, tangents=tangents, friction=friction_of(scene, xc))
+
+
+# ---------------------------------------------------------------- checks of the input
+def _check_space(fes) -> ng.Mesh:
+    """The mesh of a 2D VectorH1 space of order 1 or 2 (TypeError or ValueError naming ``fes`` otherwise)."""
+    if not isinstance(fes, ng.comp.FESpace) or fes.type != "VectorH1":
+        raise TypeError(f"fes must be an ngsolve.VectorH1 space (its dofs numbered by component), "
+                        f"got {getattr(fes, 'type', type(fes).__name__)!r}")
+    mesh = fes.mesh
+    if mesh.dim != 2:
+        raise ValueError(f"fes: the mesh is {mesh.dim}D; contact_operators takes 2D meshes "
+                         f"(3D blocks: problems.contact.scene3d)")
+    if fes.globalorder not in (1, 2):
+        raise ValueError(f"fes: order {fes.globalorder}; accepted: 1 or 2 (the lumped mass is trapezoid or Simpson)")
+    return mesh
+
+
+def _check_bilinear(a, fes):
+    """``a`` on ``fes``, assembled (TypeError or ValueError naming ``a`` otherwise)."""
+    if not isinstance(a, ng.BilinearForm):
+        raise TypeError(f"a must be an ngsolve.BilinearForm on fes, got {type(a).__name__}")
+    if a.space is not fes:
+        raise ValueError("a: the bilinear form is defined on another space than fes")
+    if a.condense:
+        raise ValueError("a: condense=True gives the Schur complement, not K; build the form without it")
+    try:
+        a.mat
+    except TypeError:                        # "matrix not ready - assemble bilinearform first"
+        a.Assemble()
+    return a
+
+
+def _load_vector(f, fes) -> np.ndarray:
+    """The load on every dof: a LinearForm's vector (assembled if still zero), or an array (TypeError or ValueError naming ``f``)."""
+    if isinstance(f, ng.LinearForm):
+        if f.space is not fes:
+            raise ValueError("f: the linear form is defined on another space than fes")
+        if not np.any(f.vec.FV().NumPy()):
+            f.Assemble()
+        return f.vec.FV().NumPy().copy()
+    try:
+        values = np.asarray(f, dtype=float)
+    except (TypeError, ValueError):
+        raise TypeError(f"f must be an ngsolve.LinearForm on fes or an array of {fes.ndof} numbers, "
+                        f"got {type(f).__name__}") from None
+    if values.shape != (fes.ndof,) or not np.all(np.isfinite(values)):
+        raise ValueError(f"f: expected {fes.ndof} finite numbers (one per dof of fes), got shape {values.shape}")
+    return values.copy()
+
+
+def _gap_values(gap, mesh: ng.Mesh, xc: np.ndarray) -> np.ndarray:
+    """g at the contact nodes (ValueError naming ``gap`` for bad or non-finite values)."""
+    if isinstance(gap, ng.CoefficientFunction):
+        g = np.array([float(gap(mesh(x, y))) for x, y in xc])
+    else:
+        func = as_function(gap, "gap")
+        try:
+            g = np.array([float(func(x, y)) if callable(func) else func for x, y in xc])
+        except Exception as err:
+            raise ValueError(f"gap: evaluating it at the contact nodes failed: {err}") from None
+    if not np.all(np.isfinite(g)):
+        raise ValueError(f"gap: not finite at the contact nodes {xc[~np.isfinite(g)].tolist()}")
+    return g
+
+
+def _longest_edge(mesh: ng.Mesh) -> float:
+    """The mesh size h: the longest edge."""
+    points = np.array(mesh.ngmesh.Coordinates())
+    ends = np.array([[v.nr for v in e.vertices] for e in mesh.edges])
+    return float(np.linalg.norm(points[ends[:, 0]] - points[ends[:, 1]], axis=1).max()) if len(ends) else math.nan
