@@ -46,7 +46,8 @@ from scipy.linalg.lapack import dpotrs
 
 from admmkit import Problem
 from admmkit.iterative import IterativeXSolver
-from admmkit.linsolve import CachedFactorization
+from admmkit.operators import LinearMap
+from admmkit.xstep import QuadraticXStep
 
 from .assembly import ContactOperators
 from .friction import friction_z_step, stick_slip
@@ -151,30 +152,6 @@ class _ContactBase(Problem):
         return out
 
     def kkt_relative(self, u, z, lam):
-        """The residuals of :meth:`kkt` relative to the problem's scales (inf-norms), which the framework
-        compares with the stopping rule's tolerance (``converged_inaccurate`` above 10x it).
-
-        stationarity / ||f||, penetration / max(||g||, ||B u||), negative pressure / ||lam_n||,
-        complementarity / (||lam_n|| max(||g||, ||B u||)); with friction also the friction bound / max s
-        and the slip complementarity / (max s max |u_t - w|).
-        """
-        kkt, n_c = self.kkt(u, z, lam), self.ops.n_c
-        gap_scale = max(float(np.abs(self.g).max(initial=0.0)), float(np.abs(self.ops.B @ u).max(initial=0.0)),
-                        1e-300)
-        lam_scale = max(float(np.abs(lam[:n_c]).max(initial=0.0)), 1e-300)
-        out = {"stationarity": kkt["stationarity"],
-               "penetration": kkt["penetration"] / gap_scale,
-               "negative_pressure": kkt["negative_pressure"] / lam_scale,
-               "complementarity": kkt["complementarity"] / (lam_scale * gap_scale)}
-        if self.friction is not None:
-            s_scale = max(float(np.max(self.friction.s, initial=0.0)), 1e-300)
-            slip_scale = max(float(np.linalg.norm(self.slip(u), axis=0).max(initial=0.0)), 1e-300)
-            out |= {"friction_bound": kkt["friction_bound"] / s_scale,
-                    "slip_complementarity": kkt["slip_complementarity"] / (s_scale * slip_scale)}
-        return out
-
-
-    def kkt_relative(self, u, z, lam):
         """The KKT residuals relative to the problem's scales (inf-norms), which admmkit compares with the
         stopping rule's tolerance (a run whose worst measure is above 10x that is ``converged_inaccurate``).
 
@@ -211,14 +188,12 @@ class FullContact(_ContactBase):
     def __init__(self, ops: ContactOperators, backend: str = "auto"):
         super().__init__(ops)
         self.n = ops.n_free
-        K, A = ops.K.tocsc(), self.A.tocsc()
-        AtMA = (A.T @ sp.diags(self.w) @ A).tocsc()
-        self._solver = CachedFactorization(lambda rho: (K + rho * AtMA).tocsc(), backend=backend)
+        # f(u) = 1/2 u'Ku - f'u, A = B (or [B; T]) in the boundary mass: one factorisation of K + rho A'MA per rho
+        self._xstep = QuadraticXStep(ops.K, -ops.f, LinearMap(self.A, M=self.w), solver="direct", backend=backend)
 
     def x_step(self, z, lam, rho, u):
         """Solve (K + rho B'M_c B) u = f + B'M_c (rho p - lam), eq. (12) (A = [B; T] with friction)."""
-        rhs = self.ops.f + self.A.T @ (self.w * (rho * z - lam))
-        return self._solver.solve(rho, rhs)
+        return self._xstep(z, lam, rho, u)
 
     def apply_A(self, u):
         """u_n = B u at the contact nodes (and T u with friction)."""
@@ -228,9 +203,13 @@ class FullContact(_ContactBase):
         """Energy norm sqrt(u'Ku)."""
         return float(np.sqrt(max(u @ (self.ops.K @ u), 0.0)))
 
+    def begin_run(self):
+        """Count the x-step's work from the start of a run (called by admmkit.solve)."""
+        self._xstep.begin_run()
+
     def counters(self):
-        """Sparse factorisations and solves."""
-        return {"factorizations": self._solver.factorizations, "solves": self._solver.solves}
+        """Sparse factorisations (rho values this run used; ``factorizations_computed``: not cached) and solves."""
+        return self._xstep.counters()
 
 
 class CondensedContact(_ContactBase):
