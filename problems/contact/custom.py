@@ -15,9 +15,10 @@ in the energy, a point load, is written in NGSolve and handed in here:
 The discrete problem is the one of :func:`problems.contact.assembly.assemble`,
 min 1/2 u'Ku - f'u s.t. B u <= g (and Tresca's term with friction), with K
 and f your forms on the free dofs of your space (its Dirichlet flags clamp),
-and B, M_c, g built on the contact boundary exactly as there (the same
-functions: :func:`~problems.contact.assembly.boundary_nodes`,
-:func:`~problems.contact.assembly.normal_tangential_maps`).  The result is a
+and B, M_c, g built on the contact boundary exactly as there (in 2D the same
+functions: ``boundary_nodes``, ``normal_tangential_maps`` of
+problems/contact/assembly.py; on a 3D P1 tetrahedral mesh ``face_nodes``
+and ``vertex_maps``, which give the operators of ``assemble3d`` on its block).  The result is a
 :class:`~problems.contact.assembly.ContactOperators` that
 :func:`~problems.contact.methods.solve_scene` and
 :func:`~problems.contact.problem.contact_problem` take in every mode (full,
@@ -53,7 +54,7 @@ class CustomScene:
     tangential: str = "frictionless"
     slip_bound: Any = None
     mu: Any = None
-    obstacle_slide: float = 0.0
+    obstacle_slide: Any = 0.0
     contact_normal: Any = None
     name: str = "custom"
     mesh_kind: str = "user mesh"
@@ -66,10 +67,11 @@ class CustomScene:
 
 
 def contact_operators(fes, a, f, contact: str = "bottom", gap=0.0, *, normal=None, tangential: str = "frictionless",
-                      slip_bound=None, mu=None, obstacle_slide: float = 0.0, name: str = "custom") -> ContactOperators:
+                      slip_bound=None, mu=None, obstacle_slide=None, name: str = "custom") -> ContactOperators:
     """Contact operators of your own NGSolve space and forms (module docstring).
 
-    ``fes``: an ``ngsolve.VectorH1`` of order 1 or 2 on a 2D mesh; its
+    ``fes``: an ``ngsolve.VectorH1`` of order 1 or 2 on a 2D mesh, or of
+    order 1 on a 3D tetrahedral mesh (``face_nodes``); its
     Dirichlet flags are the clamped boundary (``dirichlet="left"``; for
     ``tangential="stick"`` also ``dirichletx``/``dirichlety`` on the contact
     boundary).  ``a``: an ``ngsolve.BilinearForm`` on ``fes``, the elastic
@@ -78,9 +80,10 @@ def contact_operators(fes, a, f, contact: str = "bottom", gap=0.0, *, normal=Non
     ``fes`` (assembled here if its vector is still zero) or an array of one
     value per dof of ``fes``.  ``contact``: the boundary label of Gamma_C.
     ``gap``: g >= u.n there, a number, a callable f(x, y), an expression in
-    x, y or a CoefficientFunction.  ``normal``: None measures u.n along the
-    body's outward normal at each contact node, a pair (nx, ny) along that
-    fixed direction (a flat obstacle).  ``tangential``, ``slip_bound``,
+    x, y (in 3D of the node's x, y, as in a 3D scene) or a
+    CoefficientFunction.  ``normal``: None measures u.n along the body's
+    outward normal at each contact node, a fixed direction (nx, ny[, nz])
+    along that (a flat obstacle).  ``tangential``, ``slip_bound``,
     ``mu``, ``obstacle_slide``: as in :class:`~problems.contact.scene.Scene`.
     Bad input raises TypeError or ValueError naming the parameter.
     """
@@ -101,19 +104,27 @@ def contact_operators(fes, a, f, contact: str = "bottom", gap=0.0, *, normal=Non
     def clamped(key) -> bool:                 # every dof of the node (all components) is a Dirichlet dof
         return not freedofs[list(fes.GetDofNrs(ng.NodeId(kind[key[0]], key[1])))].any()
 
-    _, xc, mc, normals = boundary_nodes(mesh, contact, order, clamped)
+    if mesh.dim == 2:
+        _, xc, mc, normals = boundary_nodes(mesh, contact, order, clamped)
+    else:
+        nodes, xc, mc, normals = face_nodes(mesh, contact, lambda v: clamped(("V", v)))
     if normal is not None:
-        normals = np.tile(np.asarray(_unit_pair(normal, "normal"), dtype=float), (len(xc), 1))
+        normals = np.tile(_unit_vector(normal, mesh.dim), (len(xc), 1))
     g = _gap_values(gap, mesh, xc)
     slip = None if slip_bound is None else as_function(slip_bound, "slip_bound")
-    check_friction_fields(tangential, slip, mu, [tuple(x) for x in xc])
-    check_slide(obstacle_slide, tangential, 1)
+    check_friction_fields(tangential, slip, mu, [tuple(x[:2]) for x in xc])
+    if obstacle_slide is None:
+        obstacle_slide = 0.0 if mesh.dim == 2 else (0.0, 0.0)
+    check_slide(obstacle_slide, tangential, mesh.dim - 1)
     scene = CustomScene(contact=contact, gap=gap, h=_longest_edge(mesh), order=order, tangential=tangential,
                         slip_bound=slip, mu=mu, obstacle_slide=obstacle_slide,
                         contact_normal=None if normal is None else tuple(normals[0]), name=name)
 
     free, K, f_free = free_system(fes, K_form, load)
-    B, T, tangents = normal_tangential_maps(mesh, order, xc, normals, free)
+    if mesh.dim == 2:
+        B, T, tangents = normal_tangential_maps(mesh, order, xc, normals, free)
+    else:
+        B, T, tangents = vertex_maps(fes, nodes, normals, free)
     if tangential == "stick" and T.nnz:
         raise ValueError("tangential = 'stick' needs the tangential displacement clamped on the contact boundary "
                          f"by the space: VectorH1(..., dirichletx={contact!r}) or dirichlety (u.t is free here)")
@@ -121,18 +132,76 @@ def contact_operators(fes, a, f, contact: str = "bottom", gap=0.0, *, normal=Non
                             scene=scene, T=T, tangents=tangents, friction=friction_of(scene, xc))
 
 
+# ---------------------------------------------------------------- 3D, P1
+def face_nodes(mesh: ng.Mesh, contact: str, clamped):
+    """The vertices of the triangles of the 3D boundary ``contact`` for which ``clamped(vertex)`` is false.
+
+    Returns (nodes, xc, mc, normals) sorted by x, then y, then z: mc = a third of the area of every adjacent
+    triangle (the lumped mass of P1), normals = the area-weighted average of their outward normals (each
+    turned away from the tetrahedron beside it), normalised.
+    """
+    points = np.array(mesh.ngmesh.Coordinates(), dtype=float)
+    tris = np.array([[v.nr for v in el.vertices] for el in mesh.Elements(ng.BND) if el.mat == contact])
+    if tris.ndim != 2 or tris.shape[1] != 3:
+        raise ValueError(f"contact: boundary {contact!r} must be made of triangles (P1 tetrahedral mesh)")
+    P = points[tris]
+    cross = np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0])
+    area = 0.5 * np.linalg.norm(cross, axis=1)
+    beside = _opposite_vertices(mesh, tris)                       # the 4th vertex of the tetrahedron beside
+    cross[np.sum(cross * (points[beside] - P[:, 0]), axis=1) > 0] *= -1      # point out of the body
+    nv = mesh.nv
+    weight = np.bincount(tris.ravel(), weights=np.repeat(area / 3, 3), minlength=nv)
+    nsum = np.zeros((nv, 3))
+    np.add.at(nsum, tris.ravel(), np.repeat(cross / 2, 3, axis=0))   # area times the unit normal
+    nodes = np.array(sorted(v for v in set(tris.ravel().tolist()) if not clamped(v)), dtype=int)
+    if not nodes.size:
+        raise ValueError(f"contact: boundary {contact!r} has no unclamped node on this mesh")
+    xc = points[nodes]
+    order = np.lexsort((xc[:, 2], xc[:, 1], xc[:, 0]))
+    nodes, xc = nodes[order], xc[order]
+    normals = nsum[nodes] / np.linalg.norm(nsum[nodes], axis=1, keepdims=True)
+    return nodes, xc, weight[nodes], normals
+
+
+def _opposite_vertices(mesh: ng.Mesh, tris: np.ndarray) -> np.ndarray:
+    """For each boundary triangle, the vertex of the tetrahedron it bounds that is not on it."""
+    tets = np.array([[v.nr for v in el.vertices] for el in mesh.Elements(ng.VOL)])
+    opposite = {}
+    for k in range(4):
+        face = np.sort(np.delete(tets, k, axis=1), axis=1)
+        opposite.update(zip(map(tuple, face.tolist()), tets[:, k].tolist()))
+    return np.array([opposite[tuple(t)] for t in np.sort(tris, axis=1).tolist()])
+
+
+def vertex_maps(fes, nodes: np.ndarray, normals: np.ndarray, free: np.ndarray):
+    """(B, T, tangents) of a P1 VectorH1 space: u.n and u.t at the vertices ``nodes``, on the free dofs."""
+    import scipy.sparse as sp
+
+    from .friction import tangent_frames
+    dofs = np.array([fes.GetDofNrs(ng.NodeId(ng.VERTEX, int(v))) for v in nodes])        # (n_c, 3): x, y, z
+    tangents = tangent_frames(normals)
+    n_c, rows = len(nodes), np.repeat(np.arange(len(nodes)), 3)
+
+    def along(directions):                    # row i: directions[i] . u(x_i)
+        return sp.csr_matrix((directions.ravel(), (rows, dofs.ravel())), shape=(n_c, fes.ndof))[:, free]
+
+    B = along(normals).tocsr()
+    T = sp.vstack([along(tangents[:, j]) for j in range(tangents.shape[1])]).tocsr()
+    B.eliminate_zeros()
+    T.eliminate_zeros()
+    return B, T, tangents
+
+
 # ---------------------------------------------------------------- checks of the input
 def _check_space(fes) -> ng.Mesh:
-    """The mesh of a 2D VectorH1 space of order 1 or 2 (TypeError or ValueError naming ``fes`` otherwise)."""
+    """The mesh of a VectorH1 space of order 1 or 2 in 2D, 1 in 3D (TypeError or ValueError naming ``fes`` otherwise)."""
     if not isinstance(fes, ng.comp.FESpace) or fes.type != "VectorH1":
         raise TypeError(f"fes must be an ngsolve.VectorH1 space (its dofs numbered by component), "
                         f"got {getattr(fes, 'type', type(fes).__name__)!r}")
     mesh = fes.mesh
-    if mesh.dim != 2:
-        raise ValueError(f"fes: the mesh is {mesh.dim}D; contact_operators takes 2D meshes "
-                         f"(3D blocks: problems.contact.scene3d)")
-    if fes.globalorder not in (1, 2):
-        raise ValueError(f"fes: order {fes.globalorder}; accepted: 1 or 2 (the lumped mass is trapezoid or Simpson)")
+    if fes.globalorder not in ((1, 2) if mesh.dim == 2 else (1,)):
+        accepted = "1 or 2 (the lumped mass is trapezoid or Simpson)" if mesh.dim == 2 else "1 in 3D"
+        raise ValueError(f"fes: order {fes.globalorder}; accepted: {accepted}")
     return mesh
 
 
@@ -169,14 +238,27 @@ def _load_vector(f, fes) -> np.ndarray:
     return values.copy()
 
 
+def _unit_vector(value, dim: int) -> np.ndarray:
+    """``normal``: dim finite numbers, not all zero, scaled to unit length."""
+    if dim == 2:
+        return np.asarray(_unit_pair(value, "normal"), dtype=float)
+    ok = isinstance(value, (list, tuple)) and len(value) == dim and all(
+        isinstance(c, (int, float)) and not isinstance(c, bool) and math.isfinite(c) for c in value)
+    norm = math.sqrt(sum(c * c for c in value)) if ok else 0.0
+    if norm == 0.0:
+        raise ValueError(f"normal = {value!r}; accepted: None or {dim} finite numbers, not all 0")
+    return np.asarray(value, dtype=float) / norm
+
+
 def _gap_values(gap, mesh: ng.Mesh, xc: np.ndarray) -> np.ndarray:
-    """g at the contact nodes (ValueError naming ``gap`` for bad or non-finite values)."""
+    """g at the contact nodes: a CoefficientFunction at the node, anything else at its (x, y) (as in 3D scenes);
+    ValueError naming ``gap`` for bad or non-finite values."""
     if isinstance(gap, ng.CoefficientFunction):
-        g = np.array([float(gap(mesh(x, y))) for x, y in xc])
+        g = np.array([float(gap(mesh(*x))) for x in xc])
     else:
         func = as_function(gap, "gap")
         try:
-            g = np.array([float(func(x, y)) if callable(func) else func for x, y in xc])
+            g = np.array([float(func(x[0], x[1])) if callable(func) else func for x in xc])
         except Exception as err:
             raise ValueError(f"gap: evaluating it at the contact nodes failed: {err}") from None
     if not np.all(np.isfinite(g)):
