@@ -104,7 +104,7 @@ class UpperBound(Box):
 
 
 class L1(Prox):
-    """g = sum_i w_i |z_i| (w a number or an array >= 0): soft-thresholding at t w_i / m_i."""
+    """g = sum_i w_i abs(z_i) (w a number or an array >= 0): soft-thresholding at t w_i / m_i."""
 
     def __init__(self, weight=1.0):
         self.weight = np.asarray(weight, dtype=float)
@@ -112,12 +112,12 @@ class L1(Prox):
             raise ValueError("L1 weight must be finite and >= 0")
 
     def prox(self, v, t, m=None):
-        """sign(v) max(|v| - t w / m, 0)."""
+        """sign(v) max(abs(v) - t w / m, 0)."""
         thresh = t * self.weight if m is None else t * self.weight / m
         return np.sign(v) * np.maximum(np.abs(v) - thresh, 0.0)
 
     def value(self, z):
-        """sum w |z|."""
+        """sum w abs(z)."""
         return float(np.sum(self.weight * np.abs(z)))
 
 

@@ -95,6 +95,8 @@ nitpick_ignore_regex = [
     (r"py:class", r"(optional|callable|array-like|array_like|int|float|str|bool|dict|list|tuple|None)"),
     (r"py:class", r"(Path|Callable|Mapping|Any|Iterable|Sequence|ndarray|spmatrix|csr_matrix)"),
     (r"py:class", r"tuple\[.*"),  # Sphinx splits tuple[str, ...] at the Ellipsis
+    # dataclass fields typed with the friction model and the Coulomb report (documented on docs/friction.md)
+    (r"py:class", r"problems\.contact\.(friction\.Friction|coulomb\.CoulombReport)"),
 ]
 
 # ---------------------------------------------------------------- navigation
