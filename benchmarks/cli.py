@@ -227,13 +227,16 @@ def executors(targets) -> None:
                                        "the other, and compares iteration counts and wall times (needs dask).")
     _out(e, "executors")
     e.add_argument("--quick", action="store_true", help="the coarse smoke grid of bench policies")
+    e.add_argument("--rounds", type=positive_int, default=2,
+                   help="rounds of the three executors, the order reversed every second round (default 2)")
     e.add_argument("--no-progress", dest="progress", action="store_false", help="no progress line")
     e.set_defaults(func=_executors)
 
 
 def _executors(args) -> int:
     from .executors import run
-    _print_files(run(args.out, quick=args.quick, progress=args.progress, command=args.command_line))
+    _print_files(run(args.out, quick=args.quick, rounds=args.rounds, progress=args.progress,
+                     command=args.command_line))
     return 0
 
 

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import math
 import shutil
+import statistics
 import time
 from pathlib import Path
 
@@ -89,18 +90,26 @@ def cluster_startup() -> float:
     return seconds
 
 
-def run(out="out/executors", *, quick: bool = False, progress: bool = True,
+def run(out="out/executors", *, quick: bool = False, rounds: int = 2, progress: bool = True,
         command: str = "admmkit bench executors") -> list[Path]:
-    """Run the comparison and write executors.csv and README.md; return the files."""
+    """Run the comparison ``rounds`` times (executor order reversed every other round) and write
+    executors.csv and README.md; return the files."""
+    if isinstance(rounds, bool) or not isinstance(rounds, int) or rounds < 1:
+        raise ValueError(f"rounds must be an integer >= 1, got {rounds!r}")
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     cases = policies_cases(quick)
     runs = {"local": ("local processes (2 workers, a group per task)", Executor(workers=2)),
             "local8": ("local processes (2 workers, 8 cases per task)", Executor(workers=2, chunk=8)),
             "dask": ("Dask LocalCluster (2 workers, 8 cases per task)", Executor(dask_workers=2))}
-    done, walls = {}, {}
-    for key, (_, executor) in runs.items():
-        done[key], walls[key] = _timed(cases, out / key / "results.jsonl", executor, progress)
+    done, walls, work = {}, {k: [] for k in runs}, {k: [] for k in runs}
+    for r in range(rounds):
+        for key in (list(runs) if r % 2 == 0 else list(runs)[::-1]):
+            done[key], wall = _timed(cases, out / key / "results.jsonl", runs[key][1], progress)
+            walls[key].append(wall)
+            work[key].append(sum(rec.get("seconds", 0.0) for rec in done[key].values()))
+            if progress:
+                print(f"round {r + 1}, {key}: {wall:.1f} s", flush=True)
     startup = cluster_startup()
     rows, same = [], 0
     for c in cases:
@@ -112,19 +121,24 @@ def run(out="out/executors", *, quick: bool = False, progress: bool = True,
                      **{f"iterations_{k}": v for k, v in its.items()}, "same": ok,
                      **{f"seconds_{k}": (done[k].get(cid) or {}).get("seconds") for k in runs}})
     files = [write_csv(out / "executors.csv", rows)]
-    body = [[label, f"{walls[k]:.1f}", f"{walls[k] / walls['local']:.2f}"] for k, (label, _) in runs.items()]
+    med = {k: statistics.median(v) for k, v in walls.items()}
+    body = [[label, " / ".join(f"{w:.1f}" for w in walls[k]), f"{med[k]:.1f}", f"{med[k] / med['local']:.2f}",
+             " / ".join(f"{w:.0f}" for w in work[k])] for k, (label, _) in runs.items()]
     text = "\n".join([
         "# The same sweep on the local executor and on Dask", "",
         f"Produced by `{command}`: the cases of `admmkit bench policies`"
-        f"{' (--quick grid)' if quick else ' (rho_0 every second decade)'}, {len(cases)} cases in "
+        f"{' (--quick grid)' if quick else ' (rho_0 every third decade)'}, {len(cases)} cases in "
         f"{len({c['group'] for c in cases})} groups, run from empty results files on each executor, "
-        "one after the other in this run.", "",
-        f"**Identical iteration counts on the three: {same} of {len(cases)} cases.**", "",
-        md_table(["executor", "wall time [s]", "ratio to local"], body, "lrr"), "",
-        f"The Dask wall time includes starting the LocalCluster; starting and connecting to a 2-worker "
-        f"LocalCluster alone took {startup:.1f} s in this run.  Per-case times are in executors.csv; the raw "
-        "records in local/, local8/ and dask/ (results.jsonl, results.parquet).", "", NOISE_NOTE, "",
-        machine_markdown(machine_info())])
+        f"one after the other, {rounds} round(s) (the order reversed in every second round).", "",
+        f"**Identical iteration counts on the three executors: {same} of {len(cases)} cases** (last round).", "",
+        md_table(["executor", "wall time per round [s]", "median [s]", "ratio to local",
+                  "sum of per-case seconds [s]"], body, "lrrrr"), "",
+        "The Dask wall times include starting the LocalCluster; starting and connecting to a 2-worker "
+        f"LocalCluster alone took {startup:.1f} s in this run.  The last column adds the wall seconds of every "
+        "case as its worker measured them: where it grows with the wall time, the cases themselves ran slower "
+        "(the load of the shared machine), not the executor.  Per-case times of the last round are in "
+        "executors.csv; its raw records in local/, local8/ and dask/ (results.jsonl, results.parquet).", "",
+        NOISE_NOTE, "", machine_markdown(machine_info())])
     files.append(write_text(out / "README.md", text))
     if progress:
         print(text)
