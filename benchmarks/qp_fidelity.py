@@ -20,7 +20,8 @@ run that reported solved).  ``--rules`` adds every registered penalty rule in
 OSQP's machinery (order xz), judged by the same criteria; ``--polish`` turns
 polishing on for every configuration; ``--preset textbook`` and ``--order zx``
 run the rules in admmkit's textbook loop and in the other order (OSQP and
-admmkit with OSQP's rule stay as they are, for the comparison).
+admmkit with OSQP's rule stay as they are, for the comparison); ``--ablate``
+runs OSQP's rule with one piece of the machinery off at a time.
 """
 from __future__ import annotations
 
@@ -77,20 +78,26 @@ def run_osqp(qp, eps: float, max_iter: int, time_limit: float, polish: bool = Fa
             "rho_updates": info.rho_updates, "time": info.solve_time, "x": res.x, "y": res.y}
 
 
+#: one piece of OSQP's machinery switched off at a time (``--ablate``)
+ABLATIONS = {"no_scaling": dict(scaling=0), "uniform_rows": dict(row_weights="uniform"),
+             "no_relaxation": dict(alpha=1.0, relax_x=False), "no_gap": dict(gap=False),
+             "check_every_1": dict(check_every=1), "reduced_xstep": dict(xstep="reduced")}
+
+
 def run_admmkit(qp, eps: float, max_iter: int, time_limit: float, policy="osqp", polish: bool = False,
-                preset: str = "osqp", order: str = "xz") -> dict:
+                preset: str = "osqp", order: str = "xz", **changes) -> dict:
     """admmkit's solve_qp with the OSQP preset (or admmkit's textbook loop) in the given order."""
     from problems.qp import osqp_settings, solve_qp, textbook_settings
     make = osqp_settings if preset == "osqp" else textbook_settings
     res = solve_qp(qp, make(eps_abs=eps, eps_rel=eps, max_iter=max_iter, time_limit=time_limit, polish=polish,
-                            order=order), policy=policy)
+                            order=order, **changes), policy=policy)
     status = res.termination or res.status.value
     return {"status": status, "solved": res.termination == "solved", "iterations": res.iterations,
             "rho_updates": res.rho_changes, "time": res.timings["total"], "x": res.x, "y": res.lam}
 
 
 def measure(name: str, nnz: int, data: Path, eps_list, max_iter: int, time_limit: float, rules: list[str],
-            polish: bool = False, preset: str = "osqp", order: str = "xz") -> list[dict]:
+            polish: bool = False, preset: str = "osqp", order: str = "xz", ablate: bool = False) -> list[dict]:
     """All runs of one problem."""
     from problems.qp import load_mat
     from problems.qp.residuals import neutral_residuals
@@ -103,6 +110,9 @@ def measure(name: str, nnz: int, data: Path, eps_list, max_iter: int, time_limit
         runs += [(f"admmkit-{r}{tag}", lambda r=r: run_admmkit(qp, eps, max_iter, time_limit, policy=r, polish=polish,
                                                                preset=preset, order=order))
                  for r in rules]
+        if ablate:
+            runs += [(f"admmkit-osqp[{k}]", lambda c=c: run_admmkit(qp, eps, max_iter, time_limit, polish=polish, **c))
+                     for k, c in ABLATIONS.items()]
         for label, run in runs:
             try:
                 out = run()
@@ -194,6 +204,8 @@ def main(argv=None, prog: str = "admmkit bench qp-fidelity") -> int:
     parser.add_argument("--preset", choices=("osqp", "textbook"), default="osqp",
                         help="settings of the --rules runs: OSQP's machinery (default) or admmkit's textbook loop")
     parser.add_argument("--order", choices=("xz", "zx"), default="xz", help="order of the --rules runs (default xz)")
+    parser.add_argument("--ablate", action="store_true",
+                        help="also OSQP's rule with one piece of the machinery off at a time: " + ", ".join(ABLATIONS))
     args = parser.parse_args(argv)
     if args.max_iter < 1 or args.time_limit <= 0 or args.max_nnz <= 0 or min(args.eps) <= 0:
         parser.error("--max-iter, --time-limit, --max-nnz and --eps must be positive")
@@ -216,7 +228,7 @@ def main(argv=None, prog: str = "admmkit bench qp-fidelity") -> int:
     with threadpool_limits(1):
         for i, (name, nnz) in enumerate(chosen):
             new = measure(name, nnz, data, args.eps, args.max_iter, args.time_limit, rules, args.polish,
-                          args.preset, args.order)
+                          args.preset, args.order, args.ablate)
             rows += new
             brief = "  ".join(f"{r['solver']}@{r['eps']:g}:{r['status']}/{r['iterations']}" for r in new[:4])
             print(f"[{i + 1}/{len(chosen)}] {name} ({time.perf_counter() - start:.0f} s)  {brief}", flush=True)
