@@ -129,3 +129,21 @@ def test_bench_command_runs_on_a_dask_scheduler(tmp_path, cluster, capsys):
     assert len(pd.read_parquet(out / "results.parquet")) == 2 * 3 * 2
     assert main(["bench", "paper-compare", "--dask-workers", "2", "--scheduler", "tcp://x:1"]) == 2
     assert "not allowed with argument --dask-workers" in capsys.readouterr().err     # one executor at a time
+
+
+def spin_case(case):
+    """A Python loop of ``spin`` seconds (for the per-case time limit on Dask)."""
+    t0 = time.perf_counter()
+    while time.perf_counter() - t0 < case["spin"]:
+        pass
+    return {"spun": case["spin"]}
+
+
+def test_a_case_over_the_time_limit_on_dask_is_recorded_and_the_worker_goes_on(tmp_path, cluster):
+    cases = [{"spin": 30.0, "group": "g"}, {"spin": 0.1, "group": "g"}]
+    t0 = time.perf_counter()
+    records = run_sweep(cases, f"{__name__}:spin_case", tmp_path / "r.jsonl", progress=False,
+                        executor=Executor(scheduler=cluster.scheduler_address, timeout=1.0))
+    assert time.perf_counter() - t0 < 20
+    by_spin = {r["case"]["spin"]: r for r in records.values()}
+    assert by_spin[30.0]["error"].startswith("CaseTimeout") and by_spin[0.1]["result"] == {"spun": 0.1}

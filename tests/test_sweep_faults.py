@@ -199,3 +199,20 @@ def test_bench_policies_resumes(tmp_path):
     run(tmp_path, **kwargs)
     assert sorted(_ids_in_file(path)) == sorted(json.loads(x)["id"] for x in lines)
     assert (tmp_path / "sweep.csv").read_text() == csv_before       # the same iterations, the same table
+
+
+def test_executor_bad_input_names_the_parameter(tmp_path):
+    for kwargs, message in [({"workers": 0}, "workers must be an integer >= 1"),
+                            ({"dask_workers": 0}, "dask_workers must be an integer >= 1"),
+                            ({"chunk": 0}, "chunk must be an integer >= 1"),
+                            ({"retries": -1}, "retries must be an integer >= 0"),
+                            ({"timeout": 0}, "timeout must be a number of seconds > 0"),
+                            ({"scheduler": " "}, "scheduler must be an address"),
+                            ({"dask_workers": 2, "scheduler": "tcp://h:8786"}, "either dask_workers")]:
+        with pytest.raises(ValueError, match=message):
+            Executor(**kwargs)
+    with pytest.raises(TypeError, match="executor must be a benchmarks.sweep.Executor"):
+        run_sweep([{"value": 1}], FUNC, tmp_path / "r.jsonl", executor={"workers": 2})
+    records = run_sweep([{"value": v, "group": "g"} for v in range(5)], FUNC, tmp_path / "r.jsonl", progress=False,
+                        executor=Executor(workers=2, chunk=2))       # one group split into tasks of 2 cases
+    assert sorted(r["result"]["square"] for r in records.values()) == [0, 1, 4, 9, 16]
