@@ -9,6 +9,9 @@ are imported only when their command runs.
 """
 from __future__ import annotations
 
+import argparse
+import importlib
+
 from admmkit.cli import positive_float, positive_int
 
 
@@ -359,3 +362,39 @@ def obstacle_rates(targets) -> None:
 def _obstacle_rates(args) -> int:
     from .obstacle_rates import run
     return run(args.out, quick=args.quick, command=args.command_line)
+
+
+# ---------------------------------------------------------------- studies with a parser of their own
+def _own_parser(name: str, module: str, help_text: str):
+    """Register ``admmkit bench NAME``, handing every argument to ``module.main(argv, prog)`` unparsed.
+
+    For the studies that define their options themselves (``admmkit bench NAME --help`` prints them).
+    """
+    def register(targets) -> None:
+        p = targets.add_parser(name, help=help_text, add_help=False, prefix_chars="\0")
+        p.add_argument("argv", nargs=argparse.REMAINDER)
+        p.set_defaults(func=lambda args: _run_own(module, args.argv, f"admmkit bench {name}"))
+    register.__doc__ = f"``admmkit bench {name}``: {help_text} ({module})."
+    return register
+
+
+def _run_own(module: str, argv: list[str], prog: str) -> int:
+    """``module.main(argv, prog)``, with its parser's exit (--help: 0, a bad option: 2) as the exit code."""
+    try:
+        return int(importlib.import_module(module).main(argv, prog=prog) or 0)
+    except SystemExit as exit_:
+        return exit_.code if isinstance(exit_.code, int) else 2
+
+
+loop_overhead = _own_parser("loop-overhead", "benchmarks.loop_overhead",
+                            "the loop's cost per iteration against a bare numpy loop of the same updates")
+four_problems = _own_parser("four-problems", "benchmarks.four_problems",
+                            "LASSO, weighted box LS, consensus and 2-D TV with the building blocks, against cvxpy")
+qp_fidelity = _own_parser("qp-fidelity", "benchmarks.qp_fidelity",
+                          "admmkit's OSQP preset against OSQP 1.x, problem by problem (Maros-Meszaros)")
+qp_agreement = _own_parser("qp-agreement", "benchmarks.qp_agreement",
+                           "random feasible QPs against cvxpy + Clarabel")
+friction = _own_parser("friction", "benchmarks.friction_validation",
+                       "Cattaneo-Mindlin partial slip under refinement, and every rule on frictional contact")
+linsolve = _own_parser("linsolve", "benchmarks.linsolve_backends",
+                       "sparse direct backends from 1e3 to 1e6 unknowns, 1 and 2 threads")

@@ -234,9 +234,9 @@ def _readme(out: Path, argv: list[str], rows, stab, seconds: float, args) -> Non
     (out / "README.md").write_text("\n".join(lines))
 
 
-def main(argv=None) -> int:
+def main(argv=None, prog: str = "admmkit bench friction") -> int:
     """Run both studies, print the tables, write CSV, PNG and README.md to --out."""
-    parser = argparse.ArgumentParser(prog="friction_validation", description=__doc__.split("\n\n")[0])
+    parser = argparse.ArgumentParser(prog=prog, description=__doc__.split("\n\n")[0])
     parser.add_argument("--out", default="out/friction_validation", help="output folder (default out/friction_validation)")
     parser.add_argument("--mu", type=float, default=0.3, help="Coulomb coefficient of the Cattaneo case (default 0.3)")
     parser.add_argument("--nu", type=float, default=0.49, help="Poisson ratio of the Cattaneo case (default 0.49)")

@@ -26,6 +26,8 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from admmkit.io import write_text  # noqa: E402  (after the path, for `python benchmarks/linsolve_backends.py`)
+
 GRIDS = [22, 70, 223, 707]  # n = 2 N (N + 1) free DOFs: ~1e3, 1e4, 1e5, 1e6
 THREADS = [1, 2]
 
@@ -178,26 +180,27 @@ def report(results, args):
     return "\n".join(lines) + "\n"
 
 
-def main():
-    """Command-line entry point."""
-    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+def main(argv=None, prog: str = "admmkit bench linsolve") -> int:
+    """Command-line entry point (``admmkit bench linsolve``)."""
+    parser = argparse.ArgumentParser(prog=prog, description=__doc__.split("\n")[0])
     parser.add_argument("--max-n", type=int, default=1_100_000, help="largest system size")
     parser.add_argument("--repeats", type=int, default=3, help="factorisations per median")
     parser.add_argument("--max-seconds", type=float, default=60.0,
                         help="skip a backend/size pair predicted to factorise slower")
     parser.add_argument("--out", default=None, help="write the Markdown table here")
     parser.add_argument("--worker", action="store_true", help=argparse.SUPPRESS)
-    args = parser.parse_args()
+    args = parser.parse_args(argv)
     if args.worker:
         print(json.dumps(worker(args.max_n, args.repeats, args.max_seconds)))
-        return
+        return 0
     results = {t: run_worker(t, args) for t in THREADS}
     text = report(results, args)
     print(text)
     if args.out:
         Path(args.out).parent.mkdir(parents=True, exist_ok=True)
-        Path(args.out).write_text(text)
+        write_text(Path(args.out), text)
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    raise SystemExit(main(prog="python benchmarks/linsolve_backends.py"))

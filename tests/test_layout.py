@@ -41,3 +41,12 @@ def test_every_command_is_an_entry_point_and_loads():
 
 def test_host_imports_no_plug_in():
     assert imported_packages(ROOT / "admmkit" / "cli.py") & {"policies", "problems", "benchmarks"} == set()
+
+
+@pytest.mark.parametrize("study", ["loop-overhead", "four-problems", "qp-fidelity", "qp-agreement", "friction",
+                                   "linsolve"])
+def test_studies_with_their_own_options_answer_help_and_bad_options(study, capsys):
+    from admmkit.cli import main
+    assert main(["bench", study, "--help"]) == 0
+    assert "--out" in capsys.readouterr().out
+    assert main(["bench", study, "--no-such-option"]) == 2
