@@ -19,7 +19,6 @@ and every failure) under --out.
 from __future__ import annotations
 
 import argparse
-import csv
 import shlex
 import sys
 import time
@@ -28,6 +27,9 @@ from pathlib import Path
 import numpy as np
 import scipy.sparse as sp
 
+from admmkit.io import write_text
+
+from .report import write_csv
 TIGHT = dict(solver="CLARABEL", tol_gap_abs=1e-12, tol_gap_rel=1e-12, tol_feas=1e-12, max_iter=500)
 RHO0 = (1e-3, 1.0, 1e3)
 ORDERS = ("xz", "zx")
@@ -182,12 +184,9 @@ def main(argv=None, prog: str = "admmkit bench four-problems") -> int:
         rows = run_all(names, rules, log=lambda s: print(s, flush=True))
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    with (out / "four_problems.csv").open("w", newline="") as fh:
-        writer = csv.DictWriter(fh, fieldnames=list(rows[0]))
-        writer.writeheader()
-        writer.writerows(rows)
+    write_csv(out / "four_problems.csv", rows)
     text = summarise(rows, command)
-    (out / "four_problems.md").write_text(text)
+    write_text(out / "four_problems.md", text)
     print(text)
     return 0
 

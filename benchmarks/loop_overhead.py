@@ -25,7 +25,6 @@ n = 1e5 and 1e6.  Each time is the minimum over ``--repeats`` runs.
 from __future__ import annotations
 
 import argparse
-import csv
 import os
 import shlex
 import sys
@@ -34,6 +33,9 @@ from pathlib import Path
 
 import numpy as np
 
+from admmkit.io import write_text
+
+from .report import write_csv
 
 class Obstacle1D:
     """The README's problem, written against admmkit.Problem (no adjoint_norm, Euclidean norms)."""
@@ -209,11 +211,8 @@ def main(argv=None, prog: str = "admmkit bench loop-overhead") -> int:
             rows.extend(measure(n, k, args.repeats))
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    with (out / "loop_overhead.csv").open("w", newline="") as fh:
-        writer = csv.DictWriter(fh, fieldnames=list(rows[0]))
-        writer.writeheader()
-        writer.writerows(rows)
-    lines = [f"# Loop overhead of admmkit.solve (1-D obstacle problem, order zx, BLAS 1 thread)", "",
+    write_csv(out / "loop_overhead.csv", rows)
+    lines = ["# Loop overhead of admmkit.solve (1-D obstacle problem, order zx, BLAS 1 thread)", "",
              f"Command: `{command}`", "",
              f"Machine load (1-minute average, {os.cpu_count()} CPUs): {load_before[0]:.1f} at the start, "
              f"{(os.getloadavg() if hasattr(os, 'getloadavg') else (float('nan'),))[0]:.1f} at the end "
@@ -232,7 +231,7 @@ def main(argv=None, prog: str = "admmkit bench loop-overhead") -> int:
                      f"{r['admmkit_us']:.2f} | {r['overhead_us']:.2f} | {r['norms_read_us']:.2f} | {r['overhead_pct_of_bare']:.1f} | "
                      f"{r['target']} | {'yes' if r['met'] else 'NO'} |")
     text = "\n".join(lines) + "\n"
-    (out / "loop_overhead.md").write_text(text)
+    write_text(out / "loop_overhead.md", text)
     print(text)
     print(f"wrote {out / 'loop_overhead.csv'} and {out / 'loop_overhead.md'}")
     return 0

@@ -24,7 +24,6 @@ command, the references and the machine.
 from __future__ import annotations
 
 import os
-import time
 from pathlib import Path
 
 from admmkit.io import write_text
@@ -34,7 +33,7 @@ from .peers import PEERS, applicable, run_peer
 from .report import (NOISE_NOTE, fmt, machine_info, machine_markdown, md_table, pyplot,
                      save_figure, write_csv)
 from .families import CONTACT_SCENES, OBSTACLE_SCENES, QP_SCENES, discrete, kind_of, mm_folder, problem_key
-from .sweep import Executor, finished, run_sweep
+from .sweep import Executor, run_or_report
 
 HS = (1 / 20, 1 / 40, 1 / 80, 1 / 160)
 QUICK_HS = (1 / 10,)
@@ -372,16 +371,9 @@ def run(out="out/precision", *, quick: bool = False, workers: int = 2, repeats: 
     if quick:
         cases = [c for c in cases if c["scene"] != "qp:random-mixed" or c["solver"] == "peer"
                  or c["method"] in ("admm1", "sadmm")]
-    os.environ[CACHE_ENV] = str(out / "cache")
-    t0 = time.perf_counter()
-    if report_only:
-        records = finished(cases, out / "results.jsonl")
-    else:
-        records = run_sweep(cases, "benchmarks.precision:run_case", out / "results.jsonl", workers=workers,
-                            executor=executor, env={CACHE_ENV: os.environ[CACHE_ENV]}, progress=progress,
-                            cost=case_cost,
-                            label=lambda c: f"{_problem_label(c)} {c['method']}")
-    wall = None if report_only else time.perf_counter() - t0
+    records, wall = run_or_report(cases, "benchmarks.precision:run_case", out, report_only=report_only,
+                                  env={CACHE_ENV: str(out / "cache")}, workers=workers, executor=executor,
+                                  progress=progress, cost=case_cost, label=lambda c: f"{_problem_label(c)} {c['method']}")
     return summarise(records, out, command=command, wall=wall, skipped=methods_mod.skipped_policies(),
                      missing=len(cases) - len(records))
 

@@ -35,7 +35,7 @@ from admmkit.io import write_text
 from . import methods as methods_mod
 from .report import NOISE_NOTE, fmt, machine_info, machine_markdown, md_table, pyplot, save_figure, write_csv
 from .families import discrete, problem_key
-from .sweep import Executor, clean_float, finished, run_sweep
+from .sweep import Executor, clean_float, run_or_report
 
 RHO_SCALES = tuple(10.0 ** k for k in range(-6, 7))
 RHO_H = 1 / 40
@@ -388,15 +388,10 @@ def run(out="out/stability", *, quick: bool = False, workers: int = 2, methods=N
         grid = {"rho_scales": (1e-3, 1.0, 1e3), "rho_h": 1 / 10, "mesh_hs": (1 / 10,), "nus": (0.3,),
                 "orders": (1,), "max_iter": 2000} | grid
     cases = build_cases(admm, **grid)
-    os.environ[CACHE_ENV] = str(out / "cache")
-    t0 = time.perf_counter()
-    if report_only:
-        records = finished(cases, out / "results.jsonl")
-    else:
-        records = run_sweep(cases, "benchmarks.stability:run_case", out / "results.jsonl", workers=workers,
-                            executor=executor, env={CACHE_ENV: os.environ[CACHE_ENV]}, progress=progress,
-                            cost=case_cost,
-                            label=lambda c: (f"{c['sweep']} {c['scene']} h={_h_label(c['h'])} nu={c['nu']} "
-                                             f"P{c['p']} s={c['rho_scale']:g} {c['method']}"))
-    return summarise(records, out, command=command, wall=None if report_only else time.perf_counter() - t0,
+    records, wall = run_or_report(cases, "benchmarks.stability:run_case", out, report_only=report_only,
+                                  env={CACHE_ENV: str(out / "cache")}, workers=workers, executor=executor,
+                                  progress=progress, cost=case_cost,
+                                  label=lambda c: (f"{c['sweep']} {c['scene']} h={_h_label(c['h'])} nu={c['nu']} "
+                                                   f"P{c['p']} s={c['rho_scale']:g} {c['method']}"))
+    return summarise(records, out, command=command, wall=wall,
                      skipped=methods_mod.skipped_policies(), missing=len(cases) - len(records))

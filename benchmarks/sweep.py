@@ -314,3 +314,19 @@ def run_sweep(cases: Iterable[dict], func: str, results_path: str | Path, *, wor
         from .sweep_table import write_table
         write_table(records.values(), results_path.with_suffix(""), rows=table if callable(table) else None)
     return records
+
+
+def run_or_report(cases: list[dict], func: str, out: Path, *, report_only: bool = False, env: dict | None = None,
+                  **options) -> tuple[dict[str, dict], float | None]:
+    """A study's sweep in ``out/results.jsonl``: (records, wall seconds of this invocation).
+
+    ``report_only`` runs nothing and returns the cases already finished (wall None);
+    otherwise :func:`run_sweep` with ``env`` set here and passed to the workers,
+    and ``options`` (workers, executor, progress, cost, label).
+    """
+    if report_only:
+        return finished(cases, out / "results.jsonl"), None
+    os.environ.update(env or {})
+    t0 = time.perf_counter()
+    records = run_sweep(cases, func, out / "results.jsonl", env=env, **options)
+    return records, time.perf_counter() - t0
