@@ -4,7 +4,7 @@ from pathlib import Path
 
 import pytest
 
-MM = Path(__file__).resolve().parents[2] / "shared" / "data" / "maros_meszaros"
+MM = Path(__file__).resolve().parents[3] / "shared" / "data" / "maros_meszaros"
 
 
 @pytest.mark.skipif(not MM.is_dir(), reason=f"Maros-Meszaros data not found at {MM}")

@@ -9,7 +9,7 @@ from admmkit import ResidualTolerance, Status, solve
 from problems.qp import QP, list_problems, load_mat, random_qp
 from problems.qp.reference import solve_with_cvxpy
 
-MM = Path(__file__).resolve().parents[2] / "shared" / "data" / "maros_meszaros"
+MM = Path(__file__).resolve().parents[3] / "shared" / "data" / "maros_meszaros"
 TIGHT = dict(tol_gap_abs=1e-12, tol_gap_rel=1e-12, tol_feas=1e-12)
 
 

@@ -19,7 +19,7 @@ from problems.qp.residuals import neutral_residuals, neutral_satisfied
 from problems.qp.scaling import ruiz
 from problems.qp.termination import QPTermination
 
-MM = Path(__file__).resolve().parents[2] / "shared" / "data" / "maros_meszaros"
+MM = Path(__file__).resolve().parents[3] / "shared" / "data" / "maros_meszaros"
 TIGHT = dict(tol_gap_abs=1e-12, tol_gap_rel=1e-12, tol_feas=1e-12)
 
 

@@ -37,17 +37,17 @@ def test_sweep_resumes_without_redoing_finished_cases(tmp_path):
     path = tmp_path / "r.jsonl"
     cases = [{"target": "t", "value": v, "group": "g" if v < 2 else "h"} for v in range(4)]
     append_result(path, {"id": case_id(cases[1]), "case": cases[1], "result": {"square": "from before"}})
-    records = run_sweep(cases, "tests.test_benchmarks:square_case", path, workers=1, progress=False)
+    records = run_sweep(cases, "tests.benchmarks.test_benchmarks:square_case", path, workers=1, progress=False)
     assert len(records) == 4
     assert records[case_id(cases[1])]["result"] == {"square": "from before"}     # not redone
     assert records[case_id(cases[3])]["result"] == {"square": 9}
     assert "error" in records[case_id(cases[0])]                                  # a raising case is recorded
     lines = path.read_text().splitlines()
     assert len(lines) == 4
-    run_sweep(cases, "tests.test_benchmarks:square_case", path, workers=1, progress=False)
+    run_sweep(cases, "tests.benchmarks.test_benchmarks:square_case", path, workers=1, progress=False)
     assert len(path.read_text().splitlines()) == 4                                 # nothing left to do
     with pytest.raises(ValueError, match="workers must be an integer >= 1"):
-        run_sweep(cases, "tests.test_benchmarks:square_case", path, workers=0)
+        run_sweep(cases, "tests.benchmarks.test_benchmarks:square_case", path, workers=0)
 
 
 def square_case(case):

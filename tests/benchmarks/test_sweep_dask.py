@@ -43,6 +43,16 @@ def cluster():
             yield c
 
 
+@pytest.fixture(autouse=True)
+def _full_cluster(request):
+    """Each test starts with both workers up: a test that kills one leaves the nanny restarting it."""
+    if "cluster" in request.fixturenames:
+        from distributed import Client
+        with Client(request.getfixturevalue("cluster").scheduler_address) as client:
+            client.wait_for_workers(2, timeout=60)
+    yield
+
+
 def _ids_in_file(path):
     ids = []
     for line in Path(path).read_text().splitlines():

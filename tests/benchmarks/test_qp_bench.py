@@ -19,7 +19,7 @@ from benchmarks.maros_meszaros import (kkt_form_reason, performance_profile, run
 from problems.qp.reference import solve_with_cvxpy
 from problems.qp.termination import OSQPTermination, osqp_relative_residuals, osqp_residuals, osqp_satisfied
 
-MM = Path(__file__).resolve().parents[2] / "shared" / "data" / "maros_meszaros"
+MM = Path(__file__).resolve().parents[3] / "shared" / "data" / "maros_meszaros"
 needs_mm = pytest.mark.skipif(not MM.is_dir(), reason=f"Maros-Meszaros data not found at {MM}")
 
 

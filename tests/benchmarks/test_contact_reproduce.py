@@ -19,7 +19,7 @@ def test_solve_contact_writes_files(tmp_path, capsys):
     assert rc == 0
     assert "converged" in out and "n_free 440" in out and "n_c 20" in out and "mode condensed" in out
     data = json.loads(j.read_text())
-    # the JSON is nested since issue #18: provenance, scene, result, sizes, arrays (tests/test_exports.py)
+    # the JSON is nested since issue #18: provenance, scene, result, sizes, arrays (tests/problems/test_exports.py)
     assert data["result"]["status"] == "converged" and len(data["arrays"]["u"]) == 440
     arrays = data["arrays"]
     assert len(arrays["contact_pressure"]) == len(arrays["gap"]) == len(arrays["initial_gap"]) == len(arrays["contact_xy"]) == 20
