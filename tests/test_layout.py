@@ -50,3 +50,10 @@ def test_studies_with_their_own_options_answer_help_and_bad_options(study, capsy
     assert main(["bench", study, "--help"]) == 0
     assert "--out" in capsys.readouterr().out
     assert main(["bench", study, "--no-such-option"]) == 2
+
+
+@pytest.mark.parametrize("layer", LAYERS)
+def test_no_module_over_400_lines(layer):
+    long = {str(p.relative_to(ROOT)): n for p in sorted((ROOT / layer).rglob("*.py"))
+            if (n := len(p.read_text().splitlines())) > 400}
+    assert long == {}
