@@ -197,19 +197,24 @@ def figure_iterations(runs, example, h, rhos, path, svg=True):
     """Iterations against rho (log x) at mesh size h, one curve per method: the paper's Figs 2 / 4."""
     plt = pyplot()
     fig, ax = plt.subplots(figsize=(6.4, 4.4))
-    markers = {"admm1": "s-", "admm2": "^-", "sadmm": "o-"}
+    styles = {"admm1": dict(marker="s", ls="-"), "admm2": dict(marker="^", ls="--", mfc="none"),
+              "sadmm": dict(marker="o", ls="-")}
+    flagged = {}
     for m in METHOD_NAMES:
         pts = [(r.rho, r.iterations, r.status) for r in runs if r.example == example and r.h == h and r.method == m]
         if not pts:
             continue
         pts.sort()
-        ax.plot([p[0] for p in pts], [p[1] for p in pts], markers[m], label=METHOD_LABELS[m])
+        ax.plot([p[0] for p in pts], [p[1] for p in pts], label=METHOD_LABELS[m], **styles[m])
         for rho, it, st in pts:
             if st != "converged":
-                ax.annotate(st, (rho, it), fontsize=7)
+                flagged.setdefault(st, []).append((rho, it))
+    for (st, pts), colour in zip(sorted(flagged.items()), ("red", "purple", "black")):
+        ax.plot([p[0] for p in pts], [p[1] for p in pts], "o", ms=11, mfc="none", mec=colour, mew=1.2,
+                label=st + (" (the rule fired; KKT > 10x its tolerance)" if st == "converged_inaccurate" else ""))
     ax.set_xscale("log"); ax.set_yscale("log")
     ax.set_xlabel("initial penalty rho"); ax.set_ylabel("iterations")
     ax.set_title(f"{'Example 1' if example == 'ex1' else 'Example 2'}: iterations, h = {h_label(h)}")
-    ax.grid(alpha=0.3, which="both"); ax.legend()
+    ax.grid(alpha=0.3, which="both"); ax.legend(fontsize=8)
     fig.tight_layout()
     return save_figure(fig, path, ("png", "svg") if svg else ("png",))
