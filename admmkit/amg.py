@@ -7,9 +7,27 @@ from __future__ import annotations
 
 import math
 import time
+from contextlib import contextmanager
 
 import numpy as np
 import scipy.sparse as sp
+
+
+@contextmanager
+def _seeded(seed: int = 0):
+    """numpy's global random state seeded for the block and restored after it.
+
+    pyamg starts its spectral-radius estimates (Jacobi smoothing of the
+    prolongator, the smoothers' weights) from ``np.random.rand``: seeding it
+    here makes every AMG set-up, and so every run of an iterative x-step,
+    bitwise repeatable, without touching the caller's random stream.
+    """
+    state = np.random.get_state()
+    np.random.seed(seed)
+    try:
+        yield
+    finally:
+        np.random.set_state(state)
 
 
 # ---------------------------------------------------------------- node blocks of the AMG
@@ -62,14 +80,15 @@ class AMGPreconditioner:
         start = time.perf_counter()
         A = sp.csr_matrix(A)
         An = A.tobsr(blocksize=(blocksize, blocksize)) if blocksize > 1 else A
-        self.ml = pyamg.smoothed_aggregation_solver(
-            An, B=near_null, symmetry="symmetric", max_coarse=max_coarse,
-            presmoother=self.SMOOTHERS[0], postsmoother=self.SMOOTHERS[1], keep=False,
-            coarse_solver=self.COARSE, improve_candidates=self.IMPROVE)
-        if blocksize > 1:
-            for level in self.ml.levels:
-                level.A = _symmetric_csr(level.A)
-            change_smoothers(self.ml, self.SMOOTHERS[0], self.SMOOTHERS[1])
+        with _seeded():
+            self.ml = pyamg.smoothed_aggregation_solver(
+                An, B=near_null, symmetry="symmetric", max_coarse=max_coarse,
+                presmoother=self.SMOOTHERS[0], postsmoother=self.SMOOTHERS[1], keep=False,
+                coarse_solver=self.COARSE, improve_candidates=self.IMPROVE)
+            if blocksize > 1:
+                for level in self.ml.levels:
+                    level.A = _symmetric_csr(level.A)
+                change_smoothers(self.ml, self.SMOOTHERS[0], self.SMOOTHERS[1])
         # A = K + rho D gives A_l = K_l + rho D_l on every level with D_l = R D_{l-1} P: keep the coarse
         # D_l on the coarse patterns, so that a Galerkin refresh for another rho is one axpy per level
         self._rho, self._pencils = rho, None
@@ -109,7 +128,8 @@ class AMGPreconditioner:
         else:
             for fine, coarse in zip(levels[:-1], levels[1:]):
                 coarse.A = _symmetric_csr(fine.R @ fine.A @ fine.P)
-        change_smoothers(self.ml, self.SMOOTHERS[0], self.SMOOTHERS[1])
+        with _seeded():
+            change_smoothers(self.ml, self.SMOOTHERS[0], self.SMOOTHERS[1])
         self.ml.coarse_solver = coarse_grid_solver(self.COARSE)  # its cached factors belonged to the old A
         self.refresh_time = time.perf_counter() - start
 

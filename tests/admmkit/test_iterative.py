@@ -312,3 +312,16 @@ def test_auto_mode_follows_the_measured_crossovers():
     assert auto_mode(fake(5_000, 300, 3)) == "condensed"
     assert auto_mode(fake(300_000, 3000, 3)) == "iterative"
     assert auto_mode(assemble(example1(h=1 / 10))) == "condensed"   # the paper's sizes: unchanged
+
+
+def test_iterative_mode_is_bitwise_repeatable_and_leaves_numpy_random_alone():
+    # pyamg starts spectral-radius estimates from np.random.rand: admmkit.amg seeds it locally (issue #16)
+    ops = assemble(example1(h=1 / 20))
+    np.random.seed(123)
+    expected_next = np.random.rand()
+    np.random.seed(123)
+    a = solve_scene(ops, "sadmm", 1e3, mode="iterative").result
+    assert np.random.rand() == expected_next          # the caller's random stream is untouched
+    np.random.rand(7)                                 # a different global state before the second run
+    b = solve_scene(ops, "sadmm", 1e3, mode="iterative").result
+    assert a.iterations == b.iterations and np.array_equal(a.x, b.x) and np.array_equal(a.lam, b.lam)
