@@ -7,6 +7,8 @@ import scipy.sparse as sp
 
 from .problem import QP
 
+#: random_qp refuses sizes whose matrices would need more memory than this (bytes)
+MEMORY_LIMIT = 8 * 2**30
 KINDS = ("inequality", "equality", "mixed", "lp", "psd")
 
 
@@ -21,8 +23,15 @@ def random_qp(n: int = 30, m: int = 40, *, kind: str = "mixed", density: float =
     """
     if kind not in KINDS:
         raise ValueError(f"kind must be one of {', '.join(KINDS)}, got {kind!r}")
-    if n < 1 or m < 1:
-        raise ValueError(f"n and m must be >= 1, got n={n}, m={m}")
+    for name, v in (("n", n), ("m", m)):
+        if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 1:
+            raise ValueError(f"{name} must be an integer >= 1, got {v!r}")
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise ValueError(f"seed must be an integer >= 0, got {seed!r}")
+    need = 16.0 * (density * n * (n + m) + n * n)   # bytes of G, A and G'G (at most n^2 entries), 16 per entry
+    if need > MEMORY_LIMIT:
+        raise ValueError(f"random_qp({n}, {m}, density={density:g}) would need about {need / 2**30:.3g} GiB "
+                         f"(more than {MEMORY_LIMIT / 2**30:.0f} GiB); give a smaller n, m or density")
     if not 0 < density <= 1:
         raise ValueError(f"density must be in (0, 1], got {density!r}")
     rng = np.random.default_rng(seed)

@@ -37,9 +37,15 @@ def load_mat(path: str | Path, **qp_options) -> QP:
     u = np.asarray(data["u"], dtype=float).ravel()
     l[l <= -INFINITY_CUTOFF] = -np.inf
     u[u >= INFINITY_CUTOFF] = np.inf
-    r = float(np.asarray(data.get("r", 0.0)).ravel()[0]) if "r" in data else 0.0
-    return QP(sp.csc_matrix(data["P"]), np.ravel(data["q"]), sp.csc_matrix(data["A"]), l, u, r,
-              name=path.stem, **qp_options)
+    r_value = np.asarray(data.get("r", 0.0)).ravel()
+    if r_value.size > 1:
+        raise ValueError(f"{path}: r must be one number, got {r_value.size} values")
+    r = float(r_value[0]) if r_value.size else 0.0        # an empty r (as some files store 0) is 0
+    try:
+        return QP(sp.csc_matrix(data["P"]), np.ravel(data["q"]), sp.csc_matrix(data["A"]), l, u, r,
+                  name=path.stem, **qp_options)
+    except (TypeError, ValueError) as err:
+        raise ValueError(f"{path}: {err}") from None
 
 
 def list_problems(folder: str | Path) -> list[Path]:

@@ -47,6 +47,8 @@ import scipy.sparse as sp
 from admmkit import Problem
 from admmkit.linsolve import CachedFactorization, available_backends
 
+from .convexity import check_convex
+
 XSTEPS = ("auto", "reduced", "kkt")
 #: "auto" uses the KKT form when A'A could have more entries than this (bound: nnz(P) + sum_i nnz(row_i of A)^2)
 REDUCED_MAX_NNZ = 2e7
@@ -104,8 +106,12 @@ class QP(Problem):
                  x_relaxation: float = 1.0):
         from .scaling import ruiz
         self.P, self.q, self.A, self.l, self.u = _validate(P, q, A, l, u)
-        self.r = float(r)
-        if not (math.isfinite(sigma) and sigma >= 0):
+        self.r = _real("r", r)
+        if self.r.shape not in ((), (1,)) or not math.isfinite(self.r.item()):
+            raise ValueError(f"r (the constant of the objective) must be one finite number, got {r!r:.60}")
+        self.r = float(self.r.item())
+        if isinstance(sigma, (bool, str, bytes)) or not isinstance(sigma, (int, float, np.integer, np.floating)) \
+                or not (math.isfinite(sigma) and sigma >= 0):
             raise ValueError(f"sigma must be a finite number >= 0, got {sigma!r}")
         if xstep not in XSTEPS:
             raise ValueError(f"xstep must be one of {', '.join(XSTEPS)}, got {xstep!r}")
@@ -329,36 +335,53 @@ def _inf(v) -> float:
     return float(np.max(np.abs(v), initial=0.0))
 
 
+def _real(name: str, value, sparse_ok: bool = False):
+    """``value`` as a real float array (or sparse matrix); ValueError naming ``name`` for text or complex values."""
+    if sparse_ok and sp.issparse(value):
+        if np.iscomplexobj(value.data):
+            raise ValueError(f"{name} must be real, got complex entries")
+        return value
+    if np.iscomplexobj(value):
+        raise ValueError(f"{name} must be real, got complex values")
+    try:
+        return np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be an array of numbers, got {value!r:.60}") from None
+
+
 def _validate(P, q, A, l, u):
-    """Check shapes, symmetry, finiteness and l <= u; return (P, q, A, l, u) as csc/arrays."""
-    if not sp.issparse(P):
-        P = np.asarray(P, dtype=float)
-        if P.ndim != 2:
-            raise ValueError(f"P must be a square matrix, got an array of shape {P.shape}")
+    """Check types, shapes, symmetry, convexity, finiteness and l <= u; return (P, q, A, l, u) as csc/arrays."""
+    P = _real("P", P, sparse_ok=True)
+    if not sp.issparse(P) and P.ndim != 2:
+        raise ValueError(f"P must be a square matrix, got an array of shape {P.shape}")
     P = sp.csc_matrix(P, dtype=float)
     n = P.shape[0]
     if P.shape != (n, n):
         raise ValueError(f"P must be square (n x n), got shape {P.shape}")
+    if n == 0:
+        raise ValueError("the QP needs at least one variable: P, q and A must have n >= 1 columns, got n = 0")
     if not np.all(np.isfinite(P.data)):
         raise ValueError("P must have finite entries")
     asym = abs(P - P.T).max() if P.nnz else 0.0
     if asym > 1e-10 * max(1.0, abs(P).max()):
         raise ValueError(f"P must be symmetric; max |P - P'| = {asym:.3g}")
-    q = np.asarray(q, dtype=float).ravel()
+    check_convex(P)
+    q = _real("q", q).ravel()
     if q.shape != (n,):
         raise ValueError(f"q must have length n = {n} (from P), got shape {q.shape}")
     if not np.all(np.isfinite(q)):
         raise ValueError("q must be finite")
+    A = _real("A", A, sparse_ok=True)
     if not sp.issparse(A):
-        A = np.atleast_2d(np.asarray(A, dtype=float))
+        A = np.atleast_2d(A)
     A = sp.csc_matrix(A, dtype=float)
     if A.shape[1] != n:
         raise ValueError(f"A must have n = {n} columns (from P), got shape {A.shape}")
     if not np.all(np.isfinite(A.data)):
         raise ValueError("A must have finite entries")
     m = A.shape[0]
-    l = np.asarray(l, dtype=float).ravel()
-    u = np.asarray(u, dtype=float).ravel()
+    l = _real("l", l).ravel()
+    u = _real("u", u).ravel()
     for name, v in (("l", l), ("u", u)):
         if v.shape != (m,):
             raise ValueError(f"{name} must have length m = {m} (rows of A), got shape {v.shape}")

@@ -1,0 +1,53 @@
+"""Is P positive semidefinite?  Checked once when a QP is built, so a saddle point is never reported as a minimum.
+
+With the diagonal kept as the pivot (SuperLU with ``diag_pivot_thresh=0``
+and a symmetric fill-reducing ordering), the LU factors of the symmetric
+matrix P + delta I are L D L' up to scaling, and by Sylvester's law of
+inertia the number of negative pivots is the number of eigenvalues of P
+below -delta.  The shift delta = 1e-9 max|P| keeps a singular PSD P (an LP
+part, a rank-deficient least-squares term) factorable.  For the message, the
+smallest eigenvalue is estimated by Lanczos (``eigsh``), or exactly when P is
+small.
+"""
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+#: relative shift of P + delta I, and the pivot below which P is indefinite
+SHIFT = 1e-9
+#: below this size the smallest eigenvalue is computed densely
+DENSE_MAX = 500
+
+
+def smallest_eigenvalue(P: sp.spmatrix) -> float:
+    """The smallest eigenvalue of symmetric P (exact for n <= DENSE_MAX, a Lanczos estimate above)."""
+    n = P.shape[0]
+    if n <= DENSE_MAX:
+        return float(np.linalg.eigvalsh(P.toarray())[0])
+    try:
+        return float(spla.eigsh(P.astype(float), k=1, which="SA", tol=1e-6, maxiter=20 * n,
+                                return_eigenvectors=False)[0])
+    except spla.ArpackNoConvergence as err:
+        return float(err.eigenvalues[0]) if len(err.eigenvalues) else float("nan")
+
+
+def check_convex(P: sp.csc_matrix) -> None:
+    """Raise ValueError with the smallest eigenvalue found if the symmetric P is not positive semidefinite."""
+    n = P.shape[0]
+    if P.nnz == 0 or n == 0:
+        return
+    scale = float(abs(P).max())
+    delta = SHIFT * max(scale, 1e-300)
+    if n <= DENSE_MAX:
+        lowest = float(np.linalg.eigvalsh(P.toarray())[0])
+        indefinite = lowest < -delta
+    else:
+        lu = spla.splu((P + delta * sp.identity(n, format="csc")).tocsc(), permc_spec="MMD_AT_PLUS_A",
+                       diag_pivot_thresh=0.0, options=dict(SymmetricMode=True))
+        indefinite = bool(np.any(lu.U.diagonal() < -delta))
+        lowest = smallest_eigenvalue(P) if indefinite else None
+    if indefinite:
+        raise ValueError(f"P must be positive semidefinite (a convex QP); its smallest eigenvalue is about "
+                         f"{lowest:.3g} (max |P| = {scale:.3g}), so the QP has no minimum to find")
