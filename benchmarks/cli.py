@@ -47,7 +47,7 @@ def _sweep_options(p, study: str) -> None:
     _out(p, study)
     _executor_options(p)
     p.add_argument("--quick", action="store_true", help="a tiny grid (the smoke test)")
-    p.add_argument("--no-progress", dest="progress", action="store_false", help="no progress line")
+    p.add_argument("-q", "--quiet", "--no-progress", dest="progress", action="store_false", help="no progress line")
     p.add_argument("--report-only", action="store_true",
                    help="run nothing: write the files from the cases already in <out>/results.jsonl")
 
@@ -85,7 +85,7 @@ def reproduce(commands) -> None:
     _out(r, "paper")
     r.add_argument("--quick", action="store_true", help="h = 1/10 and 1/20 only (CI smoke test)")
     r.add_argument("--repeats", type=positive_int, default=1, help="repeats per run, the median time (default 1)")
-    r.add_argument("--quiet", action="store_true", help="no progress lines")
+    r.add_argument("-q", "--quiet", action="store_true", help="no progress lines")
     r.set_defaults(func=_reproduce)
 
 
@@ -168,7 +168,6 @@ def policies_fe(targets) -> None:
                                        "on contact Example 1 (h = 1/20) and the radial obstacle (h = 1/16).")
     _sweep_options(b, "policies")
     b.add_argument("--rules", default=",".join(RULES), help=f"comma-separated rules (default {','.join(RULES)})")
-    b.add_argument("--quiet", dest="progress", action="store_false", help="no progress lines (as --no-progress)")
     b.set_defaults(func=_policies_fe)
 
 
@@ -209,7 +208,7 @@ def maros_meszaros(targets) -> None:
     b.add_argument("--no-osqp", action="store_true", help="do not run OSQP itself")
     b.add_argument("--resume", action="store_true",
                    help="keep the cases already in OUT/results.jsonl (without it the sweep starts afresh)")
-    b.add_argument("--quiet", action="store_true", help="no progress lines")
+    b.add_argument("-q", "--quiet", "--no-progress", dest="quiet", action="store_true", help="no progress lines")
     b.set_defaults(func=_maros_meszaros)
 
 
@@ -232,7 +231,7 @@ def executors(targets) -> None:
     e.add_argument("--quick", action="store_true", help="the coarse smoke grid of bench policies")
     e.add_argument("--rounds", type=positive_int, default=2,
                    help="rounds of the three executors, the order reversed every second round (default 2)")
-    e.add_argument("--no-progress", dest="progress", action="store_false", help="no progress line")
+    e.add_argument("-q", "--quiet", "--no-progress", dest="progress", action="store_false", help="no progress line")
     e.set_defaults(func=_executors)
 
 
