@@ -136,3 +136,10 @@ def test_every_toml_key_is_a_scene_field_and_round_trips(tmp_path):
     scene = load_scene(path)
     assert scene.dirichlet == ("left",) and scene.contact == "bottom" and scene.h == Scene().h
     assert scene.slip_bound(1.0, 0.0) == pytest.approx(0.6) and scene.obstacle_slide == 0.01
+
+
+@pytest.mark.parametrize("method", [None, "", "sadm", 3])
+def test_solve_scene_names_a_bad_method(method):
+    from problems.contact import example1, solve_scene
+    with pytest.raises(ValueError, match="method must be a name|unknown method"):
+        solve_scene(example1(h=1 / 10), method)
