@@ -1,12 +1,31 @@
-"""``admmkit solve qp``: a MAT-file QP or a random one (the study is ``admmkit bench qp``, in benchmarks/)."""
+"""``admmkit solve qp``: a MAT-file QP or a random one (the study is ``admmkit bench qp``, in benchmarks/).
+
+Two presets (docs/cli.md, docs/qp.md):
+
+- ``--preset osqp`` (default): :func:`problems.qp.solve_qp` with OSQP 1.x's defaults (``osqp_settings``):
+  Ruiz scaling, penalty per row, alpha 1.6, OSQP's termination test (R1)-(R3) every 25 iterations, the
+  infeasibility tests (I1)-(I2), OSQP's rho rule; ``--eps``, ``--eps-abs``/``--eps-rel``, ``--eps-inf`` and
+  ``--polish`` set its tolerances and polishing. ``--tol`` (a relative-change rule) is refused.
+- ``--preset textbook``: the plain loop this command ran before (``admmkit.solve`` on the QP as built, the
+  common stopping options ``--tol``/``--eps-abs``/``--eps-rel``, rho_0 = 1, ``residual_balancing``).
+"""
 from __future__ import annotations
 
 import policies  # noqa: F401  (registers the rules the --policy option offers)
-from admmkit.cli import add_common_options, add_result_outputs, exit_code, run_solve, write_result_csv, write_result_json
+from admmkit.cli import add_common_options, add_result_outputs, positive_float, progress, resolve_policy, run_solve
+from admmkit.cli_output import print_summary
 from policies.paper_methods import PAPER_METHODS
 
-from .generate import KINDS, random_qp
+from .cli_output import certificate_summary, qp_lines, write_qp_csv, write_qp_json
+from .generate import KINDS, infeasible_qp, random_qp, unbounded_qp
 from .mat import load_mat
+from .settings import osqp_settings
+
+#: ``--kind`` of ``--random``: the generator's feasible kinds, and a primal infeasible and an unbounded QP
+CLI_KINDS = (*KINDS, "infeasible", "unbounded")
+#: what each preset uses when --policy, --rho, --max-iter are not given
+PRESET_DEFAULTS = {"osqp": {"policy": "osqp", "rho": 0.1, "max_iter": 4000},
+                   "textbook": {"policy": "residual_balancing", "rho": 1.0, "max_iter": 10_000}}
 
 
 def register(subparsers) -> None:
@@ -14,33 +33,137 @@ def register(subparsers) -> None:
     p = subparsers.add_parser("qp", help="min 1/2 x'Px + q'x s.t. l <= Ax <= u (OSQP's form)")
     src = p.add_mutually_exclusive_group(required=True)
     src.add_argument("--mat", metavar="FILE", help="a MAT file with P, q, r, A, l, u (e.g. a Maros-Meszaros problem)")
-    src.add_argument("--random", nargs=2, type=int, metavar=("N", "M"), help="a random feasible QP with N variables, M rows")
-    p.add_argument("--kind", choices=KINDS, default="mixed", help="row types of the random QP (default mixed)")
+    src.add_argument("--random", nargs=2, type=int, metavar=("N", "M"), help="a random QP with N variables, M rows")
+    p.add_argument("--kind", choices=CLI_KINDS, default="mixed",
+                   help="the random QP: feasible row types, or 'infeasible' (a contradicting row added: "
+                        "M + 1 rows) or 'unbounded' (default mixed)")
     p.add_argument("--seed", type=int, default=0, help="seed of the random QP")
+    p.add_argument("--preset", choices=("osqp", "textbook"), default="osqp",
+                   help="osqp: OSQP 1.x's defaults and tests (problems.qp.solve_qp); textbook: the plain loop "
+                        "with the common stopping options (the command's behaviour before the preset)")
+    p.add_argument("--eps", type=positive_float, default=None,
+                   help="OSQP's eps_abs = eps_rel (osqp preset; default 1e-3)")
+    p.add_argument("--eps-inf", type=positive_float, default=None,
+                   help="OSQP's eps_prim_inf = eps_dual_inf, the infeasibility tolerances (osqp preset; default 1e-4)")
+    p.add_argument("--polish", action="store_true", help="OSQP's polishing after a solved run (osqp preset)")
     add_common_options(p, policy="residual_balancing", order="xz", methods=PAPER_METHODS)
-    add_result_outputs(p, json_help="write the run (provenance, summary, x, z = Ax, lam) as JSON",
-                       csv_help="write the solution as CSV: one row per variable (x) and one per row of A (z, lam, l, u)")
-    p.set_defaults(func=run)
+    add_result_outputs(p, json_help="write the run (provenance, summary, termination, neutral residuals, "
+                                    "certificate, x, z = Ax, lam) as JSON",
+                       csv_help="write the solution as CSV: one row per variable (x) and one per row of A (z, lam, l, "
+                                "u, certificate), with status, termination and neutral residuals on every row")
+    p.set_defaults(func=run, policy=None, rho=None, max_iter=None)
+    helps = {"policy": "penalty rule or method (default: osqp = OSQP's rule with OSQP's normalisation in the osqp "
+                       "preset, residual_balancing in the textbook preset)",
+             "rho": "initial penalty rho_0 > 0 (default 0.1 osqp preset, 1 textbook)",
+             "max_iter": "iteration cap (default 4000 osqp preset, 10000 textbook)",
+             "tol": "relative-change tolerance (textbook preset only; default 1e-5 unless --eps-abs is given)",
+             "eps_abs": "absolute tolerance: OSQP's eps_abs (osqp preset), Boyd's residual test (textbook)",
+             "eps_rel": "relative tolerance (default 0; needs --eps-abs): OSQP's eps_rel or Boyd's"}
+    for action in p._actions:
+        if action.dest in helps and action.help is not None and action.help != "==SUPPRESS==":
+            action.help = helps[action.dest]
+
+
+def check_preset_options(args) -> None:
+    """Refuse options that the chosen preset has no meaning for (one line, exit 2, before any work)."""
+    if args.random is not None and min(args.random) < 1:
+        raise ValueError(f"--random N M: both must be integers >= 1, got {args.random[0]} {args.random[1]}")
+    if args.seed < 0:
+        raise ValueError(f"--seed must be an integer >= 0, got {args.seed}")
+    if args.preset == "osqp":
+        if args.tol is not None:
+            raise ValueError("--tol is the textbook loop's relative-change rule; with --preset osqp give --eps "
+                             "(OSQP's eps_abs = eps_rel) or --eps-abs/--eps-rel, or use --preset textbook")
+        if args.eps is not None and args.eps_abs is not None:
+            raise ValueError("--eps sets eps_abs = eps_rel; give either --eps or --eps-abs [--eps-rel], not both")
+    else:
+        given = [flag for flag, v in (("--eps", args.eps), ("--eps-inf", args.eps_inf), ("--polish", args.polish)) if v]
+        if given:
+            raise ValueError(f"{', '.join(given)} belong(s) to --preset osqp; the textbook loop stops by --tol or "
+                             "--eps-abs/--eps-rel and has no infeasibility test or polishing")
+    for name, value in PRESET_DEFAULTS[args.preset].items():
+        if getattr(args, name) is None:
+            setattr(args, name, value)
+
+
+def build_qp(args):
+    """The QP the options ask for (a MAT file or a generated one)."""
+    if args.mat:
+        return load_mat(args.mat)
+    n, m = args.random
+    if args.kind == "infeasible":
+        return infeasible_qp(n, m, seed=args.seed)
+    if args.kind == "unbounded":
+        return unbounded_qp(n, m, seed=args.seed)
+    return random_qp(n, m, kind=args.kind, seed=args.seed)
+
+
+def osqp_settings_from(args, order: str):
+    """``osqp_settings`` with the options: rho_0, order, cap, eps (or eps_abs/eps_rel), eps_inf, polish."""
+    changes = {"rho": args.rho, "order": order, "max_iter": args.max_iter, "polish": bool(args.polish)}
+    if args.eps is not None:
+        changes |= {"eps_abs": args.eps, "eps_rel": args.eps}
+    elif args.eps_abs is not None:
+        changes |= {"eps_abs": args.eps_abs, "eps_rel": args.eps_rel or 0.0}
+    if args.eps_inf is not None:
+        changes |= {"eps_prim_inf": args.eps_inf, "eps_dual_inf": args.eps_inf}
+    return osqp_settings(**changes)
+
+
+def run_osqp(qp, args):
+    """``solve_qp`` with the osqp preset and the options; prints the common summary."""
+    from .solve import default_policy, qp_for, solve_qp
+    key = args.policy.strip().lower().replace("-", "_")
+    if key == "osqp":
+        order, rule, name = args.order or "xz", "osqp", "osqp"
+    else:
+        order, rule, name = resolve_policy(args)
+    settings = osqp_settings_from(args, order)
+    shown = default_policy(qp_for(qp, settings), settings) if rule == "osqp" else rule
+    with progress(args, settings.max_iter) as show:
+        result = solve_qp(qp, settings, policy=rule, callback=show)
+    args.resolved = {"policy": name, "order": order, "policy_repr": repr(shown),
+                     "stop": f"osqp_termination(eps_abs={settings.eps_abs:g}, eps_rel={settings.eps_rel:g}, "
+                             f"eps_prim_inf={settings.eps_prim_inf:g}, eps_dual_inf={settings.eps_dual_inf:g})"}
+    print_summary(result, name, settings.rho)
+    if args.history:
+        print(f"history      {result.history.to_csv(args.history)}")
+    return result
+
+
+def run_textbook(qp, args):
+    """The plain loop (``admmkit.cli.run_solve``), its result as a ``QPResult`` with the neutral criteria."""
+    import dataclasses
+
+    from admmkit import Result
+
+    from .residuals import neutral_residuals
+    from .solve import QPResult
+    res = run_solve(qp, args)
+    fields = {f.name: getattr(res, f.name) for f in dataclasses.fields(Result)}
+    return QPResult(**fields, neutral=neutral_residuals(qp, res.x, res.lam))
 
 
 def run(args) -> int:
-    """Build the QP, solve it, print the summary; exit code 0 only if it converged."""
-    if args.random is not None and min(args.random) < 1:
-        raise ValueError(f"--random N M: both must be integers >= 1, got {args.random[0]} {args.random[1]}")
-    qp = load_mat(args.mat) if args.mat else random_qp(*args.random, kind=args.kind, seed=args.seed)
+    """Build the QP, solve it, print the summary; exit 0 only for a clean solve, 1 otherwise (docs/cli.md)."""
+    check_preset_options(args)
+    qp = build_qp(args)
     print(f"problem      {qp.name}: n = {qp.n}, m = {qp.m}")
-    result = run_solve(qp, args)
-    problem = {"name": qp.name, "n": qp.n, "m": qp.m, "source": args.mat or
+    print(f"preset       {args.preset}")
+    result = run_osqp(qp, args) if args.preset == "osqp" else run_textbook(qp, args)
+    certificate = certificate_summary(qp, result)
+    print("\n".join(qp_lines(result, certificate, args.preset)))
+    problem = {"name": qp.name, "n": qp.n, "m": qp.m, "preset": args.preset, "source": args.mat or
                {"random": list(args.random), "kind": args.kind, "seed": args.seed}}
     if args.json:
-        arrays = {"x": result.x, "z": result.z, "lam": result.lam}
-        print(f"json         {write_result_json(args.json, result, args, problem=problem, arrays=arrays)}")
+        print(f"json         {write_qp_json(args.json, result, args, problem=problem, certificate=certificate, preset=args.preset)}")
     if args.csv:
-        import numpy as np
-        n, m = qp.n, qp.m
-        nan_n, nan_m = np.full(n, np.nan), np.full(m, np.nan)
-        columns = {"kind": ["x"] * n + ["row"] * m, "index": np.r_[np.arange(n), np.arange(m)],
-                   "x": np.r_[result.x, nan_m], "z": np.r_[nan_n, result.z], "lam": np.r_[nan_n, result.lam],
-                   "l": np.r_[nan_n, qp.l], "u": np.r_[nan_n, qp.u]}
-        print(f"csv          {write_result_csv(args.csv, columns)}")
-    return exit_code(result)
+        print(f"csv          {write_qp_csv(args.csv, qp, result, certificate, args.preset)}")
+    return exit_code(result, args.preset)
+
+
+def exit_code(result, preset: str) -> int:
+    """0 for a clean solve (osqp preset: OSQP's test fired as "solved"; textbook: status converged), else 1."""
+    from admmkit import Status
+    clean = result.status is Status.CONVERGED and (preset == "textbook" or result.termination == "solved")
+    return 0 if clean else 1
