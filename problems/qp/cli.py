@@ -41,9 +41,9 @@ def register(subparsers) -> None:
     p.add_argument("--preset", choices=("osqp", "textbook"), default="osqp",
                    help="osqp: OSQP 1.x's defaults and tests (problems.qp.solve_qp); textbook: the plain loop "
                         "with the common stopping options (the command's behaviour before the preset)")
-    p.add_argument("--eps", type=positive_float, default=None,
+    p.add_argument("--eps", type=positive_float, default=None, metavar="EPS",
                    help="OSQP's eps_abs = eps_rel (osqp preset; default 1e-3)")
-    p.add_argument("--eps-inf", type=positive_float, default=None,
+    p.add_argument("--eps-inf", type=positive_float, default=None, metavar="EPS",
                    help="OSQP's eps_prim_inf = eps_dual_inf, the infeasibility tolerances (osqp preset; default 1e-4)")
     p.add_argument("--polish", action="store_true", help="OSQP's polishing after a solved run (osqp preset)")
     add_common_options(p, policy="residual_balancing", order="xz", methods=PAPER_METHODS)
