@@ -40,11 +40,13 @@ def test_default_is_the_osqp_preset_and_solves_a_random_qp(tmp_path, capsys):
     assert code == 0 and "preset       osqp" in out
     assert line(out, "termination").startswith("termination  solved  (OSQP's test")
     assert "method       osqp: order=xz  policy=OSQPRule(interval=50" in out and "rho_0 = 0.1" in out
+    assert "residuals=osqp_relative_residuals(qp)" in line(out, "method") and " at 0x" not in out
     data = json.loads(j.read_text())
     res = data["result"]
     assert res["preset"] == "osqp" and res["termination"] == "solved" and res["status"] == "converged"
     assert res["settings"]["scaling"] == 10 and res["settings"]["alpha"] == 1.6 and res["certificate"] is None
     assert data["provenance"]["stopping_rule"].startswith("osqp_termination(eps_abs=0.001, eps_rel=0.001")
+    assert " at 0x" not in data["provenance"]["policy_parameters"] and " at 0x" not in res["policy"]
     # the same run as solve_qp with OSQP's settings, and the neutral criteria recomputed from the written x, y
     qp = random_qp(30, 40, seed=0)
     direct = solve_qp(qp, osqp_settings())
