@@ -119,6 +119,18 @@ def test_a_feasible_qp_has_no_certificate_and_the_cap_exits_1(tmp_path, capsys):
     assert line(out, "termination").startswith("termination  none fired")
 
 
+def test_solved_at_10x_the_tolerances_is_inaccurate_and_exits_1(tmp_path, capsys):
+    """OSQP's second look at the cap: the test at 10x eps fires -> solved_inaccurate, status converged_inaccurate."""
+    j = tmp_path / "r.json"
+    code, out, _ = run([*QP, "--eps", "1e-5", "--max-iter", "75", "--json", str(j), "-q"], capsys)
+    res = json.loads(j.read_text())["result"]
+    assert code == 1 and res["termination"] == "solved_inaccurate" and res["status"] == "converged_inaccurate"
+    assert line(out, "termination").startswith("termination  solved_inaccurate")
+    r = res["residuals"]                      # (R1)-(R3) fail at eps = 1e-5 and hold at 10x (eps_abs = eps_rel)
+    ratios = [abs(r[k]) / (1.0 + r[k + "_scale"]) for k in ("primal", "dual", "gap")]
+    assert max(ratios) > 1e-5 and max(ratios) <= 1e-4
+
+
 def test_eps_inf_reaches_the_infeasibility_tolerances(tmp_path, capsys):
     j = tmp_path / "r.json"
     code, _, _ = run(["solve", "qp", "--random", "20", "30", "--kind", "infeasible", "--eps-inf", "1e-6",
