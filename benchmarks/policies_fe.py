@@ -2,8 +2,8 @@
 
     admmkit bench policies [--out docs/results/policies_fe] [--quick]
 
-For contact Example 1 (h = 1/20, condensed mode) and the radial obstacle
-(h = 1/16), every rule of :data:`RULES` in both orders from rho_0 = 10^j over
+For contact Example 1 (h = 1/20, condensed mode), the same with Tresca
+friction (slip bound 2, full mode) and the radial obstacle (h = 1/16), every rule of :data:`RULES` in both orders from rho_0 = 10^j over
 12 decades (13 values; 1e-4 ... 1e8 for contact, whose stiffness E = 2000
 puts good penalties near 1e3, and 1e-6 ... 1e6 for the obstacle).
 
@@ -75,10 +75,29 @@ def obstacle_case(h: float = 1 / 16):
             tuple(10.0 ** j for j in range(-6, 7)), "lumped L2 norm")
 
 
+def tresca_case(h: float = 1 / 20):
+    """(name, make_problem, relative_error, rho_0 values) for contact Example 1 with Tresca friction (s = 2).
+
+    Full mode (x = u), the error in the energy norm against an independent
+    second-order-cone solve (cvxpy + Clarabel, :mod:`problems.contact.tresca_qp`).
+    """
+    from problems.contact.assembly import assemble
+    from problems.contact.problem import contact_problem
+    from problems.contact.scene import load_scene
+    from problems.contact.tresca_qp import tresca_cvxpy
+    ops = assemble(load_scene("ex1_tresca", h=h))
+    u_ref = tresca_cvxpy(ops)[0]
+
+    def error(problem, x):
+        return problem.x_distance(x, u_ref) / problem.x_norm(u_ref)
+    return (f"contact Ex.1 + Tresca (s = 2), h = 1/{round(1 / h)}",
+            lambda: contact_problem(ops, mode="full"), error, tuple(10.0 ** j for j in range(-4, 9)), "energy norm")
+
+
 #: the problems of the study: name -> (builder of the (name, make, error, rho_0 values, norm) tuple)
-PROBLEMS = {"contact": contact_case, "obstacle": obstacle_case}
-DEFAULT_H = {"contact": 1 / 20, "obstacle": 1 / 16}
-QUICK_H = {"contact": 1 / 10, "obstacle": 1 / 4}
+PROBLEMS = {"contact": contact_case, "obstacle": obstacle_case, "tresca": tresca_case}
+DEFAULT_H = {"contact": 1 / 20, "obstacle": 1 / 16, "tresca": 1 / 20}
+QUICK_H = {"contact": 1 / 10, "obstacle": 1 / 4, "tresca": 1 / 10}
 
 
 def build_cases(rules=RULES, orders=ORDERS, *, quick: bool = False, max_iter: int = MAX_ITER,
@@ -90,7 +109,7 @@ def build_cases(rules=RULES, orders=ORDERS, *, quick: bool = False, max_iter: in
     cases = []
     for problem in problems:
         h = (QUICK_H if quick else DEFAULT_H)[problem]
-        decades = range(-4, 9) if problem == "contact" else range(-6, 7)
+        decades = range(-6, 7) if problem == "obstacle" else range(-4, 9)
         rhos = [10.0 ** j for j in decades]
         if quick:
             rhos = [rhos[0], rhos[6], rhos[-1]]
@@ -232,7 +251,7 @@ def run(out="out/policies", rules=RULES, quick: bool = False, command: str = "",
         report_only: bool = False, problems=tuple(PROBLEMS)) -> dict:
     """Run (or resume) the sweep of both problems (``quick``: coarser meshes, three rho_0) and write the report.
 
-    ``problems``: a subset of ("contact", "obstacle"); ``executor``: where the cases run.
+    ``problems``: a subset of ("contact", "obstacle", "tresca"); ``executor``: where the cases run.
 
     Returns {problem name: (rows, norm name)}.
     """
@@ -246,7 +265,7 @@ def run(out="out/policies", rules=RULES, quick: bool = False, command: str = "",
         records = run_sweep(cases, "benchmarks.policies_fe:run_case", out / "results.jsonl", workers=workers,
                             executor=executor, progress=progress, cost=case_cost,
                             label=lambda c: f"{c['problem']} {c['rule']}/{c['order']} rho0={c['rho0']:g}")
-    norms = {"contact": "energy norm", "obstacle": "lumped L2 norm"}
+    norms = {"contact": "energy norm", "obstacle": "lumped L2 norm", "tresca": "energy norm"}
     results = {}
     for c in cases:   # the cases' order: problem, rule, order, rho_0
         rec = records.get(_id(c))

@@ -1,4 +1,4 @@
-"""``admmkit bench policies``: the rules on contact and the obstacle across rho_0 (smoke run on coarse meshes)."""
+"""``admmkit bench policies``: the rules on contact (frictionless and Tresca) and the obstacle across rho_0 (smoke run)."""
 import csv
 
 from benchmarks.policies_fe import run
@@ -11,7 +11,7 @@ def test_policy_sweep_smoke(tmp_path):
         assert (tmp_path / name).stat().st_size > 0, name
     with (tmp_path / "sweep.csv").open() as fh:
         rows = list(csv.DictReader(fh))
-    assert len(rows) == 2 * 2 * 2 * 3               # cases x rules x orders x rho_0
+    assert len(rows) == 3 * 2 * 2 * 3               # cases (contact, obstacle, Tresca) x rules x orders x rho_0
     assert all(r["reached"] == "True" for r in rows)  # both rules reach the reference from every rho_0
     for case in results:
         facts = {rule: sum(int(r["factorizations"]) for r in rows if r["case"] == case and r["rule"] == rule)
