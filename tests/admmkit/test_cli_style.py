@@ -144,7 +144,8 @@ def test_a_write_that_fails_late_is_one_line_too(tmp_path, capsys, monkeypatch):
     (QP + ["--policy", "admm1"], "admm1: order=xz  policy=Fixed()"),
     (QP + ["--policy", "sadmm"], "sadmm: order=zx  policy=Summable(tau=2.0, c_max=100)"),
     (QP + ["--policy", "sadmm", "--order", "xz"], "sadmm: order=xz"),
-    (QP, "residual_balancing: order=xz"),
+    (QP + ["--preset", "textbook"], "residual_balancing: order=xz"),
+    (QP, "osqp: order=xz"),
     (OBSTACLE + ["--policy", "admm2"], "admm2: order=zx  policy=Fixed()"),
     (CONTACT, "sadmm: order=zx"),
     (CONTACT + ["--policy", "admm1"], "admm1: order=xz  policy=Fixed()"),
@@ -173,7 +174,9 @@ def test_integers_are_printed_as_integers(capsys):
 
 # ---------------------------------------------------------------- JSON and CSV for every solve
 @pytest.mark.parametrize("argv, arrays, columns", [
-    (QP, {"x": 20, "z": 12, "lam": 12}, ["kind", "index", "x", "z", "lam", "l", "u"]),
+    (QP + ["--preset", "textbook"], {"x": 20, "z": 12, "lam": 12},
+     ["kind", "index", "x", "z", "lam", "l", "u", "certificate", "status", "termination", "neutral_primal",
+      "neutral_dual", "neutral_gap"]),
     (OBSTACLE, {"u": 961, "node_xy": 961, "free_nodes": 961}, ["node", "x", "y", "u", "psi", "in_contact"]),
 ])
 def test_json_and_csv_for_qp_and_obstacle(argv, arrays, columns, tmp_path, capsys):
@@ -189,7 +192,7 @@ def test_json_and_csv_for_qp_and_obstacle(argv, arrays, columns, tmp_path, capsy
     for name, n in arrays.items():
         assert len(data["arrays"][name]) == n
     rows = list(csv.reader(c.open()))
-    assert rows[0] == columns and len(rows) == 1 + max(arrays.values()) + (12 if argv is QP else 0)
+    assert rows[0] == columns and len(rows) == 1 + max(arrays.values()) + (12 if "qp" in argv else 0)
 
 
 # ---------------------------------------------------------------- progress

@@ -16,7 +16,7 @@ from problems.qp.generate import infeasible_qp, unbounded_qp
 from problems.qp.reference import solve_with_cvxpy
 from problems.qp.residuals import neutral_residuals
 
-HS21 = Path(__file__).resolve().parents[2] / "shared" / "data" / "maros_meszaros" / "HS21.mat"
+HS21 = Path(__file__).resolve().parents[3] / "shared" / "data" / "maros_meszaros" / "HS21.mat"
 QP = ["solve", "qp", "--random", "30", "40"]
 TIGHT = dict(tol_gap_abs=1e-12, tol_gap_rel=1e-12, tol_feas=1e-12)
 
@@ -225,7 +225,7 @@ def test_help_names_the_presets_and_the_osqp_options(capsys):
 def test_documented_solve_qp_commands_parse():
     """The `admmkit solve qp` lines of docs/cli.md and docs/qp.md parse with the real parser."""
     import re
-    root = Path(__file__).resolve().parents[1]
+    root = Path(__file__).resolve().parents[2]
     parser = build_parser()
     found = 0
     for doc in ("docs/cli.md", "docs/qp.md"):
