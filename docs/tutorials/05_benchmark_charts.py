@@ -59,8 +59,8 @@ def read(path):
 # ## 1. The rules across rho_0
 #
 # `admmkit bench policies` runs every registered rule, in both orders, on the
-# paper's Example 1 ($h = 1/20$) and on the radial obstacle problem
-# ($h = 1/16$). It starts from 13 values of $\rho_0$, from $10^{-4}$ to
+# paper's Example 1 ($h = 1/20$), on the same example with Tresca friction
+# (slip bound 2) and on the radial obstacle problem ($h = 1/16$). It starts from 13 values of $\rho_0$, from $10^{-4}$ to
 # $10^{8}$. Each run goes until the iterate is within a relative $10^{-6}$
 # of the reference solution, or 20 000 iterations. The same run also records
 # where the paper's stopping rule (relative change of $u$ below $10^{-5}$)
@@ -72,7 +72,7 @@ cases = list(dict.fromkeys(r["case"] for r in sweep))
 rules = list(dict.fromkeys(r["rule"] for r in sweep))
 ORDER = "zx"
 
-fig, axes = plt.subplots(2, len(cases), figsize=(12, 7), sharex=True)
+fig, axes = plt.subplots(2, len(cases), figsize=(4.2 * len(cases), 7), sharex=True)
 for col, case in enumerate(cases):
     for rule in rules:
         runs = sorted((number(r["rho0"]), r) for r in sweep
@@ -121,9 +121,10 @@ for case in cases:
             print(f"{case:28}{rule:>16}{order:>6}{s['reached']:>5}/{s['runs']:<3}{s['worst']:>7}"
                   f"{s['false']:>12}{s['factorizations']:>10}")
 
-contact, obstacle = cases
+contact, obstacle, tresca = cases
 for order in ("xz", "zx"):
     assert summary(contact, "fixed", order)["reached"] == 5        # 5 of 13 rho_0 on contact
+    assert summary(tresca, "fixed", order)["reached"] == 5         # the same 5 with Tresca friction
     assert summary(obstacle, "fixed", order)["reached"] == 4       # 4 of 13 on the obstacle
     assert summary(contact, "fixed", order)["false"] == 9          # 9 false stops of the paper's rule
     for case in cases:
