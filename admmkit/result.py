@@ -85,7 +85,8 @@ class Result:
         if self.objective is not None:
             lines.append(f"objective    {self.objective:.10g}")
         if self.kkt:
-            lines.append("KKT          " + "   ".join(f"{k} {v:.3e}" for k, v in self.kkt.items()))
+            lines.append("KKT          " + "   ".join(
+                f"{k} {v}" if isinstance(v, (int, np.integer)) else f"{k} {v:.3e}" for k, v in self.kkt.items()))
         if self.counters:
             lines.append("work         " + "   ".join(f"{k} {v}" for k, v in self.counters.items()))
         t = self.timings
