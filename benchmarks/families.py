@@ -53,6 +53,8 @@ QP_SCENES = ("qp:random-mixed",) + tuple(f"qp:{n}" for n in MM_QPS)
 CONTACT_SCENES = ("ex1", "ex2")
 OBSTACLE_SCENES = ("radial",)
 CLARABEL_TIGHT = 1e-10
+#: the environment variable naming a sweep's cache of reference solutions (set in every worker)
+CACHE_ENV = "ADMMKIT_BENCH_CACHE"
 
 
 def kind_of(scene: str) -> str:

@@ -32,7 +32,8 @@ from . import methods as methods_mod
 from .peers import PEERS, applicable, run_peer
 from .report import (NOISE_NOTE, fmt, machine_info, machine_markdown, md_table, pyplot,
                      save_figure, write_csv)
-from .families import CONTACT_SCENES, OBSTACLE_SCENES, QP_SCENES, discrete, kind_of, mm_folder, problem_key
+from .families import (CACHE_ENV, CONTACT_SCENES, OBSTACLE_SCENES, QP_SCENES, discrete, kind_of, mm_folder,
+                       problem_key)
 from .sweep import Executor, run_or_report
 
 HS = (1 / 20, 1 / 40, 1 / 80, 1 / 160)
@@ -40,7 +41,6 @@ QUICK_HS = (1 / 10,)
 TARGETS = (1e-4, 1e-8)
 #: errors below this (the reference itself, e.g. PDAS's last step) are drawn at it
 ERROR_FLOOR = 1e-15
-CACHE_ENV = "ADMMKIT_BENCH_CACHE"
 
 
 def build_cases(scenes, hs, admm: list[str], peers=PEERS, *, rho_scale: float = 1.0, repeats: int = 3,

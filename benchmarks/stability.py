@@ -34,7 +34,7 @@ from admmkit.io import write_text
 
 from . import methods as methods_mod
 from .report import NOISE_NOTE, fmt, machine_info, machine_markdown, md_table, pyplot, save_figure, write_csv
-from .families import discrete, problem_key
+from .families import CACHE_ENV, discrete, problem_key
 from .sweep import Executor, clean_float, run_or_report
 
 RHO_SCALES = tuple(10.0 ** k for k in range(-6, 7))
@@ -47,7 +47,6 @@ MAX_ITER = 20_000
 FALSE_CONVERGENCE_ERROR = 1e-3
 #: the PDAS reference is cross-checked by Clarabel up to this many unknowns (stability runs only)
 CROSS_CHECK_MAX = 50_000
-CACHE_ENV = "ADMMKIT_BENCH_CACHE"
 OUTCOMES = ("converged", "false_convergence", "max_iter", "diverged", "stalled", "time_limit")
 MARKS = {"false_convergence": "F", "max_iter": "M", "diverged": "D", "stalled": "S", "time_limit": "T"}
 

@@ -321,12 +321,11 @@ def run_or_report(cases: list[dict], func: str, out: Path, *, report_only: bool 
     """A study's sweep in ``out/results.jsonl``: (records, wall seconds of this invocation).
 
     ``report_only`` runs nothing and returns the cases already finished (wall None);
-    otherwise :func:`run_sweep` with ``env`` set here and passed to the workers,
-    and ``options`` (workers, executor, progress, cost, label).
+    otherwise :func:`run_sweep` with ``env`` set in every worker (an in-process
+    one too) and ``options`` (workers, executor, progress, cost, label).
     """
     if report_only:
         return finished(cases, out / "results.jsonl"), None
-    os.environ.update(env or {})
     t0 = time.perf_counter()
     records = run_sweep(cases, func, out / "results.jsonl", env=env, **options)
     return records, time.perf_counter() - t0

@@ -4,7 +4,6 @@ sweep, a worker killed mid-sweep, a study's command with --scheduler, the pandas
 The cases are tiny: random QPs and contact Example 1 at h = 1/10 (:func:`benchmarks.executors.run_case`),
 paced by a short sleep so that the driver can be interrupted halfway.
 """
-import json
 import logging
 import os
 import signal
@@ -53,17 +52,9 @@ def _full_cluster(request):
     yield
 
 
-def _ids_in_file(path):
-    ids = []
-    for line in Path(path).read_text().splitlines():
-        try:
-            ids.append(json.loads(line)["id"])
-        except (json.JSONDecodeError, KeyError, TypeError):
-            pass
-    return ids
 
 
-def test_interrupted_dask_sweep_resumes_with_every_case_once_and_local_iterations(tmp_path, cluster):
+def test_interrupted_dask_sweep_resumes_with_every_case_once_and_local_iterations(tmp_path, cluster, ids_in_file):
     cases = [c | {"pause": 0.4} for c in tiny_cases(qp=6, contact=4)]
     path = tmp_path / "dask" / "results.jsonl"
     script = textwrap.dedent(f"""
@@ -74,16 +65,16 @@ def test_interrupted_dask_sweep_resumes_with_every_case_once_and_local_iteration
     """)
     driver = subprocess.Popen([sys.executable, "-c", script], stderr=subprocess.DEVNULL)
     deadline = time.time() + 90
-    while (not path.exists() or len(_ids_in_file(path)) < 3) and time.time() < deadline and driver.poll() is None:
+    while (not path.exists() or len(ids_in_file(path)) < 3) and time.time() < deadline and driver.poll() is None:
         time.sleep(0.05)
     assert driver.poll() is None, "the sweep ended before it could be interrupted"
     driver.send_signal(signal.SIGINT)                   # Ctrl-C halfway
     assert driver.wait(60) != 0
-    before = _ids_in_file(path)
+    before = ids_in_file(path)
     assert 3 <= len(before) < len(cases)
     # resume on a running cluster (--scheduler): only the missing cases run
     records = run_sweep(cases, FUNC, path, executor=Executor(scheduler=cluster.scheduler_address), progress=False)
-    ids = _ids_in_file(path)
+    ids = ids_in_file(path)
     assert ids[:len(before)] == before
     assert sorted(ids) == sorted(case_id(c) for c in cases)          # every case exactly once
     assert not any(r.get("error") for r in records.values())
@@ -99,14 +90,14 @@ def test_interrupted_dask_sweep_resumes_with_every_case_once_and_local_iteration
     assert len(pd.read_json(path, lines=True)) == len(cases)
 
 
-def test_a_killed_worker_loses_no_case(tmp_path, cluster):
+def test_a_killed_worker_loses_no_case(tmp_path, cluster, ids_in_file):
     marker = tmp_path / "killed-once"
     cases = [c | {"pause": 0.2} for c in tiny_cases(qp=4, contact=2)]
     cases[1] = cases[1] | {"die_once": str(marker)}       # its worker dies in the middle of the sweep
     path = tmp_path / "results.jsonl"
     records = run_sweep(cases, FUNC, path, executor=Executor(scheduler=cluster.scheduler_address), progress=False)
     assert marker.exists()                                 # a worker was killed
-    assert sorted(_ids_in_file(path)) == sorted(case_id(c) for c in cases)
+    assert sorted(ids_in_file(path)) == sorted(case_id(c) for c in cases)
     assert all("error" not in r and r["result"]["iterations"] > 0 for r in records.values())
     assert load_results(path).keys() == records.keys()
 

@@ -38,15 +38,6 @@ def fault_case(case):
     return {"square": case["value"] ** 2, "pid": os.getpid()}
 
 
-def _ids_in_file(path):
-    """The ids of the whole lines of a results file (torn lines do not parse)."""
-    ids = []
-    for line in Path(path).read_text().splitlines():
-        try:
-            ids.append(json.loads(line)["id"])
-        except (json.JSONDecodeError, KeyError, TypeError):
-            pass
-    return ids
 
 
 # ---------------------------------------------------------------- torn lines and resume
@@ -60,7 +51,7 @@ def test_append_after_a_torn_last_line_keeps_the_new_record(tmp_path):
     assert path.read_text().endswith('"result": 3}\n')
 
 
-def test_resume_after_torn_lines_reruns_only_the_torn_case(tmp_path):
+def test_resume_after_torn_lines_reruns_only_the_torn_case(tmp_path, ids_in_file):
     path = tmp_path / "r.jsonl"
     cases = [{"value": v} for v in range(5)]
     run_sweep(cases[:3], FUNC, path, workers=1, progress=False, table=False)
@@ -69,7 +60,7 @@ def test_resume_after_torn_lines_reruns_only_the_torn_case(tmp_path):
     path.write_text(torn.replace("\n", "\n{garbage\n", 1))   # and a torn line in the middle
     records = run_sweep(cases, FUNC, path, workers=1, progress=False)
     assert {r["result"]["square"] for r in records.values()} == {0, 1, 4, 9, 16}
-    ids = _ids_in_file(path)
+    ids = ids_in_file(path)
     assert sorted(ids) == sorted(case_id(c) for c in cases)        # every case exactly once
     assert len(load_results(path)) == 5
 
@@ -120,7 +111,7 @@ def test_qp_results_csv_survives_a_kill_during_its_rewrite(tmp_path, monkeypatch
 
 
 # ---------------------------------------------------------------- dead workers, time limits, a dead driver
-def test_a_dead_worker_is_retried_then_recorded_and_the_sweep_goes_on(tmp_path):
+def test_a_dead_worker_is_retried_then_recorded_and_the_sweep_goes_on(tmp_path, ids_in_file):
     path = tmp_path / "r.jsonl"
     cases = [{"value": 1, "die": True, "marker": str(tmp_path / "once")},   # dies once: retried
              {"value": 2, "die": True},                                     # always dies: recorded
@@ -130,7 +121,7 @@ def test_a_dead_worker_is_retried_then_recorded_and_the_sweep_goes_on(tmp_path):
     assert by_value[1]["result"]["square"] == 1 and "error" not in by_value[1]
     assert by_value[2]["error"].startswith("WorkerDied") and "2 time(s)" in by_value[2]["error"]
     assert by_value[3]["result"]["square"] == 9 and by_value[4]["result"]["square"] == 16
-    assert sorted(_ids_in_file(path)) == sorted(case_id(c) for c in cases)
+    assert sorted(ids_in_file(path)) == sorted(case_id(c) for c in cases)
 
 
 def test_a_case_over_the_time_limit_is_recorded_as_a_timeout(tmp_path):
@@ -186,7 +177,7 @@ def _alive(pid: int) -> bool:
 
 
 # ---------------------------------------------------------------- bench policies resumes
-def test_bench_policies_resumes(tmp_path):
+def test_bench_policies_resumes(tmp_path, ids_in_file):
     from benchmarks.policies_fe import run
     kwargs = dict(rules=("quantized",), quick=True, progress=False, max_iter=3000, workers=1,
                   problems=("obstacle",))
@@ -197,7 +188,7 @@ def test_bench_policies_resumes(tmp_path):
     path.write_text("\n".join(lines[:3]) + "\n" + lines[3][:30])   # interrupted: 3 whole lines and a torn one
     csv_before = (tmp_path / "sweep.csv").read_text()
     run(tmp_path, **kwargs)
-    assert sorted(_ids_in_file(path)) == sorted(json.loads(x)["id"] for x in lines)
+    assert sorted(ids_in_file(path)) == sorted(json.loads(x)["id"] for x in lines)
     assert (tmp_path / "sweep.csv").read_text() == csv_before       # the same iterations, the same table
 
 
