@@ -18,8 +18,11 @@ RHO0 = 0.1
 SHIFT = 10.0
 #: the label of OSQP called directly
 OSQP_DIRECT = "OSQP"
-FIELDS = ("problem", "n", "m", "solver", "order", "eps", "solved", "status", "iterations", "time", "setup_time",
-          "factorizations", "rho_changes", "rho_final", "rho_max", "primal_res", "dual_res")
+FIELDS = ("problem", "n", "m", "variant", "solver", "order", "eps", "solved", "neutral", "status", "iterations",
+          "time", "setup_time", "loop_time", "factorizations", "rho_changes", "rho_final", "rho_max", "neutral_primal",
+          "neutral_dual", "neutral_gap")
+#: mid-sized problems for the time per iteration: MID_SIZE[0] <= n + m <= MID_SIZE[1]
+MID_SIZE = (1000, 20000)
 
 
 # ---------------------------------------------------------------- statistics
@@ -31,32 +34,42 @@ def shifted_geometric_mean(values, shift: float = SHIFT) -> float:
     return float(np.exp(np.mean(np.log(v + shift))) - shift)
 
 
-def solver_keys(rows: list[dict]) -> list[tuple[str, str]]:
-    """(solver, order) pairs in first-seen order."""
-    return list(dict.fromkeys((r["solver"], r["order"]) for r in rows))
+def config_keys(rows: list[dict]) -> list[tuple[str, str, str]]:
+    """(variant, solver, order) triples in first-seen order."""
+    return list(dict.fromkeys((r["variant"], r["solver"], r["order"]) for r in rows))
+
+
+def label(key: tuple[str, str, str]) -> str:
+    """'preset/osqp (xz)', 'OSQP', 'OSQP + polish'."""
+    variant, solver, order = key
+    if solver == OSQP_DIRECT:
+        return OSQP_DIRECT + (" + polish" if variant == "polish" else "")
+    return f"{variant}/{solver} ({order})"
 
 
 def summarize(rows: list[dict], max_iter: int, time_limit: float) -> list[dict]:
-    """One line per (solver, order, eps): successes, shifted geometric means, factorisations, statuses."""
+    """One line per (variant, solver, order, eps): successes by both judgements, shifted geometric means over the
+    neutral successes, factorisations, failures (runs the neutral criteria rejected, by status)."""
     out = []
     for eps in sorted({r["eps"] for r in rows}, reverse=True):
-        for solver, order in solver_keys(rows):
-            sel = [r for r in rows if r["solver"] == solver and r["order"] == order and r["eps"] == eps]
+        for key in config_keys(rows):
+            sel = [r for r in rows if (r["variant"], r["solver"], r["order"]) == key and r["eps"] == eps]
             if not sel:
                 continue
-            solved = [r for r in sel if _true(r["solved"])]
+            ok = [_true(r["neutral"]) for r in sel]
             statuses: dict[str, int] = {}
-            for r in sel:
-                if not _true(r["solved"]):
-                    statuses[r["status"]] = statuses.get(r["status"], 0) + 1
+            for r, good in zip(sel, ok):
+                if not good:
+                    name = r["status"] if r["status"] != "solved" else "solved, neutral criteria not met"
+                    statuses[name] = statuses.get(name, 0) + 1
             facts = [float(r["factorizations"]) for r in sel]
             out.append({
-                "eps": eps, "solver": solver, "order": order, "problems": len(sel), "solved": len(solved),
-                "rate": len(solved) / len(sel),
+                "eps": eps, "variant": key[0], "solver": key[1], "order": key[2], "problems": len(sel),
+                "neutral": sum(ok), "solved": sum(_true(r["solved"]) for r in sel), "rate": sum(ok) / len(sel),
                 "sgm_iterations": shifted_geometric_mean(
-                    float(r["iterations"]) if _true(r["solved"]) else max_iter for r in sel),
+                    float(r["iterations"]) if good else max_iter for r, good in zip(sel, ok)),
                 "sgm_time": shifted_geometric_mean(
-                    float(r["time"]) if _true(r["solved"]) else time_limit for r in sel),
+                    float(r["time"]) if good else time_limit for r, good in zip(sel, ok)),
                 "factorizations_mean": float(np.mean(facts)), "factorizations_max": int(max(facts)),
                 "failures": statuses,
                 "runaway": sum(1 for r in sel if _finite(r["rho_max"]) and float(r["rho_max"]) > 1e20 * RHO0),
@@ -64,16 +77,19 @@ def summarize(rows: list[dict], max_iter: int, time_limit: float) -> list[dict]:
     return out
 
 
-def performance_profile(rows: list[dict], metric: str, eps: float):
-    """Dolan-More profile: {(solver, order): (taus, fraction of problems solved within tau x the best)}."""
+def performance_profile(rows: list[dict], metric: str, eps: float, keys=None):
+    """Dolan-More profile over the neutral successes: {key: (taus, fraction of problems within tau x the best)}
+    (the best among ``keys``, default every configuration)."""
     sel = [r for r in rows if r["eps"] == eps]
+    keys = list(keys) if keys is not None else config_keys(sel)
     problems = sorted({r["problem"] for r in sel})
-    keys = solver_keys(sel)
     table = np.full((len(problems), len(keys)), np.inf)
     index = {p: i for i, p in enumerate(problems)}
+    column = {k: j for j, k in enumerate(keys)}
     for r in sel:
-        if _true(r["solved"]):
-            table[index[r["problem"]], keys.index((r["solver"], r["order"]))] = max(float(r[metric]), 1e-9)
+        j = column.get((r["variant"], r["solver"], r["order"]))
+        if j is not None and _true(r["neutral"]):
+            table[index[r["problem"]], j] = max(float(r[metric]), 1e-9)
     best = table.min(axis=1, keepdims=True)
     with np.errstate(invalid="ignore", divide="ignore"):
         ratio = np.where(np.isfinite(best), table / best, np.inf)
@@ -81,6 +97,44 @@ def performance_profile(rows: list[dict], metric: str, eps: float):
     top = max(float(finite.max()) if finite.size else 2.0, 2.0)
     taus = np.logspace(0, math.log10(top) + 0.05, 400)
     return {key: (taus, (ratio[:, j][:, None] <= taus[None, :]).mean(axis=0)) for j, key in enumerate(keys)}
+
+
+def target(summary: list[dict]) -> list[dict]:
+    """Per accuracy: the best admmkit configuration without and with polishing against OSQP without and with it."""
+    out = []
+    for eps in sorted({s["eps"] for s in summary}, reverse=True):
+        sel = [s for s in summary if s["eps"] == eps]
+        for polish in (False, True):
+            ours = [s for s in sel if s["solver"] != OSQP_DIRECT and (s["variant"] == "polish") == polish]
+            theirs = [s for s in sel if s["solver"] == OSQP_DIRECT and (s["variant"] == "polish") == polish]
+            if not ours or not theirs:
+                continue
+            best = max(ours, key=lambda s: (s["neutral"], -s["sgm_time"]))
+            out.append({"eps": eps, "polish": polish, "best": label((best["variant"], best["solver"], best["order"])),
+                        "best_neutral": best["neutral"], "osqp_neutral": theirs[0]["neutral"],
+                        "problems": best["problems"], "met": best["neutral"] >= theirs[0]["neutral"]})
+    return out
+
+
+def time_per_iteration(rows: list[dict], mid=MID_SIZE) -> dict[float, dict]:
+    """Per accuracy: time per iteration of preset/osqp (xz) over OSQP's, on mid-sized problems both solved
+    by the neutral criteria: median, min, max and the count.  The loops' wall times (``loop_time``: admmkit's
+    ``timings["total"]``, OSQP's ``info.solve_time``), measured in the same process one after the other."""
+    out = {}
+    for eps in sorted({r["eps"] for r in rows}, reverse=True):
+        ours = {r["problem"]: r for r in rows if r["eps"] == eps and (r["variant"], r["solver"], r["order"])
+                == ("preset", "osqp", "xz") and _true(r["neutral"])}
+        ratios = []
+        for r in rows:
+            if (r["eps"] == eps and r["solver"] == OSQP_DIRECT and r["variant"] == "default" and _true(r["neutral"])
+                    and r["problem"] in ours and mid[0] <= int(r["n"]) + int(r["m"]) <= mid[1]):
+                o = ours[r["problem"]]
+                ratios.append((float(o["loop_time"]) / int(o["iterations"]))
+                              / (float(r["loop_time"]) / int(r["iterations"])))
+        if ratios:
+            out[eps] = {"median": float(np.median(ratios)), "min": float(min(ratios)), "max": float(max(ratios)),
+                        "count": len(ratios)}
+    return out
 
 
 def _true(v) -> bool:
@@ -95,40 +149,56 @@ def _finite(v) -> bool:
 
 
 # ---------------------------------------------------------------- output
-def plot_profiles(rows: list[dict], path_stem: Path) -> list[Path]:
-    """Performance profiles (rows: accuracies, columns: iterations and time) as PNG and SVG."""
+#: the panels of the profiles: a title and which configurations (OSQP itself is drawn in every panel)
+PANELS = (("the rules in OSQP's machinery (preset)", lambda k: k[0] == "preset"),
+          ("the rules in the textbook loop", lambda k: k[0] == "textbook"),
+          ("OSQP's rule (xz): the preset without one piece", lambda k: k[1] == "osqp" and k[2] == "xz"))
+
+
+def plot_profiles(rows: list[dict], path_stem: Path, metric: str = "iterations") -> list[Path]:
+    """Performance profiles of ``metric`` over the neutral successes (rows: accuracies; columns: :data:`PANELS`)
+    as PNG and SVG; each panel's ratios are to the best configuration in that panel."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     epss = sorted({r["eps"] for r in rows}, reverse=True)
-    names = list(dict.fromkeys(r["solver"] for r in rows))
-    colors = {name: plt.cm.tab10(i % 10) for i, name in enumerate(n for n in names if n != OSQP_DIRECT)}
-    colors[OSQP_DIRECT] = "black"
+    keys = config_keys(rows)
+    rules = list(dict.fromkeys(k[1] for k in keys if k[1] != OSQP_DIRECT))
+    variants = list(dict.fromkeys(k[0] for k in keys if k[1] == "osqp" and k[2] == "xz"))
     styles = {"xz": "-", "zx": "--", "-": "-"}
-    fig, axes = plt.subplots(len(epss), 2, figsize=(13, 4.6 * len(epss)), squeeze=False)
+    fig, axes = plt.subplots(len(epss), len(PANELS), figsize=(6.2 * len(PANELS), 4.4 * len(epss)), squeeze=False)
     for i, eps in enumerate(epss):
-        for j, (metric, label) in enumerate([("iterations", "iterations"), ("time", "time")]):
+        for j, (title, chosen) in enumerate(PANELS):
             ax = axes[i][j]
-            for (solver, order), (taus, frac) in performance_profile(rows, metric, eps).items():
-                ax.step(taus, frac, where="post", color=colors[solver], linestyle=styles.get(order, "-"),
-                        linewidth=2.2 if solver == OSQP_DIRECT else 1.4,
-                        label=solver if order == "-" else f"{solver} ({order})")
+            panel = [k for k in keys if k[1] == OSQP_DIRECT or chosen(k)]
+            if not panel:
+                ax.set_axis_off()
+                continue
+            for key, (taus, frac) in performance_profile(rows, metric, eps, panel).items():
+                if key[1] == OSQP_DIRECT:
+                    color, width, style = ("black" if key[0] == "default" else "0.55"), 2.4, "-"
+                elif j == 2:
+                    color, width, style = plt.cm.tab10(variants.index(key[0]) % 10), 1.5, "-"
+                else:
+                    color, width, style = plt.cm.tab10(rules.index(key[1]) % 10), 1.4, styles[key[2]]
+                ax.step(taus, frac, where="post", color=color, linestyle=style, linewidth=width,
+                        label=label(key) if j == 2 or key[1] == OSQP_DIRECT else f"{key[1]} ({key[2]})")
             ax.set_xscale("log", base=2)
             ax.set_ylim(0, 1.02)
             ax.grid(True, which="both", alpha=0.3)
-            ax.set_xlabel(f"tau: within tau x the best {label}")
+            ax.set_xlabel(f"tau: within tau x the panel's best {metric}")
             ax.set_ylabel("fraction of problems")
-            ax.set_title(f"{label}, eps_abs = eps_rel = {eps:g}")
-    handles, labels = axes[0][0].get_legend_handles_labels()
-    fig.legend(handles, labels, loc="center right", fontsize=8, frameon=False)
-    fig.suptitle("Performance profiles on the Maros-Meszaros QPs (solid: order xz, dashed: zx)")
-    fig.tight_layout(rect=(0, 0, 0.83, 0.97))
+            ax.set_title(f"{title}\neps = {eps:g} (absolute), neutral criteria", fontsize=10)
+            if i == 0:
+                ax.legend(fontsize=7, loc="lower right", ncol=2 if j < 2 else 1)
+    fig.suptitle(f"Performance profiles ({metric}) on the Maros-Meszaros QPs; solid: order xz, dashed: zx")
+    fig.tight_layout(rect=(0, 0, 1, 0.97))
     paths = []
     for ext in ("png", "svg"):
         p = path_stem.with_suffix(f".{ext}")
         with atomic_path(p) as tmp:
-            fig.savefig(tmp, dpi=110)
+            fig.savefig(tmp, dpi=100)
         paths.append(p)
     plt.close(fig)
     return paths
@@ -139,46 +209,65 @@ def _fmt_failures(failures: dict) -> str:
 
 
 def markdown(summary: list[dict], skipped: dict[str, str], meta: dict, command: str, n_run: int,
-             figure: str, kkt_form: dict[str, str] | None = None) -> str:
-    """The report: settings, one table per accuracy, the KKT-form and the skipped problems, the machine."""
+             figures: list[str], kkt_form: dict[str, str] | None = None, per_iteration: dict | None = None) -> str:
+    """The report: settings, the targets, one table per accuracy, the KKT-form and skipped problems, the machine."""
     lines = [
-        "# Penalty rules on the Maros-Meszaros QPs",
+        "# Penalty rules on the Maros-Meszaros QPs, with and without OSQP's machinery, and OSQP 1.x",
         "",
         f"Command (from the repository root): `{command}`",
         "",
-        f"{n_run} problems run, {len(skipped)} skipped (listed below).  Every admmkit rule starts from "
-        f"rho_0 = {RHO0:g}; iteration cap {meta['max_iter']}, time limit {meta['time_limit']:g} s per problem and "
-        f"configuration.  Times are CPU seconds of the process (setup + solve, BLAS on one thread): the 2-core "
-        f"machine was shared (the sweep ran on {meta['workers']}, beside other jobs), and wall time would "
-        "charge a run for the other processes.  "
-        "Solved means OSQP's test with eps_abs = eps_rel = eps on the unscaled QP (docs/policies.md).  "
-        f"Shifted geometric means use shift {SHIFT:g} and count a failure as the cap / the limit.  "
-        "Factorisations: of the x-step matrix during the run up to that accuracy (OSQP: 1 + rho updates).  "
-        "'runaway': runs where rho exceeded 1e20 rho_0.  Per-run data: `results.csv`.",
-        "",
-        f"![performance profiles]({figure})",
+        f"{n_run} problems run, {len(skipped)} skipped (listed below).  Configurations: `variant/rule (order)`; "
+        "variant `preset` is OSQP's machinery (`problems.qp.osqp_settings()`), `textbook` admmkit's textbook "
+        "loop, `no-scaling`, `uniform-rho`, `alpha-1` the preset without Ruiz scaling, the penalty per row or "
+        "over-relaxation, `polish` with polishing; `OSQP` is the osqp package with its defaults.  Every run asks "
+        f"for the absolute accuracy eps (eps_abs = eps, eps_rel = 0) from rho_0 = {RHO0:g}, with the iteration "
+        f"cap {meta['max_iter']} and the time limit {meta['time_limit']:g} CPU s per run.  "
+        "**neutral**: the returned (x, y) meets the neutral criteria (qpbenchmark's infinity-norm primal and dual "
+        "residuals and duality gap, each <= eps); **own**: the solver's own test said solved.  Rates, shifted "
+        f"geometric means (shift {SHIFT:g}; a failure counts as the cap / the limit) and the profiles use the neutral "
+        "judgement.  Times are CPU seconds of the process (setup + solve, BLAS on one thread): the 2-core machine "
+        f"was shared (the sweep ran on {meta['workers']}).  Factorisations: of the x-step matrix (OSQP: 1 + rho "
+        "updates).  'runaway': runs where rho exceeded 1e20 rho_0.  Per-run data: `results.csv`.",
         "",
     ]
+    lines += [f"![performance profiles]({f})" for f in figures] + [""]
+    lines += ["## Targets", "", "| eps | polishing | best admmkit configuration | its neutral successes "
+              "| OSQP's | met |", "|---|---|---|---|---|---|"]
+    for t in target(summary):
+        lines.append(f"| {t['eps']:g} | {'yes' if t['polish'] else 'no'} | {t['best']} | {t['best_neutral']}/"
+                     f"{t['problems']} | {t['osqp_neutral']}/{t['problems']} | {'yes' if t['met'] else 'NO'} |")
+    lines.append("")
+    for eps, r in (per_iteration or {}).items():
+        lines.append(f"Time per iteration, preset/osqp (xz) / OSQP, mid-sized problems ({MID_SIZE[0]} <= n + m <= "
+                     f"{MID_SIZE[1]}, {r['count']} met the neutral criteria in both) at eps = {eps:g}: median "
+                     f"{r['median']:.2f}, min {r['min']:.2f}, max {r['max']:.2f} (the loops' wall times).")
+    lines.append("")
     for eps in sorted({s["eps"] for s in summary}, reverse=True):
         lines += [f"## eps = {eps:g}", "",
-                  "| rule | order | solved | rate | SGM iterations | SGM time [s] | factorisations mean / max "
-                  "| failures | runaway |",
+                  "| configuration | neutral | own | rate | SGM iterations | SGM time [s] | factorisations mean / max "
+                  "| failures (neutral criteria not met) | runaway |",
                   "|---|---|---|---|---|---|---|---|---|"]
         rows = sorted((s for s in summary if s["eps"] == eps), key=lambda s: (-s["rate"], s["sgm_time"]))
         for s in rows:
-            lines.append(f"| {s['solver']} | {s['order']} | {s['solved']}/{s['problems']} | {100 * s['rate']:.1f}% "
-                         f"| {s['sgm_iterations']:.1f} | {s['sgm_time']:.3f} | {s['factorizations_mean']:.1f} / "
-                         f"{s['factorizations_max']} | {_fmt_failures(s['failures'])} | {s['runaway']} |")
+            lines.append(f"| {label((s['variant'], s['solver'], s['order']))} | {s['neutral']}/{s['problems']} | "
+                         f"{s['solved']} | {100 * s['rate']:.1f}% | {s['sgm_iterations']:.1f} | {s['sgm_time']:.3f} "
+                         f"| {s['factorizations_mean']:.1f} / {s['factorizations_max']} | "
+                         f"{_fmt_failures(s['failures'])} | {s['runaway']} |")
         lines.append("")
-    lines += ["## x-step in KKT form", "",
-              "A dense row of A makes A'A dense; these problems ran with OSQP's KKT form of the x-step "
-              "(`QP(xstep=\"auto\")`, factorised by qdldl or SuperLU):", ""]
+    lines += ["## x-step in KKT form (textbook loop)", "",
+              "The preset solves OSQP's KKT system; the textbook loop (`xstep=\"auto\"`) solves P + sigma I + "
+              "rho A'A, except where a dense row of A makes A'A dense:", ""]
     lines += [f"- {name}: {why}" for name, why in sorted((kkt_form or {}).items())] or ["- none"]
     lines += ["", "## Skipped", ""]
     lines += [f"- {name}: {why}" for name, why in sorted(skipped.items())] or ["- none"]
     lines += ["", "## Machine", ""] + [f"- {k}: {v}" for k, v in meta["machine"].items()]
     lines += [f"- started {meta['started']}, wall time {meta['wall']:.0f} s", ""]
     return "\n".join(lines)
+
+
+_INTS = ("n", "m", "iterations", "factorizations", "rho_changes")
+_FLOATS = ("eps", "time", "setup_time", "loop_time", "rho_final", "rho_max", "neutral_primal", "neutral_dual",
+           "neutral_gap")
 
 
 def write_rows(rows: list[dict], path: Path) -> None:
@@ -195,34 +284,39 @@ def read_rows(path: Path) -> list[dict]:
     rows = []
     with path.open(newline="") as fh:
         for r in csv.DictReader(fh):
-            for k in ("n", "m", "iterations", "factorizations", "rho_changes"):
+            for k in _INTS:
                 r[k] = int(r[k])
-            for k in ("eps", "time", "setup_time", "rho_final", "rho_max", "primal_res", "dual_res"):
+            for k in _FLOATS:
                 r[k] = float(r[k])
-            r["solved"] = _true(r["solved"])
+            r["solved"], r["neutral"] = _true(r["solved"]), _true(r["neutral"])
             rows.append(r)
     return rows
 
 
 def write_summary(summary: list[dict], path: Path) -> None:
-    """summary.csv: one line per (eps, solver, order), whole or not at all."""
+    """summary.csv: one line per (eps, variant, solver, order), whole or not at all."""
     with atomic_open(path, "w", newline="") as fh:
         w = csv.writer(fh)
-        w.writerow(["eps", "solver", "order", "problems", "solved", "rate", "sgm_iterations", "sgm_time",
-                    "factorizations_mean", "factorizations_max", "failures", "runaway"])
+        w.writerow(["eps", "variant", "solver", "order", "problems", "neutral", "solved", "rate", "sgm_iterations",
+                    "sgm_time", "factorizations_mean", "factorizations_max", "failures", "runaway"])
         for s in summary:
-            w.writerow([s["eps"], s["solver"], s["order"], s["problems"], s["solved"], f"{s['rate']:.4f}",
-                        f"{s['sgm_iterations']:.2f}", f"{s['sgm_time']:.4f}", f"{s['factorizations_mean']:.2f}",
-                        s["factorizations_max"], _fmt_failures(s["failures"]), s["runaway"]])
+            w.writerow([s["eps"], s["variant"], s["solver"], s["order"], s["problems"], s["neutral"], s["solved"],
+                        f"{s['rate']:.4f}", f"{s['sgm_iterations']:.2f}", f"{s['sgm_time']:.4f}",
+                        f"{s['factorizations_mean']:.2f}", s["factorizations_max"], _fmt_failures(s["failures"]),
+                        s["runaway"]])
 
 
 def write_report(rows: list[dict], out: Path, *, skipped: dict, kkt_form: dict, meta: dict, command: str) -> dict:
-    """results.csv, summary.csv, the profiles and README.md from the per-run rows; returns summary and figures."""
-    rows.sort(key=lambda r: (r["problem"], r["solver"], r["order"], -r["eps"]))
+    """results.csv, summary.csv, the profiles (iterations, time) and README.md from the per-run rows."""
+    rows.sort(key=lambda r: (r["problem"], r["variant"], r["solver"], r["order"], -r["eps"]))
     write_rows(rows, out / "results.csv")
     summary = summarize(rows, meta["max_iter"], meta["time_limit"])
-    figures = plot_profiles(rows, out / "profiles") if rows else []
-    text = markdown(summary, skipped, meta, command, len({r["problem"] for r in rows}), "profiles.png", kkt_form)
+    figures = []
+    if rows:
+        for metric in ("iterations", "time"):
+            figures += plot_profiles(rows, out / f"profiles_{metric}", metric)
+    text = markdown(summary, skipped, meta, command, len({r["problem"] for r in rows}),
+                    [p.name for p in figures if p.suffix == ".png"], kkt_form, time_per_iteration(rows))
     write_text(out / "README.md", text)
     write_summary(summary, out / "summary.csv")
     return {"summary": summary, "figures": figures, "text": text}

@@ -14,8 +14,11 @@ import scipy.sparse as sp
 import admmkit
 import policies  # noqa: F401
 from problems.qp import load_mat, random_qp
-from benchmarks.maros_meszaros import (kkt_form_reason, performance_profile, run_benchmark, run_osqp, shifted_geometric_mean,
-                               skip_reason, summarize)
+from benchmarks.maros_meszaros import (kkt_form_reason, performance_profile, run_benchmark, shifted_geometric_mean,
+                                       skip_reason, summarize)
+from benchmarks.maros_meszaros_report import target
+from benchmarks.maros_meszaros_runs import run_admmkit, run_osqp
+from problems.qp import osqp_settings, solve_qp, textbook_settings
 from problems.qp.reference import solve_with_cvxpy
 from problems.qp.termination import OSQPTermination, osqp_relative_residuals, osqp_residuals, osqp_satisfied
 
@@ -51,25 +54,53 @@ def test_osqp_termination_certifies_the_cvxpy_solution(order):
 def test_statistics():
     assert shifted_geometric_mean([10.0, 40.0]) == pytest.approx(math.sqrt(20 * 50) - 10)
     assert shifted_geometric_mean([0.0, 0.0]) == pytest.approx(0.0)
-    rows = [dict(problem=p, solver=s, order="xz", eps=1e-3, solved=ok, iterations=it, time=t, factorizations=1,
-                 rho_max=1.0, status="solved" if ok else "max_iter")
+    rows = [dict(problem=p, variant="preset", solver=s, order="xz", eps=1e-3, solved=ok, neutral=ok, iterations=it,
+                 time=t, factorizations=1, rho_max=1.0, status="solved" if ok else "max_iter")
             for p, s, ok, it, t in [("a", "s1", True, 10, 1.0), ("a", "s2", True, 20, 4.0),
                                     ("b", "s1", False, 100, 9.0), ("b", "s2", True, 50, 2.0)]]
+    rows += [dict(problem=p, variant="default", solver="OSQP", order="-", eps=1e-3, solved=True, neutral=ok,
+                  iterations=5, time=0.5, factorizations=1, rho_max=1.0, status="solved")
+             for p, ok in (("a", True), ("b", False))]     # b: OSQP said solved, the neutral criteria say no
     prof = performance_profile(rows, "time", 1e-3)
-    taus, frac = prof[("s1", "xz")]
-    assert frac[0] == 0.5 and frac[-1] == 0.5            # best on a, fails b
-    taus, frac = prof[("s2", "xz")]
-    assert frac[0] == 0.5 and frac[np.searchsorted(taus, 4.0)] == 1.0
+    taus, frac = prof[("preset", "s1", "xz")]
+    assert frac[0] == 0.0 and frac[-1] == 0.5            # a: 2x OSQP's time; fails b
+    taus, frac = prof[("preset", "s2", "xz")]
+    assert frac[0] == 0.5 and frac[np.searchsorted(taus, 8.0)] == 1.0
     summary = {(s["solver"]): s for s in summarize(rows, max_iter=100, time_limit=10.0)}
     assert summary["s1"]["rate"] == 0.5 and summary["s1"]["failures"] == {"max_iter": 1}
     assert summary["s1"]["sgm_time"] == pytest.approx(math.sqrt(11 * 20) - 10)
+    assert summary["OSQP"]["neutral"] == 1 and summary["OSQP"]["solved"] == 2
+    assert summary["OSQP"]["failures"] == {"solved, neutral criteria not met": 1}
+    (t,) = target(list(summary.values()))
+    assert t["best"] == "preset/s2 (xz)" and t["best_neutral"] == 2 and t["osqp_neutral"] == 1 and t["met"]
 
 
 def test_osqp_direct_run():
     qp = random_qp(20, 30, kind="mixed", seed=1)
-    row = run_osqp(qp, 1e-6)
-    assert row["solved"] and row["solver"] == "OSQP" and row["iterations"] >= 1
-    assert row["primal_res"] < 1e-4 and row["dual_res"] < 1e-4
+    row = run_osqp(qp, 1e-6, max_iter=4000, time_limit=5.0)
+    assert row["solved"] and row["neutral"] and row["solver"] == "OSQP" and row["iterations"] >= 1
+    assert max(row["neutral_primal"], row["neutral_dual"], row["neutral_gap"]) <= 1e-6
+
+
+@pytest.mark.parametrize("variant,order", [("preset", "xz"), ("preset", "zx"), ("textbook", "xz")])
+def test_one_run_gives_the_looser_accuracy_of_a_run_stopped_there(variant, order):
+    # the 1e-3 row of a run to 1e-6 is where a run asked for 1e-3 stops, and is judged at that iterate
+    qp = random_qp(25, 40, kind="mixed", seed=4)
+    rows = {r["eps"]: r for r in run_admmkit(qp, variant, "wohlberg", order, (1e-3, 1e-6), 4000, 5.0)}
+    settings = osqp_settings() if variant == "preset" else textbook_settings()
+    alone = solve_qp(qp, settings.replace(order=order, eps_abs=1e-3, eps_rel=0.0), policy="wohlberg")
+    assert alone.termination == "solved" and rows[1e-3]["solved"]
+    assert rows[1e-3]["iterations"] == alone.iterations < rows[1e-6]["iterations"]
+    assert rows[1e-3]["neutral_dual"] == pytest.approx(alone.neutral["dual"], rel=1e-9, abs=1e-15)
+    assert rows[1e-3]["neutral"] == (max(alone.neutral.values()) <= 1e-3)
+    x_ref, _, obj_ref = solve_with_cvxpy(qp)
+    tight = solve_qp(qp, settings.replace(order=order, eps_abs=1e-6, eps_rel=0.0), policy="wohlberg")
+    assert rows[1e-6]["iterations"] == tight.iterations and rows[1e-6]["solved"] == (tight.termination == "solved")
+    assert rows[1e-6]["neutral"] == (max(tight.neutral.values()) <= 1e-6)
+    if (variant, order) == ("preset", "xz"):
+        assert rows[1e-6]["neutral"]
+    if rows[1e-6]["neutral"]:
+        assert np.linalg.norm(tight.x - x_ref) <= 1e-3 * max(1.0, np.linalg.norm(x_ref))
 
 
 def test_benchmark_smoke(tmp_path, capsys):
@@ -86,21 +117,25 @@ def test_benchmark_smoke(tmp_path, capsys):
     assert skip_reason(data / "DENSE.mat", nnz_limit=3000) is None          # its KKT form fits
     out = tmp_path / "out"
     from admmkit.cli import main
-    code = main(["bench", "qp", "--data", str(data), "--out", str(out), "--policies", "wohlberg,osqp_qp",
-                 "--max-iter", "3000", "--time-limit", "5", "--quiet"])
+    code = main(["bench", "qp", "--data", str(data), "--out", str(out), "--policies", "wohlberg,osqp",
+                 "--variants", "preset,textbook,polish", "--max-iter", "3000", "--time-limit", "5", "--quiet"])
     assert code == 0
-    for name in ("README.md", "results.csv", "summary.csv", "profiles.png", "profiles.svg"):
+    for name in ("README.md", "results.csv", "summary.csv", "profiles_iterations.png", "profiles_time.svg"):
         assert (out / name).stat().st_size > 0, name
     with (out / "results.csv").open() as fh:
         rows = list(csv.DictReader(fh))
-    # 3 problems (the dense one runs here: its bound is small) x (2 rules x 2 orders + OSQP) x 2 accuracies
-    assert len(rows) == 3 * 5 * 2
-    assert {r["solver"] for r in rows} == {"wohlberg", "osqp_qp", "OSQP"}
+    # 3 problems (the dense one runs here: its bound is small) x ((2 rules x 2 orders x 2 variants + polish) x 2
+    # accuracies + OSQP with and without polishing x 2 accuracies)
+    assert len(rows) == 3 * (9 * 2 + 4)
+    assert {r["solver"] for r in rows} == {"wohlberg", "osqp", "OSQP"}
+    assert {r["variant"] for r in rows} == {"preset", "textbook", "polish", "default"}
+    assert all(r["neutral"] == "True" for r in rows if r["variant"] == "preset" and r["solver"] == "osqp")
     text = (out / "README.md").read_text()
     assert "admmkit bench qp --data" in text and "## eps = 1e-06" in text and "## Skipped" in text
+    assert "## Targets" in text and "preset/osqp (xz)" in text
     # a low fill limit lists the dense problem as skipped, with the reason
     res = run_benchmark(data, tmp_path / "out2", policy_names=["aadmm"], orders=["zx"], max_iter=500,
-                        time_limit=5.0, nnz_limit=1000, osqp_direct=False, progress=False)
+                        time_limit=5.0, nnz_limit=1000, osqp_direct=False, progress=False, variants=["preset"])
     assert set(res["skipped"]) == {"DENSE"} and "DENSE" in (tmp_path / "out2" / "README.md").read_text()
     assert {r["problem"] for r in res["rows"]} == {"RAND1", "RAND2"}
 
@@ -110,6 +145,8 @@ def test_benchmark_bad_input(tmp_path):
         run_benchmark(tmp_path, tmp_path / "o", workers=3)
     with pytest.raises(ValueError, match="unknown policies"):
         run_benchmark(tmp_path, tmp_path / "o", policy_names=["nope"])
+    with pytest.raises(ValueError, match="variants must be among"):
+        run_benchmark(tmp_path, tmp_path / "o", variants=["turbo"])
     with pytest.raises(FileNotFoundError):
         run_benchmark(tmp_path / "missing", tmp_path / "o")
 

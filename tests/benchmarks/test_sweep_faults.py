@@ -88,9 +88,10 @@ def test_qp_results_csv_survives_a_kill_during_its_rewrite(tmp_path, monkeypatch
     import csv
 
     from benchmarks import maros_meszaros_report as report
-    rows = [{"problem": f"P{i}", "n": 2, "m": 1, "solver": "osqp", "order": "zx", "eps": 1e-3, "solved": True,
-             "status": "solved", "iterations": 10 + i, "time": 0.1, "setup_time": 0.0, "factorizations": 1,
-             "rho_changes": 0, "rho_final": 0.1, "rho_max": 0.1, "primal_res": 0.0, "dual_res": 0.0}
+    rows = [{"problem": f"P{i}", "n": 2, "m": 1, "variant": "preset", "solver": "osqp", "order": "zx", "eps": 1e-3,
+             "solved": True, "neutral": True, "status": "solved", "iterations": 10 + i, "time": 0.1, "setup_time": 0.0,
+             "loop_time": 0.05, "factorizations": 1, "rho_changes": 0, "rho_final": 0.1, "rho_max": 0.1,
+             "neutral_primal": 0.0, "neutral_dual": 0.0, "neutral_gap": 0.0}
             for i in range(84)]
     path = tmp_path / "results.csv"
     report.write_rows(rows, path)
