@@ -56,6 +56,7 @@ from .maros_meszaros_report import (FIELDS, OSQP_DIRECT, RHO0, SHIFT, performanc
 from .maros_meszaros_runs import VARIANTS, run_admmkit, run_osqp
 from .sweep import Executor, case_id, run_sweep
 
+from problems.qp.convexity import check_convex
 from problems.qp.mat import list_problems, load_mat
 from problems.qp.problem import REDUCED_MAX_NNZ, reduced_nnz_bound
 
@@ -80,22 +81,31 @@ def default_policies() -> list[str]:
 
 
 # ---------------------------------------------------------------- problems
-def x_step_sizes(path: Path) -> tuple[float, float, str]:
-    """Entries of the x-step matrix of a MAT file in the reduced form (a bound) and the KKT form, and a note."""
+def x_step_sizes(path: Path) -> tuple[float, float, str, str | None]:
+    """Entries of the x-step matrix of a MAT file in the reduced form (a bound) and the KKT form, a note, and why P
+    is not convex (None if it is)."""
     data = scipy.io.loadmat(str(path), variable_names=["P", "A"])
     P, A = sp.csc_matrix(data["P"]), sp.csr_matrix(data["A"])
     rows = np.diff(A.indptr)
     kkt = float(P.nnz + 2 * A.nnz + A.shape[0] + A.shape[1])
     note = f"densest row of A has {int(rows.max(initial=0))} of {A.shape[1]} entries"
-    return reduced_nnz_bound(P, A), kkt, note
+    try:
+        check_convex(P)
+        nonconvex = None
+    except ValueError as err:
+        nonconvex = f"not a convex QP: {err}"
+    return reduced_nnz_bound(P, A), kkt, note, nonconvex
 
 
 def skip_reason(path: Path, nnz_limit: float = NNZ_LIMIT, sizes: tuple | None = None) -> str | None:
-    """Why a MAT file is not run (None if it is): the x-step matrix would be too large in both forms.
+    """Why a MAT file is not run (None if it is): P is not convex (``load_mat`` refuses it), or the x-step matrix
+    would be too large in both forms.
 
     ``sizes``: :func:`x_step_sizes` of the file, if already read.
     """
-    reduced, kkt, note = sizes or x_step_sizes(path)
+    reduced, kkt, note, nonconvex = sizes or x_step_sizes(path)
+    if nonconvex:
+        return nonconvex
     if min(reduced, kkt) > nnz_limit:
         return (f"x-step matrix: up to {reduced:.2g} nonzeros reduced (P + rho A'A), {kkt:.2g} in KKT form "
                 f"(> {nnz_limit:.0g}; {note})")
@@ -104,7 +114,7 @@ def skip_reason(path: Path, nnz_limit: float = NNZ_LIMIT, sizes: tuple | None = 
 
 def kkt_form_reason(path: Path, sizes: tuple | None = None) -> str | None:
     """Why QP(xstep="auto") solves this problem's x-step in KKT form (None if it uses the reduced form)."""
-    reduced, kkt, note = sizes or x_step_sizes(path)
+    reduced, kkt, note, _ = sizes or x_step_sizes(path)
     if reduced > REDUCED_MAX_NNZ:
         return f"P + rho A'A could have {reduced:.2g} nonzeros (> {REDUCED_MAX_NNZ:.0g}), the KKT matrix {kkt:.2g}; {note}"
     return None

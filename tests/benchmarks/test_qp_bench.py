@@ -168,3 +168,11 @@ def test_maros_meszaros_dense_row_problems_run_in_kkt_form():
     assert skip_reason(MM / "BOYD1.mat") is None and kkt_form_reason(MM / "BOYD1.mat") is not None
     assert load_mat(MM / "BOYD1.mat").xstep == "kkt"
     assert kkt_form_reason(MM / "HS21.mat") is None and load_mat(MM / "HS21.mat").xstep == "reduced"
+
+
+@needs_mm
+def test_a_nonconvex_problem_is_skipped_with_the_reason():
+    # VALUES: P has an eigenvalue of about -1.27e-5; load_mat refuses it, the study lists it as skipped
+    why = skip_reason(MM / "VALUES.mat")
+    assert why is not None and "not a convex QP" in why and "-1.27e-05" in why
+    assert skip_reason(MM / "HS21.mat") is None
