@@ -354,14 +354,14 @@ def obstacle_rates(targets) -> None:
     o = targets.add_parser("obstacle", help="obstacle problem: convergence rates against the exact solution, rho sweep",
                            description="Errors against the radial exact solution under refinement and the "
                                        "iterations of every rule across rho_0 (benchmarks/obstacle_rates.py).")
-    _out(o, "obstacle")
-    o.add_argument("--quick", action="store_true", help="small meshes and 5 rho values (a smoke test)")
+    _sweep_options(o, "obstacle")
     o.set_defaults(func=_obstacle_rates)
 
 
 def _obstacle_rates(args) -> int:
     from .obstacle_rates import run
-    return run(args.out, quick=args.quick, command=args.command_line)
+    return run(args.out, quick=args.quick, command=args.command_line, executor=_executor(args), progress=args.progress,
+               report_only=args.report_only)
 
 
 # ---------------------------------------------------------------- studies with a parser of their own

@@ -1,6 +1,6 @@
 """Convergence study and policy sweep for the obstacle plug-in.
 
-    admmkit bench obstacle [--out DIR] [--quick]      (default DIR: ./out/obstacle/)
+    admmkit bench obstacle [--out DIR] [--quick] [--workers N | --dask-workers N]   (default DIR: ./out/obstacle/)
 
 1. Convergence (radial scene, h = 1/4 ... 1/128): L2, H1 and H1-seminorm errors
    against the exact solution, observed rates, the free-boundary radius
@@ -12,7 +12,9 @@
    iterations until the paper's rule (relative change 1e-5) fires with the
    relative error ||u - u_ref||_M / ||u_ref||_M at that point, and the
    iterations until that error is <= 1e-6 (an oracle stop against the cvxpy /
-   Clarabel solution u_ref of the same discrete QP), capped at MAX_ITER.
+   Clarabel solution u_ref of the same discrete QP), capped at MAX_ITER.  The
+   sweep runs on the sweep runner (:mod:`benchmarks.sweep`), one case per run,
+   finished cases kept in ``sweep/results.jsonl`` under the output folder.
 
 Writes convergence.{csv,md,png}, sweep.{csv,md,png} and radial.png / pyramid.png.
 """
@@ -73,31 +75,60 @@ def convergence(meshes=MESHES) -> list[dict]:
     return rows
 
 
-def sweep(N: int = SWEEP_N, rhos=RHOS, policy_names=None, max_iter: int = MAX_ITER) -> list[dict]:
-    """Iterations of every policy x order x rho0 on the radial scene with h = 4/N."""
-    p = make_problem(radial(h=4 / N))
-    u_ref, _ = solve_with_cvxpy(p, **TIGHT)
-    ref_norm = p.norm(u_ref)
+def sweep_cases(N: int = SWEEP_N, rhos=RHOS, policy_names=None, max_iter: int = MAX_ITER) -> list[dict]:
+    """The sweep's cases: every policy x order x rho0 on the radial scene with h = 4/N (a policy's cases one group)."""
+    return [{"target": "obstacle_sweep", "N": N, "policy": name, "order": order, "rho0": rho0, "max_iter": max_iter,
+             "group": name}
+            for name in policy_names or admmkit.policy_names() for order in ORDERS for rho0 in rhos]
+
+
+_SCENE: dict = {}
+
+
+def run_case(case: dict) -> dict:
+    """Worker entry point: one (policy, order, rho0) of the sweep; the scene and its reference are built once per
+    worker process."""
+    N, name, order, rho0, max_iter = case["N"], case["policy"], case["order"], case["rho0"], case["max_iter"]
+    if _SCENE.get("N") != N:
+        p = make_problem(radial(h=4 / N))
+        u_ref, _ = solve_with_cvxpy(p, **TIGHT)
+        _SCENE.update(N=N, p=p, u_ref=u_ref, ref_norm=p.norm(u_ref))
+    p, u_ref, ref_norm = _SCENE["p"], _SCENE["u_ref"], _SCENE["ref_norm"]
     rel_err = lambda u: p.norm(u - u_ref) / ref_norm  # noqa: E731
+    res = solve(p, rho=rho0, policy=name, order=order, stop=RelativeChange(1e-5), max_iter=max_iter)
+    oracle = solve(p, rho=rho0, policy=name, order=order, stop=RelativeChange(1e-300),
+                   max_iter=max_iter, callback=lambda rec: rel_err(rec.x) <= ORACLE_TOL)
+    reached = str(oracle.status) == "stopped"
+    return dict(policy=name, order=order, rho0=rho0, status=str(res.status),
+                iterations=res.iterations, error_at_stop=rel_err(res.x),
+                kkt_sign=res.kkt["sign"] if res.kkt else math.nan,
+                kkt_complementarity=res.kkt["complementarity"] if res.kkt else math.nan,
+                rho_final=res.rho, factorizations=res.counters.get("factorizations", 0),
+                iterations_to_tol=oracle.iterations if reached else math.nan)
+
+
+def sweep(N: int = SWEEP_N, rhos=RHOS, policy_names=None, max_iter: int = MAX_ITER, *, out: Path | None = None,
+          executor=None, progress: bool = True, report_only: bool = False) -> list[dict]:
+    """Iterations of every policy x order x rho0 on the radial scene with h = 4/N, on the sweep runner
+    (:mod:`benchmarks.sweep`: local processes or Dask, finished cases kept in ``out/results.jsonl``; a rerun
+    resumes; ``report_only``: the finished cases only)."""
+    import tempfile
+
+    from .sweep import Executor, case_id, run_or_report
+    cases = sweep_cases(N, rhos, policy_names, max_iter)
+    with tempfile.TemporaryDirectory() as scratch:
+        folder = Path(out) if out is not None else Path(scratch)
+        records, _ = run_or_report(cases, "benchmarks.obstacle_rates:run_case", folder,
+                                   executor=executor or Executor(workers=1), progress=progress, table=False,
+                                   report_only=report_only,
+                                   label=lambda c: f"{c['policy']} {c['order']} rho0={c['rho0']:.0e}")
     rows = []
-    for name in policy_names or admmkit.policy_names():
-        for order in ORDERS:
-            for rho0 in rhos:
-                t0 = time.perf_counter()
-                res = solve(p, rho=rho0, policy=name, order=order, stop=RelativeChange(1e-5), max_iter=max_iter)
-                oracle = solve(p, rho=rho0, policy=name, order=order, stop=RelativeChange(1e-300),
-                               max_iter=max_iter, callback=lambda rec: rel_err(rec.x) <= ORACLE_TOL)
-                reached = str(oracle.status) == "stopped"
-                rows.append(dict(policy=name, order=order, rho0=rho0, status=str(res.status),
-                                 iterations=res.iterations, error_at_stop=rel_err(res.x),
-                                 kkt_sign=res.kkt["sign"] if res.kkt else math.nan,
-                                 kkt_complementarity=res.kkt["complementarity"] if res.kkt else math.nan,
-                                 rho_final=res.rho, factorizations=res.counters.get("factorizations", 0),
-                                 iterations_to_tol=oracle.iterations if reached else math.nan))
-                r = rows[-1]
-                print(f"  {name:>18s} {order}  rho0 = {rho0:8.1e}: rule {r['iterations']:5d} it (error "
-                      f"{r['error_at_stop']:.1e}), to 1e-6: {r['iterations_to_tol']:>6}  "
-                      f"({time.perf_counter() - t0:.1f} s)", flush=True)
+    for c in (c for c in cases if case_id(c) in records):
+        rec = records[case_id(c)]
+        rows.append(rec["result"] if rec.get("result") is not None else
+                    dict(policy=c["policy"], order=c["order"], rho0=c["rho0"], status="error: " + rec["error"][:60],
+                         iterations=max_iter, error_at_stop=math.nan, kkt_sign=math.nan, kkt_complementarity=math.nan,
+                         rho_final=math.nan, factorizations=0, iterations_to_tol=math.nan))
     return rows
 
 
@@ -185,27 +216,31 @@ def plot_sweep(rows: list[dict], path: Path) -> Path:
     return save_figure(fig, path, ("png",), dpi=120)[0]
 
 
-def run(out="out/obstacle", *, quick: bool = False, command: str = "admmkit bench obstacle") -> int:
-    """Run both studies and write the tables and plots to ``out``."""
+def run(out="out/obstacle", *, quick: bool = False, command: str = "admmkit bench obstacle", executor=None,
+        progress: bool = True, report_only: bool = False) -> int:
+    """Run both studies and write the tables and plots to ``out`` (the sweep's cases on ``executor``, default
+    one local process).  ``report_only``: run nothing; rewrite the sweep's files from its finished cases."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     meshes, rhos, n_sweep = (MESHES[:3], RHOS[::4], 16) if quick else (MESHES, RHOS, SWEEP_N)
 
-    print("convergence study (radial, summable zx, rho0 = 1):", flush=True)
-    rows = convergence(meshes)
-    write_csv(out / "convergence.csv", rows)
-    write_text(out / "convergence.md", convergence_markdown(rows) + f"\nMade by `{command}`.\n")
-    plot_convergence(rows, out / "convergence.png")
+    if not report_only:
+        print("convergence study (radial, summable zx, rho0 = 1):", flush=True)
+        rows = convergence(meshes)
+        write_csv(out / "convergence.csv", rows)
+        write_text(out / "convergence.md", convergence_markdown(rows) + f"\nMade by `{command}`.\n")
+        plot_convergence(rows, out / "convergence.png")
 
     print(f"policy sweep (radial, h = 4/{n_sweep}):", flush=True)
-    srows = sweep(n_sweep, rhos)
+    srows = sweep(n_sweep, rhos, out=out / "sweep", executor=executor, progress=progress, report_only=report_only)
     write_csv(out / "sweep.csv", srows)
     write_text(out / "sweep.md", sweep_markdown(srows) + f"\nMade by `{command}`.\n")
     plot_sweep(srows, out / "sweep.png")
 
-    for sc in (radial(h=1 / 16), pyramid(h=1 / 64)):
-        p = make_problem(sc)
-        res = solve(p, rho=1.0, policy="summable", order="zx", stop=ResidualTolerance(1e-10, 1e-9))
-        plot_solution(p, res.x, res.x, out / f"{sc.name}.png")
+    if not report_only:
+        for sc in (radial(h=1 / 16), pyramid(h=1 / 64)):
+            p = make_problem(sc)
+            res = solve(p, rho=1.0, policy="summable", order="zx", stop=ResidualTolerance(1e-10, 1e-9))
+            plot_solution(p, res.x, res.x, out / f"{sc.name}.png")
     print(f"wrote {', '.join(sorted(f.name for f in out.iterdir()))} to {out}")
     return 0
