@@ -41,8 +41,8 @@ class History:
         """Add the row of iteration ``rec.k``; ``rho_next`` is the rho the policy chose."""
         if self.mode == "full":
             rec.complete()
-        d = rec._d
-        self._rows.append((d[0], d[1], rec.primal_unit, rec.dual_unit, d[2], rec._vals, rho_next))
+        d, ctx = rec._d, rec._ctx
+        self._rows.append((d[0], d[1], ctx.primal_unit, ctx.dual_unit, d[2], rec._vals, rho_next))
 
     def replace_last(self, rec: IterationRecord) -> None:
         """Refresh the last row from ``rec`` (the loop completes the last record of a run)."""

@@ -156,6 +156,9 @@ def solve(
     rho_changes = 0
     rec = None
     perf = time.perf_counter
+    # keep r = Ax - z - c for the record only if the last iteration of the same kind (plain, tested) read ||r||:
+    # not keeping it saves an array per iteration (the values never depend on this)
+    keep_r = [True, True]
     limits = ExitStack()
     if blas_threads is not None:
         limits.enter_context(limit_blas(blas_threads))   # a cached controller: ~15 us, not 0.5 ms
@@ -163,6 +166,8 @@ def solve(
         start = perf()
         for k in range(max_iter):
             rec = v = hat = None         # drop the last record and its vectors now: fewer arrays alive, less memory traffic
+            check = (k + 1) % check_every == 0 or k == max_iter - 1
+            keep = keep_r[check] and not relaxed
             t0 = perf()
             try:
                 if order_key == "xz":
@@ -175,7 +180,7 @@ def solve(
                     tz += t2 - t1
                     if k == 0:   # a step of the wrong shape would broadcast silently: stop at once
                         _check_steps(problem, x, z, x_new, z_new, Ax_new)
-                    lam_new, v = dual_update(lam, rho, hat, z_new, c, c_zero)            # eq. (13)
+                    lam_new, v = dual_update(lam, rho, hat, z_new, c, c_zero, keep)      # eq. (13)
                 else:
                     z_new = z_step(problem, Ax, lam, rho, z)                            # eq. (11)
                     t1 = perf()
@@ -186,16 +191,17 @@ def solve(
                     tx += t2 - t1
                     if k == 0:   # a step of the wrong shape would broadcast silently: stop at once
                         _check_steps(problem, x, z, x_new, z_new, Ax_new)
-                    lam_new, v = dual_update(lam, rho, Ax_new, hat, c, c_zero)          # eq. (13)
+                    lam_new, v = dual_update(lam, rho, Ax_new, hat, c, c_zero, keep)    # eq. (13)
             except (np.linalg.LinAlgError, ArithmeticError) as err:
                 status, message = Status.DIVERGED, f"a step failed at iteration {k + 1}: {err}"
                 break
-            rec = loop_record(ctx, (k, rho, t2 - start, x_new, z_new, lam_new, Ax_new, x, z, lam, Ax,
-                                    hat if relaxed else None), None if relaxed else v)
+            # lam^k only when alpha != 1 (with alpha = 1, ||lam^{k+1} - lam^k|| = rho ||r||): freed here otherwise
+            rec = loop_record(ctx, (k, rho, t2 - start, x_new, z_new, lam_new, Ax_new, x, z, lam if relaxed else None,
+                                    Ax, hat if relaxed else None), v)
             x, z, lam, Ax = x_new, z_new, lam_new, Ax_new
 
             final = None
-            if (k + 1) % check_every == 0 or k == max_iter - 1:
+            if check:
                 t3 = perf()
                 fired = stop.fired(rec)
                 if not _finite(rec._vals, watched) or not _finite_check(rec):
@@ -211,13 +217,14 @@ def solve(
                 t3 = perf()
                 rho_next = policy_step(policy, rec)                                      # eq. (17)
                 t_policy += perf() - t3
-                if not checks.rho_in_range(rho_next):
+                if rho_next is not rho and not checks.rho_in_range(rho_next):   # the same object: checked already
                     final = Status.DIVERGED, (f"policy {policy!r} returned rho={rho_next!r} at iteration {k + 1}, "
                                               f"outside admmkit's rho range [{checks.RHO_RANGE[0]:g}, "
                                               f"{checks.RHO_RANGE[1]:g}]")
             history_log.append(rec, rho_next)
             if callback is not None and callback(rec) and final is None:
                 final = Status.STOPPED, f"callback stopped the run at iteration {k + 1}"
+            keep_r[check] = rec._vals[0] is not None
             if final is None and time_limit is not None and perf() - start > time_limit:
                 final = Status.TIME_LIMIT, f"time_limit={time_limit:g} s reached at iteration {k + 1}"
             if final is not None:

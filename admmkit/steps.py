@@ -49,8 +49,16 @@ def relax_Ax(alpha: float, Ax_new: np.ndarray, z: np.ndarray, c, c_is_zero: bool
     return alpha * Ax_new + (1.0 - alpha) * base
 
 
-def dual_update(lam: np.ndarray, rho: float, Ax: np.ndarray, z: np.ndarray, c, c_is_zero: bool):
-    """lam + rho (Ax - z - c) (eq. (13)/(16)); returns (lam^{k+1}, the vector Ax - z - c)."""
+def dual_update(lam: np.ndarray, rho: float, Ax: np.ndarray, z: np.ndarray, c, c_is_zero: bool,
+                keep_r: bool = True):
+    """lam + rho (Ax - z - c) (eq. (13)/(16)); returns (lam^{k+1}, the vector r = Ax - z - c).
+
+    With ``keep_r=False`` r is not kept (None is returned in its place): numpy
+    then reuses the temporaries in place, one array less to allocate and write
+    (the record recomputes r, the same numbers, if something reads ||r||).
+    """
+    if not keep_r:
+        return (lam + rho * (Ax - z) if c_is_zero else lam + rho * (Ax - z - c)), None
     r = Ax - z if c_is_zero else Ax - z - c
     return lam + rho * r, r
 

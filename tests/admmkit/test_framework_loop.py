@@ -222,3 +222,38 @@ def test_fast_euclidean_norms_are_bitwise_the_problems(order):
     h = res.history.as_dict()
     for name in ref_rows[0]:
         assert np.array_equal(h[name], np.array([row[name] for row in ref_rows])), name
+
+
+class Shifted(Euclidean):
+    """A x - z = c with c != 0 (an array): r = A x - z - c."""
+
+    def __init__(self):
+        super().__init__(seed=8, n=10)
+        self.c = np.linspace(-0.2, 0.3, self.n)
+
+    def z_step(self, Ax, lam, rho, z):
+        return np.minimum(self.g, Ax - self.c + lam / rho)
+
+
+@pytest.mark.parametrize("problem", [Euclidean, Shifted, "vector"])
+@pytest.mark.parametrize("policy,order", [("fixed", "zx"), ("fixed", "xz"), ("summable", "zx"), ("osqp", "zx")])
+def test_residual_read_now_and_then_is_bitwise_the_eager_one(vector_problem, problem, policy, order):
+    # the loop keeps r = Ax - z - c only while something reads ||r||: a callback that reads it at
+    # irregular iterations (and a stop tested every 4) gets the eager loop's numbers, iterates unchanged
+    p = vector_problem if problem == "vector" else problem()
+    stop = ResidualTolerance(1e-300, 1e-300)
+    ref_iterates, ref_rows = eager_reference(p, 0.3, policy, order, stop, 60)
+    got = {}
+
+    def read_sometimes(rec):
+        if rec.k % 3 == 0 or rec.k in (10, 11, 12, 30):
+            got[rec.k] = (rec.primal_residual, rec.lam_change)
+            assert rec.primal_residual == p.norm(rec.Ax - rec.z - p.c)
+    res = solve(p, rho=0.3, policy=policy, order=order, stop=stop, max_iter=60, check_every=4, callback=read_sometimes)
+    assert res.iterations == 60 and len(got) > 20
+    x, z, lam = ref_iterates[-1]
+    assert np.array_equal(res.x_iterate, x) and np.array_equal(res.z, z) and np.array_equal(res.lam, lam)
+    for k, (primal, lam_change) in got.items():
+        assert primal == ref_rows[k]["primal_residual"] and lam_change == ref_rows[k]["lam_change"]
+    h = res.history
+    assert h["primal_residual"][-1] == ref_rows[-1]["primal_residual"]
