@@ -62,8 +62,9 @@ def _euclidean_distance(a, b) -> float:
 
 
 # -- the lazy fields: each a function of the record (r = A x^{k+1} - z^{k+1} - c) --------------
-def _primal_residual(rec) -> float:                  # ||r||_M
-    return rec._ctx.norm(rec._residual())
+def _primal_residual(rec) -> float:                  # ||r||_M (the loop may have taken it already)
+    taken = rec._cache[7]
+    return rec._ctx.norm(rec._residual()) if taken is None else taken
 
 
 def _lam_change(rec) -> float:                       # ||lam^{k+1} - lam^k||_M = rho ||r||_M if alpha = 1
@@ -187,7 +188,7 @@ class IterationRecord:
     """
 
     # _d = (k, rho, time, x, z, lam, Ax, x_prev, z_prev, lam_prev, Ax_prev, hat);
-    # _vals = the 9 lazy norms; _cache = 6 read-only views, then r
+    # _vals = the 9 lazy norms; _cache = 6 read-only views, then r, then ||r||_M if the loop took it
     __slots__ = ("_d", "_vals", "_ctx", "_cache")
 
     def __init__(self, k: int, rho: float, order: str, primal_residual: float, dual_residual: float,
@@ -199,7 +200,7 @@ class IterationRecord:
         _SET_D(self, (k, rho, time, x, z, lam, Ax, None, z_prev, None, Ax_prev, None))
         _SET_VALS(self, [primal_residual, dual_residual, rho_Ax_change, lam_change, x_change, x_norm,
                          z_change, primal_scale, dual_scale])
-        _SET_CACHE(self, [None] * 7)
+        _SET_CACHE(self, [None] * 8)
         _SET_CTX(self, _Given(order, primal_unit, dual_unit, inner))
 
     def __setattr__(self, name, value):
@@ -331,12 +332,13 @@ _SET_CACHE = IterationRecord.__dict__["_cache"].__set__
 _NEW = object.__new__
 
 
-def loop_record(ctx: RunContext, data: tuple, r) -> IterationRecord:
+def loop_record(ctx: RunContext, data: tuple, r_norm) -> IterationRecord:
     """The loop's lazy record of ``data`` = (k, rho, time, x, z, lam, Ax, x_prev, z_prev, lam_prev, Ax_prev, hat)
-    (``hat`` None when alpha = 1) and r = A x^{k+1} - z^{k+1} - c if known (else None); no norm is computed yet."""
+    (``hat`` and ``lam_prev`` None when alpha = 1).  ``r_norm`` is ||A x^{k+1} - z^{k+1} - c||_M if the loop
+    took it already (else None): ``primal_residual`` returns it when read, and counts as computed only then."""
     rec = _NEW(IterationRecord)
     _SET_D(rec, data)
     _SET_VALS(rec, [None] * 9)
     _SET_CTX(rec, ctx)
-    _SET_CACHE(rec, [None, None, None, None, None, None, r])
+    _SET_CACHE(rec, [None, None, None, None, None, None, None, r_norm])
     return rec

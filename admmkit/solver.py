@@ -22,7 +22,7 @@ from .policy import Policy
 from .problem import Problem
 from .record import LAZY_FIELDS, IterationRecord, RunContext, loop_record
 from .result import Result, Status
-from .steps import dual_update, policy_step, relax_Ax, relax_z, x_step, z_step
+from .steps import dual_update, dual_update_and_residual, policy_step, relax_Ax, relax_z, x_step, z_step
 from .stopping import StoppingRule, default_stop
 
 #: a run that a stopping rule ended is ``converged_inaccurate`` when a relative KKT measure
@@ -156,18 +156,21 @@ def solve(
     rho_changes = 0
     rec = None
     perf = time.perf_counter
-    # keep r = Ax - z - c for the record only if the last iteration of the same kind (plain, tested) read ||r||:
-    # not keeping it saves an array per iteration (the values never depend on this)
-    keep_r = [True, True]
+    # take ||r|| (r = Ax - z - c) with the dual update, whose r's memory then holds lam^{k+1}, when the last
+    # iteration of the same kind (plain, tested) read it; r is never kept: fewer arrays to allocate and write
+    # (the numbers never depend on this; a record recomputes r if ||r|| is read unexpectedly)
+    take_r = [True, True]
+    norm_M = ctx.norm
     limits = ExitStack()
     if blas_threads is not None:
         limits.enter_context(limit_blas(blas_threads))   # a cached controller: ~15 us, not 0.5 ms
     try:   # the BLAS thread count is restored however the loop ends (an exception, Ctrl-C)
         start = perf()
         for k in range(max_iter):
-            rec = v = hat = None         # drop the last record and its vectors now: fewer arrays alive, less memory traffic
+            rec = hat = None             # drop the last record and its vectors now: fewer arrays alive, less memory traffic
             check = (k + 1) % check_every == 0 or k == max_iter - 1
-            keep = keep_r[check] and not relaxed
+            take = take_r[check] and not relaxed    # with alpha != 1 the record's r is not the dual update's
+            r_norm = None
             t0 = perf()
             try:
                 if order_key == "xz":
@@ -180,7 +183,10 @@ def solve(
                     tz += t2 - t1
                     if k == 0:   # a step of the wrong shape would broadcast silently: stop at once
                         _check_steps(problem, x, z, x_new, z_new, Ax_new)
-                    lam_new, v = dual_update(lam, rho, hat, z_new, c, c_zero, keep)      # eq. (13)
+                    if take:                                                            # eq. (13)
+                        lam_new, r_norm = dual_update_and_residual(lam, rho, hat, z_new, c, c_zero, norm_M)
+                    else:
+                        lam_new = dual_update(lam, rho, hat, z_new, c, c_zero)
                 else:
                     z_new = z_step(problem, Ax, lam, rho, z)                            # eq. (11)
                     t1 = perf()
@@ -191,13 +197,16 @@ def solve(
                     tx += t2 - t1
                     if k == 0:   # a step of the wrong shape would broadcast silently: stop at once
                         _check_steps(problem, x, z, x_new, z_new, Ax_new)
-                    lam_new, v = dual_update(lam, rho, Ax_new, hat, c, c_zero, keep)    # eq. (13)
+                    if take:                                                            # eq. (13)
+                        lam_new, r_norm = dual_update_and_residual(lam, rho, Ax_new, hat, c, c_zero, norm_M)
+                    else:
+                        lam_new = dual_update(lam, rho, Ax_new, hat, c, c_zero)
             except (np.linalg.LinAlgError, ArithmeticError) as err:
                 status, message = Status.DIVERGED, f"a step failed at iteration {k + 1}: {err}"
                 break
             # lam^k only when alpha != 1 (with alpha = 1, ||lam^{k+1} - lam^k|| = rho ||r||): freed here otherwise
             rec = loop_record(ctx, (k, rho, t2 - start, x_new, z_new, lam_new, Ax_new, x, z, lam if relaxed else None,
-                                    Ax, hat if relaxed else None), v)
+                                    Ax, hat if relaxed else None), r_norm)
             x, z, lam, Ax = x_new, z_new, lam_new, Ax_new
 
             final = None
@@ -224,7 +233,7 @@ def solve(
             history_log.append(rec, rho_next)
             if callback is not None and callback(rec) and final is None:
                 final = Status.STOPPED, f"callback stopped the run at iteration {k + 1}"
-            keep_r[check] = rec._vals[0] is not None
+            take_r[check] = rec._vals[0] is not None         # ||r|| read (not merely taken) in this iteration
             if final is None and time_limit is not None and perf() - start > time_limit:
                 final = Status.TIME_LIMIT, f"time_limit={time_limit:g} s reached at iteration {k + 1}"
             if final is not None:

@@ -49,18 +49,25 @@ def relax_Ax(alpha: float, Ax_new: np.ndarray, z: np.ndarray, c, c_is_zero: bool
     return alpha * Ax_new + (1.0 - alpha) * base
 
 
-def dual_update(lam: np.ndarray, rho: float, Ax: np.ndarray, z: np.ndarray, c, c_is_zero: bool,
-                keep_r: bool = True):
-    """lam + rho (Ax - z - c) (eq. (13)/(16)); returns (lam^{k+1}, the vector r = Ax - z - c).
+def dual_update(lam: np.ndarray, rho: float, Ax: np.ndarray, z: np.ndarray, c, c_is_zero: bool) -> np.ndarray:
+    """lam^{k+1} = lam + rho (Ax - z - c) (eq. (13)/(16)); numpy reuses the temporaries in place."""
+    return lam + rho * (Ax - z) if c_is_zero else lam + rho * (Ax - z - c)
 
-    With ``keep_r=False`` r is not kept (None is returned in its place): numpy
-    then reuses the temporaries in place, one array less to allocate and write
-    (the record recomputes r, the same numbers, if something reads ||r||).
+
+def dual_update_and_residual(lam: np.ndarray, rho: float, Ax: np.ndarray, z: np.ndarray, c, c_is_zero: bool,
+                             norm) -> tuple[np.ndarray, float]:
+    """(lam^{k+1}, ||r||) with r = Ax - z - c: the norm first, then lam + rho r in r's memory.
+
+    The same numbers as :func:`dual_update` and ``norm(r)`` (rho r + lam is lam + rho r
+    bit for bit), with one array fewer to allocate and write (float64 arrays; else a new one).
     """
-    if not keep_r:
-        return (lam + rho * (Ax - z) if c_is_zero else lam + rho * (Ax - z - c)), None
     r = Ax - z if c_is_zero else Ax - z - c
-    return lam + rho * r, r
+    r_norm = norm(r)
+    if type(r) is np.ndarray and r.dtype == np.float64 and lam.dtype == np.float64 and r.shape == lam.shape:
+        r *= rho
+        r += lam
+        return r, r_norm
+    return lam + rho * r, r_norm
 
 
 def policy_step(policy: Policy, rec: IterationRecord) -> float:

@@ -17,7 +17,8 @@ interleaved in one process with BLAS on one thread:
   ||r||, ||Ax||, ||z||, ||lam|| and rho ||Ax - Ax_prev|| on test iterations;
   SADMM: rho ||r|| and rho ||Ax - Ax_prev|| every iteration, the summable rule in
   plain Python, ||x - x_prev|| and ||x|| on test iterations), a previous vector
-  kept only when it is needed; it ends at the same iteration with the same x and rho
+  kept only when it is needed, lam^{k+1} written in place into r once ||r||
+  is taken (the fastest of the hand-written forms tried); it ends at the same iteration with the same x and rho
   as admmkit (tests/benchmarks/test_loop_overhead.py checks this);
 - ``inline``: the bare updates written out in numpy (no method calls, no copy
   in apply_A), for reference (CSV only);
@@ -110,7 +111,8 @@ def hand_residual(problem, rho: float, max_iter: int, check_every: int, eps_abs:
     """Fixed rho, order zx, Boyd's test (3.12) every ``check_every`` iterations and at the last one, by hand.
 
     On a test iteration: ||r||, ||Ax||, ||z||, ||lam|| and, only when the primal test passes (as the rule
-    reads it), rho ||Ax - Ax_prev||.  Returns (seconds, iterations, x).
+    reads it), rho ||Ax - Ax_prev||; r's memory then takes lam^{k+1} (no array kept for r).
+    Returns (seconds, iterations, x).
     """
     x, z, lam = (np.array(v) for v in problem.initial_point())
     Ax = problem.apply_A(x)
@@ -127,8 +129,10 @@ def hand_residual(problem, rho: float, max_iter: int, check_every: int, eps_abs:
             continue
         Ax_new = apply_A(x)
         r = Ax_new - z
-        lam = lam + rho * r                                                  # (13)
         primal = norm(r)
+        r *= rho
+        r += lam
+        lam, r = r, None                                                     # (13) in r's memory
         eps_pri = unit * eps_abs + eps_rel * max(norm(Ax_new), norm(z), 0.0)
         eps_dual = unit * eps_abs + eps_rel * norm(lam)
         if not math.isfinite(primal):
@@ -145,7 +149,8 @@ def hand_sadmm(problem, rho: float, max_iter: int, check_every: int, tol: float 
     """The paper's SADMM by hand: order zx, the summable rule (policies/summable.py) on
     w_k = ||lam^{k+1} - lam^k|| / (rho_k ||A x^{k+1} - A x^k||) every iteration, the relative change
     ||x - x_prev|| <= tol ||x|| tested every ``check_every`` iterations and at the last one (x_prev kept
-    only then).  Returns (seconds, iterations, x, final rho)."""
+    only then); lam^{k+1} is written into r's memory once ||r|| is taken.  Returns (seconds, iterations,
+    x, final rho)."""
     x, z, lam = (np.array(v) for v in problem.initial_point())
     Ax = problem.apply_A(x)
     z_step, x_step, apply_A = problem.z_step, problem.x_step, problem.apply_A
@@ -159,8 +164,10 @@ def hand_sadmm(problem, rho: float, max_iter: int, check_every: int, tol: float 
         x = x_step(z, lam, rho, x)                                           # (15)
         Ax_new = apply_A(x)
         r = Ax_new - z
-        lam = lam + rho * r                                                  # (16)
         lam_change = rho * norm(r)                                           # ||lam^{k+1} - lam^k|| = rho ||r||
+        r *= rho
+        r += lam
+        lam, r = r, None                                                     # (16) in r's memory
         Ax_change = rho * norm(Ax_new - Ax)
         Ax = Ax_new
         if check:

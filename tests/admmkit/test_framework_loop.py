@@ -257,3 +257,26 @@ def test_residual_read_now_and_then_is_bitwise_the_eager_one(vector_problem, pro
         assert primal == ref_rows[k]["primal_residual"] and lam_change == ref_rows[k]["lam_change"]
     h = res.history
     assert h["primal_residual"][-1] == ref_rows[-1]["primal_residual"]
+
+
+def test_a_norm_the_loop_took_counts_only_when_read(vector_problem):
+    # the callback reads ||r|| in iterations 0-4 only: the loop takes it with the dual update of iteration 5 too
+    # (it expects a read), but a lean history shows a number only where something read it
+    res = solve(vector_problem, rho=0.3, stop=RelativeChange(1e-300), max_iter=12,
+                callback=lambda rec: rec.k < 5 and rec.primal_residual and None)
+    h = res.history["primal_residual"]
+    assert not np.isnan(h[:5]).any() and np.isnan(h[5:-1]).all() and not np.isnan(h[-1])
+
+
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+@pytest.mark.parametrize("c", [0.0, 0.25])
+def test_dual_update_and_residual_is_the_plain_update(dtype, c):
+    from admmkit.steps import dual_update, dual_update_and_residual
+    rng = np.random.default_rng(2)
+    lam, Ax, z = (rng.standard_normal(50).astype(dtype) for _ in range(3))
+    before = [a.copy() for a in (lam, Ax, z)]
+    lam_new, r_norm = dual_update_and_residual(lam, 0.7, Ax, z, c, c == 0.0, lambda r: float(np.linalg.norm(r)))
+    assert np.array_equal(lam_new, dual_update(lam, 0.7, Ax, z, c, c == 0.0))
+    assert np.array_equal(lam_new, lam + 0.7 * (Ax - z - c)) and lam_new.dtype == (lam + 0.7 * (Ax - z)).dtype
+    assert r_norm == float(np.linalg.norm(Ax - z - c))
+    assert all(np.array_equal(a, b) for a, b in zip((lam, Ax, z), before))    # the inputs are left alone
