@@ -19,6 +19,11 @@ class Status(str, Enum):
     STALLED = "stalled"        # the iterates stopped changing before any rule fired
     TIME_LIMIT = "time_limit"  # the wall-time limit was reached (benchmarks only)
     STOPPED = "stopped"        # the callback asked to stop
+    # a stopping rule's terminal verdicts (a Stop with a certificate, e.g. the QP's infeasibility tests)
+    PRIMAL_INFEASIBLE = "primal_infeasible"
+    DUAL_INFEASIBLE = "dual_infeasible"
+    PRIMAL_INFEASIBLE_INACCURATE = "primal_infeasible_inaccurate"
+    DUAL_INFEASIBLE_INACCURATE = "dual_infeasible_inaccurate"
 
     def __str__(self) -> str:
         return self.value
@@ -36,7 +41,10 @@ class Result:
     a rule fired (see ``admmkit.solver.INACCURATE_FACTOR``).  ``timings``
     splits the wall time into x_step, z_step, policy, residuals and total
     seconds.  ``kkt`` holds the problem's KKT residuals at the stop, when the
-    plug-in provides them.
+    plug-in provides them.  ``certificate`` is the vector a stopping rule
+    gave with a terminal status (:class:`admmkit.stopping.Stop`), such as
+    a primal infeasibility certificate; then ``objective`` is +inf (primal
+    infeasible) or -inf (dual infeasible), as in OSQP.
     """
 
     x: np.ndarray
@@ -58,6 +66,7 @@ class Result:
     x_iterate: np.ndarray | None = None
     accuracy: dict[str, float] | None = None
     alpha: float = 1.0
+    certificate: np.ndarray | None = None
 
     @property
     def converged(self) -> bool:

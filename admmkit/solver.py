@@ -215,9 +215,9 @@ def solve(
                 fired = stop.fired(rec)
                 if not _finite(rec._vals, watched) or not _finite_check(rec):
                     final = Status.DIVERGED, f"non-finite iterate at iteration {k + 1}"
-                elif fired:
+                elif fired:                  # a name (converged) or a Stop with its own status and certificate
                     stopped_by = fired
-                    final = Status.CONVERGED, f"{fired} fired at iteration {k + 1}"
+                    final = getattr(fired, "status", Status.CONVERGED), f"{fired} fired at iteration {k + 1}"
                 elif _stalled(rec):
                     final = Status.STALLED, f"iterates stopped changing at iteration {k + 1} before {stop.name} fired"
                 t_check += perf() - t3
@@ -307,13 +307,17 @@ def _result(problem, stop, x, z, lam, rec, status, message, stopped_by, history_
             status = Status.CONVERGED_INACCURATE
             message += (f", but the relative KKT measure {worst[0]} = {worst[1]:.2e} is more than "
                         f"{INACCURATE_FACTOR:g} x max(the rule's tolerance {stop.tolerance:g}, {INACCURATE_FLOOR:g})")
+    objective = problem.objective(x_final, z) if finite else None
+    if status in (Status.PRIMAL_INFEASIBLE, Status.PRIMAL_INFEASIBLE_INACCURATE):
+        objective = math.inf                                  # no feasible point: inf, as OSQP reports
+    elif status in (Status.DUAL_INFEASIBLE, Status.DUAL_INFEASIBLE_INACCURATE):
+        objective = -math.inf                                 # unbounded below
     return Result(
         x=x_final, z=z, lam=lam, status=status, message=message, stopped_by=stopped_by,
         iterations=len(history_log), rho=rho, history=history_log, timings=timings, rho_changes=rho_changes,
-        counters=counters,
-        kkt=problem.kkt(x_final, z, lam) if finite else None,
-        objective=problem.objective(x_final, z) if finite else None,
+        counters=counters, kkt=problem.kkt(x_final, z, lam) if finite else None, objective=objective,
         order=order_key, policy=repr(policy), x_iterate=x, accuracy=accuracy, alpha=alpha,
+        certificate=getattr(stopped_by, "certificate", None),
     )
 
 

@@ -1,14 +1,36 @@
 """Stopping rules that compose: ``RelativeChange(1e-5) | ResidualTolerance(1e-8, 1e-6)``.
 
 A rule is called with the iteration record and returns the name of the rule
-that fired, or None.  ``a | b`` fires when either fires, ``a & b`` when both do.
-The iteration cap (``max_iter``) is a parameter of :func:`admmkit.solve`.
+that fired (the run has converged), a :class:`Stop` (the run ends with another
+status, such as ``primal_infeasible`` with its certificate), or None.
+``a | b`` fires when either fires, ``a & b`` when both do.  The iteration cap
+(``max_iter``) is a parameter of :func:`admmkit.solve`.
 """
 from __future__ import annotations
 
 import math
 
 from .record import IterationRecord
+from .result import Status
+
+
+class Stop(str):
+    """A stopping rule's verdict other than "converged": ``Stop(name, status, certificate)``.
+
+    It is the rule's name (a ``str``, so it reads as one wherever a name is
+    expected) with a terminal ``status`` (an :class:`admmkit.Status`, e.g.
+    ``Status.PRIMAL_INFEASIBLE``) and an optional ``certificate`` vector that
+    :func:`admmkit.solve` puts on the result.
+    """
+
+    def __new__(cls, name: str, status: Status | str, certificate=None):
+        self = super().__new__(cls, name)
+        self.status = Status(status)
+        self.certificate = certificate
+        return self
+
+    def __repr__(self) -> str:
+        return f"Stop({str(self)!r}, {self.status.value!r})"
 
 
 class StoppingRule:
@@ -26,7 +48,7 @@ class StoppingRule:
     tolerance: float | None = None
 
     def fired(self, rec: IterationRecord) -> str | None:
-        """Return the name of the rule that fired at this record, or None."""
+        """Return the name of the rule that fired at this record (or a :class:`Stop`), or None."""
         raise NotImplementedError
 
     def __or__(self, other: "StoppingRule") -> "AnyOf":
@@ -114,7 +136,7 @@ class AnyOf(StoppingRule):
         self.requires, self.tolerance = _combined(self.rules)
 
     def fired(self, rec: IterationRecord) -> str | None:
-        """The name of the first rule that fires, or None."""
+        """The name (or :class:`Stop`) of the first rule that fires, or None."""
         for rule in self.rules:
             name = rule.fired(rec)
             if name:
@@ -131,8 +153,11 @@ class AllOf(StoppingRule):
         self.name = " & ".join(f"({r.name})" if isinstance(r, AnyOf) else r.name for r in self.rules)
 
     def fired(self, rec: IterationRecord) -> str | None:
-        """This rule's name if every rule fires, else None."""
-        return self.name if all(rule.fired(rec) for rule in self.rules) else None
+        """This rule's name if every rule fires (the first :class:`Stop` among them if one gave one), else None."""
+        verdicts = [rule.fired(rec) for rule in self.rules]
+        if not all(verdicts):
+            return None
+        return next((v for v in verdicts if isinstance(v, Stop)), self.name)
 
 
 def _check_rules(rules) -> tuple[StoppingRule, ...]:

@@ -24,7 +24,6 @@ import dataclasses
 import math
 import time
 from dataclasses import dataclass, field
-from enum import Enum
 
 import numpy as np
 
@@ -43,16 +42,8 @@ RHO_MIN, RHO_MAX = 1e-6, 1e6
 INACCURATE_FACTOR = 10.0
 
 
-class QPStatus(str, Enum):
-    """Outcomes of a QP solve that :class:`admmkit.Status` has no member for."""
-
-    PRIMAL_INFEASIBLE = "primal_infeasible"
-    DUAL_INFEASIBLE = "dual_infeasible"
-    PRIMAL_INFEASIBLE_INACCURATE = "primal_infeasible_inaccurate"
-    DUAL_INFEASIBLE_INACCURATE = "dual_infeasible_inaccurate"
-
-    def __str__(self) -> str:
-        return self.value
+#: the QP's statuses are admmkit's (``admmkit.Status`` has the infeasibility verdicts a stopping rule can give)
+QPStatus = Status
 
 
 @dataclass(repr=False)
@@ -61,15 +52,14 @@ class QPResult(Result):
 
     Extra fields: ``termination`` (the test that ended the run: "solved",
     "primal_infeasible", "dual_infeasible", their "_inaccurate" forms at the
-    iteration cap, or None), ``certificate`` (the normalised dy or dx of an
-    infeasibility stop), ``residuals`` (OSQP's primal, dual and gap with their
+    iteration cap, or None), ``certificate`` (a field of every admmkit result: the
+    normalised dy or dx of an infeasibility stop), ``residuals (OSQP's primal, dual and gap with their
     scales at the last iterate), ``neutral`` (the neutral criteria at the
     returned x, y), ``polish`` (None if not asked; else a dict whose
     ``status`` is "succeeded" or "failed"), ``settings``.
     """
 
     termination: str | None = None
-    certificate: np.ndarray | None = None
     residuals: dict | None = None
     neutral: dict | None = None
     polish: dict | None = None
@@ -150,8 +140,8 @@ def solve_qp(qp: QP, settings: QPSettings | None = None, *, policy="osqp", warm_
 
 def _qp_result(qp: QP, settings: QPSettings, res: Result, stop: QPTermination, rec) -> QPResult:
     status, termination, message = res.status, None, res.message
-    if res.status is Status.CONVERGED and stop.outcome is not None:
-        termination = stop.outcome
+    if res.status in (Status.CONVERGED, Status.PRIMAL_INFEASIBLE, Status.DUAL_INFEASIBLE) and stop.outcome is not None:
+        termination = stop.outcome                                         # the test that ended the loop
     elif res.status is Status.MAX_ITER and rec is not None:                 # OSQP: one more test at 10x
         loose = QPTermination(qp, INACCURATE_FACTOR * settings.eps_abs, INACCURATE_FACTOR * settings.eps_rel,
                               gap=settings.gap, infeasibility=settings.infeasibility,
@@ -173,9 +163,9 @@ def _qp_result(qp: QP, settings: QPSettings, res: Result, stop: QPTermination, r
     finite = np.all(np.isfinite(xb)) and np.all(np.isfinite(lam_z))
     residuals = iterate_residuals(qp, xb, zb, lam_z) if finite else None
     objective, kkt = res.objective, (qp.kkt(x, zb, lam_z) if finite else None)
-    if status is QPStatus.PRIMAL_INFEASIBLE or status is QPStatus.PRIMAL_INFEASIBLE_INACCURATE:
+    if status is Status.PRIMAL_INFEASIBLE or status is Status.PRIMAL_INFEASIBLE_INACCURATE:
         objective = math.inf
-    elif status is QPStatus.DUAL_INFEASIBLE or status is QPStatus.DUAL_INFEASIBLE_INACCURATE:
+    elif status is Status.DUAL_INFEASIBLE or status is Status.DUAL_INFEASIBLE_INACCURATE:
         objective = -math.inf
     polish_info = None
     if settings.polish:
@@ -191,6 +181,7 @@ def _qp_result(qp: QP, settings: QPSettings, res: Result, stop: QPTermination, r
             polish_info = {"status": "failed", "reason": f"not run: the run ended {termination or res.status.value}"}
     neutral = neutral_residuals(qp, x, y) if finite else None
     fields = {f.name: getattr(res, f.name) for f in dataclasses.fields(Result)}
-    fields.update(x=x, z=z, lam=y, status=status, message=message, objective=objective, kkt=kkt)
-    return QPResult(**fields, termination=termination, certificate=stop.certificate if termination else None,
-                    residuals=residuals, neutral=neutral, polish=polish_info, settings=settings)
+    fields.update(x=x, z=z, lam=y, status=status, message=message, objective=objective, kkt=kkt,
+                  certificate=stop.certificate if termination else None)
+    return QPResult(**fields, termination=termination, residuals=residuals, neutral=neutral, polish=polish_info,
+                    settings=settings)

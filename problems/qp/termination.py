@@ -25,7 +25,7 @@ import time
 
 import numpy as np
 
-from admmkit import IterationRecord, StoppingRule
+from admmkit import IterationRecord, Status, Stop, StoppingRule
 
 from .infeasibility import DIVISION_TOL, dual_certificate, iterate_deltas, primal_certificate
 from .problem import QP
@@ -154,7 +154,9 @@ class QPTermination(StoppingRule):
         self.passed: dict | None = None
 
     def fired(self, rec: IterationRecord) -> str | None:
-        """The name of the test that fired at this record (see the class docstring), or None."""
+        """The name of the test that fired at this record (see the class docstring), or None; an infeasibility test
+        returns a :class:`admmkit.Stop` with status ``primal_infeasible`` / ``dual_infeasible`` and the certificate,
+        so that :func:`admmkit.solve` itself ends the run with that status."""
         qp = self.qp
         res = _iterate(qp, rec)
         self.last = res
@@ -171,9 +173,9 @@ class QPTermination(StoppingRule):
         cert = None if primal else primal_certificate(qp, dy, self.eps_prim_inf)
         if cert is not None:
             self.outcome, self.certificate = PRIMAL_INFEASIBLE, cert
-            return self.names[PRIMAL_INFEASIBLE]
+            return Stop(self.names[PRIMAL_INFEASIBLE], Status.PRIMAL_INFEASIBLE, cert)
         cert = None if (dual or dx is None) else dual_certificate(qp, dx, self.eps_dual_inf)
         if cert is not None:
             self.outcome, self.certificate = DUAL_INFEASIBLE, cert
-            return self.names[DUAL_INFEASIBLE]
+            return Stop(self.names[DUAL_INFEASIBLE], Status.DUAL_INFEASIBLE, cert)
         return None

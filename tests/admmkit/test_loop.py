@@ -173,3 +173,33 @@ def test_core_imports_no_plugins():
     code = "import sys, admmkit; print(any(m.split('.')[0] in ('policies', 'problems') for m in sys.modules))"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "False"
+
+
+class _Verdict(admmkit.StoppingRule):
+    """Fires at iteration ``at`` with a Stop of ``status`` and a certificate (a rule with its own verdict)."""
+
+    def __init__(self, at, status):
+        self.at, self.status, self.name = at, status, f"verdict({status})"
+
+    def fired(self, rec):
+        if rec.k + 1 < self.at:
+            return None
+        return admmkit.Stop(self.name, self.status, certificate=np.arange(3.0))
+
+
+@pytest.mark.parametrize("status, objective", [("primal_infeasible", math.inf), ("dual_infeasible", -math.inf)])
+def test_a_stop_ends_the_run_with_its_status_and_certificate(vector_problem, status, objective):
+    res = solve(vector_problem, rho=1.0, stop=_Verdict(7, status), max_iter=100)
+    assert res.status is Status(status) and res.iterations == 7 and not res.converged
+    assert res.stopped_by == f"verdict({status})" and res.message.startswith(f"verdict({status}) fired")
+    assert np.array_equal(res.certificate, np.arange(3.0)) and res.objective == objective
+    assert res.accuracy is None                              # no KKT check of an infeasibility verdict
+    # composed: | passes the first verdict on, & gives the Stop when every rule fires
+    res = solve(vector_problem, rho=1.0, stop=_Verdict(5, status) | ResidualTolerance(1e-300, 1e-300), max_iter=100)
+    assert res.status is Status(status) and res.iterations == 5
+    res = solve(vector_problem, rho=1.0, stop=RelativeChange(1e3) & _Verdict(4, status), max_iter=100)
+    assert res.status is Status(status) and res.iterations == 4 and res.certificate is not None
+    plain = solve(vector_problem, rho=1.0, stop=RelativeChange(1e3), max_iter=100)
+    assert plain.certificate is None and plain.status in (Status.CONVERGED, Status.CONVERGED_INACCURATE)
+    with pytest.raises(ValueError):
+        admmkit.Stop("x", "not_a_status")

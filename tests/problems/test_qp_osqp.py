@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
+import admmkit
 import policies  # noqa: F401  (registers the rules by name)
 from admmkit import Status
 from problems.qp import QP, QPStatus, load_mat, osqp_settings, random_qp, solve_qp, textbook_settings
@@ -153,6 +154,24 @@ def test_unbounded_qp_is_declared_dual_infeasible_with_a_valid_certificate(seed,
     res = solve_qp(qp, eps_abs=1e-6, eps_rel=1e-6)
     assert res.status is QPStatus.DUAL_INFEASIBLE and res.objective == -np.inf
     check = check_dual_certificate(qp, res.certificate)
+    assert check["P_x"] < 1e-4 and check["q_x"] < -1e-3 and check["cone_violation"] < 1e-4
+
+
+@pytest.mark.parametrize("order", ["xz", "zx"])
+def test_admmkit_solve_itself_ends_with_the_infeasibility_status_and_certificate(order):
+    # QPTermination gives admmkit.solve a Stop: the framework's result carries the status and the certificate
+    qp = infeasible_qp(20, 30, seed=1)
+    res = admmkit.solve(qp, rho=0.1, order=order, policy="osqp", stop=QPTermination(qp, 1e-6, 1e-6),
+                        max_iter=20_000)
+    assert res.status is admmkit.Status.PRIMAL_INFEASIBLE and res.objective == np.inf and not res.converged
+    assert res.stopped_by.startswith("primal_infeasible") and res.accuracy is None
+    check = check_primal_certificate(qp, res.certificate)
+    assert check["At_y"] < 1e-4 and check["support"] < -1e-3 and not check["pushes_infinite_bound"]
+    unbounded = unbounded_qp(20, 30, seed=0)
+    res = admmkit.solve(unbounded, rho=0.1, order=order, stop=QPTermination(unbounded, 1e-6, 1e-6),
+                        max_iter=20_000)
+    assert res.status is admmkit.Status.DUAL_INFEASIBLE and res.objective == -np.inf
+    check = check_dual_certificate(unbounded, res.certificate)
     assert check["P_x"] < 1e-4 and check["q_x"] < -1e-3 and check["cone_violation"] < 1e-4
 
 
