@@ -39,11 +39,12 @@ system iteratively in O(n) memory.  :class:`IterativeXSolver` combines
   since A = K + rho D this is A_l + (rho - rho_0) D_l with D_l = R D P kept
   from the setup, one axpy per level -- ``"keep"`` keeps the preconditioner
   built for the old rho (still SPD, so CG still converges), and ``"auto"``
-  keeps it until the time it has measurably cost (the extra CG iterations
-  against the convergence factor of a fresh hierarchy, times the measured
-  time of one) exceeds the measured time of a Galerkin refresh -- the
-  rent-or-buy rule, never more than twice the cost of the better choice made
-  in hindsight.
+  keeps it until what it has cost (the extra CG iterations against the
+  convergence factor of a fresh hierarchy) exceeds the price of a Galerkin
+  refresh counted in CG iterations from nonzero counts -- the rent-or-buy
+  rule, never more than twice the cost of the better choice made in
+  hindsight; counted in work, not seconds, so the iterates never depend on
+  the clock or the machine's load.
 
 Generic: nothing here knows about contact or obstacles; a plug-in passes K,
 D, the near-null space and (optionally) the dofs of each node.
@@ -58,6 +59,10 @@ import scipy.sparse as sp
 
 from .amg import AMGPreconditioner, PencilMatrix, node_blocks  # noqa: F401  (node_blocks: re-exported)
 from .cg import SolutionSpace, pcg  # noqa: F401  (re-exported)
+
+#: the products R A P of a Galerkin refresh without the axpy form, in units of C nnz(A) (a smoothed
+#: aggregation P has a few entries per row, so each product touches a few times the operator's entries)
+GALERKIN_WORK = 4.0
 
 REUSE = ("auto", "keep", "galerkin", "rebuild")
 
@@ -157,7 +162,7 @@ class IterativeXSolver:
                 action = "refresh"
             elif self.reuse == "keep":
                 action = "keep"
-            else:  # auto: rent (keep) until the measured loss reaches the price of a refresh
+            else:  # auto: rent (keep) until the loss reaches the price of a refresh, both in CG iterations
                 action = "refresh" if self._stale_loss >= self._refresh_price() else "keep"
         if action == "setup":
             start = time.perf_counter()
@@ -175,11 +180,17 @@ class IterativeXSolver:
         return action
 
     def _refresh_price(self) -> float:
-        """Seconds a Galerkin refresh costs: measured once one was done; before, 0 for the axpy
-        refresh (one axpy per coarse level) and a third of the setup for R A P products."""
-        if math.isfinite(self._amg.refresh_time):
-            return self._amg.refresh_time
-        return 0.0 if self._amg._pencils is not None else self._amg.setup_time / 3
+        """What a Galerkin refresh costs, in CG iterations, from nonzero counts (never from the clock, so that
+        the iterates do not depend on the machine's load).
+
+        One CG iteration touches about (1 + 2 C) nnz(A) entries (a product with A and a V-cycle of one
+        forward and one backward Gauss-Seidel sweep per level; C the operator complexity); an axpy refresh
+        touches C nnz(A) (one axpy per level and the fine copy), the products R A P about
+        GALERKIN_WORK times that.
+        """
+        c = self._amg.operator_complexity()
+        work = c if self._amg._pencils is not None else GALERKIN_WORK * c
+        return work / (1.0 + 2.0 * c)
 
     def inner_tolerance(self) -> float:
         """The tolerance of the next solve: rule (*) or the fixed ``tol``."""
@@ -220,7 +231,7 @@ class IterativeXSolver:
                 raise np.linalg.LinAlgError(f"CG did not converge in {self.maxiter} iterations "
                                             f"(error ratio {ratio:.2e}, tolerance {tol:.2e})")
             self.unconverged += 1
-        self._account(its, ratio, start_ratio, elapsed)
+        self._account(its, ratio, start_ratio)
         Kx = (b - r) - rho * (self.D @ x)          # K x = A x - rho D x with A x = b - r: no product with K
         self.space.add(x, Kx)
         self.solves += 1
@@ -251,8 +262,8 @@ class IterativeXSolver:
                 return Kx
         return None
 
-    def _account(self, its: int, ratio: float, start_ratio: float, elapsed: float) -> None:
-        """Track the convergence factor; with a stale hierarchy, add up the time it lost."""
+    def _account(self, its: int, ratio: float, start_ratio: float) -> None:
+        """Track the convergence factor; with a stale hierarchy, add up the CG iterations it lost."""
         if its == 0 or not (ratio > 0 and start_ratio > ratio):
             return
         factor = (ratio / start_ratio) ** (1.0 / its)
@@ -260,7 +271,7 @@ class IterativeXSolver:
             self._fresh_factor = factor if self._fresh_factor is None else min(self._fresh_factor, factor)
         elif self._fresh_factor is not None and self._fresh_factor < 1:
             needed = math.log(ratio / start_ratio) / math.log(self._fresh_factor)  # iterations a fresh one needs
-            self._stale_loss += max(its - needed, 0.0) * elapsed / its
+            self._stale_loss += max(its - needed, 0.0)                              # extra CG iterations
 
     def counters(self) -> dict[str, int]:
         """AMG setups, Galerkin refreshes, solves, CG iterations and solves that hit maxiter so far."""

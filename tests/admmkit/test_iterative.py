@@ -325,3 +325,24 @@ def test_iterative_mode_is_bitwise_repeatable_and_leaves_numpy_random_alone():
     np.random.rand(7)                                 # a different global state before the second run
     b = solve_scene(ops, "sadmm", 1e3, mode="iterative").result
     assert a.iterations == b.iterations and np.array_equal(a.x, b.x) and np.array_equal(a.lam, b.lam)
+
+
+def test_auto_reuse_does_not_depend_on_the_clock(monkeypatch):
+    # the keep-or-refresh decision is counted in CG iterations, not seconds: a clock that jumps at random
+    # (a loaded machine) gives the same iterates bit for bit
+    import itertools
+    import time as time_module
+
+    import admmkit.amg
+    import admmkit.iterative
+    ops = assemble(example1(h=1 / 20))
+    calm = solve_scene(ops, "sadmm", 1e3, mode="iterative").result
+    rng = np.random.default_rng(0)
+    ticks = itertools.accumulate(rng.exponential(0.05, 10**6))
+    jumpy = type("Clock", (), {"perf_counter": staticmethod(lambda: next(ticks)),
+                               "process_time": staticmethod(time_module.process_time)})
+    monkeypatch.setattr(admmkit.iterative, "time", jumpy)
+    monkeypatch.setattr(admmkit.amg, "time", jumpy)
+    loaded = solve_scene(ops, "sadmm", 1e3, mode="iterative").result
+    assert calm.iterations == loaded.iterations and np.array_equal(calm.x, loaded.x)
+    assert np.array_equal(calm.lam, loaded.lam) and calm.counters == loaded.counters
