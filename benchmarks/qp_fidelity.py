@@ -49,8 +49,10 @@ COLUMNS = ("problem", "n", "m", "nnz", "eps", "solver", "status", "solved", "ite
            "us_per_iter", "neutral_primal", "neutral_dual", "neutral_gap", "neutral_ok")
 
 
-def select(data: Path, max_nnz: float, names: list[str] | None) -> list[tuple[str, int]]:
-    """(name, nnz) of the problems with nnz(P) + nnz(A) <= max_nnz (or the named ones), smallest first."""
+def select(data: Path, max_nnz: float, names: list[str] | None, skipped: dict | None = None) -> list[tuple[str, int]]:
+    """(name, nnz) of the convex problems with nnz(P) + nnz(A) <= max_nnz (or the named ones), smallest first;
+    a nonconvex one (``load_mat`` refuses it) goes into ``skipped`` with the reason."""
+    from problems.qp.convexity import check_convex
     from problems.qp.mat import list_problems
     out = []
     for f in list_problems(data):
@@ -59,6 +61,12 @@ def select(data: Path, max_nnz: float, names: list[str] | None) -> list[tuple[st
         d = scipy.io.loadmat(str(f), variable_names=("P", "A"))
         nnz = sp.csc_matrix(d["P"]).nnz + sp.csc_matrix(d["A"]).nnz
         if names or nnz <= max_nnz:
+            try:
+                check_convex(sp.csc_matrix(d["P"]))
+            except ValueError as err:
+                if skipped is not None:
+                    skipped[f.stem] = str(err)
+                continue
             out.append((f.stem, nnz))
     return sorted(out, key=lambda t: (t[1], t[0]))
 
@@ -221,7 +229,8 @@ def main(argv=None, prog: str = "admmkit bench qp-fidelity") -> int:
     rules = [r for r in ((admmkit.policy_names() if args.rules == [] else args.rules) or [])
              if r != "osqp" or (args.preset, args.order) != ("osqp", "xz")]
     command = prog + " " + " ".join(shlex.quote(a) for a in (argv if argv is not None else sys.argv[1:]))
-    chosen = select(data, args.max_nnz, args.problems)
+    skipped: dict[str, str] = {}
+    chosen = select(data, args.max_nnz, args.problems, skipped)
     print(f"{len(chosen)} problems; eps {args.eps}; rules {rules or 'OSQP rule only'}", flush=True)
     rows, start = [], time.perf_counter()
     out = Path(args.out)
@@ -238,6 +247,7 @@ def main(argv=None, prog: str = "admmkit bench qp-fidelity") -> int:
                       f"Command: `{command}`", "",
                       f"Problems: the {len(chosen)} with nnz(P) + nnz(A) <= {args.max_nnz:g}: "
                       + ", ".join(n for n, _ in chosen) + ".", "",
+                      *(f"Skipped, not a convex QP: {name} ({why})." for name, why in sorted(skipped.items())), "",
                       f"Iteration cap {args.max_iter}, time limit {args.time_limit:g} s per run, polishing "
                       f"{'on' if args.polish else 'off'}; wall time of the "
                       f"study {time.perf_counter() - start:.0f} s.", ""] + lines) + "\n"
