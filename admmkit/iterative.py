@@ -183,14 +183,15 @@ class IterativeXSolver:
         """What a Galerkin refresh costs, in CG iterations, from nonzero counts (never from the clock, so that
         the iterates do not depend on the machine's load).
 
-        One CG iteration touches about (1 + 2 C) nnz(A) entries (a product with A and a V-cycle of one
-        forward and one backward Gauss-Seidel sweep per level; C the operator complexity); an axpy refresh
-        touches C nnz(A) (one axpy per level and the fine copy), the products R A P about
-        GALERKIN_WORK times that.
+        The axpy form (one axpy per level) costs a fraction of one CG iteration and any stale hierarchy
+        costs at least that: price 0, a refresh at every change of rho.  The products R A P touch about
+        GALERKIN_WORK C nnz(A) entries and one CG iteration about (1 + 2 C) nnz(A) (a product with A and a
+        V-cycle of one forward and one backward Gauss-Seidel sweep per level; C the operator complexity).
         """
+        if self._amg._pencils is not None:
+            return 0.0
         c = self._amg.operator_complexity()
-        work = c if self._amg._pencils is not None else GALERKIN_WORK * c
-        return work / (1.0 + 2.0 * c)
+        return GALERKIN_WORK * c / (1.0 + 2.0 * c)
 
     def inner_tolerance(self) -> float:
         """The tolerance of the next solve: rule (*) or the fixed ``tol``."""

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import resource
 import subprocess
@@ -41,7 +42,7 @@ def run_case(example: str, h: float, mode: str, rho: float = 1e3, max_iter: int 
     from admmkit import RelativeChange
 
     from problems.contact.problem import contact_problem
-    from problems.contact.memory import available_memory, memory_need
+    from problems.contact.memory import InsufficientMemory, available_memory, memory_need
     from problems.contact.scene import example1, example2
 
     if example not in EXAMPLES:
@@ -49,13 +50,17 @@ def run_case(example: str, h: float, mode: str, rho: float = 1e3, max_iter: int 
     if mode not in RUN_MODES:
         raise ValueError(f"mode must be one of {', '.join(RUN_MODES)}, got {mode!r}")
     t0 = time.perf_counter()
-    if example == "ex2_3d":
-        from problems.contact.scene3d import assemble3d, example2_3d, memory_need3d
-        scene = example2_3d(h=h)
-        need, have = memory_need3d(scene, mode), available_memory()
-    else:
-        scene = (example1 if example == "ex1" else example2)(h=h)
-        need, have = memory_need(scene, mode), available_memory()
+    try:
+        if example == "ex2_3d":
+            from problems.contact.scene3d import assemble3d, example2_3d, memory_need3d
+            scene = example2_3d(h=h)
+            need, have = memory_need3d(scene, mode), available_memory()
+        else:
+            scene = (example1 if example == "ex1" else example2)(h=h)
+            need, have = memory_need(scene, mode), available_memory()
+    except InsufficientMemory as err:            # the scene itself refuses: not even the iterative mode fits now
+        return {"example": example, "h": h, "mode": mode, "rho0": rho, "estimate_bytes": math.nan,
+                "available_bytes": available_memory(), "status": "refused", "message": str(err)}
     row = {"example": example, "h": h, "mode": mode, "rho0": rho, "estimate_bytes": need, "available_bytes": have}
     if need > have:
         return row | {"status": "refused", "message": f"needs about {need / 2**30:.3g} GiB, "

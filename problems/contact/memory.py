@@ -103,13 +103,18 @@ def memory_need(scene, mode: str) -> int:
     return int(PROCESS_BASELINE + system + 3 * factor + 5 * 8 * n_c**2)
 
 
+class InsufficientMemory(ValueError):
+    """A scene or a mode refused because the estimated memory exceeds what the machine has available now."""
+
+
 def check_memory(scene, mode: str) -> None:
-    """Raise ValueError with the estimate if a run in ``mode`` would not fit in the available memory."""
+    """Raise InsufficientMemory (a ValueError) with the estimate if a run in ``mode`` would not fit in the
+    available memory."""
     need, have = memory_need(scene, mode), available_memory()
     if need > have:
         other = "" if mode == "iterative" else \
             f"; mode 'iterative' needs about {memory_need(scene, 'iterative') / 2**30:.3g} GiB"
-        raise ValueError(f"mode = {mode!r} at h = {scene.h:g} needs about {need / 2**30:.3g} GiB, only "
+        raise InsufficientMemory(f"mode = {mode!r} at h = {scene.h:g} needs about {need / 2**30:.3g} GiB, only "
                          f"{have / 2**30:.3g} GiB available{other}; choose a larger h or another mode")
 
 

@@ -16,7 +16,7 @@ from typing import Any, Mapping
 
 from .expressions import as_function as _as_func, expression, finite_positive as _finite_positive
 from .friction import TANGENTIAL, check_friction_fields
-from .memory import available_memory, estimate_memory, rectangle_measure
+from .memory import InsufficientMemory, available_memory, estimate_memory, rectangle_measure
 from .mesh import BOUNDARY_NAMES
 
 MESH_KINDS = ("structured", "unstructured")
@@ -132,7 +132,7 @@ class Scene:
             have = available_memory()
             if need > have:   # refused before anything is assembled; the direct modes check again (memory_need)
                 direct = estimate_memory(area, perim, self.h, self.order, self.mesh_kind)
-                raise ValueError(f"h = {self.h} is too small: the system needs about {need / 2**30:.3g} GiB "
+                raise InsufficientMemory(f"h = {self.h} is too small: the system needs about {need / 2**30:.3g} GiB "
                                  f"with the iterative x-step ({direct / 2**30:.3g} GiB with a sparse "
                                  f"factorisation), only {have / 2**30:.3g} GiB available; choose a larger h")
         elif self.mesh_kind != "unstructured":

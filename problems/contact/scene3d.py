@@ -32,7 +32,7 @@ import scipy.sparse as sp
 
 from .assembly import ContactOperators, _csr, lame
 from .expressions import as_function, expression, finite_positive
-from .memory import available_memory, estimate_memory3d, memory_need3d  # noqa: F401  (memory_need3d: this scene's)
+from .memory import InsufficientMemory, available_memory, estimate_memory3d, memory_need3d  # noqa: F401  (memory_need3d: this scene's)
 from .friction import check_friction_fields, friction_of, tangent_frames
 from .scene import MAX_CELLS, FrozenDict, check_slide
 
@@ -170,7 +170,7 @@ class Scene3D:
             raise ValueError(f"contact: face {self.contact!r} is also clamped or loaded")
         need, have = estimate_memory3d(*self.counts, solver="iterative"), available_memory()
         if need > have:
-            raise ValueError(f"h = {self.h} is too small: {3 * np.prod(np.array(self.counts) + 1):.3g} unknowns need "
+            raise InsufficientMemory(f"h = {self.h} is too small: {3 * np.prod(np.array(self.counts) + 1):.3g} unknowns need "
                              f"about {need / 2**30:.3g} GiB with the iterative x-step "
                              f"({estimate_memory3d(*self.counts) / 2**30:.3g} GiB with a sparse factorisation), "
                              f"only {have / 2**30:.3g} GiB available; choose a larger h")

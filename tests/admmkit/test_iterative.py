@@ -249,6 +249,20 @@ def test_run_case_in_a_subprocess_reports_time_memory_and_refusals():
     assert refused["status"] == "refused" and "GiB" in refused["message"]
 
 
+def test_run_case_reports_a_scene_refused_for_memory_as_refused(monkeypatch):
+    # when not even the iterative mode fits in what is available now, the scene itself refuses (a
+    # problems.contact.memory.InsufficientMemory): the case is a refusal, not a crash of the study
+    from benchmarks import scale_runs
+    from problems.contact import memory, scene
+    from problems.contact.memory import InsufficientMemory
+    for module in (memory, scene, scale_runs):
+        monkeypatch.setattr(module, "available_memory", lambda: 2**20, raising=False)
+    with pytest.raises(InsufficientMemory, match="GiB available"):
+        example1(h=1 / 200)
+    row = scale_runs.run_case("ex1", 1 / 200, "iterative")
+    assert row["status"] == "refused" and "available" in row["message"]
+
+
 @pytest.fixture
 def in_process(monkeypatch):
     """Run the benchmark's cases in this process (the subprocess path is tested above)."""
