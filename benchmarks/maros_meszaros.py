@@ -54,7 +54,7 @@ from .maros_meszaros_report import (FIELDS, OSQP_DIRECT, RHO0, SHIFT, performanc
                                     plot_profiles, read_rows, shifted_geometric_mean, summarize, write_report,
                                     write_rows)
 from .maros_meszaros_runs import VARIANTS, run_admmkit, run_osqp
-from .sweep import Executor, case_id, run_sweep
+from .sweep import Executor, case_id, finished, run_sweep
 
 from problems.qp.convexity import check_convex
 from problems.qp.mat import list_problems, load_mat
@@ -244,6 +244,7 @@ def run_benchmark(folder, out, *, policy_names=None, orders=ORDERS, eps=EPS, max
     if not resume:
         results.unlink(missing_ok=True)
     cases = build_cases(todo, configs, eps, max_iter, time_limit, osqp_direct)
+    reused = len(finished(cases, results))
     if progress:
         print(f"{len(todo)} problems to run, {len(skipped)} skipped; {len(configs)} admmkit configurations"
               f"{' + OSQP' if osqp_direct else ''}, cap {max_iter} iterations / {time_limit:g} s", flush=True)
@@ -254,7 +255,7 @@ def run_benchmark(folder, out, *, policy_names=None, orders=ORDERS, eps=EPS, max
     rows = [r for c in cases if case_id(c) in records for r in case_rows(records[case_id(c)])]
     meta = {"max_iter": max_iter, "time_limit": time_limit, "machine": machine_info(), "started": started,
             "wall": time.perf_counter() - t_start,
-            "workers": executor.describe(len(todo))}
+            "workers": executor.describe(len(todo)), "reused": reused, "cases": len(cases)}
     report = write_report(rows, out, skipped=skipped, kkt_form=kkt_form, meta=meta, command=command)
     if progress:
         print(report["text"])
