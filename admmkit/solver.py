@@ -167,7 +167,7 @@ def solve(
     try:   # the BLAS thread count is restored however the loop ends (an exception, Ctrl-C)
         start = perf()
         for k in range(max_iter):
-            rec = hat = None             # drop the last record and its vectors now: fewer arrays alive, less memory traffic
+            rec = hat = Ax_dual = z_dual = None   # drop the last record and its vectors now: fewer arrays alive
             check = (k + 1) % check_every == 0 or k == max_iter - 1
             take = take_r[check] and not relaxed    # with alpha != 1 the record's r is not the dual update's
             r_norm = None
@@ -181,12 +181,7 @@ def solve(
                     t2 = perf()
                     tx += t1 - t0
                     tz += t2 - t1
-                    if k == 0:   # a step of the wrong shape would broadcast silently: stop at once
-                        _check_steps(problem, x, z, x_new, z_new, Ax_new)
-                    if take:                                                            # eq. (13)
-                        lam_new, r_norm = dual_update_and_residual(lam, rho, hat, z_new, c, c_zero, norm_M)
-                    else:
-                        lam_new = dual_update(lam, rho, hat, z_new, c, c_zero)
+                    Ax_dual, z_dual = hat, z_new                 # the dual update's "A x" and "z" in order xz
                 else:
                     z_new = z_step(problem, Ax, lam, rho, z)                            # eq. (11)
                     t1 = perf()
@@ -195,12 +190,13 @@ def solve(
                     t2 = perf()
                     tz += t1 - t0
                     tx += t2 - t1
-                    if k == 0:   # a step of the wrong shape would broadcast silently: stop at once
-                        _check_steps(problem, x, z, x_new, z_new, Ax_new)
-                    if take:                                                            # eq. (13)
-                        lam_new, r_norm = dual_update_and_residual(lam, rho, Ax_new, hat, c, c_zero, norm_M)
-                    else:
-                        lam_new = dual_update(lam, rho, Ax_new, hat, c, c_zero)
+                    Ax_dual, z_dual = Ax_new, hat                # ... and in order zx
+                if k == 0:       # a step of the wrong shape would broadcast silently: stop at once
+                    _check_steps(problem, x, z, x_new, z_new, Ax_new)
+                if take:                                                                # eq. (13)
+                    lam_new, r_norm = dual_update_and_residual(lam, rho, Ax_dual, z_dual, c, c_zero, norm_M)
+                else:
+                    lam_new = dual_update(lam, rho, Ax_dual, z_dual, c, c_zero)
             except (np.linalg.LinAlgError, ArithmeticError) as err:
                 status, message = Status.DIVERGED, f"a step failed at iteration {k + 1}: {err}"
                 break

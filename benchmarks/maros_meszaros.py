@@ -244,7 +244,7 @@ def run_benchmark(folder, out, *, policy_names=None, orders=ORDERS, eps=EPS, max
     if not resume:
         results.unlink(missing_ok=True)
     cases = build_cases(todo, configs, eps, max_iter, time_limit, osqp_direct)
-    reused = len(finished(cases, results))
+    reused = len(finished(cases, results)) if resume else 0     # a fresh run deleted the file above
     if progress:
         print(f"{len(todo)} problems to run, {len(skipped)} skipped; {len(configs)} admmkit configurations"
               f"{' + OSQP' if osqp_direct else ''}, cap {max_iter} iterations / {time_limit:g} s", flush=True)
