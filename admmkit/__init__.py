@@ -6,10 +6,14 @@ composable stopping rules, the per-iteration history and the result; and
 building blocks for new problems: :class:`LinearMap` (A, M and the derived
 adjoint), :class:`QuadraticXStep` (the x-step of a quadratic f, cached per
 rho), :mod:`admmkit.prox` (z-steps from proximal operators) and
-:class:`SplitProblem` (a problem assembled from them).  Penalty
-rules live in the ``policies`` package and plug-ins in ``problems``; this
-package imports neither.
+:class:`SplitProblem` (a problem assembled from them).  Penalty rules live in
+:mod:`admmkit.policies`, plug-ins in ``admmkit.problems`` and the studies in
+:mod:`admmkit.benchmarks`; the core imports none of them (a rule named by a
+string is found through the entry-point group ``admmkit.policies``).
 """
+from ._layout import map_source_tree
+
+map_source_tree(__path__[0])   # a source checkout resolves admmkit.policies etc. as the installed package does
 from . import prox
 from .history import History
 from .operators import LinearMap

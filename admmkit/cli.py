@@ -86,7 +86,7 @@ def add_common_options(parser: argparse.ArgumentParser, *, policy: str = "summab
     """Options every ``solve`` sub-command shares: policy, order, rho_0, the stop and output options.
 
     ``methods`` maps extra names to ``(order, factory)`` (the paper's
-    ``admm1``/``admm2``/``sadmm``: ``policies.paper_methods.PAPER_METHODS``);
+    ``admm1``/``admm2``/``sadmm``: ``admmkit.policies.paper_methods.PAPER_METHODS``);
     such a name runs in its own order unless ``--order`` is given, a
     registered rule in ``order``.  ``--method`` stays as a deprecated alias.
     """

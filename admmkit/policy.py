@@ -17,11 +17,14 @@ from __future__ import annotations
 
 import inspect
 from abc import ABC, abstractmethod
+from importlib.metadata import entry_points
 from typing import Callable
 
 from .record import IterationRecord
 
 _REGISTRY: dict[str, Callable[..., "Policy"]] = {}
+#: the entry-point group in which an installed package names its rules (admmkit's own are in pyproject.toml)
+GROUP = "admmkit.policies"
 
 
 class Policy(ABC):
@@ -56,18 +59,33 @@ def register_policy(name: str):
     return deco
 
 
+def _declared() -> dict:
+    """The rules installed packages declare in the entry-point group :data:`GROUP`, by name."""
+    return {ep.name.strip().lower().replace("-", "_"): ep for ep in entry_points(group=GROUP)}
+
+
 def policy_names() -> list[str]:
-    """Names of the registered policies (the built-in ones register when ``policies`` is imported)."""
-    return sorted(_REGISTRY)
+    """Names of the known policies: registered in this process, or declared by an installed package."""
+    return sorted(set(_REGISTRY) | set(_declared()))
+
+
+def _lookup(key: str):
+    """The class registered or declared under ``key`` (loading its entry point on first use), or None."""
+    if key not in _REGISTRY:
+        declared = _declared().get(key)
+        if declared is None:
+            return None
+        _REGISTRY[key] = declared.load()
+    return _REGISTRY[key]
 
 
 def make_policy(name: str, **params) -> Policy:
-    """Construct a registered policy by name with its parameters."""
+    """Construct a policy by name with its parameters (registered, or declared by an installed package)."""
     if not isinstance(name, str):
-        known = ", ".join(policy_names()) or "none registered (import policies)"
+        known = ", ".join(policy_names()) or "none registered"
         raise TypeError(f"policy name must be a string, one of: {known}; got {type(name).__name__}")
-    key = name.strip().lower().replace("-", "_")
-    if key not in _REGISTRY:
-        known = ", ".join(policy_names()) or "none registered (import policies)"
+    cls = _lookup(name.strip().lower().replace("-", "_"))
+    if cls is None:
+        known = ", ".join(policy_names()) or "none registered"
         raise ValueError(f"unknown policy {name!r}; known policies: {known}")
-    return _REGISTRY[key](**params)
+    return cls(**params)

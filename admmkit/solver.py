@@ -65,7 +65,7 @@ def solve(
         of ``warm_start``).
     policy : Policy, str or None
         A :class:`Policy` (reset at the start of the run), a registered
-        name such as ``"summable"`` (after ``import policies``), or None to
+        name such as ``"summable"`` (found by entry point: no import needed), or None to
         keep rho fixed.
     order : str
         ``"xz"`` (ADMM1: x-step first) or ``"zx"`` (ADMM2: z-step first).

@@ -43,7 +43,7 @@ def _executor(args):
 
 
 def _sweep_options(p, study: str) -> None:
-    """The options of the resumable sweeps (benchmarks.sweep)."""
+    """The options of the resumable sweeps (admmkit.benchmarks.sweep)."""
     _out(p, study)
     _executor_options(p)
     p.add_argument("--quick", action="store_true", help="a tiny grid (the smoke test)")
@@ -78,7 +78,7 @@ def _print_files(files) -> None:
 
 # ---------------------------------------------------------------- the paper
 def reproduce(commands) -> None:
-    """``admmkit reproduce paper``: the paper's Tables 1-2 and Figs 1-4 (benchmarks.paper)."""
+    """``admmkit reproduce paper``: the paper's Tables 1-2 and Figs 1-4 (admmkit.benchmarks.paper)."""
     r = commands.add_parser("reproduce", help="reproduce a paper's tables and figures",
                             description="Reproduce the paper's section 4: both examples x ADMM1/ADMM2/SADMM x rho x h.")
     r.add_argument("target", choices=["paper"], help="paper: Tables 1-2 and Figs 1-4 of Yuan & Zhang (2023)")
@@ -386,15 +386,15 @@ def _run_own(module: str, argv: list[str], prog: str) -> int:
         return exit_.code if isinstance(exit_.code, int) else 2
 
 
-loop_overhead = _own_parser("loop-overhead", "benchmarks.loop_overhead",
+loop_overhead = _own_parser("loop-overhead", "admmkit.benchmarks.loop_overhead",
                             "the loop's cost per iteration against a bare numpy loop of the same updates")
-four_problems = _own_parser("four-problems", "benchmarks.four_problems",
+four_problems = _own_parser("four-problems", "admmkit.benchmarks.four_problems",
                             "LASSO, weighted box LS, consensus and 2-D TV with the building blocks, against cvxpy")
-qp_fidelity = _own_parser("qp-fidelity", "benchmarks.qp_fidelity",
+qp_fidelity = _own_parser("qp-fidelity", "admmkit.benchmarks.qp_fidelity",
                           "admmkit's OSQP preset against OSQP 1.x, problem by problem (Maros-Meszaros)")
-qp_agreement = _own_parser("qp-agreement", "benchmarks.qp_agreement",
+qp_agreement = _own_parser("qp-agreement", "admmkit.benchmarks.qp_agreement",
                            "random feasible QPs against cvxpy + Clarabel")
-friction = _own_parser("friction", "benchmarks.friction_validation",
+friction = _own_parser("friction", "admmkit.benchmarks.friction_validation",
                        "Cattaneo-Mindlin partial slip under refinement, and every rule on frictional contact")
-linsolve = _own_parser("linsolve", "benchmarks.linsolve_backends",
+linsolve = _own_parser("linsolve", "admmkit.benchmarks.linsolve_backends",
                        "sparse direct backends from 1e3 to 1e6 unknowns, 1 and 2 threads")

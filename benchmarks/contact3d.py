@@ -47,8 +47,8 @@ def probe(h: float, rho: float = 1e3) -> dict:
     from admmkit.iterative import IterativeXSolver
     from admmkit.linsolve import available_backends, factorize
 
-    from problems.contact.iterative import near_null_space
-    from problems.contact.scene3d import assemble3d, example2_3d
+    from admmkit.problems.contact.iterative import near_null_space
+    from admmkit.problems.contact.scene3d import assemble3d, example2_3d
 
     ops = assemble3d(example2_3d(h=h))
     D = (ops.B.T @ sp.diags(ops.mc) @ ops.B).tocsr()
@@ -96,11 +96,11 @@ def probe_in_subprocess(h: float, which: str, timeout: float) -> dict:
 def solve_3d(h: float, rho: float = 1e3) -> dict:
     """SADMM with the iterative x-step on the 3D scene; the solution and the run's figures."""
     import admmkit
-    import policies
+    from admmkit import policies
     from threadpoolctl import threadpool_limits
 
-    from problems.contact.problem import contact_problem
-    from problems.contact.scene3d import assemble3d, example2_3d
+    from admmkit.problems.contact.problem import contact_problem
+    from admmkit.problems.contact.scene3d import assemble3d, example2_3d
 
     t0 = time.perf_counter()
     ops = assemble3d(example2_3d(h=h))
@@ -119,7 +119,7 @@ def solve_3d(h: float, rho: float = 1e3) -> dict:
 def write_vtk(ops, u: np.ndarray, lam: np.ndarray, base: Path, p: np.ndarray | None = None) -> Path:
     """VTU file (ParaView, meshio) in double precision: displacement at the vertices; contact pressure, gap and
     status on the contact face (problems/contact/export.py; NaN, or -1 for the status, off the face)."""
-    from problems.contact.export import boundary_fields, write_vtu
+    from admmkit.problems.contact.export import boundary_fields, write_vtu
     base = Path(base)
     base.parent.mkdir(parents=True, exist_ok=True)
     fields = boundary_fields(ops, u, lam, ops.g if p is None else p)
@@ -140,7 +140,7 @@ def figure_3d(ops, u: np.ndarray, lam: np.ndarray, p: np.ndarray, path: Path, ma
     import ngsolve as ng
     from mpl_toolkits.mplot3d.art3d import Poly3DCollection
 
-    from problems.contact.export import contact_status
+    from admmkit.problems.contact.export import contact_status
     plt = pyplot()
     nv = ops.mesh.nv
     full = ops.full_vector(u)

@@ -15,7 +15,7 @@ the benchmark times ``admmkit.linsolve.factorize(K, backend)`` followed by one
 ``admmkit.solve``, median of ``repeats`` runs each building a fresh contact
 problem, in the condensed and the full mode.  The ratio SADMM / (factor +
 solve) says how many linear solves the contact problem costs.  The condensed
-set-up is split with :attr:`problems.contact.schur.BoundarySchur.timings`.
+set-up is split with :attr:`admmkit.problems.contact.schur.BoundarySchur.timings`.
 """
 from __future__ import annotations
 
@@ -26,18 +26,18 @@ import time
 from pathlib import Path
 
 import admmkit
-import policies
+from admmkit import policies
 from admmkit import RelativeChange
 from admmkit.blas import limit_blas
 from admmkit.linsolve import available_backends, factorize
 from admmkit.io import write_text
 
-from problems.contact.assembly import assemble
-from problems.contact.problem import contact_problem
+from admmkit.problems.contact.assembly import assemble
+from admmkit.problems.contact.problem import contact_problem
 from .machine import machine_info, median_time
 from .report import h_label
-from problems.contact.scene import example1, example2
-from problems.contact.schur import available_schur_backends
+from admmkit.problems.contact.scene import example1, example2
+from admmkit.problems.contact.schur import available_schur_backends
 
 DEFAULT_HS = (1 / 40, 1 / 200)
 EXAMPLES = {"ex1": example1, "ex2": example2}

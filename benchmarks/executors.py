@@ -3,7 +3,7 @@
     admmkit bench executors [--out docs/results/executors] [--quick]
 
 Runs the cases of ``admmkit bench policies`` (every rule of
-:data:`benchmarks.policies_fe.RULES`, both orders, contact Example 1 at
+:data:`admmkit.benchmarks.policies_fe.RULES`, both orders, contact Example 1 at
 h = 1/20 and the radial obstacle at h = 1/16, rho_0 every third decade;
 ``--quick``: the coarse smoke grid) three times from empty results files, one
 after the other in this run: on 2 local worker processes with a group per
@@ -36,13 +36,13 @@ def run_case(case: dict) -> dict:
     ``{"kind": "contact", "h", "method", "rho"}``; returns the iterations and the status."""
     import admmkit
     if case["kind"] == "qp":
-        import policies  # noqa: F401  (registers the rules)
-        from problems.qp import random_qp
+        from admmkit import policies  # noqa: F401  (registers the rules)
+        from admmkit.problems.qp import random_qp
         qp = random_qp(case["n"], case["m"], kind="mixed", seed=case["seed"])
         res = admmkit.solve(qp, rho=case["rho"], policy=case["policy"], order=case["order"], max_iter=5000)
         return {"iterations": res.iterations, "status": res.status.value, "objective": float(res.objective)}
     if case["kind"] == "contact":
-        from problems.contact import assemble, example1, solve_scene
+        from admmkit.problems.contact import assemble, example1, solve_scene
         if case["h"] not in _OPS:
             _OPS.clear()
             _OPS[case["h"]] = assemble(example1(h=case["h"]))
@@ -73,7 +73,7 @@ def _timed(cases, path: Path, executor: Executor, progress: bool) -> tuple[dict,
     if path.parent.exists():
         shutil.rmtree(path.parent)
     t0 = time.perf_counter()
-    records = run_sweep(cases, "benchmarks.policies_fe:run_case", path, executor=executor, progress=progress)
+    records = run_sweep(cases, "admmkit.benchmarks.policies_fe:run_case", path, executor=executor, progress=progress)
     return records, time.perf_counter() - t0
 
 

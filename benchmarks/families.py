@@ -20,7 +20,7 @@ discrete problem*:
 Reference solutions (computed once per problem and cached on disk):
 
 - contact and obstacle: the primal-dual active set solution
-  (:mod:`benchmarks.pdas`), exact once its active set settles, with
+  (:mod:`admmkit.benchmarks.pdas`), exact once its active set settles, with
   its KKT residuals, cross-checked against cvxpy + Clarabel at tolerance 1e-10
   when the problem has at most ``CROSS_CHECK_MAX`` unknowns (the relative
   differences are recorded).  Clarabel itself is only accurate to its
@@ -142,7 +142,7 @@ def discrete(case: dict, cache_dir: str | Path | None = None, cross_check_max: i
 
 # ---------------------------------------------------------------- contact
 def _contact(case: dict) -> Discrete:
-    from problems.contact import assemble, contact_problem, example1, example2
+    from admmkit.problems.contact import assemble, contact_problem, example1, example2
 
     example = {"ex1": example1, "ex2": example2}[case["scene"]]
     changes = {}
@@ -184,8 +184,8 @@ def _contact(case: dict) -> Discrete:
 # ---------------------------------------------------------------- obstacle
 def _obstacle(case: dict) -> Discrete:
     from admmkit.linsolve import CachedFactorization
-    from problems.obstacle import make_problem, radial
-    from problems.obstacle.problem import DEFAULT_BACKEND
+    from admmkit.problems.obstacle import make_problem, radial
+    from admmkit.problems.obstacle.problem import DEFAULT_BACKEND
 
     base = make_problem(radial(h=case["h"]))
     m = base.m
@@ -215,7 +215,7 @@ def _obstacle(case: dict) -> Discrete:
 
 # ---------------------------------------------------------------- QPs
 def _qp(case: dict) -> Discrete:
-    from problems.qp import QP, load_mat, random_qp
+    from admmkit.problems.qp import QP, load_mat, random_qp
 
     name = case["scene"].split(":", 1)[1]
     if name == "random-mixed":

@@ -172,7 +172,7 @@ def main(argv=None, prog: str = "admmkit bench four-problems") -> int:
     parser.add_argument("--rules", default="all", help="comma-separated rules (default: every registered rule)")
     args = parser.parse_args(argv)
     import admmkit
-    import policies  # noqa: F401  (registers the rules)
+    from admmkit import policies  # noqa: F401  (registers the rules)
     names = args.problems.split(",")
     unknown = [n for n in names if n not in PROBLEMS]
     if unknown:

@@ -1,8 +1,8 @@
 """Friction validation: Cattaneo-Mindlin partial slip under refinement, and every rule across rho_0.
 
-    python -m benchmarks.friction_validation [--out out/friction_validation] [--quick]
+    python -m admmkit.benchmarks.friction_validation [--out out/friction_validation] [--quick]
 
-1. **Cattaneo-Mindlin** (:mod:`problems.contact.cattaneo`): the Hertz
+1. **Cattaneo-Mindlin** (:mod:`admmkit.problems.contact.cattaneo`): the Hertz
    half-cylinder (R = 1, E = 1, a ~ 0.02) pressed onto a rigid plane and
    sheared by moving the plane by ``--slide`` along x, Coulomb friction mu,
    nu = 0.49 (Dundurs' beta = 0.0196), P2, contact mesh sizes h_c = a/5,
@@ -12,7 +12,7 @@
    a and p0 Hertz's at P).  The coupling left at nu = 0.49: the shift of the
    stick zone off the centre and the change of the peak pressure against the
    frictionless run.
-2. **Stability**: every ADMM method (:mod:`benchmarks.methods`) on Example 1
+2. **Stability**: every ADMM method (:mod:`admmkit.benchmarks.methods`) on Example 1
    with Tresca friction (s = 2) and with Coulomb friction (mu = 0.3, pushed
    sideways by a traction (2, 0) on the right edge), h = 1/20, rho_0 = s E for
    s = 1e-4 ... 1e4, the paper's stop (relative change 1e-5 in the energy
@@ -42,9 +42,9 @@ def cattaneo_study(mu: float, slide: float, nu: float, factors) -> tuple[list[di
     """Rows of the refinement study and the finest solution's profiles."""
     import dataclasses
 
-    from problems.contact import solve_scene
-    from problems.contact.cattaneo import cattaneo_scene, dundurs_beta, measure_stick
-    from problems.contact.hertz import HertzCase
+    from admmkit.problems.contact import solve_scene
+    from admmkit.problems.contact.cattaneo import cattaneo_scene, dundurs_beta, measure_stick
+    from admmkit.problems.contact.hertz import HertzCase
 
     case = HertzCase(nu=nu)
     rows, finest = [], {}
@@ -73,7 +73,7 @@ def cattaneo_study(mu: float, slide: float, nu: float, factors) -> tuple[list[di
 
 
 def _scenes(h: float):
-    from problems.contact import example1
+    from admmkit.problems.contact import example1
     return {"ex1_tresca": example1(h=h, tangential="tresca", slip_bound=2.0),
             "ex1_coulomb": example1(h=h, tangential="coulomb", mu=0.3,
                                     tractions={"top": (0.0, -10.0), "right": (2.0, 0.0)})}
@@ -82,9 +82,9 @@ def _scenes(h: float):
 def stability_study(h: float, scales, max_iter: int) -> list[dict]:
     """Every method x rho_0 on the two frictional examples."""
     from admmkit import ResidualTolerance
-    from benchmarks.methods import admm_methods, resolve
-    from problems.contact import assemble, solve_scene
-    from problems.contact.tresca_qp import tresca_cvxpy
+    from admmkit.benchmarks.methods import admm_methods, resolve
+    from admmkit.problems.contact import assemble, solve_scene
+    from admmkit.problems.contact.tresca_qp import tresca_cvxpy
 
     rows = []
     for name, scene in _scenes(h).items():
@@ -134,8 +134,8 @@ def _figures(out: Path, rows: list[dict], finest: dict, stab: list[dict], scales
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from problems.contact.cattaneo import cattaneo_traction
-    from problems.contact.hertz import hertz_pressure
+    from admmkit.problems.contact.cattaneo import cattaneo_traction
+    from admmkit.problems.contact.hertz import hertz_pressure
 
     m, case = finest["m"], finest["case"]
     x, order = finest["x"], np.argsort(finest["x"])
@@ -197,9 +197,9 @@ def _figures(out: Path, rows: list[dict], finest: dict, stab: list[dict], scales
 
 
 def _readme(out: Path, argv: list[str], rows, stab, seconds: float, args) -> None:
-    from problems.contact.cattaneo import dundurs_beta
+    from admmkit.problems.contact.cattaneo import dundurs_beta
     lines = [f"# Friction validation", "",
-             f"Produced by `python -m benchmarks.friction_validation {' '.join(argv)}` in {seconds:.0f} s "
+             f"Produced by `python -m admmkit.benchmarks.friction_validation {' '.join(argv)}` in {seconds:.0f} s "
              f"(BLAS on one thread, a shared 2-core machine).", "",
              "## Cattaneo-Mindlin partial slip (Coulomb)", "",
              f"Hertz half-cylinder R = 1, E = 1, nu = {args.nu} (Dundurs' beta = {dundurs_beta(args.nu):.4f}; "

@@ -210,7 +210,7 @@ def run_admmkit(problem, config: dict, iterations: int):
     seconds of its loop, its iteration count, the seconds of the whole call (the difference is the
     once-per-run set-up and finish: checks, policy reset, result, KKT) and the result."""
     import admmkit
-    import policies  # noqa: F401
+    from admmkit import policies  # noqa: F401
 
     stop = (admmkit.ResidualTolerance(1e-300, 1e-300) if config["stop"] == "residual"
             else admmkit.RelativeChange(1e-300))

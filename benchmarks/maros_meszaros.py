@@ -6,12 +6,12 @@ OSQP's machinery, and OSQP 1.x itself, in one run.
 Configurations (:func:`default_configs`), each from rho_0 = 0.1:
 
 - ``preset``: every registered rule, orders xz and zx, inside OSQP's
-  machinery (:func:`problems.qp.osqp_settings`: Ruiz scaling, a penalty per
+  machinery (:func:`admmkit.problems.qp.osqp_settings`: Ruiz scaling, a penalty per
   row, over-relaxation 1.6, sigma 1e-6, the test every 25 iterations); rule
   "osqp" is OSQP's rule as OSQP runs it (every 50 iterations, OSQP's
   normalisation), so preset/osqp/xz is OSQP's algorithm;
 - ``textbook``: the same rules and orders in admmkit's textbook loop
-  (:func:`problems.qp.textbook_settings`: no scaling, one rho for every row,
+  (:func:`admmkit.problems.qp.textbook_settings`: no scaling, one rho for every row,
   alpha = 1, the test every iteration);
 - one-off ablations of the preset with OSQP's rule in order xz:
   ``no-scaling``, ``uniform-rho`` (no penalty per row), ``alpha-1`` (no
@@ -21,7 +21,7 @@ Configurations (:func:`default_configs`), each from rho_0 = 0.1:
 Every run asks for the absolute accuracy eps (eps_abs = eps, eps_rel = 0)
 and is judged by its own test (``solved``) and by the neutral criteria
 (``neutral``: qpbenchmark's infinity-norm primal and dual residuals and
-duality gap, each <= eps); :mod:`benchmarks.maros_meszaros_runs` has the
+duality gap, each <= eps); :mod:`admmkit.benchmarks.maros_meszaros_runs` has the
 details (one admmkit run gives every accuracy).  Iteration cap (default
 OSQP's 4000) and CPU-time limit per run are the same for every solver.
 
@@ -29,10 +29,10 @@ Reported per configuration and accuracy: successes under each judgement,
 shifted geometric means of iterations and time (a failure counts as the cap
 and the limit), factorisations, failure counts, and performance profiles
 (Dolan & More 2002) over the neutral successes.  The runs go through the
-sweep runner (:mod:`benchmarks.sweep`): one case per (problem,
+sweep runner (:mod:`admmkit.benchmarks.sweep`): one case per (problem,
 configuration), a problem's cases in one task, every finished case kept in
 ``results.jsonl`` (``--resume`` continues an interrupted run), on local
-processes or Dask.  The report is :mod:`benchmarks.maros_meszaros_report`.
+processes or Dask.  The report is :mod:`admmkit.benchmarks.maros_meszaros_report`.
 """
 from __future__ import annotations
 
@@ -47,7 +47,7 @@ import scipy.io
 import scipy.sparse as sp
 
 import admmkit
-import policies  # noqa: F401  (registers the rules)
+from admmkit import policies  # noqa: F401  (registers the rules)
 
 from .machine import machine_info
 from .maros_meszaros_report import (FIELDS, OSQP_DIRECT, RHO0, SHIFT, performance_profile,  # noqa: F401
@@ -56,9 +56,9 @@ from .maros_meszaros_report import (FIELDS, OSQP_DIRECT, RHO0, SHIFT, performanc
 from .maros_meszaros_runs import VARIANTS, run_admmkit, run_osqp
 from .sweep import Executor, case_id, finished, run_sweep
 
-from problems.qp.convexity import check_convex
-from problems.qp.mat import list_problems, load_mat
-from problems.qp.problem import REDUCED_MAX_NNZ, reduced_nnz_bound
+from admmkit.problems.qp.convexity import check_convex
+from admmkit.problems.qp.mat import list_problems, load_mat
+from admmkit.problems.qp.problem import REDUCED_MAX_NNZ, reduced_nnz_bound
 
 EPS = (1e-3, 1e-6)
 ORDERS = ("xz", "zx")
@@ -248,7 +248,7 @@ def run_benchmark(folder, out, *, policy_names=None, orders=ORDERS, eps=EPS, max
     if progress:
         print(f"{len(todo)} problems to run, {len(skipped)} skipped; {len(configs)} admmkit configurations"
               f"{' + OSQP' if osqp_direct else ''}, cap {max_iter} iterations / {time_limit:g} s", flush=True)
-    records = run_sweep(cases, "benchmarks.maros_meszaros:run_case", results, executor=executor,
+    records = run_sweep(cases, "admmkit.benchmarks.maros_meszaros:run_case", results, executor=executor,
                         env={DATA_ENV: str(Path(folder).resolve())}, progress=progress, cost=lambda c: costs[c["problem"]],
                         label=lambda c: f"{c['problem']} {c['variant']}/{c['solver']}/{c['order']}",
                         table=lambda rec: [{"id": rec["id"], **r} for r in case_rows(rec)])

@@ -1,4 +1,4 @@
-"""The report of the QP benchmark (:mod:`benchmarks.maros_meszaros`): statistics, profiles, tables.
+"""The report of the QP benchmark (:mod:`admmkit.benchmarks.maros_meszaros`): statistics, profiles, tables.
 
 Shifted geometric means (Mittelmann), Dolan-More performance profiles, the
 per-run CSV (``results.csv``), ``summary.csv`` and the README; every file is
@@ -219,7 +219,7 @@ def markdown(summary: list[dict], skipped: dict[str, str], meta: dict, command: 
         f"Command (from the repository root): `{command}`",
         "",
         f"{n_run} problems run, {len(skipped)} skipped (listed below).  Configurations: `variant/rule (order)`; "
-        "variant `preset` is OSQP's machinery (`problems.qp.osqp_settings()`), `textbook` admmkit's textbook "
+        "variant `preset` is OSQP's machinery (`admmkit.problems.qp.osqp_settings()`), `textbook` admmkit's textbook "
         "loop, `no-scaling`, `uniform-rho`, `alpha-1` the preset without Ruiz scaling, the penalty per row or "
         "over-relaxation, `polish` with polishing; `OSQP` is the osqp package with its defaults.  Every run asks "
         f"for the absolute accuracy eps (eps_abs = eps, eps_rel = 0) from rho_0 = {RHO0:g}, with the iteration "

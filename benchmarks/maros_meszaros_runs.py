@@ -1,6 +1,6 @@
-"""One run of the QP study (:mod:`benchmarks.maros_meszaros`): a configuration on one QP, judged at every accuracy.
+"""One run of the QP study (:mod:`admmkit.benchmarks.maros_meszaros`): a configuration on one QP, judged at every accuracy.
 
-A configuration is admmkit's QP plug-in (:func:`problems.qp.solve_qp`) with a
+A configuration is admmkit's QP plug-in (:func:`admmkit.problems.qp.solve_qp`) with a
 settings *variant*, a penalty rule and an order, or OSQP 1.x itself.  Every
 run asks for the absolute accuracy eps (eps_abs = eps, eps_rel = 0, as the
 neutral harness qpbenchmark asks its solvers) and is judged twice:
@@ -9,11 +9,11 @@ neutral harness qpbenchmark asks its solvers) and is judged twice:
   gap in the user's problem; for OSQP its status "solved");
 - ``neutral``: the returned (x, y) meets the neutral criteria (qpbenchmark's:
   infinity-norm primal residual, dual residual and duality gap, each <= eps;
-  :func:`problems.qp.residuals.neutral_residuals`).
+  :func:`admmkit.problems.qp.residuals.neutral_residuals`).
 
 An admmkit run goes to the tightest eps; the looser accuracies are tested
 every ``check_every`` iterations by a callback with the same test
-(:class:`problems.qp.termination.QPTermination` at that eps), which is what a
+(:class:`admmkit.problems.qp.termination.QPTermination` at that eps), which is what a
 run at that eps would have stopped on: the rules never look at the clock or
 at eps, so the iterates are the same.  The callback judges the iterate where
 the looser test first fired by the neutral criteria.  Only the ``polish``
@@ -29,11 +29,11 @@ import time
 import numpy as np
 import scipy.sparse as sp
 
-from problems.qp.problem import QP
-from problems.qp.residuals import neutral_residuals, neutral_satisfied
-from problems.qp.settings import QPSettings, osqp_settings, textbook_settings
-from problems.qp.solve import qp_for, solve_qp
-from problems.qp.termination import SOLVED, QPTermination
+from admmkit.problems.qp.problem import QP
+from admmkit.problems.qp.residuals import neutral_residuals, neutral_satisfied
+from admmkit.problems.qp.settings import QPSettings, osqp_settings, textbook_settings
+from admmkit.problems.qp.solve import qp_for, solve_qp
+from admmkit.problems.qp.termination import SOLVED, QPTermination
 
 #: the settings variants: OSQP's machinery (the preset), admmkit's textbook loop, and the preset without one
 #: piece at a time (or with polishing)

@@ -1,6 +1,6 @@
 """The ADMM methods a benchmark runs: every registered penalty policy in both update orders.
 
-The list is built from ``admmkit.policy_names()`` after ``import policies``,
+The list is built from ``admmkit.policy_names()`` (every rule registered or declared by entry point),
 so a rule that registers itself appears in every chart without a change here.
 The paper's three methods keep their names:
 
@@ -15,8 +15,8 @@ A policy that cannot be built without arguments is left out and reported by
 from __future__ import annotations
 
 import admmkit
-import policies  # noqa: F401  (registers the built-in rules)
-from policies.paper_methods import PAPER_NAMES
+from admmkit import policies  # noqa: F401  (registers the built-in rules)
+from admmkit.policies.paper_methods import PAPER_NAMES
 
 ORDERS = ("xz", "zx")
 _PAPER_BY_NAME = {v: k for k, v in PAPER_NAMES.items()}

@@ -13,7 +13,7 @@
    relative error ||u - u_ref||_M / ||u_ref||_M at that point, and the
    iterations until that error is <= 1e-6 (an oracle stop against the cvxpy /
    Clarabel solution u_ref of the same discrete QP), capped at MAX_ITER.  The
-   sweep runs on the sweep runner (:mod:`benchmarks.sweep`), one case per run,
+   sweep runs on the sweep runner (:mod:`admmkit.benchmarks.sweep`), one case per run,
    finished cases kept in ``sweep/results.jsonl`` under the output folder.
 
 Writes convergence.{csv,md,png}, sweep.{csv,md,png} and radial.png / pyramid.png.
@@ -27,14 +27,14 @@ from pathlib import Path
 import numpy as np
 
 import admmkit
-import policies  # noqa: F401  (registers the rules)
+from admmkit import policies  # noqa: F401  (registers the rules)
 from admmkit import RelativeChange, ResidualTolerance, solve
 
 from admmkit.figures import pyplot, save_figure
 from admmkit.io import write_text
-from problems.obstacle.plot import plot_solution
-from problems.obstacle.problem import make_problem, solve_with_cvxpy
-from problems.obstacle.scene import A_STAR, pyramid, radial
+from admmkit.problems.obstacle.plot import plot_solution
+from admmkit.problems.obstacle.problem import make_problem, solve_with_cvxpy
+from admmkit.problems.obstacle.scene import A_STAR, pyramid, radial
 
 from .report import write_csv
 
@@ -110,7 +110,7 @@ def run_case(case: dict) -> dict:
 def sweep(N: int = SWEEP_N, rhos=RHOS, policy_names=None, max_iter: int = MAX_ITER, *, out: Path | None = None,
           executor=None, progress: bool = True, report_only: bool = False) -> list[dict]:
     """Iterations of every policy x order x rho0 on the radial scene with h = 4/N, on the sweep runner
-    (:mod:`benchmarks.sweep`: local processes or Dask, finished cases kept in ``out/results.jsonl``; a rerun
+    (:mod:`admmkit.benchmarks.sweep`: local processes or Dask, finished cases kept in ``out/results.jsonl``; a rerun
     resumes; ``report_only``: the finished cases only)."""
     import tempfile
 
@@ -118,7 +118,7 @@ def sweep(N: int = SWEEP_N, rhos=RHOS, policy_names=None, max_iter: int = MAX_IT
     cases = sweep_cases(N, rhos, policy_names, max_iter)
     with tempfile.TemporaryDirectory() as scratch:
         folder = Path(out) if out is not None else Path(scratch)
-        records, _ = run_or_report(cases, "benchmarks.obstacle_rates:run_case", folder,
+        records, _ = run_or_report(cases, "admmkit.benchmarks.obstacle_rates:run_case", folder,
                                    executor=executor or Executor(workers=1), progress=progress, table=False,
                                    report_only=report_only,
                                    label=lambda c: f"{c['policy']} {c['order']} rho0={c['rho0']:.0e}")

@@ -5,16 +5,16 @@
 For each example and mesh size the operators are assembled once; every run
 (method, rho) then builds a fresh contact problem and solves it with the
 paper's stopping rule ||u^{k+1} - u^k||_K <= 1e-5 ||u^{k+1}||_K (the default of
-:func:`problems.contact.solve_scene`).  The time reported for a run is
+:func:`admmkit.problems.contact.solve_scene`).  The time reported for a run is
 problem setup + solve (wall clock, ``time.perf_counter``): for the condensed
 mode the setup contains the sparse factorisation of K and the boundary Schur
 complement, so every run pays it.
 
 Written to ``out``: CPU-time tables shaped like the paper's Tables 1 and 2 with
-the paper's figures beside ours (:mod:`benchmarks.paper_tables`, from the data
+the paper's figures beside ours (:mod:`admmkit.benchmarks.paper_tables`, from the data
 file ``benchmarks/data/paper_tables.json``), iteration tables, the true error
 at the stop against a tight reference solution of the same discrete problem
-(:mod:`problems.contact.reference`), the figures (the paper's Figs 1-4 and the
+(:mod:`admmkit.problems.contact.reference`), the figures (the paper's Figs 1-4 and the
 contact pressure / gap along Gamma_C) and a README.md saying what each file is.
 """
 from __future__ import annotations
@@ -29,12 +29,12 @@ from functools import lru_cache
 from pathlib import Path
 
 from admmkit.figures import pyplot, save_figure
-from policies.paper_methods import LABELS as METHOD_LABELS
-from problems.contact.assembly import assemble
-from problems.contact.methods import solve_scene
-from problems.contact.plot import figure_deformed, figure_pressure_gap
-from problems.contact.reference import errors_against, reference_solution
-from problems.contact.scene import example1, example2
+from admmkit.policies.paper_methods import LABELS as METHOD_LABELS
+from admmkit.problems.contact.assembly import assemble
+from admmkit.problems.contact.methods import solve_scene
+from admmkit.problems.contact.plot import figure_deformed, figure_pressure_gap
+from admmkit.problems.contact.reference import errors_against, reference_solution
+from admmkit.problems.contact.scene import example1, example2
 
 from .report import h_label, rho_label
 

@@ -59,7 +59,7 @@ _OPS: dict = {}
 
 def run_case(case: dict) -> dict:
     """Worker entry point: one paper run, timed as the reproduction times it (setup + solve)."""
-    from problems.contact import assemble, example1, example2, solve_scene
+    from admmkit.problems.contact import assemble, example1, example2, solve_scene
     key = case["group"]
     if key not in _OPS:
         _OPS.clear()
@@ -260,7 +260,7 @@ def run(out="out/paper-compare", *, repeats: int = 3, workers: int = 2, quick: b
     cases = build_cases(repeats=repeats, hs=(1 / 10,) if quick else None, rhos=(1.0, 1e3) if quick else None)
     t0 = time.perf_counter()
     records = finished(cases, out / "results.jsonl") if report_only else run_sweep(
-                        cases, "benchmarks.paper_compare:run_case", out / "results.jsonl", workers=workers,
+                        cases, "admmkit.benchmarks.paper_compare:run_case", out / "results.jsonl", workers=workers,
                         executor=executor, progress=progress, cost=lambda c: 1 / c["h"] ** 2,
                         label=lambda c: f"{c['scene']} h={c['h']:.4g} {c['method']} rho={c['rho']:g}")
     return summarise(records, out, command=command, wall=None if report_only else time.perf_counter() - t0,

@@ -5,7 +5,7 @@
   solver's own time is recorded as ``solver_time``).
 - ``cvxpy-osqp``: cvxpy + OSQP, timed the same way.
 - ``osqp``: OSQP called directly (setup with its KKT factorisation + solve).
-- ``pdas``: the primal-dual active set baseline (:mod:`benchmarks.pdas`),
+- ``pdas``: the primal-dual active set baseline (:mod:`admmkit.benchmarks.pdas`),
   contact and obstacle only; for contact it uses the same boundary Schur
   complement as ADMM's condensed mode, and its setup is timed with it.
 

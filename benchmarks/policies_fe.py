@@ -16,7 +16,7 @@ same run (a stopping rule does not change the iterates), the iteration at
 which the paper's rule (relative change 1e-5) would have fired and the error
 there.  Writes README.md (tables), sweep.csv and sweep.png/.svg.
 
-The runs go through the sweep runner (:mod:`benchmarks.sweep`): one case per
+The runs go through the sweep runner (:mod:`admmkit.benchmarks.sweep`): one case per
 (problem, rule, order, rho_0), the cases of one problem in one task (the
 reference solution is computed once per worker), finished cases kept in
 ``results.jsonl`` (an interrupted sweep resumes), local processes or Dask.
@@ -29,7 +29,7 @@ from pathlib import Path
 import numpy as np
 
 import admmkit
-import policies  # noqa: F401  (registers the rules)
+from admmkit import policies  # noqa: F401  (registers the rules)
 from admmkit import RelativeChange
 
 from .report import write_csv, write_text
@@ -46,10 +46,10 @@ FALSE_STOP = 1e-3   # an error above this where the paper's rule fires counts as
 
 def contact_case(h: float = 1 / 20):
     """(name, make_problem, relative_error, rho_0 values) for contact Example 1 in the condensed mode."""
-    from problems.contact.assembly import assemble
-    from problems.contact.problem import contact_problem
-    from problems.contact.reference import reference_solution
-    from problems.contact.scene import example1
+    from admmkit.problems.contact.assembly import assemble
+    from admmkit.problems.contact.problem import contact_problem
+    from admmkit.problems.contact.reference import reference_solution
+    from admmkit.problems.contact.scene import example1
     ops = assemble(example1(h))
     ref = reference_solution(ops)
     # the condensed iterate of the reference: u = K^{-1}(f + B'w) with w = -M_c lam (s = 1)
@@ -63,8 +63,8 @@ def contact_case(h: float = 1 / 20):
 
 def obstacle_case(h: float = 1 / 16):
     """(name, make_problem, relative_error, rho_0 values) for the radial obstacle."""
-    from problems.obstacle.problem import make_problem, solve_with_cvxpy
-    from problems.obstacle.scene import radial
+    from admmkit.problems.obstacle.problem import make_problem, solve_with_cvxpy
+    from admmkit.problems.obstacle.scene import radial
     problem = make_problem(radial(h=h))
     u_ref, _ = solve_with_cvxpy(problem, tol_gap_abs=1e-12, tol_gap_rel=1e-12, tol_feas=1e-12)
     norm_ref = problem.norm(u_ref)
@@ -79,12 +79,12 @@ def tresca_case(h: float = 1 / 20):
     """(name, make_problem, relative_error, rho_0 values) for contact Example 1 with Tresca friction (s = 2).
 
     Full mode (x = u), the error in the energy norm against an independent
-    second-order-cone solve (cvxpy + Clarabel, :mod:`problems.contact.tresca_qp`).
+    second-order-cone solve (cvxpy + Clarabel, :mod:`admmkit.problems.contact.tresca_qp`).
     """
-    from problems.contact.assembly import assemble
-    from problems.contact.problem import contact_problem
-    from problems.contact.scene import load_scene
-    from problems.contact.tresca_qp import tresca_cvxpy
+    from admmkit.problems.contact.assembly import assemble
+    from admmkit.problems.contact.problem import contact_problem
+    from admmkit.problems.contact.scene import load_scene
+    from admmkit.problems.contact.tresca_qp import tresca_cvxpy
     ops = assemble(load_scene("ex1_tresca", h=h))
     u_ref = tresca_cvxpy(ops)[0]
 
@@ -262,7 +262,7 @@ def run(out="out/policies", rules=RULES, quick: bool = False, command: str = "",
     if report_only:
         records = finished(cases, out / "results.jsonl")
     else:
-        records = run_sweep(cases, "benchmarks.policies_fe:run_case", out / "results.jsonl", workers=workers,
+        records = run_sweep(cases, "admmkit.benchmarks.policies_fe:run_case", out / "results.jsonl", workers=workers,
                             executor=executor, progress=progress, cost=case_cost,
                             label=lambda c: f"{c['problem']} {c['rule']}/{c['order']} rho0={c['rho0']:g}")
     norms = {"contact": "energy norm", "obstacle": "lumped L2 norm", "tresca": "energy norm"}

@@ -4,12 +4,12 @@
 
 For each problem (contact Ex. 1 and Ex. 2 and the radial obstacle at h =
 1/20 ... 1/160, four QPs) every ADMM method (every registered policy in both
-orders, :mod:`benchmarks.methods`) runs from rho_0 = rho_scale *
+orders, :mod:`admmkit.benchmarks.methods`) runs from rho_0 = rho_scale *
 rho_unit (rho_unit = E for contact, 1 otherwise) through a ladder of Boyd
-residual tolerances 1e-1 ... 1e-10 (:mod:`benchmarks.admm_runs`), and
-every peer (:mod:`benchmarks.peers`) through its own ladder.  Each
+residual tolerances 1e-1 ... 1e-10 (:mod:`admmkit.benchmarks.admm_runs`), and
+every peer (:mod:`admmkit.benchmarks.peers`) through its own ladder.  Each
 point is (median CPU time of the process, true relative error of the answer
-against the reference solution, in the norm of :mod:`benchmarks.families`).
+against the reference solution, in the norm of :mod:`admmkit.benchmarks.families`).
 CPU time, not wall time: the machine is shared, and with one BLAS thread per
 process the CPU time is the work done whatever the load (the wall times are in
 precision.csv too).
@@ -356,7 +356,7 @@ def run(out="out/precision", *, quick: bool = False, workers: int = 2, repeats: 
         time_limit: float = 60.0, report_only: bool = False, executor: Executor | None = None) -> list[Path]:
     """Build the cases, run (or resume) the sweep, write the summaries; return the files written.
 
-    ``executor``: where the cases run (:class:`benchmarks.sweep.Executor`; default ``workers`` local processes).
+    ``executor``: where the cases run (:class:`admmkit.benchmarks.sweep.Executor`; default ``workers`` local processes).
     """
     out = Path(out)
     if scenes is None:
@@ -371,7 +371,7 @@ def run(out="out/precision", *, quick: bool = False, workers: int = 2, repeats: 
     if quick:
         cases = [c for c in cases if c["scene"] != "qp:random-mixed" or c["solver"] == "peer"
                  or c["method"] in ("admm1", "sadmm")]
-    records, wall = run_or_report(cases, "benchmarks.precision:run_case", out, report_only=report_only,
+    records, wall = run_or_report(cases, "admmkit.benchmarks.precision:run_case", out, report_only=report_only,
                                   env={CACHE_ENV: str(out / "cache")}, workers=workers, executor=executor,
                                   progress=progress, cost=case_cost, label=lambda c: f"{_problem_label(c)} {c['method']}")
     return summarise(records, out, command=command, wall=wall, skipped=methods_mod.skipped_policies(),

@@ -3,7 +3,7 @@
     admmkit bench qp-agreement --count 1000 --seed 0 --out docs/results/qp_agreement
 
 ``--count`` random QPs from one seed, of mixed shapes: the kinds of
-:func:`problems.qp.random_qp` (two-sided inequalities; equalities; mixed
+:func:`admmkit.problems.qp.random_qp` (two-sided inequalities; equalities; mixed
 two-sided, one-sided, free and equality rows; LPs and rank-deficient QPs with
 a box), n from 2 to 80, m from 1 to 120, density 0.1 to 0.6.  Each is solved by
 Clarabel through cvxpy (tolerances 1e-10) and by ``solve_qp`` with
@@ -44,9 +44,9 @@ def instances(count: int, seed: int):
 
 def compare(index, kind, n, m, density, qp_seed, eps, max_iter) -> list[dict]:
     """Clarabel's reference and the admmkit runs of one QP."""
-    from problems.qp import random_qp, solve_qp
-    from problems.qp.reference import solve_with_cvxpy
-    from problems.qp.residuals import neutral_residuals
+    from admmkit.problems.qp import random_qp, solve_qp
+    from admmkit.problems.qp.reference import solve_with_cvxpy
+    from admmkit.problems.qp.residuals import neutral_residuals
     qp = random_qp(n, m, kind=kind, density=density, seed=qp_seed)
     base = {"index": index, "kind": kind, "n": qp.n, "m": qp.m, "density": density, "seed": qp_seed}
     try:

@@ -52,8 +52,8 @@ COLUMNS = ("problem", "n", "m", "nnz", "eps", "solver", "status", "solved", "ite
 def select(data: Path, max_nnz: float, names: list[str] | None, skipped: dict | None = None) -> list[tuple[str, int]]:
     """(name, nnz) of the convex problems with nnz(P) + nnz(A) <= max_nnz (or the named ones), smallest first;
     a nonconvex one (``load_mat`` refuses it) goes into ``skipped`` with the reason."""
-    from problems.qp.convexity import check_convex
-    from problems.qp.mat import list_problems
+    from admmkit.problems.qp.convexity import check_convex
+    from admmkit.problems.qp.mat import list_problems
     out = []
     for f in list_problems(data):
         if names and f.stem not in names:
@@ -95,7 +95,7 @@ ABLATIONS = {"no_scaling": dict(scaling=0), "uniform_rows": dict(row_weights="un
 def run_admmkit(qp, eps: float, max_iter: int, time_limit: float, policy="osqp", polish: bool = False,
                 preset: str = "osqp", order: str = "xz", **changes) -> dict:
     """admmkit's solve_qp with the OSQP preset (or admmkit's textbook loop) in the given order."""
-    from problems.qp import osqp_settings, solve_qp, textbook_settings
+    from admmkit.problems.qp import osqp_settings, solve_qp, textbook_settings
     make = osqp_settings if preset == "osqp" else textbook_settings
     res = solve_qp(qp, make(eps_abs=eps, eps_rel=eps, max_iter=max_iter, time_limit=time_limit, polish=polish,
                             order=order, **changes), policy=policy)
@@ -107,8 +107,8 @@ def run_admmkit(qp, eps: float, max_iter: int, time_limit: float, policy="osqp",
 def measure(name: str, nnz: int, data: Path, eps_list, max_iter: int, time_limit: float, rules: list[str],
             polish: bool = False, preset: str = "osqp", order: str = "xz", ablate: bool = False) -> list[dict]:
     """All runs of one problem."""
-    from problems.qp import load_mat
-    from problems.qp.residuals import neutral_residuals
+    from admmkit.problems.qp import load_mat
+    from admmkit.problems.qp.residuals import neutral_residuals
     qp = load_mat(data / f"{name}.mat")
     rows = []
     for eps in eps_list:
@@ -220,7 +220,7 @@ def main(argv=None, prog: str = "admmkit bench qp-fidelity") -> int:
     for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
         os.environ.setdefault(var, "1")
     import admmkit
-    import policies  # noqa: F401  (registers the rules)
+    from admmkit import policies  # noqa: F401  (registers the rules)
     from threadpoolctl import threadpool_limits
     from admmkit.io import write_text
 

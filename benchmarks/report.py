@@ -19,7 +19,7 @@ NOISE_NOTE = ("The machine (2 cores) is shared with other engineers' jobs while 
 
 
 def machine_info() -> dict:
-    """:func:`benchmarks.machine.machine_info` and how the sweeps pin BLAS."""
+    """:func:`admmkit.benchmarks.machine.machine_info` and how the sweeps pin BLAS."""
     info = _machine_info()
     info["BLAS threads"] = "1 per worker process (OMP/OPENBLAS_NUM_THREADS=1, threadpoolctl)"
     return info

@@ -1,6 +1,6 @@
 """``admmkit bench scale``: Example 1 with the iterative x-step from 1e3 to 1e6 unknowns.
 
-Each size runs in its own process (:func:`benchmarks.scale_runs.run_in_subprocess`),
+Each size runs in its own process (:func:`admmkit.benchmarks.scale_runs.run_in_subprocess`),
 so the peak resident memory (ru_maxrss) belongs to that size.  Writes
 ``scale.md``, ``scale.csv`` and the log-log growth chart ``scale_growth.png/svg``
 (time, SADMM and CG iterations and peak memory against the unknowns, with the
@@ -88,7 +88,7 @@ def _write_markdown(path: Path, rows, example, mode, command, wall) -> None:
              f"Produced by `{command}` ({wall:.0f} s in all). SADMM (tau = 2, c_max = 100), rho_0 = 1e3, the paper's "
              "stopping rule (relative change 1e-5 in the energy norm), P1 on the paper's structured mesh. Each size "
              "ran in its own process with BLAS on one thread; `peak` is that process's ru_maxrss (Python, NGSolve and "
-             "the solvers included); `estimate` is what the memory check (`problems.contact.memory.memory_need`) "
+             "the solvers included); `estimate` is what the memory check (`admmkit.problems.contact.memory.memory_need`) "
              "predicted before anything was assembled. `total` = assembly + setup + SADMM inside the process; "
              "`process` adds the interpreter start and imports.", "",
              "| h | unknowns | contact nodes | status | SADMM it. | CG it. | AMG setups / refreshes | assemble (s) | "

@@ -1,6 +1,6 @@
 """One measured contact run at a given size, in its own process (for peak memory).
 
-    python -m benchmarks.scale_runs --example ex1 --h 1/500 --mode iterative
+    python -m admmkit.benchmarks.scale_runs --example ex1 --h 1/500 --mode iterative
 
 :func:`run_case` assembles the paper's Example 1 (or 2, or the 3D analogue of
 Example 2, ``ex2_3d``) at mesh size h,
@@ -38,12 +38,12 @@ def peak_rss_bytes() -> int:
 def run_case(example: str, h: float, mode: str, rho: float = 1e3, max_iter: int = 2000) -> dict:
     """Assemble, set up and solve one case; the figures of the run as a dict."""
     import admmkit
-    import policies
+    from admmkit import policies
     from admmkit import RelativeChange
 
-    from problems.contact.problem import contact_problem
-    from problems.contact.memory import InsufficientMemory, available_memory, memory_need
-    from problems.contact.scene import example1, example2
+    from admmkit.problems.contact.problem import contact_problem
+    from admmkit.problems.contact.memory import InsufficientMemory, available_memory, memory_need
+    from admmkit.problems.contact.scene import example1, example2
 
     if example not in EXAMPLES:
         raise ValueError(f"example must be one of {', '.join(EXAMPLES)}, got {example!r}")
@@ -52,7 +52,7 @@ def run_case(example: str, h: float, mode: str, rho: float = 1e3, max_iter: int 
     t0 = time.perf_counter()
     try:
         if example == "ex2_3d":
-            from problems.contact.scene3d import assemble3d, example2_3d, memory_need3d
+            from admmkit.problems.contact.scene3d import assemble3d, example2_3d, memory_need3d
             scene = example2_3d(h=h)
             need, have = memory_need3d(scene, mode), available_memory()
         else:
@@ -65,7 +65,7 @@ def run_case(example: str, h: float, mode: str, rho: float = 1e3, max_iter: int 
     if need > have:
         return row | {"status": "refused", "message": f"needs about {need / 2**30:.3g} GiB, "
                                                       f"{have / 2**30:.3g} GiB available"}
-    from problems.contact.assembly import assemble
+    from admmkit.problems.contact.assembly import assemble
     ops = assemble3d(scene) if example == "ex2_3d" else assemble(scene)
     t1 = time.perf_counter()
     problem = contact_problem(ops, mode=mode)
@@ -103,7 +103,7 @@ def run_in_subprocess(example: str, h: float, mode: str, timeout: float = 900.0,
     env = dict(os.environ, OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1", MKL_NUM_THREADS="1")
     root = str(Path(__file__).resolve().parents[2])
     env["PYTHONPATH"] = root + os.pathsep + env.get("PYTHONPATH", "")
-    cmd = [sys.executable, "-m", "benchmarks.scale_runs", "--example", example, "--h", repr(h), "--mode", mode,
+    cmd = [sys.executable, "-m", "admmkit.benchmarks.scale_runs", "--example", example, "--h", repr(h), "--mode", mode,
            "--rho", repr(rho)]
     start = time.perf_counter()
     try:

@@ -2,7 +2,7 @@
 
     admmkit bench stability [--out docs/results/bench/stability] [--quick] [--workers 2]
 
-Two sweeps, every ADMM method (:mod:`benchmarks.methods`), each run
+Two sweeps, every ADMM method (:mod:`admmkit.benchmarks.methods`), each run
 stopped by the paper's rule ||u^{k+1} - u^k||_K <= 1e-5 ||u^{k+1}||_K or the cap
 of 20000 iterations:
 
@@ -13,7 +13,7 @@ Each run ends as one *outcome*: ``converged`` (the rule fired and the true
 error is at most 1e-3), ``false_convergence`` (the rule fired while the true
 error ||u - u*||_K / ||u*||_K was still above 1e-3), ``max_iter``,
 ``diverged``, ``stalled`` or ``time_limit``.  u* is the reference solution of
-the same discrete problem (:mod:`benchmarks.families`).
+the same discrete problem (:mod:`admmkit.benchmarks.families`).
 
 Written to ``out``: ``results.jsonl`` (resumable raw records),
 ``stability.csv``, ``failures.md`` (which methods failed where),
@@ -387,7 +387,7 @@ def run(out="out/stability", *, quick: bool = False, workers: int = 2, methods=N
         grid = {"rho_scales": (1e-3, 1.0, 1e3), "rho_h": 1 / 10, "mesh_hs": (1 / 10,), "nus": (0.3,),
                 "orders": (1,), "max_iter": 2000} | grid
     cases = build_cases(admm, **grid)
-    records, wall = run_or_report(cases, "benchmarks.stability:run_case", out, report_only=report_only,
+    records, wall = run_or_report(cases, "admmkit.benchmarks.stability:run_case", out, report_only=report_only,
                                   env={CACHE_ENV: str(out / "cache")}, workers=workers, executor=executor,
                                   progress=progress, cost=case_cost,
                                   label=lambda c: (f"{c['sweep']} {c['scene']} h={_h_label(c['h'])} nu={c['nu']} "

@@ -7,9 +7,9 @@ always has the same id.  :func:`run_sweep`
 - skips the cases whose id is already in the results file (resume after an
   interruption without redoing finished cases);
 - runs the rest on an :class:`Executor`: ``workers`` local processes (spawned,
-  BLAS pinned to one thread each, :mod:`benchmarks.sweep_local`; the
+  BLAS pinned to one thread each, :mod:`admmkit.benchmarks.sweep_local`; the
   default) or Dask (a ``LocalCluster`` of single-threaded workers, or a
-  running cluster at a scheduler address, :mod:`benchmarks.sweep_dask`);
+  running cluster at a scheduler address, :mod:`admmkit.benchmarks.sweep_dask`);
 - keeps the cases of one *group* (``case["group"]``, e.g. one discrete
   problem) together in one task, so a worker assembles a problem and its
   reference solution once for all the solvers run on it, and starts the
@@ -24,7 +24,7 @@ always has the same id.  :func:`run_sweep`
 - prints a progress line (done / total, elapsed, estimated time left, the last case);
 - writes the records as one flat table at the end, ``results.parquet`` (or
   ``results.csv`` without pyarrow) beside the results file
-  (:mod:`benchmarks.sweep_table`), atomically.
+  (:mod:`admmkit.benchmarks.sweep_table`), atomically.
 
 ``pandas.read_json(results_path, lines=True)`` loads the results file as it is.
 """
@@ -262,7 +262,7 @@ def run_sweep(cases: Iterable[dict], func: str, results_path: str | Path, *, wor
             raise ValueError(f"workers must be an integer >= 1, got {workers!r}")
         executor = Executor(workers=workers)
     elif not isinstance(executor, Executor):
-        raise TypeError(f"executor must be a benchmarks.sweep.Executor, got {type(executor).__name__}")
+        raise TypeError(f"executor must be a admmkit.benchmarks.sweep.Executor, got {type(executor).__name__}")
     cases = list(cases)
     results_path = Path(results_path)
     done = load_results(results_path)

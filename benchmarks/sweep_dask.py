@@ -5,7 +5,7 @@
 PBS: docs/sweeps.md); ``n_workers=N`` starts a ``LocalCluster`` of N
 single-threaded worker processes on this machine and closes it at the end.
 
-Each task is one group of cases (:func:`benchmarks.sweep_worker.run_task`,
+Each task is one group of cases (:func:`admmkit.benchmarks.sweep_worker.run_task`,
 so a worker assembles a problem once for all the cases of its group); it
 returns the records and the driver alone appends them to the results file,
 so the workers need the installed package and nothing else (no shared disk).

@@ -9,7 +9,7 @@ done and the driver alone appends it to the results file.  So:
   (``retries`` times), then recorded as that case's error, and the rest of
   its task goes on;
 - a case that overruns the per-case time limit by a grace period (stuck in
-  one long C call, where :func:`benchmarks.sweep_worker.deadline` cannot
+  one long C call, where :func:`admmkit.benchmarks.sweep_worker.deadline` cannot
   reach it) is recorded as a timeout and its worker replaced;
 - a worker whose parent (the driver) dies exits at once: on Linux the kernel
   kills it (``prctl(PR_SET_PDEATHSIG)``), elsewhere a watchdog thread sees

@@ -1,7 +1,7 @@
 """The worker side of a sweep: one BLAS thread, one case at a time, a record per case.
 
-Shared by both executors (:mod:`benchmarks.sweep_local`,
-:mod:`benchmarks.sweep_dask`).  A worker never writes the results file: it
+Shared by both executors (:mod:`admmkit.benchmarks.sweep_local`,
+:mod:`admmkit.benchmarks.sweep_dask`).  A worker never writes the results file: it
 returns a record ``{"id", "case", "result", "seconds"}`` (plus ``"error"``
 when the case raised or ran out of time) and the driver alone appends it.
 

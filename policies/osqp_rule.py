@@ -32,11 +32,11 @@ scale, so no clamp is applied unless ``rho_min``/``rho_max`` are given.
 
 A plug-in that knows OSQP's exact normalisation can pass it as
 ``residuals``, a function of the record returning (r_rel, s_rel); the QP
-plug-in has one (``problems.qp.termination.osqp_relative_residuals``: OSQP
+plug-in has one (``admmkit.problems.qp.termination.osqp_relative_residuals``: OSQP
 1.x's ``compute_rho_estimate``, inf-norms in the scaled problem with the
 multiplier y = M lam).  With it, ``rho_min=1e-6, rho_max=1e6`` (OSQP's
 clamp, applied before the tolerance test as in ``adapt_rho``), interval 50
-and tolerance 5, the rule is OSQP 1.x's (``problems.qp.solve_qp`` sets it up).  The
+and tolerance 5, the rule is OSQP 1.x's (``admmkit.problems.qp.solve_qp`` sets it up).  The
 difference matters where lam = 0 (no constraint active yet): then
 ||A^T M lam|| = 0 and the record's dual ratio is infinite, while OSQP's
 still has ||P x|| and ||q|| in its denominator.

@@ -1,31 +1,155 @@
-"""The layout: imports point one way, benchmarks -> problems -> policies -> admmkit, and commands come by entry point."""
+"""The layout: one import name, imports that point one way, no import circle, small modules.
+
+The repository keeps four folders side by side (``admmkit/``, ``policies/``,
+``problems/``, ``benchmarks/``); the last three are the subpackages
+``admmkit.policies``, ``admmkit.problems`` and ``admmkit.benchmarks``.  Each
+layer may import only the layers before it: benchmarks -> problems -> policies
+-> admmkit (the core).
+"""
 import ast
+import subprocess
+import sys
+from importlib.metadata import distributions
 from pathlib import Path
 
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 LAYERS = ["admmkit", "policies", "problems", "benchmarks"]   # each may import only those before it
+SUBPACKAGES = LAYERS[1:]
+#: modules allowed over MAX_LINES, each with the one job that needs the length
+LONG_MODULES: dict[str, str] = {}
+MAX_LINES = 300
 
 
-def imported_packages(path: Path) -> set[str]:
-    """Top-level packages a module imports (absolute imports only; relative ones stay in the package)."""
+def layer_files(layer: str) -> list[Path]:
+    """The Python files of a layer (the core's folder is admmkit/, the others their own)."""
+    return sorted((ROOT / layer).rglob("*.py"))
+
+
+def module_name(path: Path) -> str:
+    """The dotted import name of a file in the repository, as installed (``admmkit.problems.qp.cli``)."""
+    parts = list(path.relative_to(ROOT).with_suffix("").parts)
+    if parts[-1] == "__init__":
+        parts.pop()
+    return ".".join(parts if parts[0] == "admmkit" else ["admmkit", *parts])
+
+
+def imported_modules(path: Path) -> set[str]:
+    """The absolute dotted names a module imports (relative imports resolved against its package)."""
     tree = ast.parse(path.read_text(), filename=str(path))
+    package = module_name(path).split(".")
+    if path.name != "__init__.py":
+        package = package[:-1]
     names = set()
     for node in ast.walk(tree):
         if isinstance(node, ast.Import):
-            names |= {alias.name.split(".")[0] for alias in node.names}
-        elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
-            names.add(node.module.split(".")[0])
+            names |= {alias.name for alias in node.names}
+        elif isinstance(node, ast.ImportFrom):
+            base = node.module or ""
+            if node.level:
+                base = ".".join(package[:len(package) - node.level + 1] + ([base] if base else []))
+            names |= {f"{base}.{alias.name}" for alias in node.names}   # a module, or a name in module base
     return names
+
+
+def layer_of(name: str) -> str | None:
+    """The layer an imported name belongs to (None for a module outside admmkit)."""
+    parts = name.split(".")
+    if parts[0] in SUBPACKAGES:
+        return "top-level " + parts[0]        # the folder imported by its folder name: always wrong
+    if parts[0] != "admmkit":
+        return None
+    return parts[1] if len(parts) > 1 and parts[1] in SUBPACKAGES else "admmkit"
 
 
 @pytest.mark.parametrize("layer", LAYERS)
 def test_imports_point_one_way(layer):
-    forbidden = set(LAYERS[LAYERS.index(layer) + 1:])
-    wrong = {str(p.relative_to(ROOT)): sorted(imported_packages(p) & forbidden)
-             for p in sorted((ROOT / layer).rglob("*.py"))}
-    assert {k: v for k, v in wrong.items() if v} == {}
+    allowed = set(LAYERS[:LAYERS.index(layer) + 1])
+    wrong = {}
+    for path in layer_files(layer):
+        bad = sorted({layer_of(n) for n in imported_modules(path)} - allowed - {None})
+        if bad:
+            wrong[str(path.relative_to(ROOT))] = bad
+    assert wrong == {}
+
+
+def import_graph() -> dict[str, set[str]]:
+    """module -> the admmkit modules it imports (a package import counts as its __init__)."""
+    files = {module_name(p): p for layer in LAYERS for p in layer_files(layer)}
+    graph = {}
+    for name, path in files.items():
+        graph[name] = {n if n in files else n.rsplit(".", 1)[0] for n in imported_modules(path)
+                       if n.startswith("admmkit")} & set(files)
+        graph[name].discard(name)
+    return graph
+
+
+@pytest.mark.xfail(strict=True, reason="#23 in progress: three circles are being taken apart")
+def test_no_import_circle():
+    """Tarjan's strongly connected components of the import graph: every one a single module.
+
+    An ``__init__`` that re-exports its package's modules is the package's face,
+    not a circle: the edges from a package's own modules to their ``__init__``
+    (``from . import x``, ``from .. import y``) are left out.
+    """
+    graph = import_graph()
+    for name, deps in graph.items():
+        graph[name] = {d for d in deps if not (name.startswith(d + ".") and d != "admmkit")}
+    index, low, stack, on_stack, circles = {}, {}, [], set(), []
+
+    def visit(v):
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        on_stack.add(v)
+        for w in graph[v]:
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on_stack:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            component = []
+            while True:
+                w = stack.pop()
+                on_stack.discard(w)
+                component.append(w)
+                if w == v:
+                    break
+            if len(component) > 1:
+                circles.append(sorted(component))
+
+    sys.setrecursionlimit(10_000)
+    for v in sorted(graph):
+        if v not in index:
+            visit(v)
+    assert circles == []
+
+
+def test_installed_package_owns_one_import_name():
+    """site-packages gains ``admmkit`` and nothing else of ours (the dist-info and the script aside)."""
+    installed = [d for d in distributions() if d.metadata["Name"] == "admmkit" and d.read_text("RECORD")]
+    assert len(installed) == 1
+    files = installed[0].files
+    top = {f.parts[0] for f in files if not f.parts[0].startswith("..") and not f.parts[0].endswith(".dist-info")}
+    assert top == {"admmkit"}
+    names = {".".join(f.with_suffix("").parts[:3]) for f in files if f.suffix == ".py"}
+    assert {"admmkit.policies.summable", "admmkit.problems.qp", "admmkit.problems.contact"} <= names
+    assert any(n.startswith("admmkit.benchmarks.") for n in names)
+
+
+def test_source_checkout_resolves_the_subpackages_from_its_own_folders():
+    """From the repository root (on sys.path first, as under ``python -m pytest``), admmkit.policies etc.
+    are the checkout's folders, the same files an installed copy maps."""
+    code = ("import admmkit, admmkit.policies, admmkit.problems.qp, admmkit.benchmarks; "
+            "print(admmkit.__file__); print(admmkit.policies.__file__); print(admmkit.problems.qp.__file__); "
+            "print(admmkit.make_policy('summable'))")
+    out = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, check=True).stdout
+    lines = out.splitlines()
+    assert lines[0] == str(ROOT / "admmkit" / "__init__.py")
+    assert lines[1] == str(ROOT / "policies" / "__init__.py")
+    assert lines[2] == str(ROOT / "problems" / "qp" / "__init__.py")
+    assert lines[3].startswith("Summable(")
 
 
 def test_every_command_is_an_entry_point_and_loads():
@@ -35,12 +159,22 @@ def test_every_command_is_an_entry_point_and_loads():
     found = {ep.name: ep.value for ep in entry_points(group=GROUP)}
     assert {"solve.qp", "solve.contact", "solve.obstacle", "demo", "reproduce", "bench.precision"} <= set(found)
     for value in found.values():   # built-in commands live in plug-ins and studies, never in the core
-        assert value.split(".")[0] in ("problems", "benchmarks"), value
+        assert value.split(".")[:2] in (["admmkit", "problems"], ["admmkit", "benchmarks"]), value
     build_parser()   # every registrar loads and registers without error
 
 
+def test_every_builtin_rule_is_declared_by_entry_point():
+    from importlib.metadata import entry_points
+
+    import admmkit.policies  # noqa: F401  (registers the rules in this process too)
+    from admmkit.policy import _REGISTRY, GROUP
+    declared = {ep.name: ep.load() for ep in entry_points(group=GROUP)}
+    builtin = {k: v for k, v in _REGISTRY.items() if v.__module__.startswith("admmkit.policies")}
+    assert builtin == {k: declared[k] for k in builtin}
+
+
 def test_host_imports_no_plug_in():
-    assert imported_packages(ROOT / "admmkit" / "cli.py") & {"policies", "problems", "benchmarks"} == set()
+    assert {layer_of(n) for n in imported_modules(ROOT / "admmkit" / "cli.py")} <= {"admmkit", None}
 
 
 @pytest.mark.parametrize("study", ["loop-overhead", "four-problems", "qp-fidelity", "qp-agreement", "friction",
@@ -52,8 +186,9 @@ def test_studies_with_their_own_options_answer_help_and_bad_options(study, capsy
     assert main(["bench", study, "--no-such-option"]) == 2
 
 
-@pytest.mark.parametrize("layer", LAYERS)
-def test_no_module_over_400_lines(layer):
-    long = {str(p.relative_to(ROOT)): n for p in sorted((ROOT / layer).rglob("*.py"))
-            if (n := len(p.read_text().splitlines())) > 400}
+@pytest.mark.parametrize("layer", [pytest.param(layer, marks=pytest.mark.xfail(
+    strict=True, reason="#23 in progress: modules are being split")) for layer in LAYERS])
+def test_no_module_over_300_lines(layer):
+    long = {str(p.relative_to(ROOT)): n for p in layer_files(layer)
+            if (n := len(p.read_text().splitlines())) > MAX_LINES and str(p.relative_to(ROOT)) not in LONG_MODULES}
     assert long == {}

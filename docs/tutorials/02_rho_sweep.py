@@ -33,7 +33,7 @@ RHOS = [1.0, 10.0, 1e2, 1e3, 1e4]   # the paper's rho_0 values
 METHODS = ["admm1", "admm2", "sadmm"]
 
 # %%
-from problems.contact import assemble, example1, solve_scene
+from admmkit.problems.contact import assemble, example1, solve_scene
 
 ops = assemble(example1(h=H))     # assemble once and reuse the operators for all 15 runs
 runs = {(m, rho): solve_scene(ops, m, rho=rho) for m in METHODS for rho in RHOS}

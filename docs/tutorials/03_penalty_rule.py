@@ -49,7 +49,7 @@
 import math
 
 import admmkit
-import policies  # noqa: F401  (registers the built-in rules)
+from admmkit import policies  # noqa: F401  (registers the built-in rules)
 
 
 @admmkit.register_policy("log_bisection")
@@ -87,7 +87,7 @@ print(admmkit.policy_names())
 # $\rho_0 = 1$:
 
 # %%
-from problems.contact import assemble, contact_problem, example1, solve_scene
+from admmkit.problems.contact import assemble, contact_problem, example1, solve_scene
 
 ops = assemble(example1(h=1 / 10))
 mine = solve_scene(ops, "log_bisection", rho=1.0)
@@ -124,10 +124,10 @@ assert mine.result.converged and mine.result.iterations <= 2 * sadmm.result.iter
 # %%
 import numpy as np
 
-from problems.contact.reference import reference_solution
-from problems.obstacle import make_problem, radial, solve_with_cvxpy as obstacle_reference
-from problems.qp import random_qp
-from problems.qp.reference import solve_with_cvxpy as qp_reference
+from admmkit.problems.contact.reference import reference_solution
+from admmkit.problems.obstacle import make_problem, radial, solve_with_cvxpy as obstacle_reference
+from admmkit.problems.qp import random_qp
+from admmkit.problems.qp.reference import solve_with_cvxpy as qp_reference
 
 TIGHT = dict(tol_gap_abs=1e-12, tol_gap_rel=1e-12, tol_feas=1e-12)
 obstacle, qp = make_problem(radial(h=1 / 8)), random_qp(80, 120, seed=3)

@@ -39,7 +39,7 @@
 import numpy as np
 
 import admmkit
-import policies  # noqa: F401  (registers the penalty rules by name)
+from admmkit import policies  # noqa: F401  (registers the penalty rules by name)
 
 rng = np.random.default_rng(0)
 m, n = 80, 200                                     # more unknowns than data: the l1 term picks a sparse x

@@ -1,6 +1,6 @@
 """Contact plug-in: elastic contact with a rigid foundation, frictionless or with friction (NGSolve).
 
-    from problems.contact import example1, solve_scene
+    from admmkit.problems.contact import example1, solve_scene
     sol = solve_scene(example1(h=1/40), "sadmm", rho=1e3)
     print(sol.result.summary())
 

@@ -1,6 +1,6 @@
 """Cattaneo-Mindlin partial slip of a cylinder: the Coulomb validation (plane strain).
 
-The Hertz half-cylinder of :mod:`problems.contact.hertz` (radius R, top
+The Hertz half-cylinder of :mod:`admmkit.problems.contact.hertz` (radius R, top
 clamped, the plane raised by delta) is also sheared: the plane moves by
 ``obstacle_slide`` = delta_t along x, the same as moving the clamped top by
 -delta_t.  With the measured normal load P and tangential load Q < mu P,
@@ -67,7 +67,7 @@ def measure_stick(sol, case: HertzCase, mu: float) -> dict:
     P = sum mc p_n and Q = |sum mc q| (measured); c_h: on each side, d = mu p_n - |q| (zero in the
     slip zone, ~ sqrt(c^2 - x^2) inside the stick zone near its edge) has d^2 linear in x^2, extrapolated
     to zero from the two outermost stick nodes; c_h the mean of both sides, ``stick_shift`` half their
-    difference (0 without coupling).  a_h as in :func:`problems.contact.hertz.measure`.
+    difference (0 without coupling).  a_h as in :func:`admmkit.problems.contact.hertz.measure`.
     """
     from .hertz import measure
     ops = sol.ops

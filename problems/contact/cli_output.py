@@ -2,7 +2,7 @@
 lines, the CSV table of Gamma_C, and the checks of the friction options (``--tangential``, ``--mu``,
 ``--slip-bound``) against the scene.
 
-The files themselves are written by :mod:`problems.contact.export` (VTU, JSON) and
+The files themselves are written by :mod:`admmkit.problems.contact.export` (VTU, JSON) and
 :func:`admmkit.cli_output.write_result_csv`, whole or not at all.
 """
 from __future__ import annotations

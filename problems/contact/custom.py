@@ -1,6 +1,6 @@
 """Contact operators from your own NGSolve mesh, space and forms (issue #18).
 
-A :class:`~problems.contact.scene.Scene` describes a rectangle (or a netgen
+A :class:`~admmkit.problems.contact.scene.Scene` describes a rectangle (or a netgen
 geometry) of an isotropic plane-strain material.  Anything else, an
 unstructured mesh of your own, an orthotropic or graded material, extra terms
 in the energy, a point load, is written in NGSolve and handed in here:
@@ -12,16 +12,16 @@ in the energy, a point load, is written in NGSolve and handed in here:
     ops = contact_operators(fes, a, f, contact="bottom", gap=0.01)
     sol = solve_scene(ops, "sadmm", rho=1e3)
 
-The discrete problem is the one of :func:`problems.contact.assembly.assemble`,
+The discrete problem is the one of :func:`admmkit.problems.contact.assembly.assemble`,
 min 1/2 u'Ku - f'u s.t. B u <= g (and Tresca's term with friction), with K
 and f your forms on the free dofs of your space (its Dirichlet flags clamp),
 and B, M_c, g built on the contact boundary exactly as there (in 2D the same
 functions: ``boundary_nodes``, ``normal_tangential_maps`` of
 problems/contact/assembly.py; on a 3D P1 tetrahedral mesh ``face_nodes``
 and ``vertex_maps``, which give the operators of ``assemble3d`` on its block).  The result is a
-:class:`~problems.contact.assembly.ContactOperators` that
-:func:`~problems.contact.methods.solve_scene` and
-:func:`~problems.contact.problem.contact_problem` take in every mode (full,
+:class:`~admmkit.problems.contact.assembly.ContactOperators` that
+:func:`~admmkit.problems.contact.methods.solve_scene` and
+:func:`~admmkit.problems.contact.problem.contact_problem` take in every mode (full,
 condensed, iterative), and that the VTU and JSON exports write.
 """
 from __future__ import annotations
@@ -84,7 +84,7 @@ def contact_operators(fes, a, f, contact: str = "bottom", gap=0.0, *, normal=Non
     CoefficientFunction.  ``normal``: None measures u.n along the body's
     outward normal at each contact node, a fixed direction (nx, ny[, nz])
     along that (a flat obstacle).  ``tangential``, ``slip_bound``,
-    ``mu``, ``obstacle_slide``: as in :class:`~problems.contact.scene.Scene`.
+    ``mu``, ``obstacle_slide``: as in :class:`~admmkit.problems.contact.scene.Scene`.
     Bad input raises TypeError or ValueError naming the parameter.
     """
     mesh = _check_space(fes)

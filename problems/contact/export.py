@@ -139,7 +139,7 @@ def friction_fields(ops, u_free: np.ndarray, lam: np.ndarray, z: np.ndarray) -> 
     """Per contact node, with friction: ``tangential_traction`` q = lam_t, ``slip`` T u - w (both along the
     tangents t of ``ops.tangents``: shape (n_c,) in 2D, (n_c, 2) in 3D), ``slip_bound`` s (the last one used:
     Tresca's, or mu p_n of Coulomb's last fixed-point step) and ``stick_slip_zone`` (0 separated, 1 stick,
-    2 slip; ``problems.contact.friction.stick_slip``)."""
+    2 slip; ``admmkit.problems.contact.friction.stick_slip``)."""
     from .friction import stick_slip
     n_c, friction = ops.n_c, ops.friction
     lam, z = np.asarray(lam, dtype=float), np.asarray(z, dtype=float)
@@ -211,7 +211,7 @@ def scene_parameters(scene) -> dict:
 
 
 def write_json(path: str | Path, sol, args=None, **extra) -> Path:
-    """JSON of a solved scene (a :class:`~problems.contact.methods.ContactSolution`).
+    """JSON of a solved scene (a :class:`~admmkit.problems.contact.methods.ContactSolution`).
 
     Keys: ``provenance`` (admmkit version, UTC date, command line, policy,
     order, rho_0, stopping rule, max_iter), ``scene`` (its parameters),

@@ -1,6 +1,6 @@
 """What the contact plug-in's iterative mode needs from the mesh: the AMG's near-null space.
 
-The iterative mode (:class:`problems.contact.problem.IterativeContact`) solves
+The iterative mode (:class:`admmkit.problems.contact.problem.IterativeContact`) solves
 the x-step (12) with :class:`admmkit.iterative.IterativeXSolver`, whose
 smoothed-aggregation AMG wants the rigid body modes of the body and the dofs
 of each node.  Works in 2D and 3D, P1 and P2.

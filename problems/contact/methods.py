@@ -1,6 +1,6 @@
 """One call from a scene to a result, with the paper's methods by name.
 
-The methods ADMM1, ADMM2 and SADMM are defined in :mod:`policies.paper_methods`;
+The methods ADMM1, ADMM2 and SADMM are defined in :mod:`admmkit.policies.paper_methods`;
 any other registered policy can be named too (order "zx" unless given).
 """
 from __future__ import annotations
@@ -9,7 +9,7 @@ from dataclasses import dataclass
 
 import admmkit
 from admmkit import RelativeChange
-from policies.paper_methods import PAPER_METHODS as METHODS, method  # noqa: F401  (re-exported)
+from admmkit.policies.paper_methods import PAPER_METHODS as METHODS, method  # noqa: F401  (re-exported)
 
 from .assembly import ContactOperators, assemble
 from .coulomb import CoulombReport, coulomb_fixed_point

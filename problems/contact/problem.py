@@ -11,7 +11,7 @@ M_c, so that (the paper's eqs. (11)-(13))
 With friction (Tresca, or each step of Coulomb's fixed point) B is replaced by
 A = [B; T], T the tangential components at the contact nodes, z = (p, p_t),
 M_c acts on every block, and the z-step adds the shrink of the tangential part
-(:mod:`problems.contact.friction`, eq. (11t)); every mode below works
+(:mod:`admmkit.problems.contact.friction`, eq. (11t)); every mode below works
 unchanged with A in place of B (the condensed one on d n_c contact unknowns).
 
 The x norm is the energy norm ||u||_K = sqrt(u'Ku), the norm of V in which
@@ -24,7 +24,7 @@ Two modes give the same iterates (to round-off):
   factorisation per rho value (cached).
 - ``"condensed"``: the nonlinearity lives on Gamma_C only.  With u0 = K^{-1} f,
   d0 = B u0 and the compliance C = B K^{-1} B' (from one factorisation, see
-  :mod:`problems.contact.schur`), every iterate is u = s u0 + K^{-1} B' w with
+  :mod:`admmkit.problems.contact.schur`), every iterate is u = s u0 + K^{-1} B' w with
   (s, w) in R^{1+n_c}, and the x-step is the dense SPD solve
 
       (M_c^{-1} + rho C) w = rho p - lam - rho d0,   s = 1,
@@ -69,7 +69,7 @@ class _ContactBase(Problem):
     Frictionless (or stick): A = B, the constraint space is R^{n_c} with M_c.
     With friction: A = [B; T] (normal, then the tangential components, each a
     block of n_c), the inner product M_c on every block, and the z-step is the
-    projection plus Tresca's shrink (:func:`problems.contact.friction.friction_z_step`).
+    projection plus Tresca's shrink (:func:`admmkit.problems.contact.friction.friction_z_step`).
     """
 
     c = 0.0

@@ -1,7 +1,7 @@
 """Declarative description of a 2D plane-strain contact problem (frictionless, stick, Tresca or Coulomb).
 
 A :class:`Scene` says *what* is solved (geometry, mesh, material, boundary
-conditions, gap); :func:`problems.contact.assembly.assemble` turns it into matrices.
+conditions, gap); :func:`admmkit.problems.contact.assembly.assemble` turns it into matrices.
 Every scene is validated when it is built, so bad input fails early with a
 ``ValueError`` that names the parameter and the accepted range.
 """
@@ -262,7 +262,7 @@ TOML_KEYS = {  # key: (accepted types, description); every key is optional, defa
     "mu": ((int, float), "a number (tangential = 'coulomb')"),
     "obstacle_slide": ((int, float), "a number"),
 }
-#: the keys of a 3D scene file (``dim = 3``: a :class:`problems.contact.scene3d.Scene3D`)
+#: the keys of a 3D scene file (``dim = 3``: a :class:`admmkit.problems.contact.scene3d.Scene3D`)
 TOML_KEYS_3D = {
     "name": ((str,), "a string"), "dim": ((int,), "2 or 3"),
     "Lx": ((int, float), "a number"), "Ly": ((int, float), "a number"), "Lz": ((int, float), "a number"),

@@ -96,7 +96,7 @@ class Scene3D:
 
     Tangentially on the contact face: ``"frictionless"`` (default), ``"stick"``
     (u_x = u_y = 0 there), ``"tresca"`` with ``slip_bound`` s(x, y) >= 0 or
-    ``"coulomb"`` with ``mu`` >= 0, as in the 2D :class:`~problems.contact.scene.Scene`;
+    ``"coulomb"`` with ``mu`` >= 0, as in the 2D :class:`~admmkit.problems.contact.scene.Scene`;
     ``obstacle_slide`` = (w_x, w_y) moves the foundation tangentially (friction only).
     """
 

@@ -1,10 +1,10 @@
 """``admmkit solve obstacle``: a named obstacle scene, solved and checked."""
 from __future__ import annotations
 
-import policies  # noqa: F401  (registers the rules the --policy option offers)
+from admmkit import policies  # noqa: F401  (registers the rules the --policy option offers)
 from admmkit.cli import (add_common_options, add_output_file, add_result_outputs, exit_code, positive_float,
                          run_solve, write_result_csv, write_result_json)
-from policies.paper_methods import PAPER_METHODS
+from admmkit.policies.paper_methods import PAPER_METHODS
 
 from .plot import plot_solution
 from .problem import DEFAULT_BACKEND, make_problem

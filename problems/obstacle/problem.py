@@ -66,7 +66,7 @@ class ObstacleProblem(Problem):
 
     def __init__(self, scene: Scene, *, backend: str = DEFAULT_BACKEND):
         if not isinstance(scene, Scene):
-            raise ValueError(f"scene must be a problems.obstacle.Scene, got {type(scene).__name__}")
+            raise ValueError(f"scene must be a admmkit.problems.obstacle.Scene, got {type(scene).__name__}")
         self.scene = scene
         self.sign = 1.0 if scene.side == "lower" else -1.0   # u >= psi  <=>  sign*(u - psi) >= 0
         self.mesh = mesh = build_mesh(scene)

@@ -2,7 +2,7 @@
 
 Two presets (docs/cli.md, docs/qp.md):
 
-- ``--preset osqp`` (default): :func:`problems.qp.solve_qp` with OSQP 1.x's defaults (``osqp_settings``):
+- ``--preset osqp`` (default): :func:`admmkit.problems.qp.solve_qp` with OSQP 1.x's defaults (``osqp_settings``):
   Ruiz scaling, penalty per row, alpha 1.6, OSQP's termination test (R1)-(R3) every 25 iterations, the
   infeasibility tests (I1)-(I2), OSQP's rho rule; ``--eps``, ``--eps-abs``/``--eps-rel``, ``--eps-inf`` and
   ``--polish`` set its tolerances and polishing. ``--tol`` (a relative-change rule) is refused.
@@ -11,10 +11,10 @@ Two presets (docs/cli.md, docs/qp.md):
 """
 from __future__ import annotations
 
-import policies  # noqa: F401  (registers the rules the --policy option offers)
+from admmkit import policies  # noqa: F401  (registers the rules the --policy option offers)
 from admmkit.cli import add_common_options, add_result_outputs, positive_float, progress, resolve_policy, run_solve
 from admmkit.cli_output import print_summary
-from policies.paper_methods import PAPER_METHODS
+from admmkit.policies.paper_methods import PAPER_METHODS
 
 from .cli_output import certificate_summary, qp_lines, write_qp_csv, write_qp_json
 from .generate import KINDS, infeasible_qp, random_qp, unbounded_qp
@@ -39,7 +39,7 @@ def register(subparsers) -> None:
                         "M + 1 rows) or 'unbounded' (default mixed)")
     p.add_argument("--seed", type=int, default=0, help="seed of the random QP")
     p.add_argument("--preset", choices=("osqp", "textbook"), default="osqp",
-                   help="osqp: OSQP 1.x's defaults and tests (problems.qp.solve_qp); textbook: the plain loop "
+                   help="osqp: OSQP 1.x's defaults and tests (admmkit.problems.qp.solve_qp); textbook: the plain loop "
                         "with the common stopping options (the command's behaviour before the preset)")
     p.add_argument("--eps", type=positive_float, default=None, metavar="EPS",
                    help="OSQP's eps_abs = eps_rel (osqp preset; default 1e-3)")

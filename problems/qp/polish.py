@@ -13,7 +13,7 @@ and solve the equality-constrained QP on them, regularised by delta,
 b_act the active bounds, followed by ``refine`` steps of iterative
 refinement against the unregularised matrix [[P, A_act'], [A_act, 0]].
 Then z = clip(A x, l, u).  The polished (x, y) is taken only when the neutral
-criteria (:func:`problems.qp.residuals.neutral_residuals`: primal, dual, gap)
+criteria (:func:`admmkit.problems.qp.residuals.neutral_residuals`: primal, dual, gap)
 are better at it than at the unpolished point: polishing never replaces a
 better answer.
 """

@@ -13,7 +13,7 @@ rho w_i is OSQP's rho_vec).
 
 lam is stored in M's inner product; the QP's multiplier is y = M lam (Q3)
 (docs/qp.md derives it).  With ``scaling=k`` the loop iterates on the
-Ruiz-equilibrated problem (:mod:`problems.qp.scaling`) and ``finalize``,
+Ruiz-equilibrated problem (:mod:`admmkit.problems.qp.scaling`) and ``finalize``,
 ``objective``, ``kkt`` and :meth:`QP.unscaled` give the user's numbers:
 x = D xb, z = E^-1 zb, y = E M lam / c.
 
@@ -96,7 +96,7 @@ class QP(Problem):
     xstep the form of the x-step system ("auto", "reduced" or "kkt"; see the
     module docstring), scaling the number of Ruiz iterations (0: none;
     OSQP uses 10), row_weights "uniform" (M = I) or "osqp" (OSQP's penalty
-    per row, see ``problems.qp.problem.row_weights``).  ``P, q, A, l, u`` stay the user's
+    per row, see ``admmkit.problems.qp.problem.row_weights``).  ``P, q, A, l, u`` stay the user's
     data; the loop works on ``Ps, qs, As, ls, us`` (the same objects when
     scaling = 0).
     """

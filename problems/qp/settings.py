@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 @dataclass(frozen=True)
 class QPSettings:
-    """Everything :func:`problems.qp.solve_qp` needs besides the QP and the penalty rule (defaults: OSQP 1.x's).
+    """Everything :func:`admmkit.problems.qp.solve_qp` needs besides the QP and the penalty rule (defaults: OSQP 1.x's).
 
     ``sigma``, ``scaling``, ``row_weights``, ``xstep`` and ``relax_x`` shape the
     QP object (``solve_qp`` builds a copy of the QP with them if needed); the

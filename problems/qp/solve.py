@@ -2,13 +2,13 @@
 
 It builds the QP in the form the settings ask for (Ruiz scaling, penalty per
 row), runs the loop with over-relaxation, the termination test every
-``check_every`` iterations (:class:`problems.qp.termination.QPTermination`:
+``check_every`` iterations (:class:`admmkit.problems.qp.termination.QPTermination`:
 residuals, duality gap, infeasibility) and a penalty rule (default OSQP's,
 fed OSQP 1.x's normalised residuals of the scaled problem), then, as OSQP:
 
 - at the iteration cap, the test once more at 10x the tolerances
   ("solved inaccurate", "primal/dual infeasible inaccurate");
-- polishing if asked (:mod:`problems.qp.polish`);
+- polishing if asked (:mod:`admmkit.problems.qp.polish`);
 - every number in the user's problem: x, z, the multiplier y (in ``lam``),
   the objective, the residuals.
 
@@ -90,7 +90,7 @@ def qp_for(qp: QP, settings: QPSettings) -> QP:
 
 def default_policy(qp: QP, settings: QPSettings):
     """OSQP's rule as OSQP 1.x runs it: every ``adaptive_rho_interval`` iterations, on the scaled problem's residuals."""
-    from policies import OSQPRule
+    from admmkit.policies import OSQPRule
     return OSQPRule(interval=settings.adaptive_rho_interval, tolerance=settings.adaptive_rho_tolerance,
                     rho_min=RHO_MIN, rho_max=RHO_MAX, residuals=osqp_relative_residuals(qp))
 
@@ -100,12 +100,12 @@ def solve_qp(qp: QP, settings: QPSettings | None = None, *, policy="osqp", warm_
     """Solve ``qp`` with ``settings`` (default :func:`osqp_settings`; keyword ``changes`` override single settings).
 
     ``policy``: "osqp" (default: OSQP's rule with OSQP's normalisation, see
-    ``problems.qp.solve.default_policy``), None for a fixed rho, or any policy or registered
+    ``admmkit.problems.qp.solve.default_policy``), None for a fixed rho, or any policy or registered
     name :func:`admmkit.solve` accepts.  ``warm_start``: a previous result of
     this QP (its x, y and rho).  ``rho`` overrides rho_0.
     """
     if not isinstance(qp, QP):
-        raise TypeError(f"qp must be a problems.qp.QP, got {type(qp).__name__}")
+        raise TypeError(f"qp must be a admmkit.problems.qp.QP, got {type(qp).__name__}")
     settings = (osqp_settings() if settings is None else settings).replace(**changes)
     if not isinstance(settings, QPSettings):
         raise TypeError(f"settings must be a QPSettings (e.g. osqp_settings()), got {type(settings).__name__}")

@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-import policies
+from admmkit import policies
 from admmkit import Policy, RelativeChange, ResidualTolerance, make_policy, solve
 
 

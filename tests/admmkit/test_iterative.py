@@ -9,12 +9,12 @@ import scipy.sparse.linalg as spla
 from ngsolve.meshes import MakeStructured2DMesh, MakeStructured3DMesh
 
 import admmkit
-import policies
+from admmkit import policies
 from admmkit import RelativeChange
 from admmkit.iterative import IterativeXSolver, PencilMatrix, SolutionSpace, node_blocks
-from problems.contact.iterative import rigid_body_modes
-from problems.contact import assemble, example1, example2, solve_scene
-from problems.contact.problem import contact_problem
+from admmkit.problems.contact.iterative import rigid_body_modes
+from admmkit.problems.contact import assemble, example1, example2, solve_scene
+from admmkit.problems.contact.problem import contact_problem
 
 
 def _elasticity(mesh, dirichlet=""):
@@ -206,8 +206,8 @@ def test_contact_iterative_mode_in_the_loop_uses_loose_early_tolerances():
 
 
 def test_obstacle_iterative_backend_matches_the_direct_one():
-    from problems.obstacle import make_problem
-    from problems.obstacle.scene import scene
+    from admmkit.problems.obstacle import make_problem
+    from admmkit.problems.obstacle.scene import scene
     stop = RelativeChange(1e-10)
     results = {}
     for backend in ("superlu", "iterative"):
@@ -222,9 +222,9 @@ def test_obstacle_iterative_backend_matches_the_direct_one():
 # ---------------------------------------------------------------- the array-built structured mesh
 @pytest.mark.parametrize("L, H, h", [(2.0, 1.0, 1 / 10), (3.0, 1.0, 1 / 7), (1.0, 2.0, 0.5)])
 def test_structured_rectangle_is_makestructured2dmesh(L, H, h):
-    """problems.contact.mesh.structured_rectangle (arrays) builds MakeStructured2DMesh's mesh exactly,
+    """admmkit.problems.contact.mesh.structured_rectangle (arrays) builds MakeStructured2DMesh's mesh exactly,
     so the assembled operators of the paper's examples are bit-for-bit unchanged."""
-    from problems.contact.mesh import grid_counts, structured_rectangle
+    from admmkit.problems.contact.mesh import grid_counts, structured_rectangle
     nx, ny = grid_counts(L, H, h)
     ref = MakeStructured2DMesh(quads=False, nx=nx, ny=ny, flip_triangles=True, mapping=lambda x, y: (L * x, H * y))
     new = structured_rectangle(L, H, h)
@@ -241,7 +241,7 @@ def test_structured_rectangle_is_makestructured2dmesh(L, H, h):
 
 # ---------------------------------------------------------------- the scale benchmarks (smoke tests)
 def test_run_case_in_a_subprocess_reports_time_memory_and_refusals():
-    from benchmarks.scale_runs import run_case, run_in_subprocess
+    from admmkit.benchmarks.scale_runs import run_case, run_in_subprocess
     row = run_in_subprocess("ex1", 1 / 10, "iterative", timeout=120)
     assert row["status"] == "converged" and row["n_free"] == 440
     assert row["peak_rss_bytes"] > 50e6 and row["total_s"] > 0 and row["counters"]["cg_iterations"] > 0
@@ -251,10 +251,10 @@ def test_run_case_in_a_subprocess_reports_time_memory_and_refusals():
 
 def test_run_case_reports_a_scene_refused_for_memory_as_refused(monkeypatch):
     # when not even the iterative mode fits in what is available now, the scene itself refuses (a
-    # problems.contact.memory.InsufficientMemory): the case is a refusal, not a crash of the study
-    from benchmarks import scale_runs
-    from problems.contact import memory, scene
-    from problems.contact.memory import InsufficientMemory
+    # admmkit.problems.contact.memory.InsufficientMemory): the case is a refusal, not a crash of the study
+    from admmkit.benchmarks import scale_runs
+    from admmkit.problems.contact import memory, scene
+    from admmkit.problems.contact.memory import InsufficientMemory
     for module in (memory, scene, scale_runs):
         monkeypatch.setattr(module, "available_memory", lambda: 2**20, raising=False)
     with pytest.raises(InsufficientMemory, match="GiB available"):
@@ -266,10 +266,10 @@ def test_run_case_reports_a_scene_refused_for_memory_as_refused(monkeypatch):
 @pytest.fixture
 def in_process(monkeypatch):
     """Run the benchmark's cases in this process (the subprocess path is tested above)."""
-    from benchmarks import scale_runs as scale
+    from admmkit.benchmarks import scale_runs as scale
     monkeypatch.setattr(scale, "run_in_subprocess",
                         lambda example, h, mode, timeout=0, rho=1e3: scale.run_case(example, h, mode) | {"wall_s": 0.0})
-    from benchmarks import amg_crossover as crossover, scale as scale_bench
+    from admmkit.benchmarks import amg_crossover as crossover, scale as scale_bench
     monkeypatch.setattr(scale_bench, "run_in_subprocess", scale.run_in_subprocess)
     monkeypatch.setattr(crossover, "run_in_subprocess", scale.run_in_subprocess)
 
@@ -317,7 +317,7 @@ def test_axpy_refresh_equals_the_galerkin_product_for_the_new_rho():
 def test_auto_mode_follows_the_measured_crossovers():
     from types import SimpleNamespace
 
-    from problems.contact.problem import auto_mode
+    from admmkit.problems.contact.problem import auto_mode
     fake = lambda n, n_c, dim: SimpleNamespace(n_free=n, n_c=n_c, mesh=SimpleNamespace(dim=dim), scene=None,  # noqa: E731
                                                friction=None)
     assert auto_mode(fake(1_000_000, 1000, 2)) == "condensed"     # the condensed mode won at every 2D size measured

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 import admmkit
-import policies
+from admmkit import policies
 from admmkit import RelativeChange, ResidualTolerance, Status, solve
 
 

@@ -7,7 +7,7 @@ import pytest
 
 import admmkit
 from admmkit.history import COLUMNS
-from problems.contact import example1, solve_scene
+from admmkit.problems.contact import example1, solve_scene
 
 
 @pytest.fixture

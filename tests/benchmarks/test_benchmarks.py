@@ -9,8 +9,8 @@ import csv
 import pytest
 
 import admmkit
-from benchmarks import methods, stability
-from benchmarks.sweep import append_result, case_id, load_results, run_sweep
+from admmkit.benchmarks import methods, stability
+from admmkit.benchmarks.sweep import append_result, case_id, load_results, run_sweep
 from admmkit.cli import main
 
 
@@ -145,8 +145,8 @@ def test_bench_bad_input(tmp_path, capsys):
 def test_active_set_polish_sharpens_the_clarabel_reference():
     import numpy as np
 
-    from benchmarks import families as scenes
-    from problems.qp import random_qp
+    from admmkit.benchmarks import families as scenes
+    from admmkit.problems.qp import random_qp
 
     qp = random_qp(40, 60, kind="mixed", seed=3)
     d = scenes.Discrete(key="t", kind="qp", n=qp.n, P=qp.P, q=qp.q, A=qp.A, l=qp.l, u=qp.u, weights=np.ones(qp.m),

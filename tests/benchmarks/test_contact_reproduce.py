@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from admmkit.cli import main
-from problems.contact import example1, solve_scene
-from benchmarks.paper import paper_time, paper_times, run_reproduction
-from problems.contact.plot import vertex_displacement
+from admmkit.problems.contact import example1, solve_scene
+from admmkit.benchmarks.paper import paper_time, paper_times, run_reproduction
+from admmkit.problems.contact.plot import vertex_displacement
 
 
 def test_solve_contact_writes_files(tmp_path, capsys):
@@ -86,7 +86,7 @@ def test_paper_table_lookup():
 
 
 def test_vertex_displacement_matches_gridfunction():
-    from problems.contact import assemble
+    from admmkit.problems.contact import assemble
     ops = assemble(example1(1 / 10))
     u = np.random.default_rng(0).standard_normal(ops.n_free)
     points, tris, disp = vertex_displacement(ops, u)
@@ -98,7 +98,7 @@ def test_vertex_displacement_matches_gridfunction():
 
 
 def test_bench_tiny(tmp_path):
-    from benchmarks.contact_speed import run_bench
+    from admmkit.benchmarks.contact_speed import run_bench
     out = tmp_path / "speed.md"
     rows = run_bench(out=out, hs=(1 / 10,), repeats=1, examples=("ex1",), progress=False)
     iterations = solve_scene(example1(1 / 10), "sadmm", 1e3).result.iterations

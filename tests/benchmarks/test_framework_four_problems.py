@@ -3,10 +3,10 @@ import numpy as np
 import pytest
 
 import admmkit
-import policies  # noqa: F401
+from admmkit import policies  # noqa: F401
 
 pytest.importorskip("cvxpy")
-from benchmarks.four_problems import PROBLEMS, build  # noqa: E402
+from admmkit.benchmarks.four_problems import PROBLEMS, build  # noqa: E402
 
 CASES = [("summable", "zx", 1e3), ("residual_balancing", "xz", 1e-3), ("aadmm", "xz", 1.0), ("osqp", "zx", 1e-3)]
 

@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 import admmkit
-import policies  # noqa: F401  (registers the rules)
-from benchmarks import loop_overhead as lo
+from admmkit import policies  # noqa: F401  (registers the rules)
+from admmkit.benchmarks import loop_overhead as lo
 
 
 @pytest.mark.parametrize("n", [10, 300])

@@ -2,9 +2,9 @@
 import math
 
 from admmkit import RelativeChange, solve
-from benchmarks.obstacle_rates import sweep
-from problems.obstacle.problem import make_problem
-from problems.obstacle.scene import radial
+from admmkit.benchmarks.obstacle_rates import sweep
+from admmkit.problems.obstacle.problem import make_problem
+from admmkit.problems.obstacle.scene import radial
 
 
 def test_sweep_runs_on_the_runner_and_reports_from_its_results(tmp_path):

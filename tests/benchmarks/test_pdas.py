@@ -3,8 +3,8 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from benchmarks.pdas import pdas
-from problems.contact import assemble, contact_problem, example1, example2
+from admmkit.benchmarks.pdas import pdas
+from admmkit.problems.contact import assemble, contact_problem, example1, example2
 
 
 def clarabel(K, f, B, g):
@@ -66,7 +66,7 @@ def test_compliance_of_the_condensed_contact_mode_gives_the_same_solution():
 
 
 def test_obstacle_lower_bound_matches_cvxpy():
-    from problems.obstacle import make_problem, radial, solve_with_cvxpy
+    from admmkit.problems.obstacle import make_problem, radial, solve_with_cvxpy
 
     p = make_problem(radial(h=1 / 4))
     res = pdas(p.K, p.F, -sp.identity(p.n), -p.psi, weights=p.m, keep_iterates=True)

@@ -12,15 +12,15 @@ import scipy.io
 import scipy.sparse as sp
 
 import admmkit
-import policies  # noqa: F401
-from problems.qp import load_mat, random_qp
-from benchmarks.maros_meszaros import (kkt_form_reason, performance_profile, run_benchmark, shifted_geometric_mean,
+from admmkit import policies  # noqa: F401
+from admmkit.problems.qp import load_mat, random_qp
+from admmkit.benchmarks.maros_meszaros import (kkt_form_reason, performance_profile, run_benchmark, shifted_geometric_mean,
                                        skip_reason, summarize)
-from benchmarks.maros_meszaros_report import target
-from benchmarks.maros_meszaros_runs import run_admmkit, run_osqp
-from problems.qp import osqp_settings, solve_qp, textbook_settings
-from problems.qp.reference import solve_with_cvxpy
-from problems.qp.termination import OSQPTermination, osqp_relative_residuals, osqp_residuals, osqp_satisfied
+from admmkit.benchmarks.maros_meszaros_report import target
+from admmkit.benchmarks.maros_meszaros_runs import run_admmkit, run_osqp
+from admmkit.problems.qp import osqp_settings, solve_qp, textbook_settings
+from admmkit.problems.qp.reference import solve_with_cvxpy
+from admmkit.problems.qp.termination import OSQPTermination, osqp_relative_residuals, osqp_residuals, osqp_satisfied
 
 MM = Path(__file__).resolve().parents[3] / "shared" / "data" / "maros_meszaros"
 needs_mm = pytest.mark.skipif(not MM.is_dir(), reason=f"Maros-Meszaros data not found at {MM}")

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from admmkit import IterationRecord
-from policies import Fixed, ResidualBalancing, Summable
+from admmkit.policies import Fixed, ResidualBalancing, Summable
 
 EMPTY = np.zeros(1)
 

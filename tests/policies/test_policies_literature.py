@@ -10,10 +10,10 @@ import numpy as np
 import pytest
 
 import admmkit
-import policies
+from admmkit import policies
 from admmkit import IterationRecord, Policy, ResidualTolerance, solve
-from policies import OSQPRule, Quantized, Spectral, SummableSteps, Wohlberg
-from policies.spectral import curvature, hybrid_step
+from admmkit.policies import OSQPRule, Quantized, Spectral, SummableSteps, Wohlberg
+from admmkit.policies.spectral import curvature, hybrid_step
 
 ONE = np.zeros(1)
 
@@ -248,7 +248,7 @@ def test_quantized_snaps_to_the_grid_and_returns_exact_values():
 
 
 def test_quantized_reuses_factorisations_on_a_qp():
-    from problems.qp import random_qp
+    from admmkit.problems.qp import random_qp
     runs = {}
     for name in ("aadmm", "quantized"):
         qp = random_qp(40, 60, kind="mixed", seed=4)
@@ -314,8 +314,8 @@ def test_rules_register_and_declare_what_they_need():
 
 
 def test_rules_on_the_obstacle_plug_in():
-    from problems.obstacle.problem import make_problem
-    from problems.obstacle.scene import radial
+    from admmkit.problems.obstacle.problem import make_problem
+    from admmkit.problems.obstacle.scene import radial
     problem = make_problem(radial(h=1 / 4))
     for name in NEW:
         res = solve(problem, rho=1e2, policy=name, order="zx", stop=ResidualTolerance(1e-9, 1e-9), max_iter=5000)

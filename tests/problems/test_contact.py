@@ -5,7 +5,7 @@ import scipy.sparse.linalg as spla
 
 import admmkit
 from admmkit import ResidualTolerance
-from problems.contact import assemble, contact_problem, example1, example2, solve_scene
+from admmkit.problems.contact import assemble, contact_problem, example1, example2, solve_scene
 
 
 @pytest.fixture(scope="module")
@@ -103,7 +103,7 @@ def test_relative_change_stop_reports_true_kkt(ex1_ops):
 
 def test_factorisations_only_for_new_rho(ex1_ops):
     problem = contact_problem(ex1_ops, "full")
-    import policies
+    from admmkit import policies
 
     res = admmkit.solve(problem, rho=1.0, policy=policies.Summable(), order="zx")
     assert res.counters["factorizations"] == len(set(res.history["rho"])) <= res.rho_changes + 1
@@ -121,7 +121,7 @@ def test_mode_and_method_errors(ex1_ops):
 
 
 def test_demo_solves_both_examples(tmp_path, capsys):
-    from problems.contact.demo import run_demo
+    from admmkit.problems.contact.demo import run_demo
 
     assert run_demo(tmp_path, h=1 / 10) == 0
     out = capsys.readouterr().out

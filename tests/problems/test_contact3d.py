@@ -8,9 +8,9 @@ from ngsolve.meshes import MakeStructured3DMesh
 
 from admmkit import RelativeChange
 from admmkit.cli import main
-from problems.contact import solve_scene
-from problems.contact.memory import memory_need3d
-from problems.contact.scene3d import FACES_3D, Scene3D, assemble3d, block_mesh, example2_3d
+from admmkit.problems.contact import solve_scene
+from admmkit.problems.contact.memory import memory_need3d
+from admmkit.problems.contact.scene3d import FACES_3D, Scene3D, assemble3d, block_mesh, example2_3d
 
 
 def test_block_mesh_is_makestructured3dmesh_with_outward_faces():
@@ -94,7 +94,7 @@ def test_the_memory_refusal_names_both_estimates():
 
 
 def test_bench_contact3d_writes_figure_vtk_and_table(tmp_path, monkeypatch, capsys):
-    from benchmarks import contact3d as contact3d_bench, scale_runs as scale
+    from admmkit.benchmarks import contact3d as contact3d_bench, scale_runs as scale
     monkeypatch.setattr(contact3d_bench, "probe_in_subprocess",            # in-process: keeps the test fast
                         lambda h, which, timeout: contact3d_bench.probe(h) | {"status": "ok"})
     monkeypatch.setattr(scale, "run_in_subprocess",

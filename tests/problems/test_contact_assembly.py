@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 import scipy.sparse.linalg as sla
 
-from problems.contact.assembly import assemble, lame
-from problems.contact.mesh import structured_rectangle, unstructured_rectangle
-from problems.contact.scene import Scene, example1, example2, load_scene
+from admmkit.problems.contact.assembly import assemble, lame
+from admmkit.problems.contact.mesh import structured_rectangle, unstructured_rectangle
+from admmkit.problems.contact.scene import Scene, example1, example2, load_scene
 
 H = 1 / 40
 

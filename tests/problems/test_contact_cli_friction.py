@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from admmkit.cli import main
-from problems.contact import load_scene, solve_scene
+from admmkit.problems.contact import load_scene, solve_scene
 
 TRESCA = ["solve", "contact", "--scene", "ex1_tresca", "--h", "1/10"]
 COULOMB = ["solve", "contact", "--scene", "ex1_coulomb", "--h", "1/10"]

@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 
 from admmkit.cli import main
-from problems.contact import Scene, assemble, solve_scene
-from problems.contact.hertz import (HertzCase, e_star, hertz_half_width, hertz_load, hertz_peak_pressure,
+from admmkit.problems.contact import Scene, assemble, solve_scene
+from admmkit.problems.contact.hertz import (HertzCase, e_star, hertz_half_width, hertz_load, hertz_peak_pressure,
                                     hertz_pressure, measure)
-from problems.contact.scene import load_scene
+from admmkit.problems.contact.scene import load_scene
 
 
 def test_hertz_formulas_are_consistent():

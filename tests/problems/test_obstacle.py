@@ -4,11 +4,11 @@ import math
 import numpy as np
 import pytest
 
-import policies  # noqa: F401  (registers the rules by name)
+from admmkit import policies  # noqa: F401  (registers the rules by name)
 from admmkit import ResidualTolerance, Status, solve
 from admmkit.cli import main
-from problems.obstacle import A_STAR, Scene, make_problem, pyramid, radial, radial_exact, radial_psi, scene, solve_with_cvxpy
-from problems.obstacle.scene import A_COEF, B_COEF, pyramid_psi
+from admmkit.problems.obstacle import A_STAR, Scene, make_problem, pyramid, radial, radial_exact, radial_psi, scene, solve_with_cvxpy
+from admmkit.problems.obstacle.scene import A_COEF, B_COEF, pyramid_psi
 
 TIGHT = dict(tol_gap_abs=1e-12, tol_gap_rel=1e-12, tol_feas=1e-12)
 STOP = ResidualTolerance(1e-11, 1e-11)

@@ -15,7 +15,7 @@ hypothesis = pytest.importorskip("hypothesis")
 from hypothesis import HealthCheck, given, settings, strategies as st  # noqa: E402
 
 import admmkit  # noqa: E402
-import policies  # noqa: E402,F401
+from admmkit import policies  # noqa: E402,F401
 from admmkit import ResidualTolerance, Status  # noqa: E402
 
 STATUSES = {s.value for s in Status}
@@ -39,13 +39,13 @@ RULES = [r for r in RULES if _buildable(r)]
        seed=st.integers(0, 2**31 - 1), rule=st.sampled_from(RULES), order=st.sampled_from(["xz", "zx"]),
        log_rho=st.floats(-8, 8), alpha=st.floats(0.05, 1.95))
 def test_random_qps_never_raise_and_converged_means_kkt(n, m, kind, seed, rule, order, log_rho, alpha):
-    from problems.qp import random_qp
+    from admmkit.problems.qp import random_qp
     qp = random_qp(n, m, kind=kind, seed=seed)
     r = admmkit.solve(qp, rho=10.0 ** log_rho, policy=rule, order=order, alpha=alpha,
                       stop=ResidualTolerance(1e-7, 1e-7), max_iter=4000)
     assert r.status.value in STATUSES
     if r.status is Status.CONVERGED:   # P is positive definite: the solution is unique; Clarabel's is independent
-        from problems.qp.reference import solve_with_cvxpy
+        from admmkit.problems.qp.reference import solve_with_cvxpy
         x_ref, _, _ = solve_with_cvxpy(qp, tol_gap_abs=1e-10, tol_gap_rel=1e-10, tol_feas=1e-10)
         assert np.abs(r.x - x_ref).max() <= 1e-3 * (1.0 + np.abs(x_ref).max())
 
@@ -56,12 +56,12 @@ def test_random_qps_never_raise_and_converged_means_kkt(n, m, kind, seed, rule, 
        gap=st.floats(0.0, 0.05), cells=st.integers(4, 10), method=st.sampled_from(["admm1", "admm2", "sadmm"]),
        mesh=st.sampled_from(["structured", "unstructured"]))
 def test_contact_scenes_in_range_never_raise(L, H, E, nu, gap, cells, method, mesh):
-    from problems.contact import Scene, solve_scene
+    from admmkit.problems.contact import Scene, solve_scene
     scene = Scene(L=L, H=H, h=min(L, H) / cells, E=E, nu=nu, gap=gap, mesh_kind=mesh,
                   dirichlet=("left",), contact="bottom", tractions={"top": (0.0, -0.1 * E)})
     sol = solve_scene(scene, method, rho=E, max_iter=3000)
     r = sol.result
     assert r.status.value in STATUSES
     if r.status is Status.CONVERGED:   # within 1e-3 of an independent interior-point solve of the same problem
-        from problems.contact.reference import errors_against, reference_solution
+        from admmkit.problems.contact.reference import errors_against, reference_solution
         assert errors_against(sol.ops, reference_solution(sol.ops), r.x, r.lam)["err_u_energy"] < 1e-3

@@ -4,10 +4,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-import policies  # noqa: F401  (registers the rules by name)
+from admmkit import policies  # noqa: F401  (registers the rules by name)
 from admmkit import ResidualTolerance, Status, solve
-from problems.qp import QP, list_problems, load_mat, random_qp
-from problems.qp.reference import solve_with_cvxpy
+from admmkit.problems.qp import QP, list_problems, load_mat, random_qp
+from admmkit.problems.qp.reference import solve_with_cvxpy
 
 MM = Path(__file__).resolve().parents[3] / "shared" / "data" / "maros_meszaros"
 TIGHT = dict(tol_gap_abs=1e-12, tol_gap_rel=1e-12, tol_feas=1e-12)
@@ -132,7 +132,7 @@ def test_kkt_form_matches_cvxpy():
 
 
 def test_auto_takes_the_kkt_form_when_a_row_of_A_is_dense(monkeypatch):
-    import problems.qp.problem as qp_module
+    import admmkit.problems.qp.problem as qp_module
     qp = random_qp(40, 5, kind="equality", seed=3)
     assert _with_xstep(qp, "auto").xstep == "reduced"
     monkeypatch.setattr(qp_module, "REDUCED_MAX_NNZ", 10.0)   # any A'A is "too dense" now

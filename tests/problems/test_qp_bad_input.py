@@ -4,7 +4,7 @@ import pytest
 import scipy.io
 import scipy.sparse as sp
 
-from problems.qp import QP, load_mat, random_qp
+from admmkit.problems.qp import QP, load_mat, random_qp
 
 I3 = sp.identity(3, format="csc")
 Q, L, U = np.zeros(3), -np.ones(3), np.ones(3)

@@ -7,14 +7,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-import policies  # noqa: F401  (registers the rules by name)
+from admmkit import policies  # noqa: F401  (registers the rules by name)
 import admmkit
 from admmkit.cli import build_parser, main
 from admmkit.stopping import RelativeChange
-from problems.qp import load_mat, random_qp, solve_qp, osqp_settings
-from problems.qp.generate import infeasible_qp, unbounded_qp
-from problems.qp.reference import solve_with_cvxpy
-from problems.qp.residuals import neutral_residuals
+from admmkit.problems.qp import load_mat, random_qp, solve_qp, osqp_settings
+from admmkit.problems.qp.generate import infeasible_qp, unbounded_qp
+from admmkit.problems.qp.reference import solve_with_cvxpy
+from admmkit.problems.qp.residuals import neutral_residuals
 
 HS21 = Path(__file__).resolve().parents[3] / "shared" / "data" / "maros_meszaros" / "HS21.mat"
 QP = ["solve", "qp", "--random", "30", "40"]
@@ -170,7 +170,7 @@ def test_textbook_preset_reproduces_the_old_loop(tmp_path, capsys):
     code, out, _ = run([*QP, "--preset", "textbook", "--tol", "1e-6", "--json", str(j), "-q"], capsys)
     data = json.loads(j.read_text())
     qp = random_qp(30, 40, seed=0)
-    from policies import ResidualBalancing
+    from admmkit.policies import ResidualBalancing
     old = admmkit.solve(qp, rho=1.0, policy=ResidualBalancing(), order="xz", stop=RelativeChange(1e-6), max_iter=10_000)
     assert code == 0 and "residual_balancing: order=xz" in out and "rho_0 = 1" in out
     assert data["result"]["iterations"] == old.iterations and data["result"]["stopped_by"] == old.stopped_by

@@ -10,15 +10,15 @@ import pytest
 import scipy.sparse as sp
 
 import admmkit
-import policies  # noqa: F401  (registers the rules by name)
+from admmkit import policies  # noqa: F401  (registers the rules by name)
 from admmkit import Status
-from problems.qp import QP, QPStatus, load_mat, osqp_settings, random_qp, solve_qp, textbook_settings
-from problems.qp.generate import infeasible_qp, unbounded_qp
-from problems.qp.infeasibility import check_dual_certificate, check_primal_certificate
-from problems.qp.reference import solve_with_cvxpy
-from problems.qp.residuals import neutral_residuals, neutral_satisfied
-from problems.qp.scaling import ruiz
-from problems.qp.termination import QPTermination
+from admmkit.problems.qp import QP, QPStatus, load_mat, osqp_settings, random_qp, solve_qp, textbook_settings
+from admmkit.problems.qp.generate import infeasible_qp, unbounded_qp
+from admmkit.problems.qp.infeasibility import check_dual_certificate, check_primal_certificate
+from admmkit.problems.qp.reference import solve_with_cvxpy
+from admmkit.problems.qp.residuals import neutral_residuals, neutral_satisfied
+from admmkit.problems.qp.scaling import ruiz
+from admmkit.problems.qp.termination import QPTermination
 
 MM = Path(__file__).resolve().parents[3] / "shared" / "data" / "maros_meszaros"
 TIGHT = dict(tol_gap_abs=1e-12, tol_gap_rel=1e-12, tol_feas=1e-12)
@@ -245,7 +245,7 @@ def test_settings_bad_input(change, error, match):
 
 def test_solve_qp_bad_input():
     qp = random_qp(5, 6, seed=1)
-    with pytest.raises(TypeError, match="qp must be a problems.qp.QP"):
+    with pytest.raises(TypeError, match="qp must be a admmkit.problems.qp.QP"):
         solve_qp("qp")
     with pytest.raises(TypeError, match="warm_start must be a result"):
         solve_qp(qp, warm_start=np.zeros(5))

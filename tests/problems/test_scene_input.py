@@ -6,9 +6,9 @@ import ngsolve as ng
 import numpy as np
 import pytest
 
-from problems.contact import Scene, assemble, example1, load_scene
-from problems.contact.expressions import FUNCTIONS, expression
-from problems.contact.scene import TOML_KEYS
+from admmkit.problems.contact import Scene, assemble, example1, load_scene
+from admmkit.problems.contact.expressions import FUNCTIONS, expression
+from admmkit.problems.contact.scene import TOML_KEYS
 
 # (expression, the same in Python) for every documented function
 CASES = {
@@ -140,6 +140,6 @@ def test_every_toml_key_is_a_scene_field_and_round_trips(tmp_path):
 
 @pytest.mark.parametrize("method", [None, "", "sadm", 3])
 def test_solve_scene_names_a_bad_method(method):
-    from problems.contact import example1, solve_scene
+    from admmkit.problems.contact import example1, solve_scene
     with pytest.raises(ValueError, match="method must be a name|unknown method"):
         solve_scene(example1(h=1 / 10), method)

@@ -13,7 +13,7 @@ import pytest
 
 import admmkit
 from admmkit import RelativeChange, ResidualTolerance, Status
-from benchmarks.methods import admm_methods, make
+from admmkit.benchmarks.methods import admm_methods, make
 
 RHOS = [10.0 ** e for e in range(-12, 13, 3)]
 STOPS = {"paper": lambda: RelativeChange(1e-5), "default": lambda: None}
@@ -34,8 +34,8 @@ def audit(make_problem, error, stop):
 
 @pytest.fixture(scope="module")
 def contact():
-    from problems.contact import assemble, example1
-    from problems.contact.reference import errors_against, reference_solution
+    from admmkit.problems.contact import assemble, example1
+    from admmkit.problems.contact.reference import errors_against, reference_solution
     ops = assemble(example1(h=1 / 20))
     ref = reference_solution(ops)
     return ops, lambda r: errors_against(ops, ref, r.x, r.lam)["err_u_energy"]
@@ -43,7 +43,7 @@ def contact():
 
 @pytest.mark.parametrize("stop", STOPS)
 def test_contact_never_reports_converged_far_from_the_solution(contact, stop):
-    from problems.contact.problem import contact_problem
+    from admmkit.problems.contact.problem import contact_problem
     ops, error = contact
     outcomes, false = audit(lambda: contact_problem(ops), error, stop)
     assert false == []
@@ -54,9 +54,9 @@ def test_contact_never_reports_converged_far_from_the_solution(contact, stop):
 
 @pytest.mark.parametrize("stop", STOPS)
 def test_obstacle_never_reports_converged_far_from_the_solution(stop):
-    from problems.obstacle import make_problem
-    from problems.obstacle.problem import solve_with_cvxpy
-    from problems.obstacle.scene import scene
+    from admmkit.problems.obstacle import make_problem
+    from admmkit.problems.obstacle.problem import solve_with_cvxpy
+    from admmkit.problems.obstacle.scene import scene
     sc = scene("radial", h=1 / 8)
     u_ref, _ = solve_with_cvxpy(make_problem(sc), tol_gap_abs=1e-12, tol_gap_rel=1e-12, tol_feas=1e-12)
     error = lambda r: float(np.linalg.norm(r.x - u_ref) / np.linalg.norm(u_ref))  # noqa: E731
