@@ -187,7 +187,8 @@ def test_studies_with_their_own_options_answer_help_and_bad_options(study, capsy
 
 
 @pytest.mark.parametrize("layer", [pytest.param(layer, marks=pytest.mark.xfail(
-    strict=True, reason="#23 in progress: modules are being split")) for layer in LAYERS])
+    strict=True, reason="#23 in progress: modules are being split")) if layer != "policies" else layer
+    for layer in LAYERS])
 def test_no_module_over_300_lines(layer):
     long = {str(p.relative_to(ROOT)): n for p in layer_files(layer)
             if (n := len(p.read_text().splitlines())) > MAX_LINES and str(p.relative_to(ROOT)) not in LONG_MODULES}
