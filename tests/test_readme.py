@@ -29,5 +29,5 @@ def test_readme_commands_exist():
     assert 'python -m pip install ".[test]" && python -m pytest -q' in ci
     parser = build_parser()
     for line in re.findall(r"^    admmkit (solve .*)$", text, flags=re.M):
-        args = parser.parse_args(line.split())
+        args = parser.parse_args(line.split("#")[0].split())   # a trailing comment says how it ends
         assert args.func
