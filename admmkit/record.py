@@ -9,114 +9,22 @@ tests of the policies) holds the given numbers and computes nothing.
 """
 from __future__ import annotations
 
-import math
 from typing import Callable
 
 import numpy as np
 
+from .norms import COMPUTE, LAZY_FIELDS, RunContext
+
+__all__ = ["IterationRecord", "LAZY_FIELDS", "SCALAR_FIELDS", "RunContext", "loop_record", "ratio", "relative_change"]
+
 #: the scalar fields of a record that the history keeps, in its column order
 SCALAR_FIELDS = ("k", "rho", "primal_residual", "dual_residual", "rho_Ax_change", "lam_change", "x_change",
                  "x_norm", "z_change", "primal_scale", "dual_scale", "primal_unit", "dual_unit", "time")
-#: the fields computed on first access in a loop record (indices into ``_vals``)
-LAZY_FIELDS = ("primal_residual", "dual_residual", "rho_Ax_change", "lam_change", "x_change", "x_norm",
-               "z_change", "primal_scale", "dual_scale")
 _INDEX = {name: i for i, name in enumerate(LAZY_FIELDS)}
-_VECTORS = ("x", "z", "lam", "Ax", "z_prev", "Ax_prev")
-
-
-class RunContext:
-    """What the lazy fields of every record of one run share: the problem's norms and the constants."""
-
-    __slots__ = ("problem", "norm", "x_norm", "x_distance", "order", "alpha", "c", "c_is_zero", "c_norm",
-                 "has_adjoint", "primal_unit", "dual_unit", "inner")
-
-    def __init__(self, problem, order: str, alpha: float, c, c_norm: float, has_adjoint: bool,
-                 primal_unit: float, dual_unit: float):
-        from .problem import Problem
-        self.problem, self.inner = problem, problem.inner
-        kind = type(problem)
-        # the default Euclidean norms, without three Python calls each (bitwise the same value:
-        # Problem.norm is sqrt(max(dot(y, y), 0)) and numpy's norm of a vector is sqrt(dot(y, y)))
-        euclid_M = getattr(kind, "norm", None) is Problem.norm and getattr(kind, "inner", None) is Problem.inner
-        euclid_X = getattr(kind, "x_norm", None) is Problem.x_norm
-        self.norm = _euclidean if euclid_M else problem.norm
-        self.x_norm = _euclidean if euclid_X else problem.x_norm
-        self.x_distance = (_euclidean_distance if euclid_X and getattr(kind, "x_distance", None) is Problem.x_distance
-                           else problem.x_distance)
-        self.order, self.alpha, self.c = order, alpha, c
-        self.c_is_zero = np.isscalar(c) and c == 0
-        self.c_norm, self.has_adjoint = c_norm, has_adjoint
-        self.primal_unit, self.dual_unit = primal_unit, dual_unit
-
-
-_dot, _sqrt = np.dot, math.sqrt
-
-
-def _euclidean(y) -> float:
-    return _sqrt(_dot(y, y))
-
-
-def _euclidean_distance(a, b) -> float:
-    d = a - b
-    return _sqrt(_dot(d, d))
-
-
-# -- the lazy fields: each a function of the record (r = A x^{k+1} - z^{k+1} - c) --------------
-def _primal_residual(rec) -> float:                  # ||r||_M (the loop may have taken it already)
-    taken = rec._cache[7]
-    return rec._ctx.norm(rec._residual()) if taken is None else taken
-
-
-def _lam_change(rec) -> float:                       # ||lam^{k+1} - lam^k||_M = rho ||r||_M if alpha = 1
-    if rec._ctx.alpha == 1.0:
-        return rec.rho * rec.primal_residual
-    return rec._ctx.norm(rec._lam - rec._lam_prev)
-
-
-def _rho_Ax_change(rec) -> float:                    # rho ||A x^{k+1} - A x^k||_M
-    return rec.rho * rec._ctx.norm(rec._Ax - rec._Ax_prev)
-
-
-def _dual_residual(rec) -> float:
-    ctx = rec._ctx
-    if ctx.order == "zx":                            # rho ||A x^{k+1} - A x^k + z_hat - z^{k+1}||_M
-        if ctx.alpha == 1.0:
-            return rec.rho_Ax_change
-        return rec.rho * ctx.norm((rec._Ax - rec._Ax_prev) + (rec._z - rec._hat))
-    if not ctx.has_adjoint:
-        return math.nan
-    if ctx.alpha == 1.0:                             # rho ||A^T M (z^{k+1} - z^k)||
-        return rec.rho * ctx.problem.adjoint_norm(rec._z - rec._z_prev)
-    return rec.rho * ctx.problem.adjoint_norm((rec._Ax - rec._hat) + (rec._z - rec._z_prev))
-
-
-def _dual_scale(rec) -> float:                       # ||A^T M lam|| (xz) or ||lam||_M (zx)
-    ctx = rec._ctx
-    if ctx.order == "zx":
-        return ctx.norm(rec._lam)
-    return ctx.problem.adjoint_norm(rec._lam) if ctx.has_adjoint else math.nan
-
-
-def _primal_scale(rec) -> float:                     # max(||A x||_M, ||z||_M, ||c||_M)
-    ctx = rec._ctx
-    return max(ctx.norm(rec._Ax), ctx.norm(rec._z), ctx.c_norm)
-
-
-_COMPUTE = {
-    "primal_residual": _primal_residual,
-    "dual_residual": _dual_residual,
-    "rho_Ax_change": _rho_Ax_change,
-    "lam_change": _lam_change,
-    "x_change": lambda rec: rec._ctx.x_distance(rec._x, rec._x_prev),
-    "x_norm": lambda rec: rec._ctx.x_norm(rec._x),
-    "z_change": lambda rec: rec._ctx.norm(rec._z - rec._z_prev),
-    "primal_scale": _primal_scale,
-    "dual_scale": _dual_scale,
-}
 
 
 def _lazy(name: str, doc: str) -> property:
-    i, compute = _INDEX[name], _COMPUTE[name]
+    i, compute = _INDEX[name], COMPUTE[name]
 
     def get(self):
         v = self._vals[i]
@@ -322,8 +230,6 @@ def ratio(a: float, b: float) -> float:
     return 0.0 if a == 0 else float("inf")
 
 
-_ratio = ratio
-
 
 _SET_D = IterationRecord.__dict__["_d"].__set__
 _SET_VALS = IterationRecord.__dict__["_vals"].__set__
@@ -332,13 +238,23 @@ _SET_CACHE = IterationRecord.__dict__["_cache"].__set__
 _NEW = object.__new__
 
 
-def loop_record(ctx: RunContext, data: tuple, r_norm) -> IterationRecord:
-    """The loop's lazy record of ``data`` = (k, rho, time, x, z, lam, Ax, x_prev, z_prev, lam_prev, Ax_prev, hat)
-    (``hat`` and ``lam_prev`` None when alpha = 1).  ``r_norm`` is ||A x^{k+1} - z^{k+1} - c||_M if the loop
-    took it already (else None): ``primal_residual`` returns it when read, and counts as computed only then."""
+def loop_record(ctx: RunContext, k: int, rho: float, step: tuple, x, z, lam, Ax) -> IterationRecord:
+    """The loop's lazy record of iteration k, from x^k, z^k, lam^k, A x^k and the iteration's ``step``.
+
+    ``step`` = (x^{k+1}, z^{k+1}, lam^{k+1}, A x^{k+1}, hat, r_norm, t) as an iteration of
+    :mod:`admmkit.steps` returns it: ``hat`` is the relaxed vector (None when alpha = 1, and then
+    lam^k is not kept: ||lam^{k+1} - lam^k|| = rho ||r||), ``r_norm`` is ||A x^{k+1} - z^{k+1} - c||_M
+    if the dual update took it (else None; ``primal_residual`` returns it when read, and it counts as
+    computed only then) and ``t`` the perf_counter() after the two steps."""
+    x1, z1, lam1, Ax1, hat, r_norm, t = step
     rec = _NEW(IterationRecord)
-    _SET_D(rec, data)
+    _SET_D(rec, (k, rho, t - ctx.start, x1, z1, lam1, Ax1, x, z, None if hat is None else lam, Ax, hat))
     _SET_VALS(rec, [None] * 9)
     _SET_CTX(rec, ctx)
     _SET_CACHE(rec, [None, None, None, None, None, None, None, r_norm])
     return rec
+
+
+def residual_read(rec: IterationRecord) -> bool:
+    """Whether ||r||_M of this record has been read (not merely taken by the loop)."""
+    return rec._vals[0] is not None

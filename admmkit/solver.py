@@ -1,29 +1,36 @@
 """The ADMM loop: one function, both orders, any policy, composable stopping rules.
 
-One iteration is the steps of :mod:`admmkit.steps` (the equations are there):
-the z-step (11), the x-step (12), the dual update (13) -- in order "xz" the
-x-step comes first --, then the record of the iteration, the stopping test,
-and the policy's rho_{k+1} (17).  The record is lazy: a norm is computed only
-when the stopping rule, the policy, the callback or the history reads it.
+``solve`` checks its arguments and starts the run (:func:`admmkit.checks.prepare`),
+then each iteration is, line by line:
+
+- the iteration of the run's order (:mod:`admmkit.steps`, the equations are
+  there): the z-step (11), the x-step (12), the dual update (13) -- in order
+  "xz" the x-step comes first;
+- its record (:func:`admmkit.record.loop_record`), lazy: a norm is computed
+  only when the stopping rule, the policy, the callback or the history reads it;
+- on a tested iteration, the tests (:mod:`admmkit.termination`): divergence,
+  the stopping rule, stalling;
+- the policy's rho_{k+1} (17) (:class:`admmkit.steps.PolicyStep`);
+- the bookkeeping (:mod:`admmkit.ledger`): the history, the callback, the
+  time limit, and whether the next dual update takes ||r||.
 """
 from __future__ import annotations
 
 import math
 import time
-from contextlib import ExitStack
 from typing import Callable
 
 import numpy as np
 
 from . import checks
-from .blas import limit_blas
-from .history import History
+from .ledger import Ledger
 from .policy import Policy
 from .problem import Problem
-from .record import LAZY_FIELDS, IterationRecord, RunContext, loop_record
+from .record import IterationRecord, loop_record
 from .result import Result, Status
-from .steps import dual_update, dual_update_and_residual, policy_step, relax_Ax, relax_z, x_step, z_step
-from .stopping import StoppingRule, default_stop
+from .steps import ORDER_STEPS, PolicyStep
+from .stopping import StoppingRule
+from .termination import Termination
 
 #: a run that a stopping rule ended is ``converged_inaccurate`` when a relative KKT measure
 #: exceeds INACCURATE_FACTOR * max(the rule's tolerance, INACCURATE_FLOOR) (OSQP's "solved
@@ -32,6 +39,7 @@ from .stopping import StoppingRule, default_stop
 INACCURATE_FACTOR = 10.0
 INACCURATE_FLOOR = 1e-9
 ORDERS = checks.ORDERS
+perf = time.perf_counter
 
 
 @np.errstate(over="ignore", invalid="ignore")  # a blow-up ends as status 'diverged'
@@ -102,197 +110,48 @@ def solve(
         A previous result: start from its ``x_iterate``, ``z``, ``lam``
         and rho (each overridden by x0, z0, lam0, rho if given).
     """
-    order_key = checks.check_order(order)
-    if warm_start is not None:
-        if not isinstance(warm_start, Result) or warm_start.x_iterate is None:
-            raise TypeError(f"warm_start must be an admmkit.Result of solve(), got {type(warm_start).__name__}")
-        x0 = warm_start.x_iterate if x0 is None else x0
-        z0 = warm_start.z if z0 is None else z0
-        lam0 = warm_start.lam if lam0 is None else lam0
-        rho = warm_start.rho if rho is None else rho
-    rho = checks.check_rho(1.0 if rho is None else rho, "rho")
-    alpha = checks.check_alpha(alpha)
-    max_iter = checks.check_int("max_iter", max_iter, 1)
-    check_every = checks.check_int("check_every", check_every, 1)
-    history_log = History(history)
-    if time_limit is not None and not (isinstance(time_limit, (int, float, np.integer, np.floating))
-                                       and not isinstance(time_limit, bool)
-                                       and math.isfinite(time_limit) and time_limit > 0):
-        raise ValueError(f"time_limit must be a finite number > 0 seconds or None, got {time_limit!r}")
-    if blas_threads is not None and (isinstance(blas_threads, bool) or not isinstance(blas_threads, int) or blas_threads < 1):
-        raise ValueError(f"blas_threads must be an integer >= 1 or None, got {blas_threads!r}")
-    if callback is not None and not callable(callback):
-        raise TypeError(f"callback must be callable or None, got {type(callback).__name__}")
-    stop = default_stop() if stop is None else stop
-    if not isinstance(stop, StoppingRule):
-        raise TypeError(f"stop must be a StoppingRule (e.g. RelativeChange(1e-5)), got {type(stop).__name__}")
-    for name in ("x_step", "z_step", "apply_A"):
-        if not callable(getattr(problem, name, None)):
-            raise TypeError(f"problem must implement {name}() (see admmkit.Problem), got {type(problem).__name__}")
-    policy = checks.make(policy)
-
-    x, z, lam = checks.starting_point(problem, x0, z0, lam0)
-    Ax = np.asarray(problem.apply_A(x), dtype=float)
-    if Ax.shape != z.shape or lam.shape != z.shape:
-        raise ValueError(f"shapes do not match: A x0 has shape {Ax.shape}, z0 {z.shape}, lam0 {lam.shape}")
-    c = problem.c
-    adjoint = order_key == "xz" and checks.has_adjoint(problem, z)   # only order xz uses adjoint_norm
-    checks.check_requirements(problem, order_key, adjoint, (("policy", policy), ("stop", stop)))
-    primal_unit = problem.norm(np.ones_like(z))
-    dual_unit = math.sqrt(getattr(problem, "n", x.size)) if order_key == "xz" else primal_unit
-    c_norm = problem.norm(np.broadcast_to(np.asarray(c, dtype=float), z.shape))
-    ctx = RunContext(problem, order_key, alpha, c, c_norm, adjoint, primal_unit, dual_unit)
-    c_zero, relaxed = ctx.c_is_zero, alpha != 1.0
-    # the lazy fields whose non-finite value means divergence (a missing adjoint gives NaN legitimately)
-    watched = tuple(i for i, name in enumerate(LAZY_FIELDS) if adjoint or order_key == "zx" or name not in ("dual_residual", "dual_scale"))
-
-    begin_run = getattr(problem, "begin_run", None)
-    if callable(begin_run):
-        begin_run()                  # building blocks count this run's work from here
-    policy.reset(rho)
-    counters_before = dict(problem.counters())
-    tx = tz = t_policy = t_check = 0.0
-    status, message, stopped_by = Status.MAX_ITER, f"reached max_iter={max_iter}", None
-    rho_changes = 0
-    rec = None
-    perf = time.perf_counter
-    # take ||r|| (r = Ax - z - c) with the dual update, whose r's memory then holds lam^{k+1}, when the last
-    # iteration of the same kind (plain, tested) read it; r is never kept: fewer arrays to allocate and write
-    # (the numbers never depend on this; a record recomputes r if ||r|| is read unexpectedly)
-    take_r = [True, True]
-    norm_M = ctx.norm
-    limits = ExitStack()
-    if blas_threads is not None:
-        limits.enter_context(limit_blas(blas_threads))   # a cached controller: ~15 us, not 0.5 ms
-    try:   # the BLAS thread count is restored however the loop ends (an exception, Ctrl-C)
-        start = perf()
-        for k in range(max_iter):
-            rec = hat = Ax_dual = z_dual = None   # drop the last record and its vectors now: fewer arrays alive
-            check = (k + 1) % check_every == 0 or k == max_iter - 1
-            take = take_r[check] and not relaxed    # with alpha != 1 the record's r is not the dual update's
-            r_norm = None
-            t0 = perf()
+    run = checks.prepare(problem, rho=rho, policy=policy, order=order, stop=stop, max_iter=max_iter,
+                         callback=callback, x0=x0, z0=z0, lam0=lam0, time_limit=time_limit, blas_threads=blas_threads,
+                         alpha=alpha, check_every=check_every, history=history, warm_start=warm_start)
+    iterate = ORDER_STEPS[run.order](problem, run.ctx)     # eqs. (11), (12), (13) in the run's order
+    policy_step = PolicyStep(run.policy)                    # eq. (17)
+    watch, ledger = Termination(run), Ledger(run)           # the tests; the history, the callback, the taken ||r||
+    ctx, rho, rho_changes = run.ctx, run.rho, 0
+    x, z, lam, Ax = run.x, run.z, run.lam, run.Ax
+    rec = final = None
+    with run.blas_limit():       # the BLAS thread count is restored however the loop ends (an exception, Ctrl-C)
+        start = ctx.start = perf()
+        for k in range(run.max_iter):
+            rec = step = None                       # drop the last record and its vectors now: fewer arrays alive
+            check = watch.due(k)                    # test the stop at this iteration?
             try:
-                if order_key == "xz":
-                    x_new, Ax_new = x_step(problem, z, lam, rho, x)
-                    t1 = perf()
-                    hat = relax_Ax(alpha, Ax_new, z, c, c_zero) if relaxed else Ax_new
-                    z_new = z_step(problem, hat, lam, rho, z)
-                    t2 = perf()
-                    tx += t1 - t0
-                    tz += t2 - t1
-                    Ax_dual, z_dual = hat, z_new                 # the dual update's "A x" and "z" in order xz
-                else:
-                    z_new = z_step(problem, Ax, lam, rho, z)                            # eq. (11)
-                    t1 = perf()
-                    hat = relax_z(alpha, z_new, Ax, c, c_zero) if relaxed else z_new
-                    x_new, Ax_new = x_step(problem, hat, lam, rho, x)                   # eq. (12)
-                    t2 = perf()
-                    tz += t1 - t0
-                    tx += t2 - t1
-                    Ax_dual, z_dual = Ax_new, hat                # ... and in order zx
-                if k == 0:       # a step of the wrong shape would broadcast silently: stop at once
-                    _check_steps(problem, x, z, x_new, z_new, Ax_new)
-                if take:                                                                # eq. (13)
-                    lam_new, r_norm = dual_update_and_residual(lam, rho, Ax_dual, z_dual, c, c_zero, norm_M)
-                else:
-                    lam_new = dual_update(lam, rho, Ax_dual, z_dual, c, c_zero)
+                step = iterate(x, z, lam, Ax, rho, ledger.take_r[check])   # eqs. (11), (12), (13): z, x, lam^{k+1}
             except (np.linalg.LinAlgError, ArithmeticError) as err:
-                status, message = Status.DIVERGED, f"a step failed at iteration {k + 1}: {err}"
+                final = Status.DIVERGED, f"a step failed at iteration {k + 1}: {err}"
                 break
-            # lam^k only when alpha != 1 (with alpha = 1, ||lam^{k+1} - lam^k|| = rho ||r||): freed here otherwise
-            rec = loop_record(ctx, (k, rho, t2 - start, x_new, z_new, lam_new, Ax_new, x, z, lam if relaxed else None,
-                                    Ax, hat if relaxed else None), r_norm)
-            x, z, lam, Ax = x_new, z_new, lam_new, Ax_new
-
-            final = None
-            if check:
-                t3 = perf()
-                fired = stop.fired(rec)
-                if not _finite(rec._vals, watched) or not _finite_check(rec):
-                    final = Status.DIVERGED, f"non-finite iterate at iteration {k + 1}"
-                elif fired:                  # a name (converged) or a Stop with its own status and certificate
-                    stopped_by = fired
-                    final = getattr(fired, "status", Status.CONVERGED), f"{fired} fired at iteration {k + 1}"
-                elif _stalled(rec):
-                    final = Status.STALLED, f"iterates stopped changing at iteration {k + 1} before {stop.name} fired"
-                t_check += perf() - t3
-            rho_next = rho
-            if final is None:
-                t3 = perf()
-                rho_next = policy_step(policy, rec)                                      # eq. (17)
-                t_policy += perf() - t3
-                if rho_next is not rho and not checks.rho_in_range(rho_next):   # the same object: checked already
-                    final = Status.DIVERGED, (f"policy {policy!r} returned rho={rho_next!r} at iteration {k + 1}, "
-                                              f"outside admmkit's rho range [{checks.RHO_RANGE[0]:g}, "
-                                              f"{checks.RHO_RANGE[1]:g}]")
-            history_log.append(rec, rho_next)
-            if callback is not None and callback(rec) and final is None:
-                final = Status.STOPPED, f"callback stopped the run at iteration {k + 1}"
-            take_r[check] = rec._vals[0] is not None         # ||r|| read (not merely taken) in this iteration
-            if final is None and time_limit is not None and perf() - start > time_limit:
-                final = Status.TIME_LIMIT, f"time_limit={time_limit:g} s reached at iteration {k + 1}"
+            rec = loop_record(ctx, k, rho, step, x, z, lam, Ax)                  # the record of iteration k (lazy)
+            x, z, lam, Ax = step[:4]                                              # k <- k + 1
+            final = watch.check(rec) if check else None          # divergence, the stopping rule, stalling
+            rho_next, final = policy_step(rec) if final is None else (rho, final)           # rho_{k+1}, eq. (17)
+            final = ledger.close(rec, rho_next, check, final)     # the history, the callback, the time limit
             if final is not None:
-                status, message = final
                 break
             if rho_next != rho:
-                rho_changes += 1
-                rho = float(rho_next)
-
+                rho, rho_changes = float(rho_next), rho_changes + 1
         total = perf() - start
-    finally:
-        limits.close()
-    if rec is not None:
-        history_log.replace_last(rec.complete())
-    return _result(problem, stop, x, z, lam, rec, status, message, stopped_by, history_log, rho, rho_changes,
-                   counters_before, dict(x_step=tx, z_step=tz, policy=t_policy, residuals=t_check, total=total),
-                   order_key, policy, alpha)
+    ledger.finish(rec)
+    timings = dict(x_step=iterate.x_seconds, z_step=iterate.z_seconds, policy=policy_step.seconds,
+                   residuals=watch.seconds, total=total)
+    return _result(run, x, z, lam, rec, final, watch.stopped_by, rho, rho_changes, timings)
 
 
-def _check_steps(problem, x, z, x_new, z_new, Ax_new) -> None:
-    """Refuse, at the first iteration, a step that returns something other than an array of the iterate's shape."""
-    name = type(problem).__name__
-    for step, got, want in (("x_step", x_new, x.shape), ("z_step", z_new, z.shape), ("apply_A", Ax_new, z.shape)):
-        if not isinstance(got, np.ndarray):
-            raise TypeError(f"{name}.{step}() returned {type(got).__name__}; it must return a numpy array "
-                            f"of shape {want}")
-        if got.shape != want:
-            raise ValueError(f"{name}.{step}() returned an array of shape {got.shape}; it must have shape {want} "
-                             f"(the shape of {'x' if step == 'x_step' else 'z'})")
-
-
-def _finite_check(rec: IterationRecord) -> bool:
-    """If no norm has been computed, compute one (||r||_M) so that a blow-up is seen."""
-    return any(v is not None for v in rec._vals) or math.isfinite(rec.primal_residual)
-
-
-def _finite(vals: list, watched: tuple) -> bool:
-    """No computed norm among ``watched`` is inf or NaN."""
-    isfinite = math.isfinite
-    for i in watched:
-        v = vals[i]
-        if v is not None and not isfinite(v):
-            return False
-    return True
-
-
-_STALL = (4, 6, 0)     # x_change, z_change, primal_residual in LAZY_FIELDS
-
-
-def _stalled(rec: IterationRecord) -> bool:
-    """x, z and lam stopped changing; the norms already computed are looked at first."""
-    vals = rec._vals
-    for i in _STALL:
-        if vals[i] is not None and vals[i] != 0:
-            return False
-    return rec.x_change == 0 and rec.z_change == 0 and rec.primal_residual == 0
-
-
-def _result(problem, stop, x, z, lam, rec, status, message, stopped_by, history_log, rho, rho_changes,
-            counters_before, timings, order_key, policy, alpha) -> Result:
+def _result(run, x, z, lam, rec, final, stopped_by, rho, rho_changes, timings) -> Result:
+    """The Result of a run that ended with ``final`` = (status, message) (None: max_iter reached)."""
+    problem, stop = run.problem, run.stop
+    status, message = final or (Status.MAX_ITER, f"reached max_iter={run.max_iter}")
     x_final = problem.finalize(x)
     counters_after = problem.counters()
-    counters = {key: counters_after[key] - counters_before.get(key, 0) for key in counters_after}
+    counters = {key: counters_after[key] - run.counters_before.get(key, 0) for key in counters_after}
     finite = status is not Status.DIVERGED
     accuracy = None
     if status is Status.CONVERGED and stop.tolerance is not None:
@@ -310,9 +169,9 @@ def _result(problem, stop, x, z, lam, rec, status, message, stopped_by, history_
         objective = -math.inf                                 # unbounded below
     return Result(
         x=x_final, z=z, lam=lam, status=status, message=message, stopped_by=stopped_by,
-        iterations=len(history_log), rho=rho, history=history_log, timings=timings, rho_changes=rho_changes,
+        iterations=len(run.history), rho=rho, history=run.history, timings=timings, rho_changes=rho_changes,
         counters=counters, kkt=problem.kkt(x_final, z, lam) if finite else None, objective=objective,
-        order=order_key, policy=repr(policy), x_iterate=x, accuracy=accuracy, alpha=alpha,
+        order=run.order, policy=repr(run.policy), x_iterate=x, accuracy=accuracy, alpha=run.alpha,
         certificate=getattr(stopped_by, "certificate", None),
     )
 
