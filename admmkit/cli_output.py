@@ -38,6 +38,7 @@ class Progress:
     ``--progress N``) replaces the bar.  The callback reads only ``rec.k`` and
     ``rec.rho`` (no norm is computed for it) and always returns None, so it
     never steers or stops a run.  ``enabled=False`` (``--quiet``) yields None.
+    On a stream that is not a terminal (a log) the bar's last frame ends with a newline.
     """
 
     def __init__(self, total: int, *, enabled: bool = True, lines=None, delay: float | None = None,
@@ -78,8 +79,13 @@ class Progress:
 
     def __exit__(self, *exc) -> None:
         if self.bar is not None:
-            self.bar.close()
+            self.bar.close()                 # leave=False: on a terminal the line is cleared
             self.bar = None
+            stream = self.file or sys.stderr
+            isatty = getattr(stream, "isatty", None)
+            if not (callable(isatty) and isatty()):
+                stream.write("\n")           # a log keeps every frame: end the last one, so that the summary
+                stream.flush()               # (stdout, often the same file: `> log 2>&1`) begins its own line
 
 
 def exit_code(result: Result) -> int:

@@ -213,6 +213,23 @@ def test_progress_bar_after_the_delay_and_quiet_silences_it(capsys, monkeypatch)
     assert err == ""
 
 
+def test_the_summary_begins_its_own_line_when_stdout_and_stderr_share_a_log(tmp_path):
+    """#27 item 5: with ``> log 2>&1`` the bar's last frame must not run into the summary's ``status`` line."""
+    import subprocess
+    import sys
+    script = ("import sys, admmkit.cli_output as o; o.PROGRESS_DELAY = o.PROGRESS_INTERVAL = 0.0; "
+              "from admmkit.cli import main; sys.exit(main(sys.argv[1:]))")
+    log = tmp_path / "log"
+    with open(log, "w") as fh:                             # one file for both streams, as `> log 2>&1`
+        subprocess.run([sys.executable, "-c", script, *QP], stdout=fh, stderr=subprocess.STDOUT,
+                       cwd=os.getcwd(), check=True, timeout=300)
+    text = log.read_text()
+    assert "iterations (cap)" in text                     # the bar was shown
+    lines = text.split("\n")
+    assert any(line.startswith("status") for line in lines), text
+    assert not any("\r" in line and "status" in line for line in lines), text
+
+
 def test_short_runs_show_nothing(capsys):
     _, _, err = run(QP, capsys)
     assert err == ""
