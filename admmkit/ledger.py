@@ -15,10 +15,11 @@ from __future__ import annotations
 
 import time
 
-from .record import residual_read
+from .norms import LAZY_FIELDS
 from .result import Status
 
 perf = time.perf_counter
+_R = LAZY_FIELDS.index("primal_residual")     # ||r||_M among a record's lazy norms
 
 
 class Ledger:
@@ -40,7 +41,7 @@ class Ledger:
         self.history.append(rec, rho_next)
         if self.callback is not None and self.callback(rec) and final is None:
             final = Status.STOPPED, f"callback stopped the run at iteration {rec.k + 1}"
-        self.take_r[check] = residual_read(rec)      # read, not merely taken
+        self.take_r[check] = rec._vals[_R] is not None      # ||r|| read (not merely taken) in this iteration
         if final is None and self.time_limit is not None and perf() - self.ctx.start > self.time_limit:
             final = Status.TIME_LIMIT, f"time_limit={self.time_limit:g} s reached at iteration {rec.k + 1}"
         return final

@@ -57,7 +57,7 @@ def _euclidean_distance(a, b) -> float:
 
 # -- the lazy fields: each a function of the record (r = A x^{k+1} - z^{k+1} - c) --------------
 def _primal_residual(rec) -> float:                  # ||r||_M (the loop may have taken it already)
-    taken = rec._cache[7]
+    taken = rec._d[12]
     return rec._ctx.norm(rec._residual()) if taken is None else taken
 
 

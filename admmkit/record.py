@@ -34,16 +34,27 @@ def _lazy(name: str, doc: str) -> property:
     return property(get, doc=doc)
 
 
+def _cached(rec) -> list:
+    """The record's cached vectors (6 read-only views, then r), made on first use."""
+    try:
+        return rec._cache
+    except AttributeError:
+        cache = [None] * 7
+        _SET_CACHE(rec, cache)
+        return cache
+
+
 def _view(i: int, slot: int, doc: str) -> property:
     def get(self):
-        view = self._cache[slot]
+        cache = _cached(self)
+        view = cache[slot]
         if view is None:
             v = self._d[i]
             if v is None:
                 return None
             view = v.view()
             view.flags.writeable = False
-            self._cache[slot] = view
+            cache[slot] = view
         return view
     return property(get, doc=doc)
 
@@ -95,8 +106,8 @@ class IterationRecord:
     Records are read-only.
     """
 
-    # _d = (k, rho, time, x, z, lam, Ax, x_prev, z_prev, lam_prev, Ax_prev, hat);
-    # _vals = the 9 lazy norms; _cache = 6 read-only views, then r, then ||r||_M if the loop took it
+    # _d = (k, rho, time, x, z, lam, Ax, x_prev, z_prev, lam_prev, Ax_prev, hat, ||r||_M if the loop took it);
+    # _vals = the 9 lazy norms; _cache (set on first use) = 6 read-only views, then r
     __slots__ = ("_d", "_vals", "_ctx", "_cache")
 
     def __init__(self, k: int, rho: float, order: str, primal_residual: float, dual_residual: float,
@@ -105,10 +116,9 @@ class IterationRecord:
                  x: np.ndarray, z: np.ndarray, lam: np.ndarray, Ax: np.ndarray,
                  z_prev: np.ndarray | None = None, Ax_prev: np.ndarray | None = None,
                  inner: Callable[[np.ndarray, np.ndarray], float] | None = None):
-        _SET_D(self, (k, rho, time, x, z, lam, Ax, None, z_prev, None, Ax_prev, None))
+        _SET_D(self, (k, rho, time, x, z, lam, Ax, None, z_prev, None, Ax_prev, None, None))
         _SET_VALS(self, [primal_residual, dual_residual, rho_Ax_change, lam_change, x_change, x_norm,
                          z_change, primal_scale, dual_scale])
-        _SET_CACHE(self, [None] * 8)
         _SET_CTX(self, _Given(order, primal_unit, dual_unit, inner))
 
     def __setattr__(self, name, value):
@@ -142,10 +152,11 @@ class IterationRecord:
 
     def _residual(self) -> np.ndarray:
         """r = A x^{k+1} - z^{k+1} - c (the dual update's vector when alpha = 1)."""
-        r = self._cache[6]
+        cache = _cached(self)
+        r = cache[6]
         if r is None:
             ctx = self._ctx
-            r = self._cache[6] = self._Ax - self._z if ctx.c_is_zero else self._Ax - self._z - ctx.c
+            r = cache[6] = self._Ax - self._z if ctx.c_is_zero else self._Ax - self._z - ctx.c
         return r
 
     def complete(self) -> "IterationRecord":
@@ -238,23 +249,18 @@ _SET_CACHE = IterationRecord.__dict__["_cache"].__set__
 _NEW = object.__new__
 
 
-def loop_record(ctx: RunContext, k: int, rho: float, step: tuple, x, z, lam, Ax) -> IterationRecord:
-    """The loop's lazy record of iteration k, from x^k, z^k, lam^k, A x^k and the iteration's ``step``.
+def loop_record(ctx: RunContext, k: int, rho: float, t: float, x1, z1, lam1, Ax1, x, z, lam, Ax, hat,
+                r_norm) -> IterationRecord:
+    """The loop's lazy record of iteration k: x^{k+1}, z^{k+1}, lam^{k+1}, A x^{k+1}, then x^k, z^k, lam^k, A x^k.
 
-    ``step`` = (x^{k+1}, z^{k+1}, lam^{k+1}, A x^{k+1}, hat, r_norm, t) as an iteration of
-    :mod:`admmkit.steps` returns it: ``hat`` is the relaxed vector (None when alpha = 1, and then
-    lam^k is not kept: ||lam^{k+1} - lam^k|| = rho ||r||), ``r_norm`` is ||A x^{k+1} - z^{k+1} - c||_M
-    if the dual update took it (else None; ``primal_residual`` returns it when read, and it counts as
-    computed only then) and ``t`` the perf_counter() after the two steps."""
-    x1, z1, lam1, Ax1, hat, r_norm, t = step
+    ``t`` is the perf_counter() after the two steps, ``hat`` the relaxed vector (None when
+    alpha = 1, and then lam^k is not kept: ||lam^{k+1} - lam^k|| = rho ||r||), ``r_norm`` is
+    ||A x^{k+1} - z^{k+1} - c||_M if the dual update took it (else None; ``primal_residual``
+    returns it when read, and it counts as computed only then), as an iteration of
+    :mod:`admmkit.steps` returns them.
+    """
     rec = _NEW(IterationRecord)
-    _SET_D(rec, (k, rho, t - ctx.start, x1, z1, lam1, Ax1, x, z, None if hat is None else lam, Ax, hat))
+    _SET_D(rec, (k, rho, t - ctx.start, x1, z1, lam1, Ax1, x, z, None if hat is None else lam, Ax, hat, r_norm))
     _SET_VALS(rec, [None] * 9)
     _SET_CTX(rec, ctx)
-    _SET_CACHE(rec, [None, None, None, None, None, None, None, r_norm])
     return rec
-
-
-def residual_read(rec: IterationRecord) -> bool:
-    """Whether ||r||_M of this record has been read (not merely taken by the loop)."""
-    return rec._vals[0] is not None

@@ -28,7 +28,7 @@ from .policy import Policy
 from .problem import Problem
 from .record import IterationRecord, loop_record
 from .result import Result, Status
-from .steps import ORDER_STEPS, PolicyStep
+from .steps import ITERATIONS, PolicyStep
 from .stopping import StoppingRule
 from .termination import Termination
 
@@ -113,26 +113,26 @@ def solve(
     run = checks.prepare(problem, rho=rho, policy=policy, order=order, stop=stop, max_iter=max_iter,
                          callback=callback, x0=x0, z0=z0, lam0=lam0, time_limit=time_limit, blas_threads=blas_threads,
                          alpha=alpha, check_every=check_every, history=history, warm_start=warm_start)
-    iterate = ORDER_STEPS[run.order](problem, run.ctx)     # eqs. (11), (12), (13) in the run's order
-    policy_step = PolicyStep(run.policy)                    # eq. (17)
+    iterate = ITERATIONS[run.order](problem, run.ctx)      # eqs. (11), (12), (13) in the run's order
+    rho_step = PolicyStep(run.policy)                       # eq. (17)
     watch, ledger = Termination(run), Ledger(run)           # the tests; the history, the callback, the taken ||r||
-    ctx, rho, rho_changes = run.ctx, run.rho, 0
+    ctx, rho, rho_changes, every, last = run.ctx, run.rho, 0, run.check_every, run.max_iter - 1
     x, z, lam, Ax = run.x, run.z, run.lam, run.Ax
     rec = final = None
     with run.blas_limit():       # the BLAS thread count is restored however the loop ends (an exception, Ctrl-C)
         start = ctx.start = perf()
         for k in range(run.max_iter):
-            rec = step = None                       # drop the last record and its vectors now: fewer arrays alive
-            check = watch.due(k)                    # test the stop at this iteration?
+            rec = hat = None                        # drop the last record and its vectors now: fewer arrays alive
+            check = (k + 1) % every == 0 or k == last       # a tested iteration: every check_every-th, and the last
             try:
-                step = iterate(x, z, lam, Ax, rho, ledger.take_r[check])   # eqs. (11), (12), (13): z, x, lam^{k+1}
+                x1, z1, lam1, Ax1, hat, r_norm, t = iterate(x, z, lam, Ax, rho, ledger.take_r[check])  # (11)-(13)
             except (np.linalg.LinAlgError, ArithmeticError) as err:
                 final = Status.DIVERGED, f"a step failed at iteration {k + 1}: {err}"
                 break
-            rec = loop_record(ctx, k, rho, step, x, z, lam, Ax)                  # the record of iteration k (lazy)
-            x, z, lam, Ax = step[:4]                                              # k <- k + 1
+            rec = loop_record(ctx, k, rho, t, x1, z1, lam1, Ax1, x, z, lam, Ax, hat, r_norm)   # iteration k (lazy)
+            x, z, lam, Ax = x1, z1, lam1, Ax1                                                  # k <- k + 1
             final = watch.check(rec) if check else None          # divergence, the stopping rule, stalling
-            rho_next, final = policy_step(rec) if final is None else (rho, final)           # rho_{k+1}, eq. (17)
+            rho_next, final = rho_step.update(rec, rho) if final is None else (rho, final)  # rho_{k+1}, eq. (17)
             final = ledger.close(rec, rho_next, check, final)     # the history, the callback, the time limit
             if final is not None:
                 break
@@ -140,7 +140,8 @@ def solve(
                 rho, rho_changes = float(rho_next), rho_changes + 1
         total = perf() - start
     ledger.finish(rec)
-    timings = dict(x_step=iterate.x_seconds, z_step=iterate.z_seconds, policy=policy_step.seconds,
+    x_seconds, z_seconds = iterate.seconds()
+    timings = dict(x_step=x_seconds, z_step=z_seconds, policy=rho_step.seconds,
                    residuals=watch.seconds, total=total)
     return _result(run, x, z, lam, rec, final, watch.stopped_by, rho, rho_changes, timings)
 

@@ -1,7 +1,7 @@
 """When a run ends at a tested iteration: divergence, the stopping rule, or stalled iterates.
 
-The loop tests every ``check_every``-th iteration and the last one
-(:meth:`Termination.due`).  A test looks at the record in this order:
+The loop tests every ``check_every``-th iteration and the last one (the
+iterates never depend on it).  A test looks at the record in this order:
 
 - divergence: a norm already computed is inf or NaN (if none is, ||r||_M is
   computed so that a blow-up is seen); the dual residual and scale are not
@@ -27,25 +27,21 @@ _STALL = tuple(LAZY_FIELDS.index(name) for name in ("x_change", "z_change", "pri
 class Termination:
     """The tests of one run; ``seconds`` is the time they took, ``stopped_by`` what fired (or None)."""
 
-    __slots__ = ("stop", "every", "last", "watched", "stopped_by", "seconds")
+    __slots__ = ("stop", "watched", "stopped_by", "seconds")
 
     def __init__(self, run) -> None:
         ctx = run.ctx
-        self.stop, self.every, self.last = run.stop, run.check_every, run.max_iter - 1
+        self.stop = run.stop
         # the lazy fields whose non-finite value means divergence (a missing adjoint gives NaN legitimately)
         self.watched = tuple(i for i, name in enumerate(LAZY_FIELDS)
                              if ctx.has_adjoint or ctx.order == "zx" or name not in ("dual_residual", "dual_scale"))
         self.stopped_by, self.seconds = None, 0.0
 
-    def due(self, k: int) -> bool:
-        """Whether iteration k is tested: every ``check_every``-th, and the last (the iterates never depend on it)."""
-        return (k + 1) % self.every == 0 or k == self.last
-
     def check(self, rec) -> tuple | None:
         """(status, message) if the run ends at this iteration (diverged, the rule fired, stalled), else None."""
         t0 = perf()
         fired = self.stop.fired(rec)
-        vals = rec.computed()
+        vals = rec._vals                    # the lazy norms as they stand (rec.computed() without the copy)
         final = None
         if diverged(rec, vals, self.watched):
             final = Status.DIVERGED, f"non-finite iterate at iteration {rec.k + 1}"
@@ -58,7 +54,7 @@ class Termination:
         return final
 
 
-def diverged(rec, vals: tuple, watched: tuple) -> bool:
+def diverged(rec, vals, watched: tuple) -> bool:
     """A computed norm among ``watched`` is inf or NaN, or none is computed and ||r||_M is not finite."""
     for i in watched:
         v = vals[i]
@@ -67,7 +63,7 @@ def diverged(rec, vals: tuple, watched: tuple) -> bool:
     return all(v is None for v in vals) and not _isfinite(rec.primal_residual)
 
 
-def stalled(rec, vals: tuple) -> bool:
+def stalled(rec, vals) -> bool:
     """x, z and lam stopped changing (||x^{k+1} - x^k|| = ||z^{k+1} - z^k|| = ||r|| = 0); the computed norms first."""
     for i in _STALL:
         if vals[i] is not None and vals[i] != 0:
