@@ -247,3 +247,9 @@ def prepare(problem, *, rho, policy, order, stop, max_iter, callback, x0, z0, la
     return Run(problem=problem, order=order_key, rho=rho, policy=policy, stop=stop, alpha=alpha, max_iter=max_iter,
                check_every=check_every, callback=callback, time_limit=time_limit, blas_threads=blas_threads,
                history=history_log, x=x, z=z, lam=lam, Ax=Ax, ctx=ctx, counters_before=dict(problem.counters()))
+
+
+def inner_of(problem):
+    """The problem's inner product of the constraint space (M), or the Euclidean one if it has none."""
+    inner = getattr(problem, "inner", None)
+    return inner if callable(inner) else (lambda a, b: float(np.vdot(a, b)))

@@ -44,7 +44,9 @@ class Result:
     plug-in provides them.  ``certificate`` is the vector a stopping rule
     gave with a terminal status (:class:`admmkit.stopping.Stop`), such as
     a primal infeasibility certificate; then ``objective`` is +inf (primal
-    infeasible) or -inf (dual infeasible), as in OSQP.
+    infeasible) or -inf (dual infeasible), as in OSQP.  ``acceleration``
+    names the accelerator of an accelerated run and counts its extrapolated,
+    rejected and restarted steps (None for plain ADMM).
     """
 
     x: np.ndarray
@@ -67,6 +69,7 @@ class Result:
     accuracy: dict[str, float] | None = None
     alpha: float = 1.0
     certificate: np.ndarray | None = None
+    acceleration: dict | None = None     # the accelerator and its counts, when the run had one
 
     @property
     def converged(self) -> bool:

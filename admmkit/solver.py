@@ -23,6 +23,7 @@ from typing import Callable
 import numpy as np
 
 from . import checks
+from .acceleration import Acceleration, Accelerator, make_accelerator
 from .ledger import Ledger
 from .policy import Policy
 from .problem import Problem
@@ -61,6 +62,7 @@ def solve(
     check_every: int = 1,
     history: str = "lean",
     warm_start: Result | None = None,
+    acceleration: Accelerator | str | None = None,
 ) -> Result:
     """Run ADMM on ``problem`` and return a :class:`Result`.
 
@@ -109,7 +111,14 @@ def solve(
     warm_start : admmkit.Result or None
         A previous result: start from its ``x_iterate``, ``z``, ``lam``
         and rho (each overridden by x0, z0, lam0, rho if given).
+    acceleration : Accelerator, str or None
+        ``"anderson"`` (safeguarded type-II Anderson, memory 10),
+        ``"fast"`` (restarted fast ADMM, Goldstein et al. 2014) or an
+        :class:`admmkit.acceleration.Accelerator`; None (default): plain
+        ADMM.  Each iteration then starts from the accelerator's state
+        (:mod:`admmkit.acceleration`); a change of rho resets it.
     """
+    accelerator = make_accelerator(acceleration)
     run = checks.prepare(problem, rho=rho, policy=policy, order=order, stop=stop, max_iter=max_iter,
                          callback=callback, x0=x0, z0=z0, lam0=lam0, time_limit=time_limit, blas_threads=blas_threads,
                          alpha=alpha, check_every=check_every, history=history, warm_start=warm_start)
@@ -118,7 +127,8 @@ def solve(
     watch, ledger = Termination(run), Ledger(run)           # the tests; the history, the callback, the taken ||r||
     ctx, rho, rho_changes, every, last = run.ctx, run.rho, 0, run.check_every, run.max_iter - 1
     x, z, lam, Ax = run.x, run.z, run.lam, run.Ax
-    rec = final = None
+    accel = None if accelerator is None else Acceleration(accelerator, run.order, checks.inner_of(problem))
+    rec = final = old = None
     with run.blas_limit():       # the BLAS thread count is restored however the loop ends (an exception, Ctrl-C)
         start = ctx.start = perf()
         for k in range(run.max_iter):
@@ -130,12 +140,16 @@ def solve(
                 final = Status.DIVERGED, f"a step failed at iteration {k + 1}: {err}"
                 break
             rec = loop_record(ctx, k, rho, t, x1, z1, lam1, Ax1, x, z, lam, Ax, hat, r_norm)   # iteration k (lazy)
+            if accel is not None:
+                old = z, lam, Ax                                        # the state iteration k started from
             x, z, lam, Ax = x1, z1, lam1, Ax1                                                  # k <- k + 1
             final = watch.check(rec) if check else None          # divergence, the stopping rule, stalling
             rho_next, final = rho_step.update(rec, rho) if final is None else (rho, final)  # rho_{k+1}, eq. (17)
             final = ledger.close(rec, rho_next, check, final)     # the history, the callback, the time limit
             if final is not None:
                 break
+            if accel is not None:                        # the state iteration k + 1 starts from, (A2)-(A5)
+                z, lam, Ax = accel.step(old, (z, lam, Ax), rho, rho_next)
             if rho_next != rho:
                 rho, rho_changes = float(rho_next), rho_changes + 1
         total = perf() - start
@@ -143,7 +157,9 @@ def solve(
     x_seconds, z_seconds = iterate.seconds()
     timings = dict(x_step=x_seconds, z_step=z_seconds, policy=rho_step.seconds,
                    residuals=watch.seconds, total=total)
-    return _result(run, x, z, lam, rec, final, watch.stopped_by, rho, rho_changes, timings)
+    result = _result(run, x, z, lam, rec, final, watch.stopped_by, rho, rho_changes, timings)
+    result.acceleration = None if accel is None else accel.summary()
+    return result
 
 
 def _result(run, x, z, lam, rec, final, stopped_by, rho, rho_changes, timings) -> Result:

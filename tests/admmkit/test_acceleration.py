@@ -1,0 +1,128 @@
+"""Acceleration as a loop option: Anderson (safeguarded, type II) and restarted fast ADMM."""
+import math
+
+import numpy as np
+import pytest
+
+import admmkit
+from admmkit.acceleration import Anderson, FastADMM, make_accelerator, w_inner
+
+
+def lasso(seed=0, m=40, n=90):
+    """A small LASSO from the building blocks (the tutorial's kind) and its solution to 1e-12."""
+    rng = np.random.default_rng(seed)
+    truth = np.zeros(n)
+    truth[rng.choice(n, 5, replace=False)] = rng.choice([-2.0, 2.0], 5)
+    D = rng.standard_normal((m, n)) / np.sqrt(m)
+    b = D @ truth + 0.05 * rng.standard_normal(m)
+    mu = 0.1 * np.abs(D.T @ b).max()
+    return admmkit.SplitProblem(admmkit.QuadraticXStep(D.T @ D, -D.T @ b), admmkit.prox.L1(mu))
+
+
+TIGHT = admmkit.ResidualTolerance(1e-10, 1e-10)
+
+
+@pytest.fixture(scope="module")
+def reference():
+    problem = lasso()
+    res = admmkit.solve(problem, rho=1.0, policy="summable", order="zx", stop=TIGHT, max_iter=50_000)
+    assert res.converged
+    return res
+
+
+@pytest.mark.parametrize("acceleration", ["anderson", "fast"])
+@pytest.mark.parametrize("order", ["xz", "zx"])
+@pytest.mark.parametrize("policy", [None, "summable", "osqp"])
+def test_accelerated_runs_reach_the_plain_solution(acceleration, order, policy, reference):
+    res = admmkit.solve(lasso(), rho=1e2, policy=policy, order=order, acceleration=acceleration,
+                        stop=admmkit.ResidualTolerance(1e-9, 1e-9), max_iter=20_000)
+    assert res.status is admmkit.Status.CONVERGED
+    assert np.linalg.norm(res.z - reference.z) <= 1e-6 * np.linalg.norm(reference.z)
+    assert res.acceleration["accelerator"].startswith(("Anderson", "FastADMM"))
+
+
+@pytest.mark.parametrize("acceleration", [Anderson(m=5), FastADMM()])
+@pytest.mark.parametrize("order", ["xz", "zx"])
+def test_a_fixed_point_of_admm_is_a_fixed_point_of_the_accelerated_map(acceleration, order, reference):
+    """Started at the solution, the accelerated iterates stay there (to round-off)."""
+    res = admmkit.solve(lasso(), rho=reference.rho, order=order, acceleration=acceleration,
+                        x0=reference.x_iterate, z0=reference.z, lam0=reference.lam,
+                        stop=admmkit.ResidualTolerance(1e-300, 0.0), max_iter=30)
+    assert np.linalg.norm(res.z - reference.z) <= 1e-8 * np.linalg.norm(reference.z)
+    assert np.linalg.norm(res.lam - reference.lam) <= 1e-8 * np.linalg.norm(reference.lam)
+
+
+class LoggedAnderson(Anderson):
+    """Anderson that notes, at every call, the residual at the state it is given and what it returned."""
+
+    def start(self):
+        super().start()
+        self.log = []          # (||g||_W at s, whether s was an extrapolation, rejected here)
+
+    def propose(self, s, f, rho, inner):
+        g = (f[0] - s[0], f[1] - s[1])
+        extrapolated_before = self._fallback is not None
+        rejected_before = self.stats["rejected"]
+        out = super().propose(s, f, rho, inner)
+        self.log.append((math.sqrt(w_inner(g, g, rho, inner)), extrapolated_before,
+                         self.stats["rejected"] > rejected_before))
+        return out
+
+
+@pytest.mark.parametrize("order", ["xz", "zx"])
+def test_the_safeguard_never_lets_the_residual_grow(order):
+    """Every extrapolated state the run goes on from has a residual <= the one before it (safeguard 1)."""
+    accel = LoggedAnderson(m=8, safeguard=1.0)
+    admmkit.solve(lasso(seed=3), rho=1e-2, order=order, acceleration=accel, stop=TIGHT, max_iter=3000)
+    kept = [(g, prev) for (g, extrapolated, rejected), (prev, _, _) in zip(accel.log[1:], accel.log)
+            if extrapolated and not rejected]
+    assert kept and all(g <= prev for g, prev in kept)
+    rejected = [g > prev for (g, extrapolated, rejected), (prev, _, _) in zip(accel.log[1:], accel.log) if rejected]
+    assert all(rejected)            # a state is rejected only when its residual grew
+
+
+def test_anderson_cuts_the_iterations_at_a_poor_fixed_rho():
+    plain = admmkit.solve(lasso(), rho=1e-2, order="zx", stop=TIGHT, max_iter=50_000)
+    fast = admmkit.solve(lasso(), rho=1e-2, order="zx", stop=TIGHT, max_iter=50_000, acceleration="anderson")
+    assert plain.converged and fast.converged
+    assert fast.iterations < plain.iterations / 3
+
+
+def test_off_is_plain_admm_bit_for_bit():
+    a = admmkit.solve(lasso(), rho=3.0, policy="summable", order="zx", max_iter=200)
+    b = admmkit.solve(lasso(), rho=3.0, policy="summable", order="zx", max_iter=200, acceleration=None)
+    assert a.iterations == b.iterations and np.array_equal(a.x, b.x) and np.array_equal(a.lam, b.lam)
+    assert a.acceleration is None
+
+
+def test_a_change_of_rho_resets_the_accelerator():
+    class Halve(admmkit.Policy):
+        def update(self, rec):
+            return rec.rho / 2 if rec.k == 10 else rec.rho
+
+    accel = Anderson(m=5)
+    resets = []
+    original = accel.reset
+    accel.reset = lambda: (resets.append(True), original())[1]
+    admmkit.solve(lasso(), rho=8.0, policy=Halve(), acceleration=accel, max_iter=30)
+    # the start of the run, the change at iteration 10 and every rejection of the safeguard
+    assert len(resets) == 2 + accel.stats["rejected"]
+
+
+@pytest.mark.parametrize("bad,match", [("nesterov", "acceleration"), (3, "acceleration")])
+def test_bad_acceleration_is_named(bad, match):
+    with pytest.raises(ValueError, match=match):
+        admmkit.solve(lasso(), acceleration=bad, max_iter=5)
+
+
+@pytest.mark.parametrize("make,match", [(lambda: Anderson(m=0), "m"), (lambda: Anderson(safeguard=0.5), "safeguard"),
+                                        (lambda: FastADMM(eta=1.0), "eta")])
+def test_bad_accelerator_parameters_are_named(make, match):
+    with pytest.raises(ValueError, match=match):
+        make()
+
+
+def test_names_make_accelerators():
+    assert isinstance(make_accelerator("Anderson"), Anderson)
+    assert isinstance(make_accelerator("fast"), FastADMM)
+    assert make_accelerator(None) is None
