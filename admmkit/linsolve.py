@@ -26,7 +26,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 # Order used by backend="auto": the first one installed wins.  Measured by
-# benchmarks/linsolve_backends.py (docs/results/linsolve.md; 2-core Xeon) on
+# benchmarks/contact/linsolve_backends.py (docs/results/linsolve.md; 2-core Xeon) on
 # plane-strain elasticity, 1 thread, seconds factor / solve:
 #
 #     n        cholmod      superlu      qdldl        ngsolve      pardiso

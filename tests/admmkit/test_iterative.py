@@ -241,7 +241,7 @@ def test_structured_rectangle_is_makestructured2dmesh(L, H, h):
 
 # ---------------------------------------------------------------- the scale benchmarks (smoke tests)
 def test_run_case_in_a_subprocess_reports_time_memory_and_refusals():
-    from admmkit.benchmarks.scale_runs import run_case, run_in_subprocess
+    from admmkit.benchmarks.contact.scale_runs import run_case, run_in_subprocess
     row = run_in_subprocess("ex1", 1 / 10, "iterative", timeout=120)
     assert row["status"] == "converged" and row["n_free"] == 440
     assert row["peak_rss_bytes"] > 50e6 and row["total_s"] > 0 and row["counters"]["cg_iterations"] > 0
@@ -252,7 +252,7 @@ def test_run_case_in_a_subprocess_reports_time_memory_and_refusals():
 def test_run_case_reports_a_scene_refused_for_memory_as_refused(monkeypatch):
     # when not even the iterative mode fits in what is available now, the scene itself refuses (a
     # admmkit.problems.contact.memory.InsufficientMemory): the case is a refusal, not a crash of the study
-    from admmkit.benchmarks import scale_runs
+    from admmkit.benchmarks.contact import scale_runs
     from admmkit.problems.contact import memory, scene
     from admmkit.problems.contact.memory import InsufficientMemory
     for module in (memory, scene, scale_runs):
@@ -266,10 +266,11 @@ def test_run_case_reports_a_scene_refused_for_memory_as_refused(monkeypatch):
 @pytest.fixture
 def in_process(monkeypatch):
     """Run the benchmark's cases in this process (the subprocess path is tested above)."""
-    from admmkit.benchmarks import scale_runs as scale
+    from admmkit.benchmarks.contact import scale_runs as scale
     monkeypatch.setattr(scale, "run_in_subprocess",
                         lambda example, h, mode, timeout=0, rho=1e3: scale.run_case(example, h, mode) | {"wall_s": 0.0})
-    from admmkit.benchmarks import amg_crossover as crossover, scale as scale_bench
+    from admmkit.benchmarks.contact import amg_crossover as crossover
+    from admmkit.benchmarks.contact import scale as scale_bench
     monkeypatch.setattr(scale_bench, "run_in_subprocess", scale.run_in_subprocess)
     monkeypatch.setattr(crossover, "run_in_subprocess", scale.run_in_subprocess)
 

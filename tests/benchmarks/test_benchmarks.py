@@ -9,8 +9,9 @@ import csv
 import pytest
 
 import admmkit
-from admmkit.benchmarks import methods, stability
-from admmkit.benchmarks.sweep import append_result, case_id, load_results, run_sweep
+from admmkit.benchmarks.rules import methods
+from admmkit.benchmarks.rules import stability
+from admmkit.benchmarks.runner.sweep import append_result, case_id, load_results, run_sweep
 from admmkit.cli import main
 
 
@@ -145,7 +146,7 @@ def test_bench_bad_input(tmp_path, capsys):
 def test_active_set_polish_sharpens_the_clarabel_reference():
     import numpy as np
 
-    from admmkit.benchmarks import families as scenes
+    from admmkit.benchmarks.rules import families as scenes
     from admmkit.problems.qp import random_qp
 
     qp = random_qp(40, 60, kind="mixed", seed=3)

@@ -7,7 +7,8 @@ import pytest
 
 from admmkit.cli import main
 from admmkit.problems.contact import example1, solve_scene
-from admmkit.benchmarks.paper import paper_time, paper_times, run_reproduction
+from admmkit.benchmarks.contact.paper import run_reproduction
+from admmkit.benchmarks.contact.paper_data import paper_time, paper_times
 from admmkit.problems.contact.plot import vertex_displacement
 
 
@@ -98,7 +99,7 @@ def test_vertex_displacement_matches_gridfunction():
 
 
 def test_bench_tiny(tmp_path):
-    from admmkit.benchmarks.contact_speed import run_bench
+    from admmkit.benchmarks.contact.contact_speed import run_bench
     out = tmp_path / "speed.md"
     rows = run_bench(out=out, hs=(1 / 10,), repeats=1, examples=("ex1",), progress=False)
     iterations = solve_scene(example1(1 / 10), "sadmm", 1e3).result.iterations

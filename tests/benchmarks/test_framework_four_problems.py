@@ -1,4 +1,4 @@
-"""A subset of benchmarks/four_problems.py: the issue #14 problems, written with the building blocks, against cvxpy."""
+"""A subset of benchmarks/framework/four_problems.py: the issue #14 problems, written with the building blocks, against cvxpy."""
 import numpy as np
 import pytest
 
@@ -6,7 +6,7 @@ import admmkit
 from admmkit import policies  # noqa: F401
 
 pytest.importorskip("cvxpy")
-from admmkit.benchmarks.four_problems import PROBLEMS, build  # noqa: E402
+from admmkit.benchmarks.framework.four_problems import PROBLEMS, build  # noqa: E402
 
 CASES = [("summable", "zx", 1e3), ("residual_balancing", "xz", 1e-3), ("aadmm", "xz", 1.0), ("osqp", "zx", 1e-3)]
 

@@ -8,7 +8,7 @@ import pytest
 
 import admmkit
 from admmkit import policies  # noqa: F401  (registers the rules)
-from admmkit.benchmarks import loop_overhead as lo
+from admmkit.benchmarks.framework import loop_overhead as lo
 
 
 @pytest.mark.parametrize("n", [10, 300])

@@ -2,7 +2,7 @@
 import math
 
 from admmkit import RelativeChange, solve
-from admmkit.benchmarks.obstacle_rates import sweep
+from admmkit.benchmarks.rules.obstacle_rates import sweep
 from admmkit.problems.obstacle.problem import make_problem
 from admmkit.problems.obstacle.scene import radial
 

@@ -1,7 +1,7 @@
 """``admmkit bench policies``: the rules on contact (frictionless and Tresca) and the obstacle across rho_0 (smoke run)."""
 import csv
 
-from admmkit.benchmarks.policies_fe import run
+from admmkit.benchmarks.rules.policies_fe import run
 
 
 def test_policy_sweep_smoke(tmp_path):

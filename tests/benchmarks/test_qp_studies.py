@@ -10,7 +10,7 @@ MM = Path(__file__).resolve().parents[3] / "shared" / "data" / "maros_meszaros"
 @pytest.mark.skipif(not MM.is_dir(), reason=f"Maros-Meszaros data not found at {MM}")
 def test_qp_fidelity_on_two_problems(tmp_path):
     pytest.importorskip("osqp")
-    from admmkit.benchmarks import qp_fidelity
+    from admmkit.benchmarks.qp import qp_fidelity
     assert qp_fidelity.main(["--data", str(MM), "--problems", "HS21", "HS35", "VALUES", "--out", str(tmp_path),
                              "--max-iter", "2000", "--rules", "fixed"]) == 0
     rows = list(csv.DictReader((tmp_path / "qp_fidelity.csv").open()))
@@ -25,7 +25,7 @@ def test_qp_fidelity_on_two_problems(tmp_path):
 
 
 def test_qp_agreement_on_a_few_qps(tmp_path):
-    from admmkit.benchmarks import qp_agreement
+    from admmkit.benchmarks.qp import qp_agreement
     assert qp_agreement.main(["--count", "5", "--out", str(tmp_path), "--max-iter", "3000"]) == 0
     rows = list(csv.DictReader((tmp_path / "qp_agreement.csv").open()))
     assert len(rows) == 10 and {r["kind"] for r in rows} == set(qp_agreement.KINDS)

@@ -1,7 +1,7 @@
 """The sweep runner on Dask (issue #17): a LocalCluster of 2 worker processes, an interrupted and resumed
 sweep, a worker killed mid-sweep, a study's command with --scheduler, the pandas tables.
 
-The cases are tiny: random QPs and contact Example 1 at h = 1/10 (:func:`admmkit.benchmarks.executors.run_case`),
+The cases are tiny: random QPs and contact Example 1 at h = 1/10 (:func:`admmkit.benchmarks.framework.executors.run_case`),
 paced by a short sleep so that the driver can be interrupted halfway.
 """
 import logging
@@ -15,14 +15,14 @@ from pathlib import Path
 
 import pytest
 
-from admmkit.benchmarks.executors import run_case, tiny_cases
-from admmkit.benchmarks.sweep import Executor, case_id, load_results, run_sweep
+from admmkit.benchmarks.framework.executors import run_case, tiny_cases
+from admmkit.benchmarks.runner.sweep import Executor, case_id, load_results, run_sweep
 
 FUNC = f"{__name__}:paced_case"
 
 
 def paced_case(case):
-    """admmkit.benchmarks.executors.run_case after ``pause`` seconds; ``die``: SIGKILL this worker (once, with a marker)."""
+    """admmkit.benchmarks.framework.executors.run_case after ``pause`` seconds; ``die``: SIGKILL this worker (once, with a marker)."""
     time.sleep(case.get("pause", 0.0))
     marker = case.get("die_once")
     if marker and not os.path.exists(marker):
@@ -60,7 +60,7 @@ def test_interrupted_dask_sweep_resumes_with_every_case_once_and_local_iteration
     script = textwrap.dedent(f"""
         import sys
         sys.path[:0] = {sys.path!r}
-        from admmkit.benchmarks.sweep import Executor, run_sweep
+        from admmkit.benchmarks.runner.sweep import Executor, run_sweep
         run_sweep({cases!r}, {FUNC!r}, {str(path)!r}, executor=Executor(dask_workers=2), progress=False)
     """)
     driver = subprocess.Popen([sys.executable, "-c", script], stderr=subprocess.DEVNULL)

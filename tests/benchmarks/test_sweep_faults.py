@@ -14,8 +14,8 @@ from pathlib import Path
 
 import pytest
 
-from admmkit.benchmarks.sweep import Executor, append_result, case_id, load_results, run_sweep
-from admmkit.benchmarks.sweep_table import write_table
+from admmkit.benchmarks.runner.sweep import Executor, append_result, case_id, load_results, run_sweep
+from admmkit.benchmarks.runner.sweep_table import write_table
 
 FUNC = f"{__name__}:fault_case"
 
@@ -87,7 +87,7 @@ def test_a_failing_table_rewrite_leaves_the_old_table(tmp_path, monkeypatch):
 def test_qp_results_csv_survives_a_kill_during_its_rewrite(tmp_path, monkeypatch):
     import csv
 
-    from admmkit.benchmarks import maros_meszaros_report as report
+    from admmkit.benchmarks.qp import maros_meszaros_report as report
     rows = [{"problem": f"P{i}", "n": 2, "m": 1, "variant": "preset", "solver": "osqp", "order": "zx", "eps": 1e-3,
              "solved": True, "neutral": True, "status": "solved", "iterations": 10 + i, "time": 0.1, "setup_time": 0.0,
              "loop_time": 0.05, "factorizations": 1, "rho_changes": 0, "rho_final": 0.1, "rho_max": 0.1,
@@ -143,7 +143,7 @@ def test_workers_stop_when_the_driver_is_killed(tmp_path):
     script = textwrap.dedent(f"""
         import sys
         sys.path[:0] = {sys.path!r}
-        from admmkit.benchmarks.sweep import run_sweep
+        from admmkit.benchmarks.runner.sweep import run_sweep
         cases = [{{"value": v, "pause": 0.4, "pid_dir": {str(pids)!r}}} for v in range(40)]
         run_sweep(cases, {FUNC!r}, {str(path)!r}, workers=2, progress=False)
     """)
@@ -179,7 +179,7 @@ def _alive(pid: int) -> bool:
 
 # ---------------------------------------------------------------- bench policies resumes
 def test_bench_policies_resumes(tmp_path, ids_in_file):
-    from admmkit.benchmarks.policies_fe import run
+    from admmkit.benchmarks.rules.policies_fe import run
     kwargs = dict(rules=("quantized",), quick=True, progress=False, max_iter=3000, workers=1,
                   problems=("obstacle",))
     run(tmp_path, **kwargs)
@@ -203,7 +203,7 @@ def test_executor_bad_input_names_the_parameter(tmp_path):
                             ({"dask_workers": 2, "scheduler": "tcp://h:8786"}, "either dask_workers")]:
         with pytest.raises(ValueError, match=message):
             Executor(**kwargs)
-    with pytest.raises(TypeError, match="executor must be a admmkit.benchmarks.sweep.Executor"):
+    with pytest.raises(TypeError, match="executor must be a admmkit.benchmarks.runner.sweep.Executor"):
         run_sweep([{"value": 1}], FUNC, tmp_path / "r.jsonl", executor={"workers": 2})
     records = run_sweep([{"value": v, "group": "g"} for v in range(5)], FUNC, tmp_path / "r.jsonl", progress=False,
                         executor=Executor(workers=2, chunk=2))       # one group split into tasks of 2 cases

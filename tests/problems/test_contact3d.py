@@ -94,7 +94,8 @@ def test_the_memory_refusal_names_both_estimates():
 
 
 def test_bench_contact3d_writes_figure_vtk_and_table(tmp_path, monkeypatch, capsys):
-    from admmkit.benchmarks import contact3d as contact3d_bench, scale_runs as scale
+    from admmkit.benchmarks.contact import contact3d as contact3d_bench
+    from admmkit.benchmarks.contact import scale_runs as scale
     monkeypatch.setattr(contact3d_bench, "probe_in_subprocess",            # in-process: keeps the test fast
                         lambda h, which, timeout: contact3d_bench.probe(h) | {"status": "ok"})
     monkeypatch.setattr(scale, "run_in_subprocess",

@@ -1,0 +1,138 @@
+"""One measured contact run at a given size, in its own process (for peak memory).
+
+    python -m admmkit.benchmarks.contact.scale_runs --example ex1 --h 1/500 --mode iterative
+
+:func:`run_case` assembles the paper's Example 1 (or 2, or the 3D analogue of
+Example 2, ``ex2_3d``) at mesh size h,
+builds the contact problem in the requested mode and solves it with SADMM
+(rho_0 = 1e3, the paper's stopping rule).  It reports wall times of the
+phases and the process's peak resident memory (``resource.getrusage``,
+ru_maxrss: everything the process held at its peak, Python, NGSolve and the
+solver's C/C++ allocations included).  Run in a fresh process per size so
+that the peak belongs to that size alone; :func:`run_in_subprocess` does
+that.  A size whose memory estimate exceeds the available memory is refused
+before anything is assembled.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import resource
+import subprocess
+import sys
+import time
+from fractions import Fraction
+from pathlib import Path
+
+EXAMPLES = ("ex1", "ex2", "ex2_3d")
+RUN_MODES = ("full", "condensed", "iterative")
+
+
+def peak_rss_bytes() -> int:
+    """Peak resident set size of this process so far (Linux reports ru_maxrss in KiB)."""
+    return int(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss) * 1024
+
+
+def run_case(example: str, h: float, mode: str, rho: float = 1e3, max_iter: int = 2000) -> dict:
+    """Assemble, set up and solve one case; the figures of the run as a dict."""
+    import admmkit
+    from admmkit import policies
+    from admmkit import RelativeChange
+
+    from admmkit.problems.contact.problem import contact_problem
+    from admmkit.problems.contact.memory import InsufficientMemory, available_memory, memory_need
+    from admmkit.problems.contact.scene import example1, example2
+
+    if example not in EXAMPLES:
+        raise ValueError(f"example must be one of {', '.join(EXAMPLES)}, got {example!r}")
+    if mode not in RUN_MODES:
+        raise ValueError(f"mode must be one of {', '.join(RUN_MODES)}, got {mode!r}")
+    t0 = time.perf_counter()
+    try:
+        if example == "ex2_3d":
+            from admmkit.problems.contact.scene3d import assemble3d, example2_3d, memory_need3d
+            scene = example2_3d(h=h)
+            need, have = memory_need3d(scene, mode), available_memory()
+        else:
+            scene = (example1 if example == "ex1" else example2)(h=h)
+            need, have = memory_need(scene, mode), available_memory()
+    except InsufficientMemory as err:            # the scene itself refuses: not even the iterative mode fits now
+        return {"example": example, "h": h, "mode": mode, "rho0": rho, "estimate_bytes": math.nan,
+                "available_bytes": available_memory(), "status": "refused", "message": str(err)}
+    row = {"example": example, "h": h, "mode": mode, "rho0": rho, "estimate_bytes": need, "available_bytes": have}
+    if need > have:
+        return row | {"status": "refused", "message": f"needs about {need / 2**30:.3g} GiB, "
+                                                      f"{have / 2**30:.3g} GiB available"}
+    from admmkit.problems.contact.assembly import assemble
+    ops = assemble3d(scene) if example == "ex2_3d" else assemble(scene)
+    t1 = time.perf_counter()
+    problem = contact_problem(ops, mode=mode)
+    t2 = time.perf_counter()
+    sadmm_order, sadmm_rule = policies.method("sadmm")   # policies/paper_methods.py
+    result = admmkit.solve(problem, rho=rho, policy=sadmm_rule, order=sadmm_order,
+                           stop=RelativeChange(1e-5), max_iter=max_iter)
+    t3 = time.perf_counter()
+    kkt = result.kkt or {}
+    row |= {"n_free": int(ops.n_free), "n_c": int(ops.n_c), "status": result.status.value,
+            "iterations": int(result.iterations), "rho_changes": int(result.rho_changes),
+            "counters": {k: int(v) for k, v in result.counters.items()},
+            "assemble_s": t1 - t0, "setup_s": t2 - t1, "solve_s": t3 - t2, "total_s": t3 - t0,
+            "x_step_s": result.timings["x_step"],
+            "penetration": kkt.get("penetration"), "stationarity": kkt.get("stationarity"),
+            "contact_force": kkt.get("contact_force"), "max_un": float((ops.B @ result.x).max()),
+            "peak_rss_bytes": peak_rss_bytes()}
+    solver = getattr(problem, "solver", None)
+    if solver is not None:
+        row |= {"amg_setup_s": solver.setup_time, "amg_refresh_s": solver.refresh_time, "cg_s": solver.solve_time}
+    return row
+
+
+def print_run(r: dict) -> None:
+    """One progress line for a finished :func:`run_in_subprocess` case."""
+    if r.get("status") == "converged":
+        print(f"        n = {r['n_free']}  setup {r['setup_s']:.2f} s  SADMM {r['solve_s']:.2f} s  "
+              f"({r['iterations']} it.)  peak {r['peak_rss_bytes'] / 1e9:.2f} GB", flush=True)
+    else:
+        print(f"        {r.get('status')}: {r.get('message', '')}", flush=True)
+
+
+def run_in_subprocess(example: str, h: float, mode: str, timeout: float = 900.0, rho: float = 1e3) -> dict:
+    """run_case in a fresh Python process with BLAS pinned to one thread; timeouts are reported."""
+    env = dict(os.environ, OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1", MKL_NUM_THREADS="1")
+    root = str(Path(__file__).resolve().parents[2])
+    env["PYTHONPATH"] = root + os.pathsep + env.get("PYTHONPATH", "")
+    cmd = [sys.executable, "-m", "admmkit.benchmarks.contact.scale_runs", "--example", example, "--h", repr(h), "--mode", mode,
+           "--rho", repr(rho)]
+    start = time.perf_counter()
+    try:
+        proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, env=env)
+    except subprocess.TimeoutExpired:
+        return {"example": example, "h": h, "mode": mode, "status": "timeout",
+                "message": f"no answer within {timeout:g} s", "wall_s": time.perf_counter() - start}
+    wall = time.perf_counter() - start
+    if proc.returncode != 0:
+        tail = (proc.stderr.strip().splitlines() or ["?"])[-1]
+        return {"example": example, "h": h, "mode": mode, "status": "failed", "message": tail, "wall_s": wall}
+    return json.loads(proc.stdout.strip().splitlines()[-1]) | {"wall_s": wall}
+
+
+def main(argv=None) -> int:
+    """Command line of the child process: one JSON line on stdout."""
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--example", default="ex1", choices=EXAMPLES)
+    p.add_argument("--h", required=True, help="mesh size (fractions allowed)")
+    p.add_argument("--mode", default="iterative", choices=RUN_MODES)
+    p.add_argument("--rho", type=float, default=1e3)
+    args = p.parse_args(argv)
+    h = float(Fraction(args.h)) if "/" in args.h else float(args.h)
+    from threadpoolctl import threadpool_limits
+    with threadpool_limits(1):
+        row = run_case(args.example, h, args.mode, rho=args.rho)
+    print(json.dumps(row))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

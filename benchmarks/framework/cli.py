@@ -1,0 +1,40 @@
+"""The commands of the framework's own studies (``admmkit bench ...``), each registered by an entry point.
+
+One function per command, found by the host :mod:`admmkit.cli` through the
+entry-point group ``admmkit.commands`` in ``pyproject.toml``; the study itself
+is imported only when its command runs.  The shared options live in
+:mod:`admmkit.benchmarks.runner.options`.
+"""
+from __future__ import annotations
+
+from admmkit.cli import positive_float, positive_int  # noqa: F401
+from admmkit.benchmarks.runner.options import add_out, own_parser, print_files
+
+
+def executors(targets) -> None:
+    """``admmkit bench executors``: the same sweep on local processes and on a Dask LocalCluster."""
+    e = targets.add_parser("executors", help="the bench-policies sweep on 2 local processes and a 2-worker Dask "
+                                             "LocalCluster: iterations identical?, wall-time ratio",
+                           description="Runs the cases of `admmkit bench policies` on both executors, one after "
+                                       "the other, and compares iteration counts and wall times (needs dask).")
+    add_out(e, "executors")
+    e.add_argument("--quick", action="store_true", help="the coarse smoke grid of bench policies")
+    e.add_argument("--rounds", type=positive_int, default=2,
+                   help="rounds of the three executors, the order reversed every second round (default 2)")
+    e.add_argument("-q", "--quiet", "--no-progress", dest="progress", action="store_false", help="no progress line")
+    e.set_defaults(func=_executors)
+
+
+def _executors(args) -> int:
+    from admmkit.benchmarks.framework.executors import run
+    print_files(run(args.out, quick=args.quick, rounds=args.rounds, progress=args.progress,
+                     command=args.command_line))
+    return 0
+
+
+loop_overhead = own_parser("loop-overhead", "admmkit.benchmarks.framework.loop_overhead",
+                            "the loop's cost per iteration against a bare numpy loop of the same updates")
+
+
+four_problems = own_parser("four-problems", "admmkit.benchmarks.framework.four_problems",
+                            "LASSO, weighted box LS, consensus and 2-D TV with the building blocks, against cvxpy")

@@ -1,0 +1,94 @@
+"""The shared pieces of every study's command: the output folder, where a sweep runs, the sweep options.
+
+Each subject's ``cli.py`` (``admmkit.benchmarks.<subject>.cli``) registers its
+commands with these, so that every study takes the same options with the same
+meanings (``--out``, ``--workers``, ``--dask-workers``, ``--scheduler``,
+``--case-timeout``, ``--chunk``, ``--quick``, ``--report-only``, ``-q``).
+"""
+from __future__ import annotations
+
+import argparse
+import importlib
+
+from admmkit.cli import positive_float, positive_int  # noqa: F401  (positive_float: for the studies' own options)
+
+def add_out(p, study: str) -> None:
+    p.add_argument("--out", default=f"out/{study}", help=f"output folder (default out/{study})")
+
+
+def add_executor_options(p, workers: int = 2) -> None:
+    """Where a sweep's cases run: local processes (--workers) or Dask (--dask-workers, --scheduler)."""
+    p.add_argument("--workers", type=positive_int, default=workers,
+                   help=f"local worker processes, one BLAS thread each (default {workers}"
+                        + (" = the cores of this machine)" if workers == 2 else ")"))
+    where = p.add_mutually_exclusive_group()
+    where.add_argument("--dask-workers", type=positive_int, default=None, metavar="N",
+                       help="run on a Dask LocalCluster of N single-threaded worker processes (needs dask[distributed])")
+    where.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                       help="run on the Dask cluster of this scheduler, e.g. tcp://head:8786 (docs/sweeps.md)")
+    p.add_argument("--case-timeout", type=positive_float, default=None, metavar="SECONDS",
+                   help="record a case that runs longer than this as a timeout and go on (default: no limit)")
+    p.add_argument("--chunk", type=positive_int, default=None, metavar="N",
+                   help="at most N cases per task (default: a group per task locally, 8 on Dask)")
+
+
+def executor_of(args):
+    """The sweep executor of the parsed options."""
+    from admmkit.benchmarks.runner.sweep import Executor
+    return Executor(workers=args.workers, dask_workers=args.dask_workers, scheduler=args.scheduler,
+                    timeout=args.case_timeout, chunk=args.chunk)
+
+
+def add_sweep_options(p, study: str) -> None:
+    """The options of the resumable sweeps (admmkit.benchmarks.runner.sweep)."""
+    add_out(p, study)
+    add_executor_options(p)
+    p.add_argument("--quick", action="store_true", help="a tiny grid (the smoke test)")
+    p.add_argument("-q", "--quiet", "--no-progress", dest="progress", action="store_false", help="no progress line")
+    p.add_argument("--report-only", action="store_true",
+                   help="run nothing: write the files from the cases already in <out>/results.jsonl")
+
+
+def parse_methods(text: str | None):
+    if text is None:
+        return None
+    from admmkit.benchmarks.rules import methods
+    labels = [t.strip() for t in text.split(",") if t.strip()]
+    if not labels:
+        raise ValueError("--methods: give at least one method, e.g. --methods sadmm,admm1")
+    for label in labels:
+        try:
+            methods.resolve(label)
+        except ValueError as err:
+            raise ValueError(f"--methods: {err}") from None
+    return labels
+
+
+def split_list(text):
+    return [t.strip() for t in text.split(",") if t.strip()] if text else None
+
+
+def print_files(files) -> None:
+    for f in files:
+        print(f"wrote {f}")
+
+
+def own_parser(name: str, module: str, help_text: str):
+    """Register ``admmkit bench NAME``, handing every argument to ``module.main(argv, prog)`` unparsed.
+
+    For the studies that define their options themselves (``admmkit bench NAME --help`` prints them).
+    """
+    def register(targets) -> None:
+        p = targets.add_parser(name, help=help_text, add_help=False, prefix_chars="\0")
+        p.add_argument("argv", nargs=argparse.REMAINDER)
+        p.set_defaults(func=lambda args: run_own(module, args.argv, f"admmkit bench {name}"))
+    register.__doc__ = f"``admmkit bench {name}``: {help_text} ({module})."
+    return register
+
+
+def run_own(module: str, argv: list[str], prog: str) -> int:
+    """``module.main(argv, prog)``, with its parser's exit (--help: 0, a bad option: 2) as the exit code."""
+    try:
+        return int(importlib.import_module(module).main(argv, prog=prog) or 0)
+    except SystemExit as exit_:
+        return exit_.code if isinstance(exit_.code, int) else 2
