@@ -8,7 +8,7 @@ is imported only when its command runs.  The shared options live in
 from __future__ import annotations
 
 from admmkit.cli import positive_float, positive_int  # noqa: F401
-from admmkit.benchmarks.runner.options import add_sweep_options, executor_of, parse_methods, print_files, split_list
+from admmkit.benchmarks.runner.options import add_sweep_options, executor_of, print_files, split_list
 
 
 def precision(targets) -> None:
@@ -94,3 +94,19 @@ def _obstacle_rates(args) -> int:
     from admmkit.benchmarks.rules.obstacle_rates import run
     return run(args.out, quick=args.quick, command=args.command_line, executor=executor_of(args), progress=args.progress,
                report_only=args.report_only)
+
+
+def parse_methods(text: str | None):
+    """The ADMM methods of ``--methods`` (labels such as sadmm, admm1), each checked; None: all."""
+    if text is None:
+        return None
+    from admmkit.benchmarks.rules import methods
+    labels = [t.strip() for t in text.split(",") if t.strip()]
+    if not labels:
+        raise ValueError("--methods: give at least one method, e.g. --methods sadmm,admm1")
+    for label in labels:
+        try:
+            methods.resolve(label)
+        except ValueError as err:
+            raise ValueError(f"--methods: {err}") from None
+    return labels

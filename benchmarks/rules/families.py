@@ -20,7 +20,7 @@ discrete problem*:
 Reference solutions (computed once per problem and cached on disk):
 
 - contact and obstacle: the primal-dual active set solution
-  (:mod:`admmkit.benchmarks.contact.pdas`), exact once its active set settles, with
+  (:mod:`admmkit.benchmarks.rules.pdas`), exact once its active set settles, with
   its KKT residuals, cross-checked against cvxpy + Clarabel at tolerance 1e-10
   when the problem has at most ``CROSS_CHECK_MAX`` unknowns (the relative
   differences are recorded).  Clarabel itself is only accurate to its
@@ -260,7 +260,7 @@ def _attach_reference(d: Discrete, cache_dir, cross_check_max: int) -> None:
             return
     t0 = time.perf_counter()
     if d.kind in ("contact", "obstacle"):
-        from admmkit.benchmarks.contact.pdas import pdas
+        from admmkit.benchmarks.rules.pdas import pdas
         K, f, B, g, to_lam = pdas_form(d)
         kwargs = d.pdas_args()
         kwargs.pop("weights", None)

@@ -5,7 +5,7 @@
   solver's own time is recorded as ``solver_time``).
 - ``cvxpy-osqp``: cvxpy + OSQP, timed the same way.
 - ``osqp``: OSQP called directly (setup with its KKT factorisation + solve).
-- ``pdas``: the primal-dual active set baseline (:mod:`admmkit.benchmarks.contact.pdas`),
+- ``pdas``: the primal-dual active set baseline (:mod:`admmkit.benchmarks.rules.pdas`),
   contact and obstacle only; for contact it uses the same boundary Schur
   complement as ADMM's condensed mode, and its setup is timed with it.
 
@@ -101,7 +101,7 @@ def _osqp(d: Discrete, tol: float, time_limit: float, max_iter: int):
 
 
 def _run_pdas(d: Discrete, repeats: int, long_run: float) -> dict:
-    from admmkit.benchmarks.contact.pdas import pdas
+    from admmkit.benchmarks.rules.pdas import pdas
 
     K, f, B, g, to_lam = pdas_form(d)
 

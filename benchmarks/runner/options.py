@@ -49,21 +49,6 @@ def add_sweep_options(p, study: str) -> None:
                    help="run nothing: write the files from the cases already in <out>/results.jsonl")
 
 
-def parse_methods(text: str | None):
-    if text is None:
-        return None
-    from admmkit.benchmarks.rules import methods
-    labels = [t.strip() for t in text.split(",") if t.strip()]
-    if not labels:
-        raise ValueError("--methods: give at least one method, e.g. --methods sadmm,admm1")
-    for label in labels:
-        try:
-            methods.resolve(label)
-        except ValueError as err:
-            raise ValueError(f"--methods: {err}") from None
-    return labels
-
-
 def split_list(text):
     return [t.strip() for t in text.split(",") if t.strip()] if text else None
 
