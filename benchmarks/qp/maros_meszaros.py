@@ -58,7 +58,7 @@ from admmkit.benchmarks.runner.sweep import Executor, case_id, finished, run_swe
 
 from admmkit.problems.qp.convexity import check_convex
 from admmkit.problems.qp.mat import list_problems, load_mat
-from admmkit.problems.qp.problem import REDUCED_MAX_NNZ, reduced_nnz_bound
+from admmkit.problems.qp.xstep_forms import REDUCED_MAX_NNZ, reduced_nnz_bound
 
 EPS = (1e-3, 1e-6)
 ORDERS = ("xz", "zx")

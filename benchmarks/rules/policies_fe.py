@@ -83,7 +83,7 @@ def tresca_case(h: float = 1 / 20):
     """
     from admmkit.problems.contact.assembly import assemble
     from admmkit.problems.contact.problem import contact_problem
-    from admmkit.problems.contact.scene import load_scene
+    from admmkit.problems.contact.scene_file import load_scene
     from admmkit.problems.contact.tresca_qp import tresca_cvxpy
     ops = assemble(load_scene("ex1_tresca", h=h))
     u_ref = tresca_cvxpy(ops)[0]

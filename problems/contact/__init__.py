@@ -11,7 +11,8 @@ from .assembly import ContactOperators, assemble
 from .custom import contact_operators
 from .methods import METHODS, ContactSolution, method, solve_scene
 from .problem import CondensedContact, FullContact, contact_problem
-from .scene import Scene, example1, example2, load_scene
+from .scene import Scene, example1, example2
+from .scene_file import load_scene
 
 __all__ = ["Scene", "example1", "example2", "load_scene", "assemble", "ContactOperators", "contact_problem",
            "FullContact", "CondensedContact", "METHODS", "method", "solve_scene", "ContactSolution",

@@ -52,7 +52,8 @@ def register(subparsers) -> None:
 
 def _scene(args):
     from .cli_output import apply_friction_options
-    from .scene import SCENES_DIR, load_scene
+    from .scene import SCENES_DIR
+    from .scene_file import load_scene
     name = str(args.scene)
     path = Path(name)
     if not path.exists() and not (SCENES_DIR / f"{path.name}.toml").exists():

@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Mapping
@@ -242,97 +241,3 @@ def example2(h: float = 1 / 40, **changes) -> Scene:
                   tractions={"right": (0.0, -2.0), "top": (0.0, 0.0)}, contact="bottom",
                   gap=expression("0.003*(x - 1.5)**2 + 0.001"), name="example2")
     return Scene(**(fields | changes))
-
-
-# ---------------------------------------------------------------- TOML
-TOML_KEYS = {  # key: (accepted types, description); every key is optional, defaults are Scene's (docs/scenes.md)
-    "name": ((str,), "a string"),
-    "L": ((int, float), "a number"), "H": ((int, float), "a number"),
-    "h": ((int, float), "a number"),
-    "mesh_kind": ((str,), "a string"), "order": ((int,), "an integer"),
-    "E": ((int, float), "a number"), "nu": ((int, float), "a number"),
-    "dirichlet": ((list, str), "a list of labels"),
-    "tractions": ((dict,), "a table label = [tx, ty]"),
-    "body_force": ((list,), "a pair [fx, fy]"),
-    "contact": ((str,), "a label"),
-    "gap": ((int, float, str), "a number or an expression in x, y"),
-    "tangential": ((str,), f"one of {', '.join(TANGENTIAL)}"),
-    "contact_normal": ((list,), "a pair [nx, ny]"),
-    "slip_bound": ((int, float, str), "a number or an expression in x, y (tangential = 'tresca')"),
-    "mu": ((int, float), "a number (tangential = 'coulomb')"),
-    "obstacle_slide": ((int, float), "a number"),
-}
-#: the keys of a 3D scene file (``dim = 3``: a :class:`admmkit.problems.contact.scene3d.Scene3D`)
-TOML_KEYS_3D = {
-    "name": ((str,), "a string"), "dim": ((int,), "2 or 3"),
-    "Lx": ((int, float), "a number"), "Ly": ((int, float), "a number"), "Lz": ((int, float), "a number"),
-    "h": ((int, float), "a number"), "order": ((int,), "an integer"),
-    "E": ((int, float), "a number"), "nu": ((int, float), "a number"),
-    "dirichlet": ((list, str), "a list of faces"),
-    "tractions": ((dict,), "a table face = [tx, ty, tz]"),
-    "contact": ((str,), "a face"),
-    "gap": ((int, float, str), "a number or an expression in x, y"),
-    "tangential": ((str,), f"one of {', '.join(TANGENTIAL)}"),
-    "slip_bound": ((int, float, str), "a number or an expression in x, y (tangential = 'tresca')"),
-    "mu": ((int, float), "a number (tangential = 'coulomb')"),
-    "obstacle_slide": ((list,), "a pair [wx, wy]"),
-}
-
-
-def load_scene(path, **changes):
-    """Read a Scene from a TOML file (keys = Scene fields, all optional; docs/scenes.md).
-
-    A bare name such as ``"ex1"`` refers to problems/contact/scenes/ex1.toml.
-    ``dim = 3`` makes it a 3D block scene (``Scene3D`` (problems/contact/scene3d.py),
-    keys ``TOML_KEYS_3D``); otherwise a 2D :class:`Scene`.  The keys may sit at the top level or in a ``[scene]`` table.  ``changes``
-    override file values (e.g. ``h=1/80``).  Every problem with the file (not
-    found, not UTF-8 text, malformed TOML, an unknown key, a value of the
-    wrong type or out of range) raises ValueError naming the file and the key.
-    """
-    path = Path(path)
-    if not path.exists() and (SCENES_DIR / f"{path.name}.toml").exists():
-        path = SCENES_DIR / f"{path.name}.toml"
-    if not path.is_file():
-        known = ", ".join(sorted(p.stem for p in SCENES_DIR.glob("*.toml")))
-        raise ValueError(f"{path}: no such scene file; give the path of a TOML file or one of {known}")
-    try:
-        data = tomllib.loads(path.read_bytes().decode("utf-8"))
-    except UnicodeDecodeError as err:
-        raise ValueError(f"{path}: not a TOML text file (not UTF-8: {err.reason} at byte {err.start})") from None
-    except tomllib.TOMLDecodeError as err:
-        raise ValueError(f"{path}: malformed TOML: {err}") from None
-    if "scene" in data:
-        if not isinstance(data["scene"], dict):
-            raise ValueError(f"{path}: key 'scene' must be a table [scene] holding the scene's keys, "
-                             f"got {data['scene']!r}")
-        if len(data) > 1:
-            raise ValueError(f"{path}: keys {', '.join(sorted(set(data) - {'scene'}))} outside the [scene] table")
-        data = data["scene"]
-    dim = data.get("dim", 2)
-    if dim not in (2, 3) or isinstance(dim, bool):
-        raise ValueError(f"{path}: key 'dim' must be 2 or 3, got {dim!r}")
-    keys = TOML_KEYS_3D if dim == 3 else TOML_KEYS
-    for key, value in data.items():
-        if key not in keys and not (key == "dim" and dim == 2):
-            raise ValueError(f"{path}: unknown key {key!r}; known keys: {', '.join(keys)}")
-        types, what = keys.get(key, ((int,), "2 or 3"))
-        if isinstance(value, bool) or not isinstance(value, types):
-            raise ValueError(f"{path}: key {key!r} must be {what}, got {value!r}")
-    for label, t in data.get("tractions", {}).items():
-        if not (isinstance(t, list) and len(t) == dim and all(isinstance(c, (int, float, str)) for c in t)):
-            what = "a pair [tx, ty]" if dim == 2 else "a triple [tx, ty, tz]"
-            raise ValueError(f"{path}: key 'tractions.{label}' must be {what}, got {t!r}")
-    if "dirichlet" in data and isinstance(data["dirichlet"], list):
-        data["dirichlet"] = tuple(data["dirichlet"])
-    for key in ("contact_normal", "body_force", "obstacle_slide"):
-        if key in data and isinstance(data[key], list):
-            data[key] = tuple(data[key])
-    data.pop("dim", None)
-    try:
-        if dim == 3:
-            from .scene3d import Scene3D
-            data["tractions"] = {k: tuple(v) for k, v in data.get("tractions", {}).items()} or Scene3D().tractions
-            return Scene3D(**(data | changes))
-        return Scene(**(data | changes))
-    except ValueError as err:
-        raise ValueError(f"{path}: {err}") from None

@@ -45,47 +45,12 @@ import numpy as np
 import scipy.sparse as sp
 
 from admmkit import Problem
-from admmkit.linsolve import CachedFactorization, available_backends
+from admmkit.linsolve import CachedFactorization
 
-from .convexity import check_convex
-
-XSTEPS = ("auto", "reduced", "kkt")
-#: "auto" uses the KKT form when A'A could have more entries than this (bound: nnz(P) + sum_i nnz(row_i of A)^2)
-REDUCED_MAX_NNZ = 2e7
-#: sparse solvers that factorise the indefinite KKT matrix (CHOLMOD's L L' and PARDISO's SPD mode cannot)
-KKT_BACKENDS = ("qdldl", "superlu")
-
-
-def reduced_nnz_bound(P: sp.spmatrix, A: sp.spmatrix) -> float:
-    """An upper bound on the entries of P + rho A'A: nnz(P) + sum over rows of A of nnz(row)^2."""
-    rows = np.diff(sp.csr_matrix(A).indptr).astype(float)
-    return float(sp.csc_matrix(P).nnz + (rows ** 2).sum())
-
-
-#: OSQP_RHO_EQ_OVER_RHO_INEQ: weight of an equality row
-EQ_ROW_WEIGHT = 1e3
-#: weight in M of a row with both bounds infinite (its residual and lam are 0 after one iteration)
-FREE_ROW_WEIGHT = 1e-5
-#: OSQP_RHO_MIN: the x-step's penalty of a free row, whatever rho is (Q5)
-FREE_ROW_PENALTY = 1e-6
-#: OSQP_RHO_TOL: a row with u - l below this (in the scaled problem) is an equality row
-EQ_TOL = 1e-4
-ROW_WEIGHTS = ("uniform", "osqp")
-
-
-def row_weights(l: np.ndarray, u: np.ndarray, kind: str = "osqp") -> np.ndarray | None:
-    """The diagonal w of M: None for "uniform"; for "osqp" 1e3 on equality rows, FREE_ROW_WEIGHT on free rows, else 1."""
-    if kind not in ROW_WEIGHTS:
-        raise ValueError(f"row_weights must be one of {', '.join(ROW_WEIGHTS)}, got {kind!r}")
-    if kind == "uniform":
-        return None
-    free = np.isinf(l) & np.isinf(u)
-    with np.errstate(invalid="ignore"):
-        eq = ~free & (u - l < EQ_TOL)
-    w = np.ones(l.size)
-    w[eq], w[free] = EQ_ROW_WEIGHT, FREE_ROW_WEIGHT
-    return w
-
+from . import rows
+from .rows import FREE_ROW_PENALTY
+from .validate import _inf, _real, _validate
+from .xstep_forms import REDUCED_MAX_NNZ, XSTEPS, _kkt_backend, reduced_nnz_bound
 
 class QP(Problem):
     """A convex QP, validated on construction.
@@ -96,7 +61,7 @@ class QP(Problem):
     xstep the form of the x-step system ("auto", "reduced" or "kkt"; see the
     module docstring), scaling the number of Ruiz iterations (0: none;
     OSQP uses 10), row_weights "uniform" (M = I) or "osqp" (OSQP's penalty
-    per row, see ``admmkit.problems.qp.problem.row_weights``).  ``P, q, A, l, u`` stay the user's
+    per row, see ``admmkit.problems.qp.rows.row_weights``).  ``P, q, A, l, u`` stay the user's
     data; the loop works on ``Ps, qs, As, ls, us`` (the same objects when
     scaling = 0).
     """
@@ -132,7 +97,7 @@ class QP(Problem):
             self.ls, self.us = self.scaling.E * self.l, self.scaling.E * self.u
         else:
             self.Ps, self.qs, self.As, self.ls, self.us = self.P, self.q, self.A, self.l, self.u
-        self.w = globals()["row_weights"](self.ls, self.us, row_weights)
+        self.w = rows.row_weights(self.ls, self.us, row_weights)
         self.At = self.A.T.tocsr()      # A' once: scipy builds a new matrix on every A.T (~40 us)
         self.Ats = self.As.T.tocsr() if self.scaled else self.At
         if xstep == "auto":
@@ -319,78 +284,3 @@ class QP(Problem):
     def counters(self):
         """Factorisations and solves of the x-step matrix so far."""
         return {"factorizations": self._solver.factorizations, "solves": self._solver.solves}
-
-
-def _kkt_backend(backend: str) -> str:
-    """The solver for the KKT form: qdldl if installed, else SuperLU, unless one of them is asked for."""
-    if backend == "auto":
-        return next(b for b in KKT_BACKENDS if b in available_backends())
-    if backend not in KKT_BACKENDS:
-        raise ValueError(f"backend for xstep 'kkt' must be 'auto' or one of {', '.join(KKT_BACKENDS)} "
-                         f"(the KKT matrix is indefinite), got {backend!r}")
-    return backend
-
-
-def _inf(v) -> float:
-    return float(np.max(np.abs(v), initial=0.0))
-
-
-def _real(name: str, value, sparse_ok: bool = False):
-    """``value`` as a real float array (or sparse matrix); ValueError naming ``name`` for text or complex values."""
-    if sparse_ok and sp.issparse(value):
-        if np.iscomplexobj(value.data):
-            raise ValueError(f"{name} must be real, got complex entries")
-        return value
-    if np.iscomplexobj(value):
-        raise ValueError(f"{name} must be real, got complex values")
-    try:
-        return np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be an array of numbers, got {value!r:.60}") from None
-
-
-def _validate(P, q, A, l, u):
-    """Check types, shapes, symmetry, convexity, finiteness and l <= u; return (P, q, A, l, u) as csc/arrays."""
-    P = _real("P", P, sparse_ok=True)
-    if not sp.issparse(P) and P.ndim != 2:
-        raise ValueError(f"P must be a square matrix, got an array of shape {P.shape}")
-    P = sp.csc_matrix(P, dtype=float)
-    n = P.shape[0]
-    if P.shape != (n, n):
-        raise ValueError(f"P must be square (n x n), got shape {P.shape}")
-    if n == 0:
-        raise ValueError("the QP needs at least one variable: P, q and A must have n >= 1 columns, got n = 0")
-    if not np.all(np.isfinite(P.data)):
-        raise ValueError("P must have finite entries")
-    asym = abs(P - P.T).max() if P.nnz else 0.0
-    if asym > 1e-10 * max(1.0, abs(P).max()):
-        raise ValueError(f"P must be symmetric; max |P - P'| = {asym:.3g}")
-    check_convex(P)
-    q = _real("q", q).ravel()
-    if q.shape != (n,):
-        raise ValueError(f"q must have length n = {n} (from P), got shape {q.shape}")
-    if not np.all(np.isfinite(q)):
-        raise ValueError("q must be finite")
-    A = _real("A", A, sparse_ok=True)
-    if not sp.issparse(A):
-        A = np.atleast_2d(A)
-    A = sp.csc_matrix(A, dtype=float)
-    if A.shape[1] != n:
-        raise ValueError(f"A must have n = {n} columns (from P), got shape {A.shape}")
-    if not np.all(np.isfinite(A.data)):
-        raise ValueError("A must have finite entries")
-    m = A.shape[0]
-    l = _real("l", l).ravel()
-    u = _real("u", u).ravel()
-    for name, v in (("l", l), ("u", u)):
-        if v.shape != (m,):
-            raise ValueError(f"{name} must have length m = {m} (rows of A), got shape {v.shape}")
-        if np.any(np.isnan(v)):
-            raise ValueError(f"{name} must not contain NaN")
-    if np.any(l == np.inf) or np.any(u == -np.inf):
-        raise ValueError("bounds must satisfy l < +inf and u > -inf")
-    bad = np.flatnonzero(l > u)
-    if bad.size:
-        i = bad[0]
-        raise ValueError(f"l must be <= u; row {i} has l = {l[i]:g} > u = {u[i]:g} ({bad.size} such rows)")
-    return P, q, A, l, u

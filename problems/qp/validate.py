@@ -1,0 +1,71 @@
+"""The QP's data checked once, at construction: real, finite where it must be, shapes that agree, l <= u."""
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+
+from .convexity import check_convex
+
+def _inf(v) -> float:
+    return float(np.max(np.abs(v), initial=0.0))
+
+
+def _real(name: str, value, sparse_ok: bool = False):
+    """``value`` as a real float array (or sparse matrix); ValueError naming ``name`` for text or complex values."""
+    if sparse_ok and sp.issparse(value):
+        if np.iscomplexobj(value.data):
+            raise ValueError(f"{name} must be real, got complex entries")
+        return value
+    if np.iscomplexobj(value):
+        raise ValueError(f"{name} must be real, got complex values")
+    try:
+        return np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be an array of numbers, got {value!r:.60}") from None
+
+
+def _validate(P, q, A, l, u):
+    """Check types, shapes, symmetry, convexity, finiteness and l <= u; return (P, q, A, l, u) as csc/arrays."""
+    P = _real("P", P, sparse_ok=True)
+    if not sp.issparse(P) and P.ndim != 2:
+        raise ValueError(f"P must be a square matrix, got an array of shape {P.shape}")
+    P = sp.csc_matrix(P, dtype=float)
+    n = P.shape[0]
+    if P.shape != (n, n):
+        raise ValueError(f"P must be square (n x n), got shape {P.shape}")
+    if n == 0:
+        raise ValueError("the QP needs at least one variable: P, q and A must have n >= 1 columns, got n = 0")
+    if not np.all(np.isfinite(P.data)):
+        raise ValueError("P must have finite entries")
+    asym = abs(P - P.T).max() if P.nnz else 0.0
+    if asym > 1e-10 * max(1.0, abs(P).max()):
+        raise ValueError(f"P must be symmetric; max |P - P'| = {asym:.3g}")
+    check_convex(P)
+    q = _real("q", q).ravel()
+    if q.shape != (n,):
+        raise ValueError(f"q must have length n = {n} (from P), got shape {q.shape}")
+    if not np.all(np.isfinite(q)):
+        raise ValueError("q must be finite")
+    A = _real("A", A, sparse_ok=True)
+    if not sp.issparse(A):
+        A = np.atleast_2d(A)
+    A = sp.csc_matrix(A, dtype=float)
+    if A.shape[1] != n:
+        raise ValueError(f"A must have n = {n} columns (from P), got shape {A.shape}")
+    if not np.all(np.isfinite(A.data)):
+        raise ValueError("A must have finite entries")
+    m = A.shape[0]
+    l = _real("l", l).ravel()
+    u = _real("u", u).ravel()
+    for name, v in (("l", l), ("u", u)):
+        if v.shape != (m,):
+            raise ValueError(f"{name} must have length m = {m} (rows of A), got shape {v.shape}")
+        if np.any(np.isnan(v)):
+            raise ValueError(f"{name} must not contain NaN")
+    if np.any(l == np.inf) or np.any(u == -np.inf):
+        raise ValueError("bounds must satisfy l < +inf and u > -inf")
+    bad = np.flatnonzero(l > u)
+    if bad.size:
+        i = bad[0]
+        raise ValueError(f"l must be <= u; row {i} has l = {l[i]:g} > u = {u[i]:g} ({bad.size} such rows)")
+    return P, q, A, l, u
