@@ -185,9 +185,7 @@ def test_studies_with_their_own_options_answer_help_and_bad_options(study, capsy
     assert main(["bench", study, "--no-such-option"]) == 2
 
 
-@pytest.mark.parametrize("layer", [pytest.param(layer, marks=pytest.mark.xfail(
-    strict=True, reason="#23 in progress: modules are being split")) if layer == "benchmarks" else layer
-    for layer in LAYERS])
+@pytest.mark.parametrize("layer", LAYERS)
 def test_no_module_over_300_lines(layer):
     long = {str(p.relative_to(ROOT)): n for p in layer_files(layer)
             if (n := len(p.read_text().splitlines())) > MAX_LINES and str(p.relative_to(ROOT)) not in LONG_MODULES}

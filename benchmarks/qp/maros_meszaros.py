@@ -50,9 +50,9 @@ import admmkit
 from admmkit import policies  # noqa: F401  (registers the rules)
 
 from admmkit.benchmarks.runner.machine import machine_info
-from admmkit.benchmarks.qp.maros_meszaros_report import (FIELDS, OSQP_DIRECT, RHO0, SHIFT, performance_profile,  # noqa: F401
-                                    plot_profiles, read_rows, shifted_geometric_mean, summarize, write_report,
-                                    write_rows)
+from admmkit.benchmarks.qp.maros_meszaros_report import FIELDS, plot_profiles, read_rows, write_report, write_rows  # noqa: F401
+from admmkit.benchmarks.qp.maros_meszaros_stats import (OSQP_DIRECT, RHO0, SHIFT, performance_profile,  # noqa: F401
+                                                       shifted_geometric_mean, summarize)
 from admmkit.benchmarks.qp.maros_meszaros_runs import VARIANTS, run_admmkit, run_osqp
 from admmkit.benchmarks.runner.sweep import Executor, case_id, finished, run_sweep
 

@@ -7,145 +7,15 @@ written whole or not at all.
 from __future__ import annotations
 
 import csv
-import math
 from pathlib import Path
 
-import numpy as np
 
 from admmkit.io import atomic_open, atomic_path, write_text
+from admmkit.benchmarks.qp.maros_meszaros_stats import MID_SIZE, OSQP_DIRECT, RHO0, SHIFT, _true, config_keys, label, performance_profile, summarize, target, time_per_iteration
 
-RHO0 = 0.1
-SHIFT = 10.0
-#: the label of OSQP called directly
-OSQP_DIRECT = "OSQP"
 FIELDS = ("problem", "n", "m", "variant", "solver", "order", "eps", "solved", "neutral", "status", "iterations",
           "time", "setup_time", "loop_time", "factorizations", "rho_changes", "rho_final", "rho_max", "neutral_primal",
           "neutral_dual", "neutral_gap")
-#: mid-sized problems for the time per iteration: MID_SIZE[0] <= n + m <= MID_SIZE[1]
-MID_SIZE = (1000, 20000)
-
-
-# ---------------------------------------------------------------- statistics
-def shifted_geometric_mean(values, shift: float = SHIFT) -> float:
-    """exp(mean(log(v + shift))) - shift (Mittelmann's shifted geometric mean)."""
-    v = np.asarray(list(values), dtype=float)
-    if v.size == 0:
-        return math.nan
-    return float(np.exp(np.mean(np.log(v + shift))) - shift)
-
-
-def config_keys(rows: list[dict]) -> list[tuple[str, str, str]]:
-    """(variant, solver, order) triples in first-seen order."""
-    return list(dict.fromkeys((r["variant"], r["solver"], r["order"]) for r in rows))
-
-
-def label(key: tuple[str, str, str]) -> str:
-    """'preset/osqp (xz)', 'OSQP', 'OSQP + polish'."""
-    variant, solver, order = key
-    if solver == OSQP_DIRECT:
-        return OSQP_DIRECT + (" + polish" if variant == "polish" else "")
-    return f"{variant}/{solver} ({order})"
-
-
-def summarize(rows: list[dict], max_iter: int, time_limit: float) -> list[dict]:
-    """One line per (variant, solver, order, eps): successes by both judgements, shifted geometric means over the
-    neutral successes, factorisations, failures (runs the neutral criteria rejected, by status)."""
-    out = []
-    for eps in sorted({r["eps"] for r in rows}, reverse=True):
-        for key in config_keys(rows):
-            sel = [r for r in rows if (r["variant"], r["solver"], r["order"]) == key and r["eps"] == eps]
-            if not sel:
-                continue
-            ok = [_true(r["neutral"]) for r in sel]
-            statuses: dict[str, int] = {}
-            for r, good in zip(sel, ok):
-                if not good:
-                    name = r["status"] if r["status"] != "solved" else "solved, neutral criteria not met"
-                    statuses[name] = statuses.get(name, 0) + 1
-            facts = [float(r["factorizations"]) for r in sel]
-            out.append({
-                "eps": eps, "variant": key[0], "solver": key[1], "order": key[2], "problems": len(sel),
-                "neutral": sum(ok), "solved": sum(_true(r["solved"]) for r in sel), "rate": sum(ok) / len(sel),
-                "sgm_iterations": shifted_geometric_mean(
-                    float(r["iterations"]) if good else max_iter for r, good in zip(sel, ok)),
-                "sgm_time": shifted_geometric_mean(
-                    float(r["time"]) if good else time_limit for r, good in zip(sel, ok)),
-                "factorizations_mean": float(np.mean(facts)), "factorizations_max": int(max(facts)),
-                "failures": statuses,
-                "runaway": sum(1 for r in sel if _finite(r["rho_max"]) and float(r["rho_max"]) > 1e20 * RHO0),
-            })
-    return out
-
-
-def performance_profile(rows: list[dict], metric: str, eps: float, keys=None):
-    """Dolan-More profile over the neutral successes: {key: (taus, fraction of problems within tau x the best)}
-    (the best among ``keys``, default every configuration)."""
-    sel = [r for r in rows if r["eps"] == eps]
-    keys = list(keys) if keys is not None else config_keys(sel)
-    problems = sorted({r["problem"] for r in sel})
-    table = np.full((len(problems), len(keys)), np.inf)
-    index = {p: i for i, p in enumerate(problems)}
-    column = {k: j for j, k in enumerate(keys)}
-    for r in sel:
-        j = column.get((r["variant"], r["solver"], r["order"]))
-        if j is not None and _true(r["neutral"]):
-            table[index[r["problem"]], j] = max(float(r[metric]), 1e-9)
-    best = table.min(axis=1, keepdims=True)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        ratio = np.where(np.isfinite(best), table / best, np.inf)
-    finite = ratio[np.isfinite(ratio)]
-    top = max(float(finite.max()) if finite.size else 2.0, 2.0)
-    taus = np.logspace(0, math.log10(top) + 0.05, 400)
-    return {key: (taus, (ratio[:, j][:, None] <= taus[None, :]).mean(axis=0)) for j, key in enumerate(keys)}
-
-
-def target(summary: list[dict]) -> list[dict]:
-    """Per accuracy: the best admmkit configuration without and with polishing against OSQP without and with it."""
-    out = []
-    for eps in sorted({s["eps"] for s in summary}, reverse=True):
-        sel = [s for s in summary if s["eps"] == eps]
-        for polish in (False, True):
-            ours = [s for s in sel if s["solver"] != OSQP_DIRECT and (s["variant"] == "polish") == polish]
-            theirs = [s for s in sel if s["solver"] == OSQP_DIRECT and (s["variant"] == "polish") == polish]
-            if not ours or not theirs:
-                continue
-            best = max(ours, key=lambda s: (s["neutral"], -s["sgm_time"]))
-            out.append({"eps": eps, "polish": polish, "best": label((best["variant"], best["solver"], best["order"])),
-                        "best_neutral": best["neutral"], "osqp_neutral": theirs[0]["neutral"],
-                        "problems": best["problems"], "met": best["neutral"] >= theirs[0]["neutral"]})
-    return out
-
-
-def time_per_iteration(rows: list[dict], mid=MID_SIZE) -> dict[float, dict]:
-    """Per accuracy: time per iteration of preset/osqp (xz) over OSQP's, on mid-sized problems both solved
-    by the neutral criteria: median, min, max and the count.  The loops' wall times (``loop_time``: admmkit's
-    ``timings["total"]``, OSQP's ``info.solve_time``), measured in the same process one after the other."""
-    out = {}
-    for eps in sorted({r["eps"] for r in rows}, reverse=True):
-        ours = {r["problem"]: r for r in rows if r["eps"] == eps and (r["variant"], r["solver"], r["order"])
-                == ("preset", "osqp", "xz") and _true(r["neutral"])}
-        ratios = []
-        for r in rows:
-            if (r["eps"] == eps and r["solver"] == OSQP_DIRECT and r["variant"] == "default" and _true(r["neutral"])
-                    and r["problem"] in ours and mid[0] <= int(r["n"]) + int(r["m"]) <= mid[1]):
-                o = ours[r["problem"]]
-                ratios.append((float(o["loop_time"]) / int(o["iterations"]))
-                              / (float(r["loop_time"]) / int(r["iterations"])))
-        if ratios:
-            out[eps] = {"median": float(np.median(ratios)), "min": float(min(ratios)), "max": float(max(ratios)),
-                        "count": len(ratios)}
-    return out
-
-
-def _true(v) -> bool:
-    return v is True or str(v) == "True"
-
-
-def _finite(v) -> bool:
-    try:
-        return math.isfinite(float(v))
-    except (TypeError, ValueError):
-        return False
 
 
 # ---------------------------------------------------------------- output

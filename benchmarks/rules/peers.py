@@ -23,7 +23,8 @@ import numpy as np
 import scipy.sparse as sp
 
 from admmkit.benchmarks.runner.machine import median_time
-from admmkit.benchmarks.rules.families import Discrete, clarabel_solve, cvxpy_duals, cvxpy_problem, pdas_form
+from admmkit.benchmarks.rules.families import Discrete
+from admmkit.benchmarks.rules.references import clarabel_solve, cvxpy_duals, cvxpy_problem, pdas_form
 from admmkit.benchmarks.runner.sweep import clean_float
 
 PEERS = ("pdas", "clarabel", "cvxpy-osqp", "osqp")

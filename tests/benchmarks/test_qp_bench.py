@@ -16,7 +16,7 @@ from admmkit import policies  # noqa: F401
 from admmkit.problems.qp import load_mat, random_qp
 from admmkit.benchmarks.qp.maros_meszaros import (kkt_form_reason, performance_profile, run_benchmark, shifted_geometric_mean,
                                        skip_reason, summarize)
-from admmkit.benchmarks.qp.maros_meszaros_report import target
+from admmkit.benchmarks.qp.maros_meszaros_stats import target
 from admmkit.benchmarks.qp.maros_meszaros_runs import run_admmkit, run_osqp
 from admmkit.problems.qp import osqp_settings, solve_qp, textbook_settings
 from admmkit.problems.qp.reference import solve_with_cvxpy
