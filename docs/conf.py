@@ -91,12 +91,12 @@ napoleon_numpy_docstring = True
 nitpicky = True
 nitpick_ignore_regex = [
     (r"py:.*", r"(np|numpy|scipy|sp|ng|ngsolve|abc|argparse|pathlib|typing|collections|enum|dataclasses)\..*"),
-    (r"py:class", r".*\._[A-Za-z]\w*"),  # private base classes (e.g. admmkit.problems.contact.problem._ContactBase)
+    (r"py:class", r".*\._[A-Za-z]\w*"),  # private base classes (e.g. admmkit.problems.contact.solvers.base._ContactBase)
     (r"py:class", r"(optional|callable|array-like|array_like|int|float|str|bool|dict|list|tuple|None)"),
     (r"py:class", r"(Path|Callable|Mapping|Any|Iterable|Sequence|ndarray|spmatrix|csr_matrix)"),
     (r"py:class", r"tuple\[.*"),  # Sphinx splits tuple[str, ...] at the Ellipsis
     # dataclass fields typed with the friction model and the Coulomb report (documented on docs/friction.md)
-    (r"py:class", r"admmkit\.problems\.contact\.(friction\.Friction|coulomb\.CoulombReport)"),
+    (r"py:class", r"admmkit\.problems\.contact\.solvers\.(friction\.Friction|coulomb\.CoulombReport)"),
 ]
 
 # ---------------------------------------------------------------- navigation

@@ -44,9 +44,9 @@ def reuse_table(h: float = 1 / 160, rho0: float = 1e3, ratios=RATIOS, tol: float
 
     from admmkit.iterative import AMGPreconditioner, PencilMatrix, pcg
 
-    from admmkit.problems.contact.assembly import assemble
-    from admmkit.problems.contact.iterative import near_null_space
-    from admmkit.problems.contact.scene import example1
+    from admmkit.problems.contact.model.assembly import assemble
+    from admmkit.problems.contact.solvers.iterative import near_null_space
+    from admmkit.problems.contact.model.scene import example1
 
     ops = assemble(example1(h=h))
     modes, blocks = near_null_space(ops)

@@ -70,7 +70,7 @@ def hertz(targets) -> None:
     """``admmkit bench hertz``: contact half-width and peak pressure against Hertz."""
     h = targets.add_parser("hertz", help="Hertz validation: half-cylinder on a rigid plane, a and p0 vs Hertz",
                            description="Contact half-width and peak pressure against Hertz on meshes refined near "
-                                       "the contact (problems/contact/hertz.py).")
+                                       "the contact (problems/contact/validation/hertz.py).")
     add_out(h, "scale")
     h.add_argument("--k", type=positive_int, action="append", default=None, dest="ks",
                    help="refinement a_target/h_c (repeatable; default 10 20 40 80)")

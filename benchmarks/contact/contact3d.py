@@ -47,8 +47,8 @@ def probe(h: float, rho: float = 1e3) -> dict:
     from admmkit.iterative import IterativeXSolver
     from admmkit.linsolve import available_backends, factorize
 
-    from admmkit.problems.contact.iterative import near_null_space
-    from admmkit.problems.contact.scene3d import assemble3d, example2_3d
+    from admmkit.problems.contact.solvers.iterative import near_null_space
+    from admmkit.problems.contact.model.scene3d import assemble3d, example2_3d
 
     ops = assemble3d(example2_3d(h=h))
     D = (ops.B.T @ sp.diags(ops.mc) @ ops.B).tocsr()
@@ -99,8 +99,8 @@ def solve_3d(h: float, rho: float = 1e3) -> dict:
     from admmkit import policies
     from threadpoolctl import threadpool_limits
 
-    from admmkit.problems.contact.problem import contact_problem
-    from admmkit.problems.contact.scene3d import assemble3d, example2_3d
+    from admmkit.problems.contact.solvers.problem import contact_problem
+    from admmkit.problems.contact.model.scene3d import assemble3d, example2_3d
 
     t0 = time.perf_counter()
     ops = assemble3d(example2_3d(h=h))
@@ -118,8 +118,8 @@ def solve_3d(h: float, rho: float = 1e3) -> dict:
 
 def write_vtk(ops, u: np.ndarray, lam: np.ndarray, base: Path, p: np.ndarray | None = None) -> Path:
     """VTU file (ParaView, meshio) in double precision: displacement at the vertices; contact pressure, gap and
-    status on the contact face (problems/contact/export.py; NaN, or -1 for the status, off the face)."""
-    from admmkit.problems.contact.export import boundary_fields, write_vtu
+    status on the contact face (problems/contact/output/export.py; NaN, or -1 for the status, off the face)."""
+    from admmkit.problems.contact.output.export import boundary_fields, write_vtu
     base = Path(base)
     base.parent.mkdir(parents=True, exist_ok=True)
     fields = boundary_fields(ops, u, lam, ops.g if p is None else p)
@@ -134,13 +134,13 @@ def figure_3d(ops, u: np.ndarray, lam: np.ndarray, p: np.ndarray, path: Path, ma
     Two stacked panels sized for the docs' page width: the 3D view from slightly
     below the contact face, so that the foundation surface -g(x, y) (grey) and
     the gap between it and the block are visible; then the pressure lam with the
-    active nodes (p = g, ``contact_status`` of problems/contact/export.py) and
+    active nodes (p = g, ``contact_status`` of problems/contact/output/export.py) and
     gap contours.
     """
     import ngsolve as ng
     from mpl_toolkits.mplot3d.art3d import Poly3DCollection
 
-    from admmkit.problems.contact.export import contact_status
+    from admmkit.problems.contact.output.export import contact_status
     plt = pyplot()
     nv = ops.mesh.nv
     full = ops.full_vector(u)
@@ -241,7 +241,7 @@ def _write_md(path, probes, run, command, figs, vtu, sadmm=()) -> None:
     kkt, c = res.kkt or {}, res.counters
     lines = ["# 3D: elastic block on a curved rigid foundation (P1 tetrahedra, AMG x-step)", "",
              f"Produced by `{command}`. The 3D analogue of the paper's Example 2 "
-             "(`problems/contact/scene3d.py`): block (0,3)x(0,1)x(0,1), clamped at x = 0, traction (0, 0, -2) on "
+             "(`problems/contact/model/scene3d.py`): block (0,3)x(0,1)x(0,1), clamped at x = 0, traction (0, 0, -2) on "
              "x = 3, frictionless contact on z = 0 with g = 0.003 (x-1.5)^2 + 0.003 (y-0.5)^2 + 0.001, E = 5000, "
              "nu = 0.49.", "",
              "## Where the direct solver struggles", "",

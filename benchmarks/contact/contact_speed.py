@@ -15,7 +15,7 @@ the benchmark times ``admmkit.linsolve.factorize(K, backend)`` followed by one
 ``admmkit.solve``, median of ``repeats`` runs each building a fresh contact
 problem, in the condensed and the full mode.  The ratio SADMM / (factor +
 solve) says how many linear solves the contact problem costs.  The condensed
-set-up is split with :attr:`admmkit.problems.contact.schur.BoundarySchur.timings`.
+set-up is split with :attr:`admmkit.problems.contact.solvers.schur.BoundarySchur.timings`.
 """
 from __future__ import annotations
 
@@ -32,12 +32,12 @@ from admmkit.blas import limit_blas
 from admmkit.linsolve import available_backends, factorize
 from admmkit.io import write_text
 
-from admmkit.problems.contact.assembly import assemble
-from admmkit.problems.contact.problem import contact_problem
+from admmkit.problems.contact.model.assembly import assemble
+from admmkit.problems.contact.solvers.problem import contact_problem
 from admmkit.benchmarks.runner.machine import machine_info, median_time
 from admmkit.benchmarks.runner.report import h_label
-from admmkit.problems.contact.scene import example1, example2
-from admmkit.problems.contact.schur import available_schur_backends
+from admmkit.problems.contact.model.scene import example1, example2
+from admmkit.problems.contact.solvers.schur import available_schur_backends
 
 DEFAULT_HS = (1 / 40, 1 / 200)
 EXAMPLES = {"ex1": example1, "ex2": example2}
@@ -143,7 +143,7 @@ def write_markdown(path: Path, rows, repeats, rho, wall, command, blas_threads=1
              f"{repeats}, a fresh contact problem each repeat. `ratio` = SADMM / (factor+solve), both with the "
              "same backend: `cholmod` (scikit-sparse, needs SuiteSparse headers to install) and `superlu` "
              "(scipy, what a machine with only pip has). The condensed set-up factorises K once, contact dofs "
-             "last, and reads the Schur complement off the factor (`problems/contact/schur.py`); the full mode "
+             "last, and reads the Schur complement off the factor (`problems/contact/solvers/schur.py`); the full mode "
              "factorises K + rho B'M_cB once per rho. Targets (condensed mode): ratio <= 2 at h = 1/40, <= 3 at "
              f"h = 1/200. BLAS threads pinned to {blas_threads}. `it / fact.`: iterations / factorisations "
              "(dense n_c x n_c Cholesky in condensed mode, sparse in full mode). `CPU ratio`: the same ratio in CPU "

@@ -2,7 +2,7 @@
 
     python -m admmkit.benchmarks.contact.friction_validation [--out out/friction_validation] [--quick]
 
-1. **Cattaneo-Mindlin** (:mod:`admmkit.problems.contact.cattaneo`): the Hertz
+1. **Cattaneo-Mindlin** (:mod:`admmkit.problems.contact.validation.cattaneo`): the Hertz
    half-cylinder (R = 1, E = 1, a ~ 0.02) pressed onto a rigid plane and
    sheared by moving the plane by ``--slide`` along x, Coulomb friction mu,
    nu = 0.49 (Dundurs' beta = 0.0196), P2, contact mesh sizes h_c = a/5,
@@ -43,8 +43,8 @@ def cattaneo_study(mu: float, slide: float, nu: float, factors) -> tuple[list[di
     import dataclasses
 
     from admmkit.problems.contact import solve_scene
-    from admmkit.problems.contact.cattaneo import cattaneo_scene, dundurs_beta, measure_stick
-    from admmkit.problems.contact.hertz import HertzCase
+    from admmkit.problems.contact.validation.cattaneo import cattaneo_scene, dundurs_beta, measure_stick
+    from admmkit.problems.contact.validation.hertz import HertzCase
 
     case = HertzCase(nu=nu)
     rows, finest = [], {}
@@ -84,7 +84,7 @@ def stability_study(h: float, scales, max_iter: int) -> list[dict]:
     from admmkit import ResidualTolerance
     from admmkit.benchmarks.rules.methods import admm_methods, resolve
     from admmkit.problems.contact import assemble, solve_scene
-    from admmkit.problems.contact.tresca_qp import tresca_cvxpy
+    from admmkit.problems.contact.solvers.tresca_qp import tresca_cvxpy
 
     rows = []
     for name, scene in _scenes(h).items():
@@ -134,8 +134,8 @@ def _figures(out: Path, rows: list[dict], finest: dict, stab: list[dict], scales
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from admmkit.problems.contact.cattaneo import cattaneo_traction
-    from admmkit.problems.contact.hertz import hertz_pressure
+    from admmkit.problems.contact.validation.cattaneo import cattaneo_traction
+    from admmkit.problems.contact.validation.hertz import hertz_pressure
 
     m, case = finest["m"], finest["case"]
     x, order = finest["x"], np.argsort(finest["x"])
@@ -197,7 +197,7 @@ def _figures(out: Path, rows: list[dict], finest: dict, stab: list[dict], scales
 
 
 def _readme(out: Path, argv: list[str], rows, stab, seconds: float, args) -> None:
-    from admmkit.problems.contact.cattaneo import dundurs_beta
+    from admmkit.problems.contact.validation.cattaneo import dundurs_beta
     lines = [f"# Friction validation", "",
              f"Produced by `python -m admmkit.benchmarks.contact.friction_validation {' '.join(argv)}` in {seconds:.0f} s "
              f"(BLAS on one thread, a shared 2-core machine).", "",

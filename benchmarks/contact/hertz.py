@@ -1,7 +1,7 @@
 """The Hertz validation study: a and p0 against Hertz on meshes refined near the contact.
 
 ``admmkit bench hertz`` runs :func:`run_hertz_study`: for h_c = a_target/k,
-k in ``ks``, it meshes the half-cylinder of :mod:`admmkit.problems.contact.hertz`,
+k in ``ks``, it meshes the half-cylinder of :mod:`admmkit.problems.contact.validation.hertz`,
 solves with SADMM (rho_0 = 1e3, the paper's stopping rule), and writes
 
 - ``hertz.md`` / ``hertz.csv``: unknowns, h_c, load P, a and p0 computed and
@@ -19,9 +19,9 @@ import numpy as np
 
 from admmkit import RelativeChange
 
-from admmkit.problems.contact.assembly import assemble
-from admmkit.problems.contact.hertz import HertzCase, hertz_pressure, measure
-from admmkit.problems.contact.methods import solve_scene
+from admmkit.problems.contact.model.assembly import assemble
+from admmkit.problems.contact.validation.hertz import HertzCase, hertz_pressure, measure
+from admmkit.problems.contact.solvers.methods import solve_scene
 from admmkit.figures import pyplot, save_figure
 from admmkit.io import write_text
 

@@ -14,7 +14,7 @@ Written to ``out``: CPU-time tables shaped like the paper's Tables 1 and 2 with
 the paper's figures beside ours (:mod:`admmkit.benchmarks.contact.paper_tables`, from the data
 file ``benchmarks/contact/data/paper_tables.json``), iteration tables, the true error
 at the stop against a tight reference solution of the same discrete problem
-(:mod:`admmkit.problems.contact.reference`), the figures (the paper's Figs 1-4 and the
+(:mod:`admmkit.problems.contact.validation.reference`), the figures (the paper's Figs 1-4 and the
 contact pressure / gap along Gamma_C) and a README.md saying what each file is.
 """
 from __future__ import annotations
@@ -27,11 +27,11 @@ from pathlib import Path
 
 from admmkit.figures import pyplot, save_figure
 from admmkit.policies.paper_methods import LABELS as METHOD_LABELS
-from admmkit.problems.contact.assembly import assemble
-from admmkit.problems.contact.methods import solve_scene
-from admmkit.problems.contact.plot import figure_deformed, figure_pressure_gap
-from admmkit.problems.contact.reference import errors_against, reference_solution
-from admmkit.problems.contact.scene import example1, example2
+from admmkit.problems.contact.model.assembly import assemble
+from admmkit.problems.contact.solvers.methods import solve_scene
+from admmkit.problems.contact.output.plot import figure_deformed, figure_pressure_gap
+from admmkit.problems.contact.validation.reference import errors_against, reference_solution
+from admmkit.problems.contact.model.scene import example1, example2
 
 from admmkit.benchmarks.contact.paper_data import MAGNIFY, METHOD_NAMES, PAPER_HS, PAPER_RHOS, Run
 from admmkit.benchmarks.runner.report import h_label, rho_label

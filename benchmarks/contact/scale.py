@@ -88,7 +88,7 @@ def _write_markdown(path: Path, rows, example, mode, command, wall) -> None:
              f"Produced by `{command}` ({wall:.0f} s in all). SADMM (tau = 2, c_max = 100), rho_0 = 1e3, the paper's "
              "stopping rule (relative change 1e-5 in the energy norm), P1 on the paper's structured mesh. Each size "
              "ran in its own process with BLAS on one thread; `peak` is that process's ru_maxrss (Python, NGSolve and "
-             "the solvers included); `estimate` is what the memory check (`admmkit.problems.contact.memory.memory_need`) "
+             "the solvers included); `estimate` is what the memory check (`admmkit.problems.contact.model.memory.memory_need`) "
              "predicted before anything was assembled. `total` = assembly + setup + SADMM inside the process; "
              "`process` adds the interpreter start and imports.", "",
              "| h | unknowns | contact nodes | status | SADMM it. | CG it. | AMG setups / refreshes | assemble (s) | "

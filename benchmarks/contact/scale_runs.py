@@ -41,9 +41,9 @@ def run_case(example: str, h: float, mode: str, rho: float = 1e3, max_iter: int 
     from admmkit import policies
     from admmkit import RelativeChange
 
-    from admmkit.problems.contact.problem import contact_problem
-    from admmkit.problems.contact.memory import InsufficientMemory, available_memory, memory_need
-    from admmkit.problems.contact.scene import example1, example2
+    from admmkit.problems.contact.solvers.problem import contact_problem
+    from admmkit.problems.contact.model.memory import InsufficientMemory, available_memory, memory_need
+    from admmkit.problems.contact.model.scene import example1, example2
 
     if example not in EXAMPLES:
         raise ValueError(f"example must be one of {', '.join(EXAMPLES)}, got {example!r}")
@@ -52,7 +52,7 @@ def run_case(example: str, h: float, mode: str, rho: float = 1e3, max_iter: int 
     t0 = time.perf_counter()
     try:
         if example == "ex2_3d":
-            from admmkit.problems.contact.scene3d import assemble3d, example2_3d, memory_need3d
+            from admmkit.problems.contact.model.scene3d import assemble3d, example2_3d, memory_need3d
             scene = example2_3d(h=h)
             need, have = memory_need3d(scene, mode), available_memory()
         else:
@@ -65,7 +65,7 @@ def run_case(example: str, h: float, mode: str, rho: float = 1e3, max_iter: int 
     if need > have:
         return row | {"status": "refused", "message": f"needs about {need / 2**30:.3g} GiB, "
                                                       f"{have / 2**30:.3g} GiB available"}
-    from admmkit.problems.contact.assembly import assemble
+    from admmkit.problems.contact.model.assembly import assemble
     ops = assemble3d(scene) if example == "ex2_3d" else assemble(scene)
     t1 = time.perf_counter()
     problem = contact_problem(ops, mode=mode)

@@ -46,10 +46,10 @@ FALSE_STOP = 1e-3   # an error above this where the paper's rule fires counts as
 
 def contact_case(h: float = 1 / 20):
     """(name, make_problem, relative_error, rho_0 values) for contact Example 1 in the condensed mode."""
-    from admmkit.problems.contact.assembly import assemble
-    from admmkit.problems.contact.problem import contact_problem
-    from admmkit.problems.contact.reference import reference_solution
-    from admmkit.problems.contact.scene import example1
+    from admmkit.problems.contact.model.assembly import assemble
+    from admmkit.problems.contact.solvers.problem import contact_problem
+    from admmkit.problems.contact.validation.reference import reference_solution
+    from admmkit.problems.contact.model.scene import example1
     ops = assemble(example1(h))
     ref = reference_solution(ops)
     # the condensed iterate of the reference: u = K^{-1}(f + B'w) with w = -M_c lam (s = 1)
@@ -79,12 +79,12 @@ def tresca_case(h: float = 1 / 20):
     """(name, make_problem, relative_error, rho_0 values) for contact Example 1 with Tresca friction (s = 2).
 
     Full mode (x = u), the error in the energy norm against an independent
-    second-order-cone solve (cvxpy + Clarabel, :mod:`admmkit.problems.contact.tresca_qp`).
+    second-order-cone solve (cvxpy + Clarabel, :mod:`admmkit.problems.contact.solvers.tresca_qp`).
     """
-    from admmkit.problems.contact.assembly import assemble
-    from admmkit.problems.contact.problem import contact_problem
-    from admmkit.problems.contact.scene_file import load_scene
-    from admmkit.problems.contact.tresca_qp import tresca_cvxpy
+    from admmkit.problems.contact.model.assembly import assemble
+    from admmkit.problems.contact.solvers.problem import contact_problem
+    from admmkit.problems.contact.model.scene_file import load_scene
+    from admmkit.problems.contact.solvers.tresca_qp import tresca_cvxpy
     ops = assemble(load_scene("ex1_tresca", h=h))
     u_ref = tresca_cvxpy(ops)[0]
 

@@ -76,7 +76,7 @@ assert abs(result.kkt["contact_force"] - 10.30) < 0.1   # 10.296 at h = 1/40, 10
 
 # %%
 import matplotlib.pyplot as plt
-from admmkit.problems.contact.plot import plot_deformed, plot_pressure_gap
+from admmkit.problems.contact.output.plot import plot_deformed, plot_pressure_gap
 
 fig, ax = plt.subplots(figsize=(9, 4.2))
 pc = plot_deformed(ax, ops, sol.u, magnify=10, title=f"Example 1, SADMM, h = 1/{round(1 / H)}")

@@ -124,7 +124,7 @@ assert mine.result.converged and mine.result.iterations <= 2 * sadmm.result.iter
 # %%
 import numpy as np
 
-from admmkit.problems.contact.reference import reference_solution
+from admmkit.problems.contact.validation.reference import reference_solution
 from admmkit.problems.obstacle import make_problem, radial, solve_with_cvxpy as obstacle_reference
 from admmkit.problems.qp import random_qp
 from admmkit.problems.qp.reference import solve_with_cvxpy as qp_reference

@@ -25,7 +25,7 @@ import numpy as np
 import admmkit
 from admmkit import policies  # noqa: F401  (registers the built-in rules)
 from admmkit.problems.contact import assemble, example1, solve_scene
-from admmkit.problems.contact.tresca_qp import tresca_cvxpy
+from admmkit.problems.contact.solvers.tresca_qp import tresca_cvxpy
 
 
 @admmkit.register_policy("halving_balance")

@@ -5,14 +5,14 @@
     print(sol.result.summary())
 
 Your own NGSolve mesh, space and forms: ``contact_operators(fes, a, f, contact, gap)``
-(problems/contact/custom.py), solved the same way.
+(problems/contact/model/custom.py), solved the same way.
 """
-from .assembly import ContactOperators, assemble
-from .custom import contact_operators
-from .methods import METHODS, ContactSolution, method, solve_scene
-from .problem import CondensedContact, FullContact, contact_problem
-from .scene import Scene, example1, example2
-from .scene_file import load_scene
+from admmkit.problems.contact.model.assembly import ContactOperators, assemble
+from admmkit.problems.contact.model.custom import contact_operators
+from admmkit.problems.contact.solvers.methods import METHODS, ContactSolution, method, solve_scene
+from admmkit.problems.contact.solvers.problem import CondensedContact, FullContact, contact_problem
+from admmkit.problems.contact.model.scene import Scene, example1, example2
+from admmkit.problems.contact.model.scene_file import load_scene
 
 __all__ = ["Scene", "example1", "example2", "load_scene", "assemble", "ContactOperators", "contact_problem",
            "FullContact", "CondensedContact", "METHODS", "method", "solve_scene", "ContactSolution",

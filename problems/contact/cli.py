@@ -12,9 +12,9 @@ from pathlib import Path
 from admmkit.cli import (add_common_options, add_output_file, add_result_outputs, exit_code, positive_float,
                          print_summary, progress, resolve_policy, stop_rule, write_result_csv)
 
-from .friction import TANGENTIAL
-from .methods import METHODS
-from .problem import MODES
+from admmkit.problems.contact.solvers.friction import TANGENTIAL
+from admmkit.problems.contact.solvers.methods import METHODS
+from admmkit.problems.contact.solvers.problem import MODES
 
 
 def register(subparsers) -> None:
@@ -51,9 +51,9 @@ def register(subparsers) -> None:
 
 
 def _scene(args):
-    from .cli_output import apply_friction_options
-    from .scene import SCENES_DIR
-    from .scene_file import load_scene
+    from admmkit.problems.contact.output.cli_output import apply_friction_options
+    from admmkit.problems.contact.model.scene import SCENES_DIR
+    from admmkit.problems.contact.model.scene_file import load_scene
     name = str(args.scene)
     path = Path(name)
     if not path.exists() and not (SCENES_DIR / f"{path.name}.toml").exists():
@@ -74,9 +74,9 @@ def _scene(args):
 
 def run(args) -> int:
     """Build the scene, solve it, print the summary and write the requested files; 0 only if converged."""
-    from .cli_output import csv_columns, friction_line
-    from .export import boundary_fields, vtu_fields, write_json, write_vtu
-    from .methods import solve_scene
+    from admmkit.problems.contact.output.cli_output import csv_columns, friction_line
+    from admmkit.problems.contact.output.export import boundary_fields, vtu_fields, write_json, write_vtu
+    from admmkit.problems.contact.solvers.methods import solve_scene
 
     order, _, name = resolve_policy(args)          # refuses an unknown --policy before anything is built
     stop = stop_rule(args)
@@ -107,7 +107,7 @@ def run(args) -> int:
     if args.csv:
         print(f"csv          {write_result_csv(args.csv, csv_columns(sol, fields))}")
     if args.plot:
-        from .plot import figure_solution
+        from admmkit.problems.contact.output.plot import figure_solution
         magnify = args.magnify or (10.0 if scene.name.startswith("example1") else 20.0)
         figure_solution(ops, r.x, fields["contact_pressure"], magnify,
                         f"{scene.name or args.scene}: {name}, rho_0 = {args.rho:g}, h = {scene.h:.4g}, "

@@ -3,9 +3,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from .methods import solve_scene
-from .plot import figure_solution
-from .scene import example1, example2
+from admmkit.problems.contact.solvers.methods import solve_scene
+from admmkit.problems.contact.output.plot import figure_solution
+from admmkit.problems.contact.model.scene import example1, example2
 
 
 def run_demo(out: str | Path = "out/demo", h: float = 1 / 40, rho: float = 1e3) -> int:

@@ -52,7 +52,7 @@ def test_a_diverged_run_exits_1(argv, capsys, monkeypatch):
         result.status = Status.DIVERGED
         return result
     monkeypatch.setattr(cli, "solve", diverging)          # solve qp / obstacle (admmkit.cli.run_solve)
-    monkeypatch.setattr(admmkit, "solve", diverging)      # solve contact (admmkit.problems.contact.methods.solve_scene)
+    monkeypatch.setattr(admmkit, "solve", diverging)      # solve contact (admmkit.problems.contact.solvers.methods.solve_scene)
     code, out, _ = run(argv, capsys)
     assert code == 1 and "status       diverged" in out
 

@@ -12,9 +12,9 @@ import admmkit
 from admmkit import policies
 from admmkit import RelativeChange
 from admmkit.iterative import IterativeXSolver, PencilMatrix, SolutionSpace, node_blocks
-from admmkit.problems.contact.iterative import rigid_body_modes
+from admmkit.problems.contact.solvers.iterative import rigid_body_modes
 from admmkit.problems.contact import assemble, example1, example2, solve_scene
-from admmkit.problems.contact.problem import contact_problem
+from admmkit.problems.contact.solvers.problem import contact_problem
 
 
 def _elasticity(mesh, dirichlet=""):
@@ -222,9 +222,9 @@ def test_obstacle_iterative_backend_matches_the_direct_one():
 # ---------------------------------------------------------------- the array-built structured mesh
 @pytest.mark.parametrize("L, H, h", [(2.0, 1.0, 1 / 10), (3.0, 1.0, 1 / 7), (1.0, 2.0, 0.5)])
 def test_structured_rectangle_is_makestructured2dmesh(L, H, h):
-    """admmkit.problems.contact.mesh.structured_rectangle (arrays) builds MakeStructured2DMesh's mesh exactly,
+    """admmkit.problems.contact.model.mesh.structured_rectangle (arrays) builds MakeStructured2DMesh's mesh exactly,
     so the assembled operators of the paper's examples are bit-for-bit unchanged."""
-    from admmkit.problems.contact.mesh import grid_counts, structured_rectangle
+    from admmkit.problems.contact.model.mesh import grid_counts, structured_rectangle
     nx, ny = grid_counts(L, H, h)
     ref = MakeStructured2DMesh(quads=False, nx=nx, ny=ny, flip_triangles=True, mapping=lambda x, y: (L * x, H * y))
     new = structured_rectangle(L, H, h)
@@ -251,10 +251,11 @@ def test_run_case_in_a_subprocess_reports_time_memory_and_refusals():
 
 def test_run_case_reports_a_scene_refused_for_memory_as_refused(monkeypatch):
     # when not even the iterative mode fits in what is available now, the scene itself refuses (a
-    # admmkit.problems.contact.memory.InsufficientMemory): the case is a refusal, not a crash of the study
+    # admmkit.problems.contact.model.memory.InsufficientMemory): the case is a refusal, not a crash of the study
     from admmkit.benchmarks.contact import scale_runs
-    from admmkit.problems.contact import memory, scene
-    from admmkit.problems.contact.memory import InsufficientMemory
+    from admmkit.problems.contact.model import memory
+    from admmkit.problems.contact.model import scene
+    from admmkit.problems.contact.model.memory import InsufficientMemory
     for module in (memory, scene, scale_runs):
         monkeypatch.setattr(module, "available_memory", lambda: 2**20, raising=False)
     with pytest.raises(InsufficientMemory, match="GiB available"):
@@ -318,7 +319,7 @@ def test_axpy_refresh_equals_the_galerkin_product_for_the_new_rho():
 def test_auto_mode_follows_the_measured_crossovers():
     from types import SimpleNamespace
 
-    from admmkit.problems.contact.problem import auto_mode
+    from admmkit.problems.contact.solvers.problem import auto_mode
     fake = lambda n, n_c, dim: SimpleNamespace(n_free=n, n_c=n_c, mesh=SimpleNamespace(dim=dim), scene=None,  # noqa: E731
                                                friction=None)
     assert auto_mode(fake(1_000_000, 1000, 2)) == "condensed"     # the condensed mode won at every 2D size measured

@@ -9,7 +9,7 @@ from admmkit.cli import main
 from admmkit.problems.contact import example1, solve_scene
 from admmkit.benchmarks.contact.paper import run_reproduction
 from admmkit.benchmarks.contact.paper_data import paper_time, paper_times
-from admmkit.problems.contact.plot import vertex_displacement
+from admmkit.problems.contact.output.plot import vertex_displacement
 
 
 def test_solve_contact_writes_files(tmp_path, capsys):

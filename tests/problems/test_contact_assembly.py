@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 import scipy.sparse.linalg as sla
 
-from admmkit.problems.contact.assembly import assemble, lame
-from admmkit.problems.contact.mesh import structured_rectangle, unstructured_rectangle
-from admmkit.problems.contact.scene import Scene, example1, example2
-from admmkit.problems.contact.scene_file import load_scene
+from admmkit.problems.contact.model.assembly import assemble, lame
+from admmkit.problems.contact.model.mesh import structured_rectangle, unstructured_rectangle
+from admmkit.problems.contact.model.scene import Scene, example1, example2
+from admmkit.problems.contact.model.scene_file import load_scene
 
 H = 1 / 40
 

@@ -11,8 +11,8 @@ import pytest
 
 from admmkit import ResidualTolerance
 from admmkit.problems.contact import assemble, example1, example2, solve_scene
-from admmkit.problems.contact.assembly import build_mesh, lame
-from admmkit.problems.contact.export import boundary_fields, write_json, write_vtu
+from admmkit.problems.contact.model.assembly import build_mesh, lame
+from admmkit.problems.contact.output.export import boundary_fields, write_json, write_vtu
 
 # -- docs example start
 import ngsolve as ng
@@ -144,7 +144,7 @@ def test_orthotropy_changes_the_solution():
 
 
 def test_tresca_friction_on_the_user_mesh_matches_clarabel():
-    from admmkit.problems.contact.tresca_qp import tresca_cvxpy
+    from admmkit.problems.contact.solvers.tresca_qp import tresca_cvxpy
     tops = contact_operators(fes, a, f, contact="bottom", gap="0.01 + 0.005*(x - 1)**2", tangential="tresca",
                              slip_bound=1.0)
     u_ref, p_ref, q_ref = tresca_cvxpy(tops)
@@ -221,7 +221,7 @@ def test_stick_through_the_space():
 # ---------------------------------------------------------------- 3D (P1 tetrahedra)
 def test_user_forms_reproduce_assemble3d():
     """The 3D block with Coulomb friction: the same operators and iterates as assemble3d."""
-    from admmkit.problems.contact.scene3d import assemble3d, block_mesh, example2_3d
+    from admmkit.problems.contact.model.scene3d import assemble3d, block_mesh, example2_3d
     scene = example2_3d(h=1 / 4, tangential="coulomb", mu=0.3)
     ref = assemble3d(scene)
     mesh3 = block_mesh(scene.Lx, scene.Ly, scene.Lz, scene.h)
@@ -254,7 +254,7 @@ def orthotropic_3d(E, nu, G):
 
 def test_unstructured_3d_orthotropic_block_with_a_hole_matches_clarabel():
     from netgen.occ import Box, Cylinder, Pnt, Z
-    from admmkit.problems.contact.tresca_qp import tresca_cvxpy
+    from admmkit.problems.contact.solvers.tresca_qp import tresca_cvxpy
     body = Box(Pnt(0, 0, 0), Pnt(2, 1, 1))
     body.faces.Min(Z).name, body.faces.Max(Z).name, body.faces.Min(X).name = "bottom", "top", "left"
     body = body - Cylinder(Pnt(1.0, 0.0, 0.6), Y, r=0.2, h=1.0)
@@ -272,7 +272,7 @@ def test_unstructured_3d_orthotropic_block_with_a_hole_matches_clarabel():
     f3 += ng.CF((0.5, 0.0, -3.0)) * v3 * ng.ds("top")
     gap3 = "0.002 + 0.002*(x - 1)**2 + 0.001*(y - 0.5)**2"
     ops3 = contact_operators(fes3, a3, f3, contact="bottom", gap=gap3)
-    from admmkit.problems.contact.custom import face_nodes
+    from admmkit.problems.contact.model.custom import face_nodes
     assert np.allclose(ops3.normals, [0, 0, -1]) and ops3.mc.sum() < 2.0
     assert face_nodes(mesh3, "bottom", lambda v: False)[2].sum() == pytest.approx(2.0, rel=1e-12)  # the face's area
     u_ref, lam_ref = clarabel_qp(ops3)

@@ -11,7 +11,7 @@ from admmkit.cli import main
 from admmkit.cli_output import write_result_csv
 from admmkit.io import write_text
 from admmkit.problems.contact import example1, example2, solve_scene
-from admmkit.problems.contact.export import boundary_fields, contact_status, write_vtu
+from admmkit.problems.contact.output.export import boundary_fields, contact_status, write_vtu
 
 BOUNDARY = {"contact_pressure", "gap", "initial_gap", "normal_displacement", "contact_status"}
 
@@ -70,7 +70,7 @@ def test_p2_vtu_has_quadratic_triangles():
 
 def test_3d_vtu_is_double_precision_and_meshio_reads_it(tmp_path):
     from admmkit.benchmarks.contact.contact3d import write_vtk
-    from admmkit.problems.contact.scene3d import assemble3d, example2_3d
+    from admmkit.problems.contact.model.scene3d import assemble3d, example2_3d
     ops = assemble3d(example2_3d(h=1 / 4))
     sol = solve_scene(ops, "sadmm", 1e3)
     path = write_vtk(ops, sol.result.x, sol.result.lam, tmp_path / "sub" / "c3d", p=sol.result.z)

@@ -5,10 +5,10 @@ import pytest
 
 from admmkit import ResidualTolerance
 from admmkit.problems.contact import Scene, assemble, example1, example2, solve_scene
-from admmkit.problems.contact.coulomb import coulomb_fixed_point
-from admmkit.problems.contact.friction import Friction, friction_z_step, shrink, tangent_frames
-from admmkit.problems.contact.scene3d import Scene3D, assemble3d, example2_3d
-from admmkit.problems.contact.tresca_qp import tresca_cvxpy
+from admmkit.problems.contact.solvers.coulomb import coulomb_fixed_point
+from admmkit.problems.contact.solvers.friction import Friction, friction_z_step, shrink, tangent_frames
+from admmkit.problems.contact.model.scene3d import Scene3D, assemble3d, example2_3d
+from admmkit.problems.contact.solvers.tresca_qp import tresca_cvxpy
 
 TIGHT = ResidualTolerance(1e-12, 1e-12)
 
@@ -186,7 +186,7 @@ def test_bad_friction_objects():
     with pytest.raises(ValueError, match="slip_bound: negative"):
         Friction("tresca", -np.ones(3))
     ops = assemble(example1(h=1 / 4, tangential="coulomb", mu=0.1))
-    from admmkit.problems.contact.problem import contact_problem
+    from admmkit.problems.contact.solvers.problem import contact_problem
     with pytest.raises(ValueError, match="coulomb tol"):
         coulomb_fixed_point(contact_problem(ops), lambda warm: None, 0.1, tol=0.0)
 

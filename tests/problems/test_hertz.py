@@ -7,9 +7,9 @@ import pytest
 
 from admmkit.cli import main
 from admmkit.problems.contact import Scene, assemble, solve_scene
-from admmkit.problems.contact.hertz import (HertzCase, e_star, hertz_half_width, hertz_load, hertz_peak_pressure,
+from admmkit.problems.contact.validation.hertz import (HertzCase, e_star, hertz_half_width, hertz_load, hertz_peak_pressure,
                                     hertz_pressure, measure)
-from admmkit.problems.contact.scene_file import load_scene
+from admmkit.problems.contact.model.scene_file import load_scene
 
 
 def test_hertz_formulas_are_consistent():

@@ -63,5 +63,5 @@ def test_contact_scenes_in_range_never_raise(L, H, E, nu, gap, cells, method, me
     r = sol.result
     assert r.status.value in STATUSES
     if r.status is Status.CONVERGED:   # within 1e-3 of an independent interior-point solve of the same problem
-        from admmkit.problems.contact.reference import errors_against, reference_solution
+        from admmkit.problems.contact.validation.reference import errors_against, reference_solution
         assert errors_against(sol.ops, reference_solution(sol.ops), r.x, r.lam)["err_u_energy"] < 1e-3

@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from admmkit.problems.contact import Scene, assemble, example1, load_scene
-from admmkit.problems.contact.expressions import FUNCTIONS, expression
-from admmkit.problems.contact.scene_file import TOML_KEYS
+from admmkit.problems.contact.model.expressions import FUNCTIONS, expression
+from admmkit.problems.contact.model.scene_file import TOML_KEYS
 
 # (expression, the same in Python) for every documented function
 CASES = {

@@ -5,7 +5,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg  # noqa: F401  (sp.linalg)
 
 from admmkit.problems.contact import assemble, example1, example2
-from admmkit.problems.contact.schur import BoundarySchur, available_schur_backends, minimum_degree_ordering
+from admmkit.problems.contact.solvers.schur import BoundarySchur, available_schur_backends, minimum_degree_ordering
 
 
 @pytest.fixture(scope="module", params=["ex1", "ex2"])

@@ -35,7 +35,7 @@ def audit(make_problem, error, stop):
 @pytest.fixture(scope="module")
 def contact():
     from admmkit.problems.contact import assemble, example1
-    from admmkit.problems.contact.reference import errors_against, reference_solution
+    from admmkit.problems.contact.validation.reference import errors_against, reference_solution
     ops = assemble(example1(h=1 / 20))
     ref = reference_solution(ops)
     return ops, lambda r: errors_against(ops, ref, r.x, r.lam)["err_u_energy"]
@@ -43,7 +43,7 @@ def contact():
 
 @pytest.mark.parametrize("stop", STOPS)
 def test_contact_never_reports_converged_far_from_the_solution(contact, stop):
-    from admmkit.problems.contact.problem import contact_problem
+    from admmkit.problems.contact.solvers.problem import contact_problem
     ops, error = contact
     outcomes, false = audit(lambda: contact_problem(ops), error, stop)
     assert false == []

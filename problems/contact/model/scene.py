@@ -1,7 +1,7 @@
 """Declarative description of a 2D plane-strain contact problem (frictionless, stick, Tresca or Coulomb).
 
 A :class:`Scene` says *what* is solved (geometry, mesh, material, boundary
-conditions, gap); :func:`admmkit.problems.contact.assembly.assemble` turns it into matrices.
+conditions, gap); :func:`admmkit.problems.contact.model.assembly.assemble` turns it into matrices.
 Every scene is validated when it is built, so bad input fails early with a
 ``ValueError`` that names the parameter and the accepted range.
 """
@@ -13,13 +13,13 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Mapping
 
-from .expressions import as_function as _as_func, expression, finite_positive as _finite_positive
-from .friction import TANGENTIAL, check_friction_fields
-from .memory import InsufficientMemory, available_memory, estimate_memory, rectangle_measure
-from .mesh import BOUNDARY_NAMES
+from admmkit.problems.contact.model.expressions import as_function as _as_func, expression, finite_positive as _finite_positive
+from admmkit.problems.contact.solvers.friction import TANGENTIAL, check_friction_fields
+from admmkit.problems.contact.model.memory import InsufficientMemory, available_memory, estimate_memory, rectangle_measure
+from admmkit.problems.contact.model.mesh import BOUNDARY_NAMES
 
 MESH_KINDS = ("structured", "unstructured")
-SCENES_DIR = Path(__file__).with_name("scenes")
+SCENES_DIR = Path(__file__).parents[1] / "scenes"   # problems/contact/scenes: the package data
 #: more cells than this is refused outright (the memory check refuses far fewer; this keeps its arithmetic finite)
 MAX_CELLS = 1e12
 
@@ -47,7 +47,7 @@ class Scene:
     Tresca friction (tangential traction at most s) with the slip bound ``slip_bound`` = s(x, y) >= 0
     (``"tresca"``) or Coulomb friction (at most mu times the pressure) with the coefficient ``mu`` >= 0
     (``"coulomb"``); ``obstacle_slide`` moves the foundation by that tangential displacement
-    (along t = (-n_y, n_x); friction only), see ``problems/contact/friction.py`` and docs/friction.md.
+    (along t = (-n_y, n_x); friction only), see ``problems/contact/solvers/friction.py`` and docs/friction.md.
     ``gap`` and ``body_force`` likewise accept numbers, callables or expressions in x, y.
     ``contact_normal``: None measures u.n along the body's outward normal at each contact
     node; a pair (nx, ny) measures it along that fixed direction instead, the outward

@@ -1,6 +1,6 @@
 """What the contact plug-in's iterative mode needs from the mesh: the AMG's near-null space.
 
-The iterative mode (:class:`admmkit.problems.contact.problem.IterativeContact`) solves
+The iterative mode (:class:`admmkit.problems.contact.solvers.problem.IterativeContact`) solves
 the x-step (12) with :class:`admmkit.iterative.IterativeXSolver`, whose
 smoothed-aggregation AMG wants the rigid body modes of the body and the dofs
 of each node.  Works in 2D and 3D, P1 and P2.
@@ -11,7 +11,7 @@ import numpy as np
 
 from admmkit.iterative import node_blocks
 
-from .assembly import ContactOperators
+from admmkit.problems.contact.model.assembly import ContactOperators
 
 
 def rigid_body_modes(points: np.ndarray, component: np.ndarray) -> np.ndarray:

@@ -1,6 +1,6 @@
 """Cattaneo-Mindlin partial slip of a cylinder: the Coulomb validation (plane strain).
 
-The Hertz half-cylinder of :mod:`admmkit.problems.contact.hertz` (radius R, top
+The Hertz half-cylinder of :mod:`admmkit.problems.contact.validation.hertz` (radius R, top
 clamped, the plane raised by delta) is also sheared: the plane moves by
 ``obstacle_slide`` = delta_t along x, the same as moving the clamped top by
 -delta_t.  With the measured normal load P and tangential load Q < mu P,
@@ -28,7 +28,7 @@ import math
 
 import numpy as np
 
-from .hertz import HertzCase, hertz_half_width, hertz_peak_pressure
+from admmkit.problems.contact.validation.hertz import HertzCase, hertz_half_width, hertz_peak_pressure
 
 
 def dundurs_beta(nu: float) -> float:
@@ -67,9 +67,9 @@ def measure_stick(sol, case: HertzCase, mu: float) -> dict:
     P = sum mc p_n and Q = |sum mc q| (measured); c_h: on each side, d = mu p_n - |q| (zero in the
     slip zone, ~ sqrt(c^2 - x^2) inside the stick zone near its edge) has d^2 linear in x^2, extrapolated
     to zero from the two outermost stick nodes; c_h the mean of both sides, ``stick_shift`` half their
-    difference (0 without coupling).  a_h as in :func:`admmkit.problems.contact.hertz.measure`.
+    difference (0 without coupling).  a_h as in :func:`admmkit.problems.contact.validation.hertz.measure`.
     """
-    from .hertz import measure
+    from admmkit.problems.contact.validation.hertz import measure
     ops = sol.ops
     x = ops.xc[:, 0]
     p = sol.pressure

@@ -14,9 +14,9 @@ import numpy as np
 
 import admmkit
 
-from .assembly import ContactOperators
-from .methods import solve_scene
-from .problem import contact_problem
+from admmkit.problems.contact.model.assembly import ContactOperators
+from admmkit.problems.contact.solvers.methods import solve_scene
+from admmkit.problems.contact.solvers.problem import contact_problem
 
 
 @dataclass

@@ -53,7 +53,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .scene import Scene
+from admmkit.problems.contact.model.scene import Scene
 
 PROFILES = ("circle", "parabola")
 

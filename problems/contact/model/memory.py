@@ -1,9 +1,9 @@
 """The memory model of the contact runs: estimates checked before anything is assembled.
 
-2D (:class:`admmkit.problems.contact.scene.Scene`): :func:`estimate_memory` of the
+2D (:class:`admmkit.problems.contact.model.scene.Scene`): :func:`estimate_memory` of the
 assembled system and a factorisation or the AMG-CG solver, :func:`memory_need`
 of a whole run in a mode, :func:`check_memory` that refuses a run that would
-not fit.  3D (:class:`admmkit.problems.contact.scene3d.Scene3D`):
+not fit.  3D (:class:`admmkit.problems.contact.model.scene3d.Scene3D`):
 :func:`estimate_memory3d` and :func:`memory_need3d`.  The calibration runs are
 in docs/results/scale/ (scale.md, contact3d.md).
 """
@@ -12,7 +12,7 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-from .mesh import grid_counts
+from admmkit.problems.contact.model.mesh import grid_counts
 
 
 def available_memory() -> int:

@@ -20,7 +20,7 @@ tangential part.  At a solution lam = (p_n, q) holds the contact pressure
 p_n = -sigma_n >= 0 and the tangential traction q = -sigma_t, the force per
 unit length the body exerts on the foundation along t, with |q_i| <= s_i and
 q_i = s_i (slip direction) where the node slips.  Coulomb's law takes
-s = mu p_n (:mod:`admmkit.problems.contact.coulomb`).
+s = mu p_n (:mod:`admmkit.problems.contact.solvers.coulomb`).
 """
 from __future__ import annotations
 

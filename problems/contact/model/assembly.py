@@ -1,7 +1,7 @@
 """Discrete contact operators: min 1/2 u'Ku - f'u [+ j(T u)]  subject to  B u <= g.
 
 With friction T maps u to its tangential components at the contact nodes and
-j is the Tresca functional (:mod:`admmkit.problems.contact.friction`).
+j is the Tresca functional (:mod:`admmkit.problems.contact.solvers.friction`).
 
 The pairing (v_n, q)_Gc is approximated by nodal quadrature, sum_i mc_i v_n(x_i) q_i,
 over the contact nodes x_i (vertices, and for P2 also edge midpoints, of Gamma_C
@@ -15,9 +15,9 @@ import ngsolve as ng
 import numpy as np
 import scipy.sparse as sp
 
-from .friction import Friction, friction_of, tangent_frames
-from .mesh import geometry_mesh, structured_rectangle, unstructured_rectangle
-from .scene import Scene
+from admmkit.problems.contact.solvers.friction import Friction, friction_of, tangent_frames
+from admmkit.problems.contact.model.mesh import geometry_mesh, structured_rectangle, unstructured_rectangle
+from admmkit.problems.contact.model.scene import Scene
 
 
 @dataclass

@@ -30,11 +30,11 @@ import ngsolve as ng
 import numpy as np
 import scipy.sparse as sp
 
-from .assembly import ContactOperators, _csr, lame
-from .expressions import as_function, expression, finite_positive
-from .memory import InsufficientMemory, available_memory, estimate_memory3d, memory_need3d  # noqa: F401  (memory_need3d: this scene's)
-from .friction import check_friction_fields, friction_of, tangent_frames
-from .scene import MAX_CELLS, FrozenDict, check_slide
+from admmkit.problems.contact.model.assembly import ContactOperators, _csr, lame
+from admmkit.problems.contact.model.expressions import as_function, expression, finite_positive
+from admmkit.problems.contact.model.memory import InsufficientMemory, available_memory, estimate_memory3d, memory_need3d  # noqa: F401  (memory_need3d: this scene's)
+from admmkit.problems.contact.solvers.friction import check_friction_fields, friction_of, tangent_frames
+from admmkit.problems.contact.model.scene import MAX_CELLS, FrozenDict, check_slide
 
 FACES_3D = ("back", "front", "left", "right", "bottom", "top")
 #: the 6 tetrahedra of a cube (local corners as in MakeStructured3DMesh: 0 = (i,j,k), 1 = k+1,
@@ -96,7 +96,7 @@ class Scene3D:
 
     Tangentially on the contact face: ``"frictionless"`` (default), ``"stick"``
     (u_x = u_y = 0 there), ``"tresca"`` with ``slip_bound`` s(x, y) >= 0 or
-    ``"coulomb"`` with ``mu`` >= 0, as in the 2D :class:`~admmkit.problems.contact.scene.Scene`;
+    ``"coulomb"`` with ``mu`` >= 0, as in the 2D :class:`~admmkit.problems.contact.model.scene.Scene`;
     ``obstacle_slide`` = (w_x, w_y) moves the foundation tangentially (friction only).
     """
 

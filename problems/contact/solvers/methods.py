@@ -11,11 +11,11 @@ import admmkit
 from admmkit import RelativeChange
 from admmkit.policies.paper_methods import PAPER_METHODS as METHODS, method  # noqa: F401  (re-exported)
 
-from .assembly import ContactOperators, assemble
-from .coulomb import CoulombReport, coulomb_fixed_point
-from .memory import check_memory
-from .problem import contact_problem
-from .scene import Scene
+from admmkit.problems.contact.model.assembly import ContactOperators, assemble
+from admmkit.problems.contact.solvers.coulomb import CoulombReport, coulomb_fixed_point
+from admmkit.problems.contact.model.memory import check_memory
+from admmkit.problems.contact.solvers.problem import contact_problem
+from admmkit.problems.contact.model.scene import Scene
 
 
 @dataclass
@@ -61,7 +61,7 @@ class ContactSolution:
     @property
     def zones(self):
         """(n_c,) 0 separated, 1 stick, 2 slip (from the last z-step; None without friction)."""
-        from .friction import stick_slip
+        from admmkit.problems.contact.solvers.friction import stick_slip
         if self.ops.friction is None:
             return None
         return stick_slip(self.result.z, self.ops.g, self.ops.friction.slide)
@@ -79,8 +79,8 @@ class ContactSolution:
 
     @property
     def active_nodes(self) -> int:
-        """Number of active contact nodes (p = g; ``contact_status`` in problems/contact/export.py)."""
-        from .export import contact_status
+        """Number of active contact nodes (p = g; ``contact_status`` in problems/contact/output/export.py)."""
+        from admmkit.problems.contact.output.export import contact_status
         return int(contact_status(self.ops, self.result.z).sum())
 
     def _repr_html_(self) -> str:
@@ -99,19 +99,19 @@ def solve_scene(scene, method_name: str = "sadmm", rho: float = 1e3, *,
                 coulomb_max_outer: int = 30) -> ContactSolution:
     """Assemble (unless operators are given) and solve a scene with a named method.
 
-    ``scene`` is a 2D :class:`Scene`, a 3D ``Scene3D`` (problems/contact/scene3d.py)
+    ``scene`` is a 2D :class:`Scene`, a 3D ``Scene3D`` (problems/contact/model/scene3d.py)
     or assembled :class:`ContactOperators`.
     The default stop is the paper's RelativeChange(1e-5) in the energy norm.
     A direct ``mode`` whose memory estimate exceeds the available memory is
     refused with the estimate before anything is assembled.  The scene's
     ``tangential`` picks the model: frictionless, stick, Tresca (one ADMM run)
-    or Coulomb (the fixed point of problems/contact/coulomb.py, each step a
+    or Coulomb (the fixed point of problems/contact/solvers/coulomb.py, each step a
     warm-started ADMM run with a fresh rule, until the relative change of the
     slip bound is at most ``coulomb_tol`` or ``coulomb_max_outer`` steps).
     """
     import time
 
-    from .scene3d import Scene3D, assemble3d
+    from admmkit.problems.contact.model.scene3d import Scene3D, assemble3d
     default_order, policy = method(method_name)
     if isinstance(scene, Scene) and mode in ("full", "condensed", "iterative"):
         check_memory(scene, mode)

@@ -11,7 +11,7 @@ M_c, so that (the paper's eqs. (11)-(13))
 With friction (Tresca, or each step of Coulomb's fixed point) B is replaced by
 A = [B; T], T the tangential components at the contact nodes, z = (p, p_t),
 M_c acts on every block, and the z-step adds the shrink of the tangential part
-(:mod:`admmkit.problems.contact.friction`, eq. (11t)); every mode below works
+(:mod:`admmkit.problems.contact.solvers.friction`, eq. (11t)); every mode below works
 unchanged with A in place of B (the condensed one on d n_c contact unknowns).
 
 The x norm is the energy norm ||u||_K = sqrt(u'Ku), the norm of V in which
@@ -24,7 +24,7 @@ Two modes give the same iterates (to round-off):
   factorisation per rho value (cached).
 - ``"condensed"``: the nonlinearity lives on Gamma_C only.  With u0 = K^{-1} f,
   d0 = B u0 and the compliance C = B K^{-1} B' (from one factorisation, see
-  :mod:`admmkit.problems.contact.schur`), every iterate is u = s u0 + K^{-1} B' w with
+  :mod:`admmkit.problems.contact.solvers.schur`), every iterate is u = s u0 + K^{-1} B' w with
   (s, w) in R^{1+n_c}, and the x-step is the dense SPD solve
 
       (M_c^{-1} + rho C) w = rho p - lam - rho d0,   s = 1,
@@ -48,10 +48,10 @@ from admmkit.iterative import IterativeXSolver
 from admmkit.operators import LinearMap
 from admmkit.xstep import QuadraticXStep
 
-from .assembly import ContactOperators
-from .base import _ContactBase
-from .iterative import near_null_space
-from .schur import SCHUR_BACKENDS, BoundarySchur
+from admmkit.problems.contact.model.assembly import ContactOperators
+from admmkit.problems.contact.solvers.base import _ContactBase
+from admmkit.problems.contact.solvers.iterative import near_null_space
+from admmkit.problems.contact.solvers.schur import SCHUR_BACKENDS, BoundarySchur
 
 MODES = ("auto", "full", "condensed", "iterative")
 #: below this many contact nodes the condensed mode is chosen by "auto"
@@ -253,9 +253,9 @@ def auto_mode(ops: ContactOperators, backend: str = "auto") -> str:
 
 def _direct_would_not_fit(ops: ContactOperators, mode: str) -> bool:
     """Whether the memory estimate of a direct mode exceeds the available memory."""
-    from .memory import available_memory, memory_need, memory_need3d
-    from .scene import Scene
-    from .scene3d import Scene3D
+    from admmkit.problems.contact.model.memory import available_memory, memory_need, memory_need3d
+    from admmkit.problems.contact.model.scene import Scene
+    from admmkit.problems.contact.model.scene3d import Scene3D
     if isinstance(ops.scene, Scene):
         need = memory_need(ops.scene, mode)
     elif isinstance(ops.scene, Scene3D):

@@ -1,7 +1,7 @@
 """Scene files: a contact scene read from TOML (docs/scenes.md), 2D or 3D.
 
-The keys are the fields of :class:`~admmkit.problems.contact.scene.Scene`
-(2D) or :class:`~admmkit.problems.contact.scene3d.Scene3D` (``dim = 3``);
+The keys are the fields of :class:`~admmkit.problems.contact.model.scene.Scene`
+(2D) or :class:`~admmkit.problems.contact.model.scene3d.Scene3D` (``dim = 3``);
 this module reads both, so neither scene module imports the other's.
 """
 from __future__ import annotations
@@ -9,9 +9,9 @@ from __future__ import annotations
 import tomllib
 from pathlib import Path
 
-from .friction import TANGENTIAL
-from .scene import SCENES_DIR, Scene
-from .scene3d import Scene3D
+from admmkit.problems.contact.solvers.friction import TANGENTIAL
+from admmkit.problems.contact.model.scene import SCENES_DIR, Scene
+from admmkit.problems.contact.model.scene3d import Scene3D
 
 
 TOML_KEYS = {  # key: (accepted types, description); every key is optional, defaults are Scene's (docs/scenes.md)
@@ -31,7 +31,7 @@ TOML_KEYS = {  # key: (accepted types, description); every key is optional, defa
     "mu": ((int, float), "a number (tangential = 'coulomb')"),
     "obstacle_slide": ((int, float), "a number"),
 }
-#: the keys of a 3D scene file (``dim = 3``: a :class:`admmkit.problems.contact.scene3d.Scene3D`)
+#: the keys of a 3D scene file (``dim = 3``: a :class:`admmkit.problems.contact.model.scene3d.Scene3D`)
 TOML_KEYS_3D = {
     "name": ((str,), "a string"), "dim": ((int,), "2 or 3"),
     "Lx": ((int, float), "a number"), "Ly": ((int, float), "a number"), "Lz": ((int, float), "a number"),
@@ -52,7 +52,7 @@ def load_scene(path, **changes):
     """Read a Scene from a TOML file (keys = Scene fields, all optional; docs/scenes.md).
 
     A bare name such as ``"ex1"`` refers to problems/contact/scenes/ex1.toml.
-    ``dim = 3`` makes it a 3D block scene (``Scene3D`` (problems/contact/scene3d.py),
+    ``dim = 3`` makes it a 3D block scene (``Scene3D`` (problems/contact/model/scene3d.py),
     keys ``TOML_KEYS_3D``); otherwise a 2D :class:`Scene`.  The keys may sit at the top level or in a ``[scene]`` table.  ``changes``
     override file values (e.g. ``h=1/80``).  Every problem with the file (not
     found, not UTF-8 text, malformed TOML, an unknown key, a value of the

@@ -1,6 +1,6 @@
 """What every mode of the contact problem shares: the z-step, the inner product of Gamma_C, KKT.
 
-The three modes (:mod:`admmkit.problems.contact.problem`: full, condensed,
+The three modes (:mod:`admmkit.problems.contact.solvers.problem`: full, condensed,
 iterative) differ only in their x-step and in what x is; the constraint
 space, the z-step (a projection, or the friction law's), the objective and
 the KKT residuals are the same, written here once.
@@ -12,8 +12,8 @@ import scipy.sparse as sp
 
 from admmkit import Problem
 
-from .assembly import ContactOperators
-from .friction import friction_z_step, stick_slip
+from admmkit.problems.contact.model.assembly import ContactOperators
+from admmkit.problems.contact.solvers.friction import friction_z_step, stick_slip
 
 
 class _ContactBase(Problem):
@@ -22,7 +22,7 @@ class _ContactBase(Problem):
     Frictionless (or stick): A = B, the constraint space is R^{n_c} with M_c.
     With friction: A = [B; T] (normal, then the tangential components, each a
     block of n_c), the inner product M_c on every block, and the z-step is the
-    projection plus Tresca's shrink (:func:`admmkit.problems.contact.friction.friction_z_step`).
+    projection plus Tresca's shrink (:func:`admmkit.problems.contact.solvers.friction.friction_z_step`).
     """
 
     c = 0.0

@@ -1,6 +1,6 @@
 """Contact operators from your own NGSolve mesh, space and forms (issue #18).
 
-A :class:`~admmkit.problems.contact.scene.Scene` describes a rectangle (or a netgen
+A :class:`~admmkit.problems.contact.model.scene.Scene` describes a rectangle (or a netgen
 geometry) of an isotropic plane-strain material.  Anything else, an
 unstructured mesh of your own, an orthotropic or graded material, extra terms
 in the energy, a point load, is written in NGSolve and handed in here:
@@ -12,16 +12,16 @@ in the energy, a point load, is written in NGSolve and handed in here:
     ops = contact_operators(fes, a, f, contact="bottom", gap=0.01)
     sol = solve_scene(ops, "sadmm", rho=1e3)
 
-The discrete problem is the one of :func:`admmkit.problems.contact.assembly.assemble`,
+The discrete problem is the one of :func:`admmkit.problems.contact.model.assembly.assemble`,
 min 1/2 u'Ku - f'u s.t. B u <= g (and Tresca's term with friction), with K
 and f your forms on the free dofs of your space (its Dirichlet flags clamp),
 and B, M_c, g built on the contact boundary exactly as there (in 2D the same
 functions: ``boundary_nodes``, ``normal_tangential_maps`` of
-problems/contact/assembly.py; on a 3D P1 tetrahedral mesh ``face_nodes``
+problems/contact/model/assembly.py; on a 3D P1 tetrahedral mesh ``face_nodes``
 and ``vertex_maps``, which give the operators of ``assemble3d`` on its block).  The result is a
-:class:`~admmkit.problems.contact.assembly.ContactOperators` that
-:func:`~admmkit.problems.contact.methods.solve_scene` and
-:func:`~admmkit.problems.contact.problem.contact_problem` take in every mode (full,
+:class:`~admmkit.problems.contact.model.assembly.ContactOperators` that
+:func:`~admmkit.problems.contact.solvers.methods.solve_scene` and
+:func:`~admmkit.problems.contact.solvers.problem.contact_problem` take in every mode (full,
 condensed, iterative), and that the VTU and JSON exports write.
 """
 from __future__ import annotations
@@ -33,10 +33,10 @@ from typing import Any
 import ngsolve as ng
 import numpy as np
 
-from .assembly import ContactOperators, boundary_nodes, free_system, normal_tangential_maps
-from .expressions import as_function
-from .friction import TANGENTIAL, check_friction_fields, friction_of
-from .scene import _unit_pair, check_slide
+from admmkit.problems.contact.model.assembly import ContactOperators, boundary_nodes, free_system, normal_tangential_maps
+from admmkit.problems.contact.model.expressions import as_function
+from admmkit.problems.contact.solvers.friction import TANGENTIAL, check_friction_fields, friction_of
+from admmkit.problems.contact.model.scene import _unit_pair, check_slide
 
 
 @dataclass(frozen=True)
@@ -84,7 +84,7 @@ def contact_operators(fes, a, f, contact: str = "bottom", gap=0.0, *, normal=Non
     CoefficientFunction.  ``normal``: None measures u.n along the body's
     outward normal at each contact node, a fixed direction (nx, ny[, nz])
     along that (a flat obstacle).  ``tangential``, ``slip_bound``,
-    ``mu``, ``obstacle_slide``: as in :class:`~admmkit.problems.contact.scene.Scene`.
+    ``mu``, ``obstacle_slide``: as in :class:`~admmkit.problems.contact.model.scene.Scene`.
     Bad input raises TypeError or ValueError naming the parameter.
     """
     mesh = _check_space(fes)
@@ -177,7 +177,7 @@ def vertex_maps(fes, nodes: np.ndarray, normals: np.ndarray, free: np.ndarray):
     """(B, T, tangents) of a P1 VectorH1 space: u.n and u.t at the vertices ``nodes``, on the free dofs."""
     import scipy.sparse as sp
 
-    from .friction import tangent_frames
+    from admmkit.problems.contact.solvers.friction import tangent_frames
     dofs = np.array([fes.GetDofNrs(ng.NodeId(ng.VERTEX, int(v))) for v in nodes])        # (n_c, 3): x, y, z
     tangents = tangent_frames(normals)
     n_c, rows = len(nodes), np.repeat(np.arange(len(nodes)), 3)

@@ -15,7 +15,7 @@ body.  Point data:
   -1 off Gamma_C (:func:`vtu_fields`).
 
 A node is *active* where the last z-step put p on the obstacle (p = g), the
-definition of the KKT's ``active_nodes`` count (problems/contact/problem.py)
+definition of the KKT's ``active_nodes`` count (problems/contact/solvers/problem.py)
 and of the command line's "active nodes": :func:`contact_status` is the one
 place that says it.  More boundary arrays (a tangential traction, a slip) are
 one more entry in the dict :func:`boundary_fields` returns, or in the
@@ -139,8 +139,8 @@ def friction_fields(ops, u_free: np.ndarray, lam: np.ndarray, z: np.ndarray) -> 
     """Per contact node, with friction: ``tangential_traction`` q = lam_t, ``slip`` T u - w (both along the
     tangents t of ``ops.tangents``: shape (n_c,) in 2D, (n_c, 2) in 3D), ``slip_bound`` s (the last one used:
     Tresca's, or mu p_n of Coulomb's last fixed-point step) and ``stick_slip_zone`` (0 separated, 1 stick,
-    2 slip; ``admmkit.problems.contact.friction.stick_slip``)."""
-    from .friction import stick_slip
+    2 slip; ``admmkit.problems.contact.solvers.friction.stick_slip``)."""
+    from admmkit.problems.contact.solvers.friction import stick_slip
     n_c, friction = ops.n_c, ops.friction
     lam, z = np.asarray(lam, dtype=float), np.asarray(z, dtype=float)
     if lam.shape != (ops.T.shape[0] + n_c,) or z.shape != lam.shape:
@@ -211,7 +211,7 @@ def scene_parameters(scene) -> dict:
 
 
 def write_json(path: str | Path, sol, args=None, **extra) -> Path:
-    """JSON of a solved scene (a :class:`~admmkit.problems.contact.methods.ContactSolution`).
+    """JSON of a solved scene (a :class:`~admmkit.problems.contact.solvers.methods.ContactSolution`).
 
     Keys: ``provenance`` (admmkit version, UTC date, command line, policy,
     order, rho_0, stopping rule, max_iter), ``scene`` (its parameters),

@@ -6,7 +6,7 @@ import numpy as np
 
 from admmkit.figures import pyplot, save_figure
 
-from .assembly import ContactOperators
+from admmkit.problems.contact.model.assembly import ContactOperators
 
 
 def vertex_displacement(ops: ContactOperators, u_free: np.ndarray):
@@ -50,9 +50,9 @@ def plot_pressure_gap(axes, ops: ContactOperators, u_free: np.ndarray, lam: np.n
     """The contact pressure lam and the gap g - u_n along Gamma_C against x (two axes).
 
     With ``p`` (the last z-step, ``result.z``) the active nodes are marked: p = g,
-    the one definition of :func:`admmkit.problems.contact.export.contact_status`.
+    the one definition of :func:`admmkit.problems.contact.output.export.contact_status`.
     """
-    from .export import contact_status
+    from admmkit.problems.contact.output.export import contact_status
     x = ops.xc[:, 0]
     un = ops.B @ u_free
     gap = ops.g - un
@@ -69,14 +69,14 @@ def plot_pressure_gap(axes, ops: ContactOperators, u_free: np.ndarray, lam: np.n
     ax2.set_ylabel("gap g - u_n"); ax2.set_xlabel("x on Gamma_C (y = 0)"); ax2.legend(fontsize=8); ax2.grid(alpha=0.3)
 
 
-#: colours of the zones of admmkit.problems.contact.friction.stick_slip: 0 separated, 1 stick, 2 slip
+#: colours of the zones of admmkit.problems.contact.solvers.friction.stick_slip: 0 separated, 1 stick, 2 slip
 ZONE_STYLE = {0: ("separated", "0.6"), 1: ("stick", "tab:green"), 2: ("slip", "tab:red")}
 
 
 def plot_friction(ax, ops: ContactOperators, fields: dict):
     """The tangential traction q and the bounds +-s along Gamma_C against x, the stick and slip zones marked.
 
-    ``fields`` are :func:`admmkit.problems.contact.export.boundary_fields` with friction
+    ``fields`` are :func:`admmkit.problems.contact.output.export.boundary_fields` with friction
     (``tangential_traction``, ``slip_bound``, ``stick_slip_zone``); each node is
     marked by its zone and the stretches of Gamma_C where it sticks or slips are shaded.
     """
@@ -123,7 +123,7 @@ def figure_pressure_gap(ops, u, lam, title, path, svg=True, p=None):
 def figure_solution(ops, u, lam, magnify, title, path, p=None, friction=None):
     """Deformed body over contact pressure and gap in one PNG (the CLI's --plot; active nodes marked with ``p``).
 
-    ``friction``: the boundary fields with friction (:func:`admmkit.problems.contact.export.friction_fields`) add a
+    ``friction``: the boundary fields with friction (:func:`admmkit.problems.contact.output.export.friction_fields`) add a
     panel with the tangential traction and the stick/slip zones (:func:`plot_friction`).  2D scenes only.
     """
     if ops.mesh.dim != 2:

@@ -1,0 +1,1 @@
+"""The contact solvers: the three modes (full, boundary-condensed, iterative) as admmkit problems, the paper's methods, the Schur complement, friction (Tresca, Coulomb) and the reference cone solve."""
