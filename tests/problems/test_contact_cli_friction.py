@@ -171,3 +171,19 @@ def test_bad_friction_options_are_one_line_and_exit_2(argv, needle, capsys, tmp_
     assert "status" not in out and not any(tmp_path.iterdir())
     if "--tangential" not in argv or "glue" not in argv:                  # (argparse adds its usage line)
         assert len(err.strip().splitlines()) == 1
+
+
+def test_a_coulomb_result_describes_the_whole_fixed_point(tmp_path, capsys):
+    """#27 item 2: the headline (and Result, JSON) count every Tresca solve; the last one is the detail."""
+    sol = solve_scene(load_scene("ex1_coulomb", h=1 / 20), "sadmm", 1e3)
+    report, whole, last = sol.coulomb, sol.result, sol.coulomb.last
+    assert report.outer_iterations > 1 and whole.iterations == report.total_iterations > last.iterations
+    assert whole.factorizations >= last.factorizations and whole.factorizations > 0
+    assert whole.timings["total"] > last.timings["total"]
+    assert np.array_equal(whole.x, last.x) and whole.converged == sol.converged
+    code, out, _ = run(["solve", "contact", "--scene", "ex1_coulomb", "--h", "1/20", "-q",
+                        "--json", str(tmp_path / "c.json")], capsys)
+    assert code == 0
+    assert f"iterations   {report.total_iterations} " in out
+    assert f"last Tresca solve: converged, {last.iterations} iterations" in out
+    assert json.loads((tmp_path / "c.json").read_text())["result"]["iterations"] == report.total_iterations

@@ -16,10 +16,13 @@ convergence can be reported.
 """
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
-from typing import Callable
+from typing import Any, Callable
 
 import numpy as np
+
+from admmkit import Status
 
 
 @dataclass
@@ -28,13 +31,15 @@ class CoulombReport:
 
     ``inner_iterations[j]`` ADMM iterations of outer step j, ``changes[j]``
     = ||s^{j+1} - s^j||_M / ||s^{j+1}||_M after it, ``converged`` whether the
-    last change is at most ``tol``.
+    last change is at most ``tol``; ``last`` the admmkit Result of the last
+    Tresca solve (the detail behind the whole solve's totals).
     """
 
     tol: float
     inner_iterations: list[int] = field(default_factory=list)
     changes: list[float] = field(default_factory=list)
     converged: bool = False
+    last: Any = None
 
     @property
     def outer_iterations(self) -> int:
@@ -48,10 +53,34 @@ class CoulombReport:
 
     def summary(self) -> str:
         """One line: outer steps, ADMM iterations, the last change of s."""
-        last = self.changes[-1] if self.changes else float("nan")
+        change = self.changes[-1] if self.changes else float("nan")
         state = "converged" if self.converged else "NOT converged"
-        return (f"Coulomb fixed point {state}: {self.outer_iterations} Tresca solves, "
-                f"{self.total_iterations} ADMM iterations, last change of s {last:.2e} (tol {self.tol:g})")
+        line = (f"Coulomb fixed point {state}: {self.outer_iterations} Tresca solves, "
+                f"{self.total_iterations} ADMM iterations, last change of s {change:.2e} (tol {self.tol:g})")
+        if self.last is not None:
+            r = self.last
+            line += (f"; last Tresca solve: {r.status.value}, {r.iterations} iterations, "
+                     f"{r.factorizations or 0} factorizations, {r.timings['total']:.4f} s")
+        return line
+
+
+def whole_solve(results: list, report: CoulombReport):
+    """One admmkit Result for the whole fixed point: the last Tresca solve's iterate, with the totals of
+    iterations, rho changes, work and time over every Tresca solve, and a status that is ``converged``
+    only if the last solve and the fixed point both converged."""
+    last = results[-1]
+    timings = {k: sum(r.timings.get(k, 0.0) for r in results) for k in last.timings}
+    counters = {k: sum(r.counters.get(k, 0) for r in results) for k in last.counters}
+    status, message = last.status, f"last Tresca solve: {last.message}"
+    if last.status is Status.CONVERGED and not report.converged:
+        status = Status.MAX_ITER
+        message = (f"the Coulomb fixed point stopped after {report.outer_iterations} Tresca solves with the change of "
+                   f"s at {report.changes[-1]:.2e} > tol {report.tol:g}; {message}")
+    else:
+        message = f"Coulomb fixed point {'converged' if report.converged else 'NOT converged'} in " \
+                  f"{report.outer_iterations} Tresca solves; {message}"
+    return dataclasses.replace(last, iterations=report.total_iterations, timings=timings, counters=counters,
+                               rho_changes=sum(r.rho_changes for r in results), status=status, message=message)
 
 
 def _ended_by_a_rule(result) -> bool:
@@ -65,7 +94,8 @@ def coulomb_fixed_point(problem, run: Callable, mu: float, tol: float = 1e-4, ma
 
     ``run(warm)`` solves the current Tresca problem (``warm`` = the previous
     admmkit Result or None) and returns its Result; ``problem.friction.s`` is
-    the slip bound it reads.  Returns (last Result, CoulombReport).
+    the slip bound it reads.  Returns (the whole solve's Result, CoulombReport):
+    see :func:`whole_solve`; the last Tresca solve's own Result is ``report.last``.
     """
     if not (isinstance(tol, (int, float)) and 0 < tol < 1):
         raise ValueError(f"coulomb tol = {tol!r}; accepted: 0 < tol < 1")
@@ -74,9 +104,10 @@ def coulomb_fixed_point(problem, run: Callable, mu: float, tol: float = 1e-4, ma
     n_c, mc = problem.ops.n_c, problem.ops.mc
     report = CoulombReport(tol=tol)
     problem.friction.s = np.zeros(n_c)
-    result = None
+    result, results = None, []
     for _ in range(max_outer):
         result = run(result)
+        results.append(result)
         report.inner_iterations.append(int(result.iterations))
         s_new = mu * np.maximum(result.lam[:n_c], 0.0)
         ds = s_new - problem.friction.s
@@ -87,4 +118,5 @@ def coulomb_fixed_point(problem, run: Callable, mu: float, tol: float = 1e-4, ma
         if change <= tol or not _ended_by_a_rule(result):
             break
     report.converged = bool(report.changes[-1] <= tol and _ended_by_a_rule(result))
-    return result, report
+    report.last = result
+    return whole_solve(results, report), report
