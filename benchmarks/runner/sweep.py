@@ -42,6 +42,7 @@ from typing import Callable, Iterable
 
 from admmkit.benchmarks.runner.sweep_worker import THREAD_ENV  # noqa: F401  (the workers' environment; re-exported)
 from admmkit.benchmarks.runner.jsonable import json_default
+from admmkit.benchmarks.runner.lock import hold
 from admmkit.benchmarks.runner.progress import Progress
 
 
@@ -204,55 +205,56 @@ def run_sweep(cases: Iterable[dict], func: str, results_path: str | Path, *, wor
         raise TypeError(f"executor must be a admmkit.benchmarks.runner.sweep.Executor, got {type(executor).__name__}")
     cases = list(cases)
     results_path = Path(results_path)
-    done = load_results(results_path)
-    ids = [case_id(c) for c in cases]
-    if len(set(ids)) != len(ids):
-        raise ValueError("two cases are identical (same id); cases must differ")
-    todo = [(cid, c) for cid, c in zip(ids, cases) if cid not in done]
-    groups: dict[str, list] = {}
-    for cid, c in todo:
-        groups.setdefault(str(c.get("group", cid)), []).append((cid, c))
-    # cheapest groups first: a sweep that is interrupted (or time-boxed) has covered the most problems
-    tasks = sorted(groups.values(), key=lambda g: sum((cost or (lambda _c: 1.0))(c) for _, c in g))
-    size = executor.task_size
-    if size:
-        tasks = [g[i:i + size] for g in tasks for i in range(0, len(g), size)]
-    bar = Progress(len(cases), len(cases) - len(todo), enabled=progress)
-    name = label or (lambda c: " ".join(f"{k}={v}" for k, v in c.items() if k != "group"))
-    by_id = dict(todo)
-    written: set[str] = set()
+    with hold(results_path.parent):          # one run per output folder (a second one refuses)
+        done = load_results(results_path)
+        ids = [case_id(c) for c in cases]
+        if len(set(ids)) != len(ids):
+            raise ValueError("two cases are identical (same id); cases must differ")
+        todo = [(cid, c) for cid, c in zip(ids, cases) if cid not in done]
+        groups: dict[str, list] = {}
+        for cid, c in todo:
+            groups.setdefault(str(c.get("group", cid)), []).append((cid, c))
+        # cheapest groups first: a sweep that is interrupted (or time-boxed) has covered the most problems
+        tasks = sorted(groups.values(), key=lambda g: sum((cost or (lambda _c: 1.0))(c) for _, c in g))
+        size = executor.task_size
+        if size:
+            tasks = [g[i:i + size] for g in tasks for i in range(0, len(g), size)]
+        bar = Progress(len(cases), len(cases) - len(todo), enabled=progress)
+        name = label or (lambda c: " ".join(f"{k}={v}" for k, v in c.items() if k != "group"))
+        by_id = dict(todo)
+        written: set[str] = set()
 
-    def emit(rec: dict) -> None:
-        """In the driver: append a finished case's record (once) and redraw the progress line."""
-        cid = rec["id"]
-        if cid in written or cid not in by_id:
-            return                      # never a duplicated line
-        append_result(results_path, rec)
-        written.add(cid)
-        failed = bool(rec.get("error"))
-        bar.update(name(by_id[cid]) + (" FAILED" if failed else ""), failed=failed)
+        def emit(rec: dict) -> None:
+            """In the driver: append a finished case's record (once) and redraw the progress line."""
+            cid = rec["id"]
+            if cid in written or cid not in by_id:
+                return                      # never a duplicated line
+            append_result(results_path, rec)
+            written.add(cid)
+            failed = bool(rec.get("error"))
+            bar.update(name(by_id[cid]) + (" FAILED" if failed else ""), failed=failed)
 
-    if progress:
-        print(f"sweep: {len(cases)} cases, {len(cases) - len(todo)} already in {results_path}, {len(todo)} to run "
-              f"in {len(groups)} groups ({len(tasks)} tasks) on {executor.describe(len(tasks))}; a line per finished case",
-              file=sys.stderr, flush=True)
-    if tasks:
-        results_path.parent.mkdir(parents=True, exist_ok=True)
-        if executor.dask:
-            from admmkit.benchmarks.runner.sweep_dask import run_dask
-            run_dask(tasks, func, emit, scheduler=executor.scheduler, n_workers=executor.dask_workers, env=env,
-                     timeout=executor.timeout, retries=executor.retries)
-        else:
-            from admmkit.benchmarks.runner.sweep_local import run_local
-            run_local(tasks, func, emit, workers=executor.workers, env=env, timeout=executor.timeout,
-                      retries=executor.retries)
-    bar.close()
-    done = load_results(results_path)
-    records = {cid: done[cid] for cid in ids if cid in done}
-    if table and records:
-        from admmkit.benchmarks.runner.sweep_table import write_table
-        write_table(records.values(), results_path.with_suffix(""), rows=table if callable(table) else None)
-    return records
+        if progress:
+            print(f"sweep: {len(cases)} cases, {len(cases) - len(todo)} already in {results_path}, {len(todo)} to run "
+                  f"in {len(groups)} groups ({len(tasks)} tasks) on {executor.describe(len(tasks))}; a line per finished case",
+                  file=sys.stderr, flush=True)
+        if tasks:
+            results_path.parent.mkdir(parents=True, exist_ok=True)
+            if executor.dask:
+                from admmkit.benchmarks.runner.sweep_dask import run_dask
+                run_dask(tasks, func, emit, scheduler=executor.scheduler, n_workers=executor.dask_workers, env=env,
+                         timeout=executor.timeout, retries=executor.retries)
+            else:
+                from admmkit.benchmarks.runner.sweep_local import run_local
+                run_local(tasks, func, emit, workers=executor.workers, env=env, timeout=executor.timeout,
+                          retries=executor.retries)
+        bar.close()
+        done = load_results(results_path)
+        records = {cid: done[cid] for cid in ids if cid in done}
+        if table and records:
+            from admmkit.benchmarks.runner.sweep_table import write_table
+            write_table(records.values(), results_path.with_suffix(""), rows=table if callable(table) else None)
+        return records
 
 
 def run_or_report(cases: list[dict], func: str, out: Path, *, report_only: bool = False, env: dict | None = None,
