@@ -52,9 +52,19 @@ def atomic_path(path: str | Path) -> Iterator[Path]:
             os.fsync(fh.fileno())
         os.chmod(tmp, 0o644)
         os.replace(tmp, path)
+    except OSError as err:          # a full disk, a lost mount: say which file could not be written
+        tmp.unlink(missing_ok=True)
+        raise named_os_error(err, path) from err
     except BaseException:
         tmp.unlink(missing_ok=True)
         raise
+
+
+def named_os_error(err: OSError, path: str | Path) -> OSError:
+    """``err`` with the file named: "could not write PATH: No space left on device" (errno kept)."""
+    if str(path) in str(err):
+        return err
+    return OSError(err.errno, f"could not write {path}: {err.strerror or err}")
 
 
 @contextmanager

@@ -57,7 +57,7 @@ from admmkit.benchmarks.qp.maros_meszaros_runs import VARIANTS, run_admmkit, run
 from admmkit.benchmarks.runner.sweep import Executor, case_id, finished, run_sweep
 
 from admmkit.problems.qp.convexity import check_convex
-from admmkit.problems.qp.mat import list_problems, load_mat
+from admmkit.problems.qp.mat import list_problems, load_mat, read_matrices
 from admmkit.problems.qp.xstep_forms import REDUCED_MAX_NNZ, reduced_nnz_bound
 
 EPS = (1e-3, 1e-6)
@@ -82,10 +82,13 @@ def default_policies() -> list[str]:
 
 # ---------------------------------------------------------------- problems
 def x_step_sizes(path: Path) -> tuple[float, float, str, str | None]:
-    """Entries of the x-step matrix of a MAT file in the reduced form (a bound) and the KKT form, a note, and why P
-    is not convex (None if it is)."""
-    data = scipy.io.loadmat(str(path), variable_names=["P", "A"])
-    P, A = sp.csc_matrix(data["P"]), sp.csr_matrix(data["A"])
+    """Entries of the x-step matrix of a MAT file in the reduced form (a bound) and the KKT form, a note, and why
+    the problem cannot run (P not convex, or the file unreadable; None if it can)."""
+    try:
+        P, A = read_matrices(path)
+    except ValueError as err:
+        return math.inf, math.inf, "unreadable", str(err)
+    A = sp.csr_matrix(A)
     rows = np.diff(A.indptr)
     kkt = float(P.nnz + 2 * A.nnz + A.shape[0] + A.shape[1])
     note = f"densest row of A has {int(rows.max(initial=0))} of {A.shape[1]} entries"

@@ -53,16 +53,21 @@ def select(data: Path, max_nnz: float, names: list[str] | None, skipped: dict | 
     """(name, nnz) of the convex problems with nnz(P) + nnz(A) <= max_nnz (or the named ones), smallest first;
     a nonconvex one (``load_mat`` refuses it) goes into ``skipped`` with the reason."""
     from admmkit.problems.qp.convexity import check_convex
-    from admmkit.problems.qp.mat import list_problems
+    from admmkit.problems.qp.mat import list_problems, read_matrices
     out = []
     for f in list_problems(data):
         if names and f.stem not in names:
             continue
-        d = scipy.io.loadmat(str(f), variable_names=("P", "A"))
-        nnz = sp.csc_matrix(d["P"]).nnz + sp.csc_matrix(d["A"]).nnz
+        try:
+            P, A = read_matrices(f)
+        except ValueError as err:        # an unreadable file is listed as skipped, with its name
+            if skipped is not None:
+                skipped[f.stem] = str(err)
+            continue
+        nnz = P.nnz + A.nnz
         if names or nnz <= max_nnz:
             try:
-                check_convex(sp.csc_matrix(d["P"]))
+                check_convex(P)
             except ValueError as err:
                 if skipped is not None:
                     skipped[f.stem] = str(err)

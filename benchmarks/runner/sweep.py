@@ -43,6 +43,7 @@ from typing import Callable, Iterable
 from admmkit.benchmarks.runner.sweep_worker import THREAD_ENV  # noqa: F401  (the workers' environment; re-exported)
 from admmkit.benchmarks.runner.jsonable import json_default
 from admmkit.benchmarks.runner.lock import hold
+from admmkit.io import named_os_error
 from admmkit.benchmarks.runner.progress import Progress
 
 
@@ -95,6 +96,8 @@ def append_result(path: str | Path, record: dict) -> None:
         if written != len(data):  # a regular file takes the whole write; be loud if not
             raise OSError(f"short write to {path}: {written} of {len(data)} bytes")
         os.fsync(fd)
+    except OSError as err:        # a full disk: the message names the results file
+        raise named_os_error(err, path) from err
     finally:
         os.close(fd)
 

@@ -48,6 +48,21 @@ def load_mat(path: str | Path, **qp_options) -> QP:
         raise ValueError(f"{path}: {err}") from None
 
 
+def read_matrices(path: str | Path):
+    """(P, A) of a MAT file as sparse matrices, read without the rest (for sizes and checks before a solve).
+
+    An unreadable file (not MAT content, a truncated one, P or A missing) raises
+    ValueError naming the file, so that a study lists it as skipped and goes on.
+    """
+    path = Path(path)
+    try:
+        data = scipy.io.loadmat(str(path), variable_names=["P", "A"])
+        return sp.csc_matrix(data["P"]), sp.csc_matrix(data["A"])
+    except Exception as err:  # scipy raises several types for non-MAT content; KeyError for a missing field
+        what = f"no field {err}" if isinstance(err, KeyError) else str(err)
+        raise ValueError(f"{path.name} is not a readable MAT file: {what}") from None
+
+
 def list_problems(folder: str | Path) -> list[Path]:
     """The MAT files in ``folder``, sorted by name."""
     folder = Path(folder)
