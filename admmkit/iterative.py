@@ -12,7 +12,7 @@ system iteratively in O(n) memory.  :class:`IterativeXSolver` combines
 * **CG preconditioned by one V-cycle of smoothed-aggregation AMG** (Vanek,
   Mandel & Brezina 1996, as implemented by pyamg), with a near-null space
   given by the plug-in: the rigid body modes for elasticity
-  (:func:`admmkit.problems.contact.iterative.rigid_body_modes`), the constants for a scalar problem;
+  (:func:`admmkit.problems.contact.solvers.iterative.rigid_body_modes`), the constants for a scalar problem;
 * **warm starts**: the initial guess is the A(rho)-orthogonal projection of the
   solution onto the span of the last solutions (Fischer 1998, "Projection
   techniques for iterative solution of Ax = b with successive right-hand
@@ -74,7 +74,7 @@ class IterativeXSolver:
     Parameters
     ----------
     K, D : sparse symmetric matrices, K + rho D SPD for rho > 0.
-    near_null : (n, m) near-null space of K (e.g. the rigid body modes of :mod:`admmkit.problems.contact.iterative`) or
+    near_null : (n, m) near-null space of K (e.g. the rigid body modes of :mod:`admmkit.problems.contact.solvers.iterative`) or
         None (pyamg's default: the constant per block).
     blocks : (n_nodes, d) dof indices of each node (:func:`admmkit.amg.node_blocks`) or
         None.  With blocks the AMG aggregates nodes (BSR d x d blocks).
