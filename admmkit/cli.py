@@ -37,7 +37,7 @@ from . import __version__
 from .cli_output import (Progress, check_output_folder, exit_code, print_summary,  # noqa: F401  (re-exported)
                          provenance, write_result_csv, write_result_json)
 from .io import check_writable
-from .policy import make_policy, policy_names
+from .policy import canonical_spec, is_spec, make_policy, policy_names
 from .result import Result
 from .solver import solve
 from .stopping import AnyOf, RelativeChange, ResidualTolerance, StoppingRule
@@ -165,6 +165,11 @@ def resolve_policy(args) -> tuple[str, object, str]:
     name = args.policy if isinstance(args.policy, str) else None
     if name is None:                                           # a Policy object (from Python)
         return args.order or args.default_order, args.policy, type(args.policy).__name__
+    if is_spec(name):                                          # module:Class or path/to/file.py:Class
+        try:
+            return args.order or getattr(args, "default_order", "zx"), make_policy(canonical_spec(name)), name
+        except (TypeError, ValueError) as err:
+            raise ValueError(f"--policy: {err}") from None
     key = name.strip().lower().replace("-", "_")
     methods = getattr(args, "policy_methods", None) or {}
     if key in methods:
@@ -174,7 +179,7 @@ def resolve_policy(args) -> tuple[str, object, str]:
         return args.order or getattr(args, "default_order", "zx"), make_policy(key), key
     except ValueError:
         raise ValueError(f"--policy: unknown name {name!r}; give one of "
-                         f"{', '.join([*methods, *policy_names()])}") from None
+                         f"{', '.join([*methods, *policy_names()])}, or module:Class or path/to/file.py:Class") from None
 
 
 def stop_rule(args) -> StoppingRule:

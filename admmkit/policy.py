@@ -15,9 +15,14 @@ Writing a rule takes a few lines::
 """
 from __future__ import annotations
 
+import hashlib
+import importlib
+import importlib.util
 import inspect
+import sys
 from abc import ABC, abstractmethod
 from importlib.metadata import entry_points
+from pathlib import Path
 from typing import Callable
 
 from .record import IterationRecord
@@ -75,17 +80,87 @@ def _lookup(key: str):
         declared = _declared().get(key)
         if declared is None:
             return None
-        _REGISTRY[key] = declared.load()
+        try:
+            cls = declared.load()
+        except Exception as err:
+            raise ValueError(f"policy {key!r} (entry point {declared.value}) failed to import: "
+                             f"{type(err).__name__}: {err}") from None
+        _REGISTRY[key] = check_policy_class(cls, f"{key!r} (entry point {declared.value})")
     return _REGISTRY[key]
 
 
+def is_spec(name: str) -> bool:
+    """Whether ``name`` points at a class (``module:Class`` or ``path/to/file.py:Class``) rather than naming a rule."""
+    return isinstance(name, str) and ":" in name
+
+
+def canonical_spec(spec: str) -> str:
+    """``spec`` with a file path made absolute, so that worker processes (local or Dask) load the same file."""
+    target, _, cls_name = spec.strip().rpartition(":")
+    if target.endswith(".py"):
+        target = str(Path(target).expanduser().resolve())
+    return f"{target}:{cls_name}"
+
+
+def load_spec(spec: str):
+    """The Policy class of ``module:Class`` or ``path/to/file.py:Class``; ValueError/TypeError naming the rule.
+
+    A file is imported once per process under a module name made from its
+    absolute path (``admmkit_rule_<hash>``), so that records and pickles refer
+    to the same class in every process.
+    """
+    target, _, cls_name = canonical_spec(spec).rpartition(":")
+    if not target or not cls_name.isidentifier():
+        raise ValueError(f"policy {spec!r}: give module:Class or path/to/file.py:Class")
+    if target.endswith(".py"):
+        path = Path(target)
+        if not path.is_file():
+            raise ValueError(f"policy {spec!r}: no such file {path}")
+        modname = "admmkit_rule_" + hashlib.sha1(str(path).encode()).hexdigest()[:12]
+        module = sys.modules.get(modname)
+        if module is None:
+            found = importlib.util.spec_from_file_location(modname, path)
+            module = importlib.util.module_from_spec(found)
+            sys.modules[modname] = module
+            try:
+                found.loader.exec_module(module)
+            except Exception as err:
+                del sys.modules[modname]
+                raise ValueError(f"policy {spec!r}: importing {path} failed: {type(err).__name__}: {err}") from None
+    else:
+        try:
+            module = importlib.import_module(target)
+        except Exception as err:
+            raise ValueError(f"policy {spec!r}: module {target!r} failed to import: "
+                             f"{type(err).__name__}: {err}") from None
+    if not hasattr(module, cls_name):
+        raise ValueError(f"policy {spec!r}: {target} has no {cls_name!r}")
+    return check_policy_class(getattr(module, cls_name), repr(spec))
+
+
+def check_policy_class(cls, what: str):
+    """``cls`` if it is a :class:`Policy` subclass with a callable ``update``; TypeError naming ``what`` otherwise."""
+    if not (isinstance(cls, type) and issubclass(cls, Policy)):
+        raise TypeError(f"policy {what} is {cls!r}, not a subclass of admmkit.Policy")
+    if getattr(cls, "__abstractmethods__", None):
+        raise TypeError(f"policy {what} does not implement {', '.join(sorted(cls.__abstractmethods__))}() "
+                        f"of the admmkit.Policy protocol")
+    if not callable(getattr(cls, "update", None)):
+        raise TypeError(f"policy {what}: update is not callable")
+    return cls
+
+
 def make_policy(name: str, **params) -> Policy:
-    """Construct a policy by name with its parameters (registered, or declared by an installed package)."""
+    """Construct a policy with its parameters from a name (registered, or declared by an installed package in the
+    entry-point group :data:`GROUP`) or a spec ``module:Class`` / ``path/to/file.py:Class``."""
     if not isinstance(name, str):
         known = ", ".join(policy_names()) or "none registered"
         raise TypeError(f"policy name must be a string, one of: {known}; got {type(name).__name__}")
+    if is_spec(name):
+        return load_spec(name)(**params)
     cls = _lookup(name.strip().lower().replace("-", "_"))
     if cls is None:
         known = ", ".join(policy_names()) or "none registered"
-        raise ValueError(f"unknown policy {name!r}; known policies: {known}")
+        raise ValueError(f"unknown policy {name!r}; known policies: {known}, or give module:Class or "
+                         f"path/to/file.py:Class")
     return cls(**params)

@@ -72,10 +72,17 @@ def _policies_fe(args) -> int:
     import admmkit
 
     from admmkit.benchmarks.rules.policies_fe import run
-    rules = split_list(args.rules) or []
-    unknown = [r for r in rules if r not in admmkit.policy_names()]
+    from admmkit.policy import canonical_spec, is_spec
+    rules = [canonical_spec(r) if is_spec(r) else r for r in split_list(args.rules) or []]
+    unknown = [r for r in rules if not is_spec(r) and r not in admmkit.policy_names()]
     if unknown or not rules:
-        raise ValueError(f"--rules: unknown {unknown}; known: {', '.join(admmkit.policy_names())}")
+        raise ValueError(f"--rules: unknown {unknown}; known: {', '.join(admmkit.policy_names())}, or "
+                         f"module:Class or path/to/file.py:Class")
+    for rule in rules:                       # a rule that does not load or breaks the protocol: before any case runs
+        try:
+            admmkit.make_policy(rule)
+        except (TypeError, ValueError) as err:
+            raise ValueError(f"--rules: {err}") from None
     run(args.out, rules=rules, quick=args.quick, command=args.command_line, progress=args.progress,
         executor=executor_of(args), report_only=args.report_only)
     return 0

@@ -15,6 +15,7 @@ A policy that cannot be built without arguments is left out and reported by
 from __future__ import annotations
 
 import admmkit
+from admmkit.policy import canonical_spec, is_spec
 from admmkit import policies  # noqa: F401  (registers the built-in rules)
 from admmkit.policies.paper_methods import PAPER_NAMES
 
@@ -55,8 +56,12 @@ def resolve(label: str) -> tuple[str, str]:
     if label in _PAPER_BY_NAME:
         return _PAPER_BY_NAME[label]
     policy, sep, order = label.rpartition("/")
+    if sep and order in ORDERS and is_spec(policy):     # a rule from anywhere: path/to/file.py:Class/zx
+        admmkit.make_policy(policy)                      # ValueError/TypeError naming the rule, before any case
+        return canonical_spec(policy), order
     if not sep or order not in ORDERS or policy not in admmkit.policy_names():
-        raise ValueError(f"unknown method {label!r}; methods: {', '.join(admm_methods())}")
+        raise ValueError(f"unknown method {label!r}; methods: {', '.join(admm_methods())}, or "
+                         f"module:Class/order or path/to/file.py:Class/order")
     return policy, order
 
 
