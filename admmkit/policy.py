@@ -65,7 +65,7 @@ def register_policy(name: str):
 
 
 def _declared() -> dict:
-    """The rules installed packages declare in the entry-point group :data:`GROUP`, by name."""
+    """The rules installed packages declare in the entry-point group ``admmkit.policies``, by name."""
     return {ep.name.strip().lower().replace("-", "_"): ep for ep in entry_points(group=GROUP)}
 
 
@@ -152,7 +152,7 @@ def check_policy_class(cls, what: str):
 
 def make_policy(name: str, **params) -> Policy:
     """Construct a policy with its parameters from a name (registered, or declared by an installed package in the
-    entry-point group :data:`GROUP`) or a spec ``module:Class`` / ``path/to/file.py:Class``."""
+    entry-point group ``admmkit.policies``) or a spec ``module:Class`` / ``path/to/file.py:Class``."""
     if not isinstance(name, str):
         known = ", ".join(policy_names()) or "none registered"
         raise TypeError(f"policy name must be a string, one of: {known}; got {type(name).__name__}")
