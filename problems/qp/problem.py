@@ -61,16 +61,18 @@ class QP(Problem):
     xstep the form of the x-step system ("auto", "reduced" or "kkt"; see the
     module docstring), scaling the number of Ruiz iterations (0: none;
     OSQP uses 10), row_weights "uniform" (M = I) or "osqp" (OSQP's penalty
-    per row, see ``admmkit.problems.qp.rows.row_weights``).  ``P, q, A, l, u`` stay the user's
+    per row, see ``admmkit.problems.qp.rows.row_weights``), allow_nonconvex
+    (default False: a P that is not PSD is refused; True: a warning, and the
+    QP is solved anyway, as OSQP does).  ``P, q, A, l, u`` stay the user's
     data; the loop works on ``Ps, qs, As, ls, us`` (the same objects when
     scaling = 0).
     """
 
     def __init__(self, P, q, A, l, u, r: float = 0.0, *, sigma: float = 1e-6, backend: str = "auto",
                  name: str = "qp", xstep: str = "auto", scaling: int = 0, row_weights: str = "uniform",
-                 x_relaxation: float = 1.0):
+                 x_relaxation: float = 1.0, allow_nonconvex: bool = False):
         from .scaling import ruiz
-        self.P, self.q, self.A, self.l, self.u = _validate(P, q, A, l, u)
+        self.P, self.q, self.A, self.l, self.u = _validate(P, q, A, l, u, allow_nonconvex)
         self.r = _real("r", r)
         if self.r.shape not in ((), (1,)) or not math.isfinite(self.r.item()):
             raise ValueError(f"r (the constant of the objective) must be one finite number, got {r!r:.60}")
@@ -89,7 +91,7 @@ class QP(Problem):
             raise ValueError(f"x_relaxation must be a number in (0, 2), got {x_relaxation!r}")
         self.x_relaxation = float(x_relaxation)
         self.options = dict(sigma=self.sigma, backend=backend, xstep=xstep, scaling=scaling, row_weights=row_weights,
-                            x_relaxation=self.x_relaxation)
+                            x_relaxation=self.x_relaxation, allow_nonconvex=bool(allow_nonconvex))
         self.scaling, Ps, qs, As = ruiz(self.P, self.q, self.A, scaling)                          # (S1)
         self.scaled = scaling > 0
         if self.scaled:

@@ -115,6 +115,10 @@ def solve_qp(qp: QP, settings: QPSettings | None = None, *, policy="osqp", warm_
     if warm_start is not None:
         if not isinstance(warm_start, Result):
             raise TypeError(f"warm_start must be a result of solve_qp, got {type(warm_start).__name__}")
+        if np.shape(warm_start.x) != (qp.n,) or np.shape(warm_start.lam) != (qp.m,):
+            raise ValueError(f"warm_start has x of shape {np.shape(warm_start.x)} and y of shape "
+                             f"{np.shape(warm_start.lam)}; this QP needs ({qp.n},) and ({qp.m},): give a result "
+                             f"of a QP of the same size")
         x0, z0, lam0 = run_qp.iterate_from(warm_start.x, warm_start.lam)
         rho = warm_start.rho if rho is None else rho
     rho0 = min(max(settings.rho if rho is None else rho, RHO_MIN), RHO_MAX)

@@ -1,6 +1,8 @@
 """The QP's data checked once, at construction: real, finite where it must be, shapes that agree, l <= u."""
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import scipy.sparse as sp
 
@@ -24,8 +26,11 @@ def _real(name: str, value, sparse_ok: bool = False):
         raise ValueError(f"{name} must be an array of numbers, got {value!r:.60}") from None
 
 
-def _validate(P, q, A, l, u):
-    """Check types, shapes, symmetry, convexity, finiteness and l <= u; return (P, q, A, l, u) as csc/arrays."""
+def _validate(P, q, A, l, u, allow_nonconvex: bool = False):
+    """Check types, shapes, symmetry, convexity, finiteness and l <= u; return (P, q, A, l, u) as csc/arrays.
+
+    ``allow_nonconvex``: a P that is not positive semidefinite gives a warning instead of the error (as OSQP
+    solves such a QP: a point ADMM returns is then at best stationary)."""
     P = _real("P", P, sparse_ok=True)
     if not sp.issparse(P) and P.ndim != 2:
         raise ValueError(f"P must be a square matrix, got an array of shape {P.shape}")
@@ -40,7 +45,13 @@ def _validate(P, q, A, l, u):
     asym = abs(P - P.T).max() if P.nnz else 0.0
     if asym > 1e-10 * max(1.0, abs(P).max()):
         raise ValueError(f"P must be symmetric; max |P - P'| = {asym:.3g}")
-    check_convex(P)
+    try:
+        check_convex(P)
+    except ValueError as err:
+        if not allow_nonconvex:
+            raise ValueError(f"{err}; allow_nonconvex=True solves it anyway, as OSQP does") from None
+        warnings.warn(f"{err}; solving it anyway (allow_nonconvex=True): ADMM may not converge, and a point "
+                      f"it returns is at best stationary", RuntimeWarning, stacklevel=3)
     q = _real("q", q).ravel()
     if q.shape != (n,):
         raise ValueError(f"q must have length n = {n} (from P), got shape {q.shape}")
