@@ -13,6 +13,20 @@ does.  Both are tested in the user's problem, normalised by their inf-norm:
 A primal certificate proves that no x has l <= A x <= u (Farkas: for such x,
 dy'A x <= S(dy) < 0 contradicts A'dy = 0); a dual one is a direction along
 which the objective decreases without bound while staying feasible.
+
+Tests (I1)-(I2) pass to a tolerance (OSQP's 1e-4), and a feasible, bounded QP
+can pass them: on PRIMALC1, 2 and 5 a dx with ||P dx|| = 7e-6 and q'dx = -1
+passed, though the objective along it turns up after t ~ 1e5.  So a
+candidate is confirmed before it is declared, by the exact conditions as
+linear programs in the user's (unscaled) data, solved by HiGHS:
+
+    primal:  min S(y)  s.t.  A'y = 0,  |y| <= 1,  y_i >= 0 where l_i = -inf, <= 0 where u_i = inf    (C1)
+    dual:    min q'd   s.t.  P d = 0,  |d| <= 1,  (A d)_i <= 0 where u_i < inf, >= 0 where l_i > -inf (C2)
+
+A negative optimum (below CONFIRM_TOL relative to the data) is an exact
+certificate, which is the one returned; an optimum of 0 proves there is
+none, and the loop goes on.  The verdict belongs to the problem, not to the
+iterates, so it is computed once per QP.
 """
 from __future__ import annotations
 
@@ -22,6 +36,8 @@ from .problem import QP
 
 #: OSQP_DIVISION_TOL = 1 / OSQP_INFTY
 DIVISION_TOL = 1e-30
+#: a confirming LP's optimum must be below -CONFIRM_TOL x (the scale of q, or of the finite bounds)
+CONFIRM_TOL = 1e-7
 
 
 def _inf(v: np.ndarray) -> float:
@@ -104,3 +120,46 @@ def iterate_deltas(qp: QP, rec) -> tuple[np.ndarray | None, np.ndarray]:
     if dx is not None and qp.scaled:
         dx = qp.scaling.unscale_x(dx)
     return dx, dy
+
+
+def confirmed_certificate(qp: QP, kind: str) -> np.ndarray | None:
+    """The exact certificate of (C1) (``kind="primal"``) or (C2) (``"dual"``) for ``qp``, or None if there is none.
+
+    Cached on the QP: the answer depends on the data only.
+    """
+    cache = qp.__dict__.setdefault("_infeasibility_verdicts", {})
+    if kind not in cache:
+        cache[kind] = _confirm_primal(qp) if kind == "primal" else _confirm_dual(qp)
+    return cache[kind]
+
+
+def _confirm_primal(qp: QP) -> np.ndarray | None:
+    """(C1) with y = yp - yn, yp, yn in [0, 1] (yp = 0 where u = inf, yn = 0 where l = -inf)."""
+    import scipy.sparse as sp
+    from scipy.optimize import linprog
+    fin_u, fin_l = np.isfinite(qp.u), np.isfinite(qp.l)
+    c = np.concatenate([np.where(fin_u, qp.u, 0.0), -np.where(fin_l, qp.l, 0.0)])
+    At = sp.csr_matrix(qp.At)
+    bounds = [(0.0, 1.0 if f else 0.0) for f in fin_u] + [(0.0, 1.0 if f else 0.0) for f in fin_l]
+    res = linprog(c, A_eq=sp.hstack([At, -At]).tocsc(), b_eq=np.zeros(qp.n), bounds=bounds, method="highs")
+    scale = max(1.0, float(np.max(np.abs(c), initial=0.0)))
+    if res.status != 0 or res.fun >= -CONFIRM_TOL * scale:
+        return None
+    y = res.x[:qp.m] - res.x[qp.m:]
+    return y / max(_inf(y), DIVISION_TOL)
+
+
+def _confirm_dual(qp: QP) -> np.ndarray | None:
+    """(C2): min q'd over |d| <= 1 with P d = 0 and A d in the recession cone of [l, u]."""
+    import scipy.sparse as sp
+    from scipy.optimize import linprog
+    A = sp.csr_matrix(qp.A)
+    fin_u, fin_l = np.isfinite(qp.u), np.isfinite(qp.l)
+    A_ub = sp.vstack([A[fin_u], -A[fin_l]]).tocsc()
+    res = linprog(qp.q, A_ub=A_ub if A_ub.shape[0] else None, b_ub=np.zeros(A_ub.shape[0]) if A_ub.shape[0] else None,
+                  A_eq=sp.csc_matrix(qp.P) if qp.P.nnz else None, b_eq=np.zeros(qp.n) if qp.P.nnz else None,
+                  bounds=[(-1.0, 1.0)] * qp.n, method="highs")
+    scale = max(1.0, _inf(qp.q))
+    if res.status != 0 or res.fun >= -CONFIRM_TOL * scale:
+        return None
+    return res.x / max(_inf(res.x), DIVISION_TOL)

@@ -27,7 +27,7 @@ import numpy as np
 
 from admmkit import IterationRecord, Status, Stop, StoppingRule
 
-from .infeasibility import DIVISION_TOL, dual_certificate, iterate_deltas, primal_certificate
+from .infeasibility import DIVISION_TOL, confirmed_certificate, dual_certificate, iterate_deltas, primal_certificate
 from .problem import QP
 from .residuals import iterate_residuals, osqp_residuals  # noqa: F401  (osqp_residuals: re-exported)
 
@@ -170,12 +170,13 @@ class QPTermination(StoppingRule):
         if not self.infeasibility or (primal and dual):
             return None
         dx, dy = iterate_deltas(qp, rec)
+        # a candidate (I1)/(I2) is declared only once the exact LP (C1)/(C2) confirms it, with the LP's certificate
         cert = None if primal else primal_certificate(qp, dy, self.eps_prim_inf)
-        if cert is not None:
+        if cert is not None and (cert := confirmed_certificate(qp, "primal")) is not None:
             self.outcome, self.certificate = PRIMAL_INFEASIBLE, cert
             return Stop(self.names[PRIMAL_INFEASIBLE], Status.PRIMAL_INFEASIBLE, cert)
         cert = None if (dual or dx is None) else dual_certificate(qp, dx, self.eps_dual_inf)
-        if cert is not None:
+        if cert is not None and (cert := confirmed_certificate(qp, "dual")) is not None:
             self.outcome, self.certificate = DUAL_INFEASIBLE, cert
             return Stop(self.names[DUAL_INFEASIBLE], Status.DUAL_INFEASIBLE, cert)
         return None

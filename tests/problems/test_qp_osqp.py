@@ -263,11 +263,12 @@ def test_setup_factorises_rho0_before_the_loop_and_counts_it():
 
 
 @pytest.mark.skipif(not MM.is_dir(), reason=f"Maros-Meszaros data not found at {MM}")
-def test_osqps_dual_infeasibility_tolerance_misfires_on_primalc5_and_a_tighter_one_does_not():
-    # PRIMALC5 is bounded (Clarabel: -427.23); with OSQP's eps_dual_inf = 1e-4 OSQP 1.1.3 and the preset both
-    # declare it dual infeasible at iteration 75 (||P dx|| = 2.3e-5 ||dx||); with 1e-5 it is not declared
+def test_osqps_dual_infeasibility_tolerance_misfire_on_primalc5_is_not_declared():
+    # PRIMALC5 is bounded (Clarabel: -427.23); with OSQP's eps_dual_inf = 1e-4 OSQP 1.1.3 declares it dual
+    # infeasible at iteration 75 (||P dx|| = 2.3e-5 ||dx||); the preset's test passes there too, but the exact LP
+    # (C2) finds no unbounded direction, so admmkit goes on (#26 item 5)
     qp = load_mat(MM / "PRIMALC5.mat")
-    assert solve_qp(qp, max_iter=500).termination == "dual_infeasible"
+    assert solve_qp(qp, max_iter=500).termination is None
     assert solve_qp(qp, max_iter=2000, eps_dual_inf=1e-5, eps_prim_inf=1e-5).termination != "dual_infeasible"
     for seed in range(2):                    # the tighter tolerance still finds the generated certificates
         assert solve_qp(unbounded_qp(20, 30, seed=seed), eps_dual_inf=1e-5).termination == "dual_infeasible"
@@ -284,10 +285,11 @@ def test_loader_reads_rounded_1e20_bounds_as_infinite():
     assert np.all(np.isinf(qp.u[rounded])) and np.all(np.isfinite(qp.u[raw < 1e19]))
 
 
-def test_osqps_primal_infeasibility_tolerance_misfires_on_a_feasible_random_qp():
+def test_osqps_primal_infeasibility_tolerance_misfire_on_a_feasible_random_qp_is_not_declared():
     # index 539 of the agreement study: feasible (Clarabel's optimum 21.21); at eps_prim_inf = 1e-4 the
-    # certificate test passes at iteration 275 (S(dy) = -1.3e-5, ||A'dy|| = 7.9e-5), OSQP 1.1.3 does the same
+    # certificate test passes at iteration 275 (S(dy) = -1.3e-5, ||A'dy|| = 7.9e-5), as in OSQP 1.1.3; the exact
+    # LP (C1) finds no certificate, so it is not declared (#26 item 5)
     qp = random_qp(28, 116, kind="psd", density=0.127747, seed=1200778182)
-    assert solve_qp(qp, eps_abs=1e-6, eps_rel=1e-6, max_iter=1000).termination == "primal_infeasible"
+    assert solve_qp(qp, eps_abs=1e-6, eps_rel=1e-6, max_iter=1000).termination is None
     strict = solve_qp(qp, eps_abs=1e-6, eps_rel=1e-6, max_iter=1000, eps_prim_inf=1e-6, eps_dual_inf=1e-6)
     assert strict.termination is None and strict.status is Status.MAX_ITER
