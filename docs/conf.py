@@ -90,7 +90,7 @@ napoleon_numpy_docstring = True
 # cannot fetch (CI reaches only the package index, so no intersphinx).
 nitpicky = True
 nitpick_ignore_regex = [
-    (r"py:.*", r"(np|numpy|scipy|sp|ng|ngsolve|abc|argparse|pathlib|typing|collections|enum|dataclasses)\..*"),
+    (r"py:.*", r"(np|numpy|scipy|sp|ng|ngsolve|cvxpy|abc|argparse|pathlib|typing|collections|enum|dataclasses)\..*"),
     (r"py:class", r".*\._[A-Za-z]\w*"),  # private base classes (e.g. admmkit.problems.contact.solvers.base._ContactBase)
     (r"py:class", r"(optional|callable|array-like|array_like|int|float|str|bool|dict|list|tuple|None)"),
     (r"py:class", r"(Path|Callable|Mapping|Any|Iterable|Sequence|ndarray|spmatrix|csr_matrix)"),
