@@ -130,6 +130,14 @@ def test_installed_package_owns_one_import_name():
     installed = [d for d in distributions() if d.metadata["Name"] == "admmkit" and d.read_text("RECORD")]
     assert len(installed) == 1
     files = installed[0].files
+    finder = [f for f in files if f.name.startswith("__editable__") and f.suffix == ".py"]
+    if finder:                 # pip install -e .: the editable finder's mapping is what site-packages provides
+        import ast
+        source = finder[0].locate().read_text()
+        mapping = ast.literal_eval(source.split("MAPPING: dict[str, str] = ", 1)[1].split("\n", 1)[0])
+        assert {name.split(".")[0] for name in mapping} == {"admmkit"}
+        assert {"admmkit.policies", "admmkit.problems", "admmkit.benchmarks"} <= set(mapping)
+        return
     top = {f.parts[0] for f in files if not f.parts[0].startswith("..") and not f.parts[0].endswith(".dist-info")}
     assert top == {"admmkit"}
     names = {".".join(f.with_suffix("").parts[:3]) for f in files if f.suffix == ".py"}

@@ -70,16 +70,21 @@ def _neutral_fields(neutral: dict | None, eps: float) -> dict:
             "neutral_dual": neutral["dual"], "neutral_gap": neutral["gap"]}
 
 
-def run_admmkit(qp: QP, variant: str, rule: str, order: str, eps, max_iter: int, time_limit: float) -> list[dict]:
-    """One admmkit run to the tightest eps (the polish variant: one run per eps); one row per eps."""
+def run_admmkit(qp: QP, variant: str, rule: str, order: str, eps, max_iter: int, time_limit: float,
+                acceleration: str | None = None) -> list[dict]:
+    """One admmkit run to the tightest eps (the polish variant: one run per eps); one row per eps.
+
+    ``acceleration``: None (plain ADMM), "anderson" or "fast" (:mod:`admmkit.acceleration`).
+    """
     eps = sorted({float(e) for e in eps}, reverse=True)
     if variant == "polish":
-        return [row for e in eps for row in run_admmkit_at(qp, variant, rule, order, [e], max_iter, time_limit)]
-    return run_admmkit_at(qp, variant, rule, order, eps, max_iter, time_limit)
+        return [row for e in eps for row in run_admmkit_at(qp, variant, rule, order, [e], max_iter, time_limit,
+                                                           acceleration)]
+    return run_admmkit_at(qp, variant, rule, order, eps, max_iter, time_limit, acceleration)
 
 
 def run_admmkit_at(qp: QP, variant: str, rule: str, order: str, eps: list[float], max_iter: int,
-                   time_limit: float) -> list[dict]:
+                   time_limit: float, acceleration: str | None = None) -> list[dict]:
     """A run to min(eps) that also records where the test at each looser eps first held."""
     clock = time.process_time
     t0 = clock()
@@ -109,7 +114,7 @@ def run_admmkit_at(qp: QP, variant: str, rule: str, order: str, eps: list[float]
         return clock() > deadline
 
     policy = None if rule == "fixed" else rule     # "osqp": OSQP's rule as OSQP runs it (solve_qp's default)
-    res = solve_qp(run_qp, settings, policy=policy, callback=watch)
+    res = solve_qp(run_qp, settings, policy=policy, callback=watch, acceleration=acceleration)
     total = clock() - t0
     label = {"variant": variant, "solver": rule, "order": order}
     common = {"rho_changes": res.rho_changes, "rho_final": res.rho, "rho_max": max(rho_max[0], res.rho),

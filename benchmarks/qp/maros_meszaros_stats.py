@@ -4,6 +4,8 @@ from __future__ import annotations
 import math
 import numpy as np
 
+from admmkit.benchmarks.runner.profiles import profile
+
 RHO0 = 0.1
 SHIFT = 10.0
 #: the label of OSQP called directly
@@ -76,14 +78,9 @@ def performance_profile(rows: list[dict], metric: str, eps: float, keys=None):
     for r in sel:
         j = column.get((r["variant"], r["solver"], r["order"]))
         if j is not None and _true(r["neutral"]):
-            table[index[r["problem"]], j] = max(float(r[metric]), 1e-9)
-    best = table.min(axis=1, keepdims=True)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        ratio = np.where(np.isfinite(best), table / best, np.inf)
-    finite = ratio[np.isfinite(ratio)]
-    top = max(float(finite.max()) if finite.size else 2.0, 2.0)
-    taus = np.logspace(0, math.log10(top) + 0.05, 400)
-    return {key: (taus, (ratio[:, j][:, None] <= taus[None, :]).mean(axis=0)) for j, key in enumerate(keys)}
+            table[index[r["problem"]], j] = float(r[metric])
+    taus, fractions = profile(table)
+    return {key: (taus, fractions[:, j]) for j, key in enumerate(keys)}
 
 
 def target(summary: list[dict]) -> list[dict]:

@@ -86,8 +86,9 @@ def ladder_run(d: Discrete, label: str, rho0: float, *, ladder=ADMM_LADDER, max_
 
 
 def paper_rule_run(problem, label: str, rho0: float, *, tol: float = 1e-5, max_iter: int = 20_000,
-                   time_limit: float | None = None) -> admmkit.Result:
-    """One run stopped by the paper's rule ||x^{k+1} - x^k|| <= tol ||x^{k+1}|| (or the cap)."""
+                   time_limit: float | None = None, acceleration: str | None = None) -> admmkit.Result:
+    """One run stopped by the paper's rule ||x^{k+1} - x^k|| <= tol ||x^{k+1}|| (or the cap); ``acceleration``
+    as :func:`admmkit.solve` takes it."""
     policy, order = methods.make(label)
     return admmkit.solve(problem, rho=rho0, policy=policy, order=order, stop=admmkit.RelativeChange(tol),
-                         max_iter=max_iter, time_limit=time_limit)
+                         max_iter=max_iter, time_limit=time_limit, acceleration=acceleration)

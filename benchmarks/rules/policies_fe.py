@@ -2,10 +2,10 @@
 
     admmkit bench policies [--out docs/results/policies_fe] [--quick]
 
-For contact Example 1 (h = 1/20, condensed mode), the same with Tresca
-friction (slip bound 2, full mode) and the radial obstacle (h = 1/16), every rule of :data:`RULES` in both orders from rho_0 = 10^j over
-12 decades (13 values; 1e-4 ... 1e8 for contact, whose stiffness E = 2000
-puts good penalties near 1e3, and 1e-6 ... 1e6 for the obstacle).
+For contact Example 1 (h = 1/20, condensed mode), the same with Tresca friction (slip bound 2, full mode)
+and the radial obstacle (h = 1/16), every rule of :data:`RULES` in both orders from rho_0 = 10^j over 12
+decades (1e-4 ... 1e8 for contact, whose stiffness E = 2000 puts good penalties near 1e3; 1e-6 ... 1e6
+for the obstacle).  ``bench rules`` runs the same cases (and Example 2) with acceleration.
 
 Each run stops when the relative error against a reference solution of the
 same discrete problem (cvxpy + Clarabel) is at most 1e-6, in the problem's
@@ -24,6 +24,7 @@ reference solution is computed once per worker), finished cases kept in
 from __future__ import annotations
 
 import math
+import time
 from pathlib import Path
 
 import numpy as np
@@ -32,6 +33,7 @@ import admmkit
 from admmkit import policies  # noqa: F401  (registers the rules)
 from admmkit import RelativeChange
 
+from admmkit.benchmarks.rules.methods import method_label, policy_version
 from admmkit.benchmarks.runner.report import write_csv, write_text
 from admmkit.benchmarks.runner.sweep import Executor, run_sweep
 
@@ -44,20 +46,20 @@ ORACLE = 1e-6       # the stop: relative error against the reference
 FALSE_STOP = 1e-3   # an error above this where the paper's rule fires counts as a false stop
 
 
-def contact_case(h: float = 1 / 20):
-    """(name, make_problem, relative_error, rho_0 values) for contact Example 1 in the condensed mode."""
+def contact_case(h: float = 1 / 20, example: int = 1):
+    """(name, make_problem, relative_error, rho_0 values) for contact Example 1 (or 2) in the condensed mode."""
     from admmkit.problems.contact.model.assembly import assemble
     from admmkit.problems.contact.solvers.problem import contact_problem
     from admmkit.problems.contact.validation.reference import reference_solution
-    from admmkit.problems.contact.model.scene import example1
-    ops = assemble(example1(h))
+    from admmkit.problems.contact.model.scene import example1, example2
+    ops = assemble((example1 if example == 1 else example2)(h))
     ref = reference_solution(ops)
     # the condensed iterate of the reference: u = K^{-1}(f + B'w) with w = -M_c lam (s = 1)
     x_ref = np.concatenate(([1.0], -ops.mc * ref.lam))
 
     def error(problem, x):
         return problem.x_distance(x, x_ref) / problem.x_norm(x_ref)
-    return (f"contact Ex.1, h = 1/{round(1 / h)}", lambda: contact_problem(ops, mode="condensed"), error,
+    return (f"contact Ex.{example}, h = 1/{round(1 / h)}", lambda: contact_problem(ops, mode="condensed"), error,
             tuple(10.0 ** j for j in range(-4, 9)), "energy norm")
 
 
@@ -95,13 +97,16 @@ def tresca_case(h: float = 1 / 20):
 
 
 #: the problems of the study: name -> (builder of the (name, make, error, rho_0 values, norm) tuple)
-PROBLEMS = {"contact": contact_case, "obstacle": obstacle_case, "tresca": tresca_case}
-DEFAULT_H = {"contact": 1 / 20, "obstacle": 1 / 16, "tresca": 1 / 20}
-QUICK_H = {"contact": 1 / 10, "obstacle": 1 / 4, "tresca": 1 / 10}
+PROBLEMS = {"contact": contact_case, "obstacle": obstacle_case, "tresca": tresca_case,
+            "contact_ex2": lambda h: contact_case(h, example=2)}
+DEFAULT_H = {"contact": 1 / 20, "obstacle": 1 / 16, "tresca": 1 / 20, "contact_ex2": 1 / 20}
+QUICK_H = {"contact": 1 / 10, "obstacle": 1 / 4, "tresca": 1 / 10, "contact_ex2": 1 / 10}
+#: the problems of ``bench policies`` (Example 2 is swept by ``bench rules``)
+STUDY_PROBLEMS = ("contact", "obstacle", "tresca")
 
 
 def build_cases(rules=RULES, orders=ORDERS, *, quick: bool = False, max_iter: int = MAX_ITER,
-                problems=tuple(PROBLEMS)) -> list[dict]:
+                problems=STUDY_PROBLEMS) -> list[dict]:
     """One case per (problem, rule, order, rho_0); the cases of one problem form a group."""
     unknown = [p for p in problems if p not in PROBLEMS]
     if unknown or not problems:
@@ -118,13 +123,9 @@ def build_cases(rules=RULES, orders=ORDERS, *, quick: bool = False, max_iter: in
                 for rho0 in rhos:
                     cases.append({"target": "policies", "problem": problem, "h": h, "rule": rule, "order": order,
                                   "rho0": rho0, "max_iter": max_iter, "oracle": ORACLE, "tol": TOL,
-                                  "policy_version": _version(rule), "group": f"{problem}-h{h:.6g}"})
+                                  "policy_version": policy_version(method_label(rule, "zx")),
+                                  "group": f"{problem}-h{h:.6g}"})
     return cases
-
-
-def _version(rule: str) -> str:
-    from admmkit.benchmarks.rules.methods import method_label, policy_version
-    return policy_version(method_label(rule, "zx"))
 
 
 def case_cost(case: dict) -> float:
@@ -150,11 +151,14 @@ def run_case(case: dict) -> dict:
         if not paper and rec.x_change <= case["tol"] * rec.x_norm:
             paper.update(iterations=rec.k + 1, error=err)
         return err <= case["oracle"]
+    start = time.perf_counter()
     res = admmkit.solve(problem, rho=case["rho0"], policy=case["rule"], order=case["order"],
-                        stop=RelativeChange(1e-300), max_iter=case["max_iter"], callback=watch)
+                        stop=RelativeChange(1e-300), max_iter=case["max_iter"], callback=watch,
+                        acceleration=case.get("acceleration"))
+    seconds = time.perf_counter() - start
     return {"case": name, "rule": case["rule"], "order": case["order"], "rho0": case["rho0"],
-            "reached": res.status.value == "stopped", "iterations": res.iterations,
-            "factorizations": res.factorizations or 0, "rho_changes": res.rho_changes,
+            "reached": res.status.value == "stopped", "iterations": res.iterations, "seconds": seconds,
+            "status": res.status.value, "factorizations": res.factorizations or 0, "rho_changes": res.rho_changes,
             "rho_final": res.rho, "paper_iterations": paper.get("iterations", math.nan),
             "paper_error": paper.get("error", math.nan)}
 
@@ -248,7 +252,7 @@ def plot(results: dict, stem: Path) -> list[Path]:
 
 def run(out="out/policies", rules=RULES, quick: bool = False, command: str = "",
         progress: bool = True, max_iter: int = MAX_ITER, *, workers: int = 2, executor: Executor | None = None,
-        report_only: bool = False, problems=tuple(PROBLEMS)) -> dict:
+        report_only: bool = False, problems=STUDY_PROBLEMS) -> dict:
     """Run (or resume) the sweep of both problems (``quick``: coarser meshes, three rho_0) and write the report.
 
     ``problems``: a subset of ("contact", "obstacle", "tresca"); ``executor``: where the cases run.

@@ -93,7 +93,7 @@ def run_case(case: dict) -> dict:
     rho0 = case["rho_scale"] * d.rho_unit
     t0 = time.perf_counter()
     res = paper_rule_run(problem, case["method"], rho0, tol=case["tol"], max_iter=case["max_iter"],
-                         time_limit=case["time_limit"])
+                         time_limit=case["time_limit"], acceleration=case.get("acceleration"))
     seconds = time.perf_counter() - t0
     out = {"status": res.status.value, "iterations": res.iterations, "stopped_by": res.stopped_by,
            "final_rho": clean_float(res.rho), "rho_changes": res.rho_changes, "seconds": seconds,

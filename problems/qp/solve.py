@@ -96,13 +96,14 @@ def default_policy(qp: QP, settings: QPSettings):
 
 
 def solve_qp(qp: QP, settings: QPSettings | None = None, *, policy="osqp", warm_start: Result | None = None,
-             rho: float | None = None, callback=None, **changes) -> QPResult:
+             rho: float | None = None, callback=None, acceleration=None, **changes) -> QPResult:
     """Solve ``qp`` with ``settings`` (default :func:`osqp_settings`; keyword ``changes`` override single settings).
 
     ``policy``: "osqp" (default: OSQP's rule with OSQP's normalisation, see
     ``admmkit.problems.qp.solve.default_policy``), None for a fixed rho, or any policy or registered
     name :func:`admmkit.solve` accepts.  ``warm_start``: a previous result of
-    this QP (its x, y and rho).  ``rho`` overrides rho_0.
+    this QP (its x, y and rho).  ``rho`` overrides rho_0.  ``acceleration``:
+    None, "anderson", "fast" or an accelerator, as :func:`admmkit.solve` takes it.
     """
     if not isinstance(qp, QP):
         raise TypeError(f"qp must be a admmkit.problems.qp.QP, got {type(qp).__name__}")
@@ -136,7 +137,7 @@ def solve_qp(qp: QP, settings: QPSettings | None = None, *, policy="osqp", warm_
 
     res = admmkit.solve(run_qp, rho=rho0, policy=rule, order=settings.order, stop=stop, max_iter=settings.max_iter,
                         alpha=settings.alpha, check_every=settings.check_every, x0=x0, z0=z0, lam0=lam0,
-                        time_limit=settings.time_limit, callback=keep_last)
+                        time_limit=settings.time_limit, callback=keep_last, acceleration=acceleration)
     res.timings["setup"] = setup_time
     res.counters["factorizations"] = res.counters.get("factorizations", 0) + setup_factorizations
     return _qp_result(run_qp, settings, res, stop, last[0])

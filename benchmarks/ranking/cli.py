@@ -1,0 +1,31 @@
+"""The command of the ranking (``admmkit bench rules``), registered by an entry point in ``pyproject.toml``."""
+from __future__ import annotations
+
+from admmkit.benchmarks.runner.options import add_sweep_options, executor_of, print_files, split_list
+
+
+def rules(targets) -> None:
+    """``admmkit bench rules``: every rule (and one of yours) through every family, ranked."""
+    from admmkit.benchmarks.ranking.study import FAMILIES
+    r = targets.add_parser("rules", help="rank the penalty rules (and yours) on every family, with acceleration",
+                           description="Runs the rules through the QP (Maros-Meszaros under OSQP's machinery), "
+                                       "contact, obstacle, friction, framework and stability families and ranks "
+                                       "them by performance profiles (benchmarks/ranking/study.py).")
+    add_sweep_options(r, "rules")
+    r.add_argument("--rules", default=None,
+                   help="comma-separated rules: names, module:Class or path/to/file.py:Class (default: all registered)")
+    r.add_argument("--acceleration", default="none,anderson",
+                   help="comma-separated: none, anderson, fast (default none,anderson)")
+    r.add_argument("--families", default=",".join(FAMILIES), help=f"comma-separated (default {','.join(FAMILIES)})")
+    r.add_argument("--data", default=None, metavar="DIR",
+                   help="Maros-Meszaros MAT files for the qp family (default ../shared/data/maros_meszaros if there)")
+    r.set_defaults(func=_rules)
+
+
+def _rules(args) -> int:
+    from admmkit.benchmarks.ranking.study import run
+    print_files(run(args.out, rules=split_list(args.rules), acceleration=split_list(args.acceleration) or [],
+                    families=split_list(args.families) or [], quick=args.quick, data=args.data,
+                    command=args.command_line, progress=args.progress, report_only=args.report_only,
+                    executor=executor_of(args)))
+    return 0

@@ -1,0 +1,231 @@
+"""The summary of ``admmkit bench rules``: the rules ranked, per family and overall.
+
+A *configuration* is a rule with an acceleration (``osqp``, ``osqp+anderson``);
+a *problem* of a family is everything else of a run (the problem, h, nu,
+P, order, rho_0, eps), so each configuration meets the same problems.  From
+one row per run the summary writes
+
+- ``runs.csv``: every run (family, problem, configuration, solved, status,
+  iterations, seconds);
+- ``profiles_iterations.png`` / ``profiles_time.png``: Dolan-More profiles
+  per family and overall (the mean of the families' profiles, so that each
+  family weighs the same however many runs it has);
+- ``README.md``: the ranking by the overall iteration score (the mean of the
+  profile over log tau in [0, 1], i.e. tau from 1 to 10), the time score,
+  solved counts, the robustness across rho_0 (median over the sweeps of
+  log10(max / min iterations) among the rho_0 that solved, and the share
+  of sweeps solved at every rho_0), what acceleration does per family and
+  rule (median iteration and time ratio accelerated / plain over the runs
+  both solve, runs rescued: solved only with it, runs broken: solved only
+  without it);
+- ``failures.md``: every run that did not solve, with its status.
+"""
+from __future__ import annotations
+
+import math
+from collections import defaultdict
+from pathlib import Path
+
+import numpy as np
+
+from admmkit.benchmarks.runner.profiles import plot_profiles, profile, score
+from admmkit.benchmarks.runner.report import (NOISE_NOTE, fmt, md_table, pyplot, save_figure, write_csv,
+                                               write_text)
+
+#: the fields of a case that make a family's problem (the configuration's fields excluded)
+PROBLEM_FIELDS = ("problem", "scene", "h", "nu", "p", "sweep", "order", "rho0", "rho_scale")
+TAUS = np.logspace(0, 2, 300)
+
+
+def config_of(case: dict) -> str:
+    """``rule`` or ``rule+acceleration``."""
+    return case["rule"] + (f"+{case['acceleration']}" if case.get("acceleration") else "")
+
+
+def rows_of(records: dict) -> list[dict]:
+    """One row per run; a case that raised or timed out fails at each of its accuracies."""
+    rows = []
+    for rec in records.values():
+        case = rec["case"]
+        problem = " ".join(f"{k}={case[k]:g}" if isinstance(case[k], float) else f"{k}={case[k]}"
+                           for k in PROBLEM_FIELDS if case.get(k) is not None)
+        base = {"family": case["family"], "problem": problem, "rule": case["rule"],
+                "acceleration": case.get("acceleration") or "none", "config": config_of(case),
+                "rho_sweep": " ".join(problem.split(" rho")[0:1])}
+        runs = (rec.get("result") or {}).get("runs")
+        if runs is None:
+            error = (rec.get("error") or "error").split(":")[0]
+            runs = [{"eps": e, "solved": False, "status": error, "iterations": math.nan, "seconds": math.nan}
+                    for e in (case.get("eps") or [None])]
+        for run in runs:
+            suffix = f" eps={run['eps']:g}" if run.get("eps") is not None else ""
+            rows.append(base | {"problem": problem + suffix, "rho_sweep": base["rho_sweep"] + suffix,
+                                "solved": bool(run["solved"]), "status": run["status"],
+                                "iterations": run["iterations"], "seconds": run["seconds"]})
+    return rows
+
+
+def cost_table(rows: list[dict], metric: str, configs: list[str]) -> np.ndarray:
+    """problems x configurations: the metric where solved, inf where not (a missing run counts as a failure)."""
+    problems = sorted({r["problem"] for r in rows})
+    index, column = {p: i for i, p in enumerate(problems)}, {c: j for j, c in enumerate(configs)}
+    table = np.full((len(problems), len(configs)), np.inf)
+    for r in rows:
+        if r["solved"] and r["config"] in column:
+            table[index[r["problem"]], column[r["config"]]] = float(r[metric])
+    return table
+
+
+def robustness(rows: list[dict], config: str) -> tuple[float, float]:
+    """(median log10 spread of iterations across rho_0 among solved runs, share of sweeps solved at every rho_0)."""
+    sweeps = defaultdict(list)
+    for r in rows:
+        if r["config"] == config and (" rho0=" in r["problem"] or " rho_scale=" in r["problem"]):
+            sweeps[(r["family"], r["rho_sweep"])].append(r)
+    spreads, whole = [], []
+    for runs in (runs for runs in sweeps.values() if len(runs) >= 2):
+        its = [r["iterations"] for r in runs if r["solved"]]
+        whole.append(len(its) == len(runs))
+        if len(its) >= 2:
+            spreads.append(math.log10(max(max(its), 1) / max(min(its), 1)))
+    return (float(np.median(spreads)) if spreads else math.nan, float(np.mean(whole)) if whole else math.nan)
+
+
+def acceleration_effect(rows: list[dict]) -> list[dict]:
+    """Per family, rule and acceleration: runs, median ratios accelerated / plain, rescued and broken runs."""
+    plain = {(r["family"], r["problem"], r["rule"]): r for r in rows if r["acceleration"] == "none"}
+    groups = defaultdict(list)
+    for r in rows:
+        p = plain.get((r["family"], r["problem"], r["rule"]))
+        if r["acceleration"] != "none" and p is not None:
+            groups[(r["family"], r["rule"], r["acceleration"])].append((p, r))
+    out = []
+    for (family, rule, accel), pairs in sorted(groups.items()):
+        both = [(p, a) for p, a in pairs if p["solved"] and a["solved"]]
+        out.append({"family": family, "rule": rule, "acceleration": accel, "runs": len(pairs), "both": len(both),
+                    "iteration_ratio": _median([a["iterations"] / max(p["iterations"], 1) for p, a in both]),
+                    "time_ratio": _median([a["seconds"] / p["seconds"] for p, a in both if p["seconds"] > 0]),
+                    "rescued": sum(a["solved"] and not p["solved"] for p, a in pairs),
+                    "broken": sum(p["solved"] and not a["solved"] for p, a in pairs)})
+    return out
+
+
+def _median(values) -> float:
+    return float(np.median(values)) if values else math.nan
+
+
+def figure(rows: list[dict], families: list[str], configs: list[str], metric: str, path: Path) -> Path:
+    """The profiles of one metric: one panel per family and the overall mean."""
+    plt = pyplot()
+    panels = families + ["overall"]
+    cols = min(len(panels), 4)
+    nrows = math.ceil(len(panels) / cols)
+    fig, axes = plt.subplots(nrows, cols, figsize=(4.2 * cols, 3.6 * nrows), squeeze=False)
+    styles = _styles(configs)
+    mean = np.zeros((len(TAUS), len(configs)))
+    for ax, family in zip(axes.flat, panels):
+        if family == "overall":
+            fractions, n = mean / max(len(families), 1), len(families)
+            title = f"overall: mean of {n} famil{'y' if n == 1 else 'ies'}"
+        else:
+            sub = [r for r in rows if r["family"] == family]
+            table = cost_table(sub, metric, configs)
+            fractions = profile(table, TAUS)[1]
+            mean += fractions
+            title = f"{family}: {table.shape[0]} problems"
+        plot_profiles(ax, TAUS, fractions, configs, title, styles)
+    spare = list(axes.flat)[len(panels):]
+    for ax in spare:
+        ax.axis("off")
+    handles, names = axes.flat[0].get_legend_handles_labels()
+    fig.suptitle(f"Performance profiles ({'iterations' if metric == 'iterations' else 'wall time'})")
+    if spare:                                           # the legend in an empty panel, off the curves
+        spare[0].legend(handles, names, loc="center", fontsize=8, ncol=2 if len(names) > 12 else 1)
+        fig.tight_layout()
+    else:
+        fig.legend(handles, names, loc="lower center", fontsize=8, ncol=min(len(names), 6))
+        fig.tight_layout(rect=(0, 0.06 * math.ceil(len(names) / 6) / nrows, 1, 1))
+    save_figure(fig, path)
+    plt.close(fig)
+    return path
+
+
+def _styles(configs: list[str]) -> dict[str, dict]:
+    """A colour per rule, a line style per acceleration."""
+    rules = sorted({c.split("+")[0] for c in configs})
+    cmap = pyplot().get_cmap("tab10")
+    dash = {"": "-", "anderson": "--", "fast": ":"}
+    return {c: dict(color=cmap(rules.index(c.split("+")[0]) % 10),
+                    linestyle=dash.get(c.partition("+")[2], "-."), linewidth=1.4) for c in configs}
+
+
+def summarise(records: dict, out: Path, *, command: str, wall: float | None, notes=(), missing: int = 0,
+              families=None) -> list[Path]:
+    """Write runs.csv, the profiles, failures.md and README.md (the ranking); returns the files."""
+    out.mkdir(parents=True, exist_ok=True)
+    rows = rows_of(records)
+    families = [f for f in (families or []) if any(r["family"] == f for r in rows)]
+    configs = sorted({r["config"] for r in rows})
+    files = [write_csv(out / "runs.csv", rows)]
+    files += [figure(rows, families, configs, m, out / f"profiles_{name}.png")
+              for m, name in (("iterations", "iterations"), ("seconds", "time"))]
+    ranking = _ranking(rows, families, configs)
+    effect = acceleration_effect(rows)
+    write_text(out / "failures.md", _failures(rows))
+    lines = [f"# Penalty rules ranked: `{command}`", "",
+             (f"Wall time of this invocation: {wall:.0f} s." if wall is not None else
+              "Rewritten from results.jsonl (--report-only).") + f" {len(rows)} runs"
+             + (f"; {missing} cases not run yet (resume with the same command)." if missing else "."), ""]
+    lines += [f"- {n}" for n in notes] + ([""] if notes else [])
+    lines += ["Ranked by the overall iteration score: the mean, over the families, of the Dolan-More profile "
+              "averaged over log tau for tau in [1, 10] (1 = the fewest iterations on every problem). "
+              "Spread: median over the rho_0 sweeps of log10(max/min iterations) among the rho_0 that solved; "
+              "whole: the share of sweeps solved at every rho_0. " + NOISE_NOTE, "",
+              md_table(["rank", "configuration", "iterations score", "time score", "solved"]
+                       + [f"{f} solved" for f in families] + ["spread", "whole"], ranking), "",
+              "![iterations](profiles_iterations.png)", "", "![time](profiles_time.png)", ""]
+    if effect:
+        lines += ["## What acceleration does", "",
+                  "Ratios accelerated / plain over the runs both solve (median); rescued: solved only with "
+                  "acceleration; broken: solved only without.", "",
+                  md_table(["family", "rule", "acceleration", "runs", "both solved", "iterations ratio",
+                            "time ratio", "rescued", "broken"],
+                           [[e["family"], e["rule"], e["acceleration"], e["runs"], e["both"],
+                             fmt(e["iteration_ratio"], ".2f"), fmt(e["time_ratio"], ".2f"), e["rescued"], e["broken"]]
+                            for e in effect]), ""]
+    failed = sum(not r["solved"] for r in rows)
+    lines += ["## Failures", "", f"{failed} of {len(rows)} runs did not solve; every one is in "
+              "[failures.md](failures.md) with its status."]
+    write_text(out / "README.md", "\n".join(lines) + "\n")
+    return files + [out / "failures.md", out / "README.md"]
+
+
+def _ranking(rows: list[dict], families: list[str], configs: list[str]) -> list[list]:
+    """The ranking table's rows, best first."""
+    scores = {m: np.zeros(len(configs)) for m in ("iterations", "seconds")}
+    solved = defaultdict(lambda: defaultdict(int))
+    totals = defaultdict(int)
+    for family in families:
+        sub = [r for r in rows if r["family"] == family]
+        for m in scores:
+            scores[m] += score(cost_table(sub, m, configs)) / max(len(families), 1)
+        for r in sub:
+            solved[r["config"]][family] += r["solved"]
+        totals[family] = len({r["problem"] for r in sub})
+    order = np.argsort(-scores["iterations"], kind="stable")
+    table = []
+    for rank, j in enumerate(order, 1):
+        c = configs[j]
+        spread, whole = robustness(rows, c)
+        table.append([rank, c, f"{scores['iterations'][j]:.3f}", f"{scores['seconds'][j]:.3f}",
+                      f"{sum(solved[c].values())}/{sum(totals.values())}"]
+                     + [f"{solved[c][f]}/{totals[f]}" for f in families] + [fmt(spread, ".2f"), fmt(whole, ".2f")])
+    return table
+
+
+def _failures(rows: list[dict]) -> str:
+    """failures.md: every run that did not solve."""
+    bad = sorted((r for r in rows if not r["solved"]), key=lambda r: (r["family"], r["config"], r["problem"]))
+    body = [[r["family"], r["config"], r["problem"], r["status"], fmt(r["iterations"], ".0f")] for r in bad]
+    return ("# Runs that did not solve\n\n" + (md_table(["family", "configuration", "problem", "status", "iterations"],
+                                                         body, "lllll") if body else "None.") + "\n")
