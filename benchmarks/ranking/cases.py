@@ -5,19 +5,19 @@ for a QP, whose one solve is judged at every accuracy), judged by the
 family's own truthful measure:
 
 - ``qp``: a Maros-Meszaros problem under OSQP's machinery (the preset,
-  order xz, rho_0 = 0.1; :mod:`admmkit.benchmarks.qp.maros_meszaros_runs`):
+  order xz, rho_0 = 0.1; ``admmkit.benchmarks.qp.maros_meszaros_runs``):
   solved when the solver's own test said solved *and* the returned point
   meets the neutral criteria at that eps (a ``solved`` that misses them is
   the failure ``solved_not_neutral``);
 - ``contact``, ``obstacle``, ``friction``: contact Examples 1 and 2, the
   radial obstacle and Example 1 with Tresca friction from rho_0 over the
-  decades (:mod:`admmkit.benchmarks.rules.policies_fe`): solved when the
+  decades (``admmkit.benchmarks.rules.policies_fe``): solved when the
   relative error against an independent reference reaches 1e-6 before the cap;
 - ``framework``: the four problems written with the building blocks
-  (:mod:`admmkit.benchmarks.framework.four_problems`) with the same stop
+  (``admmkit.benchmarks.framework.four_problems``) with the same stop
   against their cvxpy references;
 - ``stability``: the paper's contact examples with the paper's stop
-  (:mod:`admmkit.benchmarks.rules.stability`): solved when the stop fired
+  (``admmkit.benchmarks.rules.stability``): solved when the stop fired
   with a true error of at most 1e-3 (a false convergence is a failure).
 """
 from __future__ import annotations
@@ -30,7 +30,7 @@ import numpy as np
 
 import admmkit
 
-#: the stop of the framework family: relative error against the cvxpy reference
+#: the stop of the framework family (relative error against the cvxpy reference)
 ORACLE = 1e-6
 #: the folder of the Maros-Meszaros files, for the workers
 DATA_ENV = "ADMMKIT_QP_DATA"
@@ -75,13 +75,18 @@ def run_qp(case: dict) -> list[dict]:
 
 
 def run_framework(case: dict) -> list[dict]:
-    """framework: one of the four problems from rho_0, stopped at relative error 1e-6 against cvxpy."""
-    from admmkit.benchmarks.framework.four_problems import build
+    """framework: one of the four problems from rho_0, stopped at relative error 1e-6 against cvxpy.
+
+    The reference is computed once per worker; the problem is built anew for every case, so that no
+    case finds factorisations an earlier one left in the x-step's cache (the times compare cold runs).
+    """
+    from admmkit.benchmarks.framework.four_problems import PROBLEMS, build
     key = ("framework", case["problem"])
     if key not in _CACHE:
         _CACHE.clear()
-        _CACHE[key] = build(case["problem"])
-    problem, ref = _CACHE[key]
+        _CACHE[key] = build(case["problem"])[1]
+    ref = _CACHE[key]
+    problem = PROBLEMS[case["problem"]]()[0]
     scale = float(np.linalg.norm(ref))
 
     def reached(rec):

@@ -8,22 +8,24 @@ A study is a grid, a case runner and a summary.  The grid (:func:`build_cases`)
 puts each rule, with and without acceleration, in the setting where it
 belongs, one family at a time:
 
-========== ====================================================================== ==========================
-family     problems (full grid)                                                    quick grid
-========== ====================================================================== ==========================
-qp         Maros-Meszaros with n + m <= 3000 under OSQP's machinery, eps 1e-3, 1e-6 6 small problems, 1e-3
-contact    Examples 1 and 2 (h = 1/20), rho_0 = 1e-4 ... 1e8, both orders          h = 1/10, 3 rho_0
-obstacle   the radial obstacle (h = 1/16), rho_0 = 1e-6 ... 1e6, both orders       h = 1/4, 3 rho_0
-friction   Example 1 with Tresca friction (h = 1/20), rho_0 as contact             h = 1/10, 3 rho_0
-framework  lasso, weighted box LS, consensus, TV (rho_0 = 1e-3, 1, 1e3, both orders) the same
-stability  the paper's examples, rho_0/E = 1e-6 ... 1e6 (h = 1/40) and h, nu, P1/P2 Ex. 1, h = 1/10, 3 rho_0
-========== ====================================================================== ==========================
+- ``qp``: Maros-Meszaros with n + m <= 3000 under OSQP's machinery, eps 1e-3
+  and 1e-6 (quick: 6 small problems at 1e-3);
+- ``contact``: Examples 1 and 2 (h = 1/20), rho_0 = 1e-4 ... 1e8, both
+  orders (quick: h = 1/10, 3 rho_0);
+- ``obstacle``: the radial obstacle (h = 1/16), rho_0 = 1e-6 ... 1e6, both
+  orders (quick: h = 1/4, 3 rho_0);
+- ``friction``: Example 1 with Tresca friction (h = 1/20), rho_0 as contact
+  (quick: h = 1/10, 3 rho_0);
+- ``framework``: LASSO, weighted box LS, consensus, TV, rho_0 = 1e-3, 1, 1e3,
+  both orders (quick: the same);
+- ``stability``: the paper's examples, rho_0/E = 1e-6 ... 1e6 (h = 1/40), and
+  h, nu, P1/P2 (quick: Ex. 1, h = 1/10, 3 rho_0).
 
 The case runner is :mod:`admmkit.benchmarks.ranking.cases` (each family's
 truthful "solved"), the summary :mod:`admmkit.benchmarks.ranking.report`
 (performance profiles, solved counts, robustness across rho_0, what
 acceleration does, every failure).  The cases run on the one sweep runner
-(:mod:`admmkit.benchmarks.runner.sweep`: local processes or Dask, resumable),
+(``admmkit.benchmarks.runner.sweep``: local processes or Dask, resumable),
 one results file for the whole suite.
 """
 from __future__ import annotations
@@ -40,7 +42,7 @@ from admmkit.benchmarks.runner.sweep import Executor, run_or_report
 FAMILIES = ("qp", "contact", "obstacle", "friction", "framework", "stability")
 #: the Maros-Meszaros problems of the quick grid (small, solved by OSQP in a few hundred iterations or less)
 QUICK_QP = ("HS21", "HS35", "HS118", "QAFIRO", "DUAL1", "QPCBLEND")
-#: the full grid's Maros-Meszaros problems: n + m at most this
+#: the full grid's Maros-Meszaros problems have n + m at most this
 QP_MAX_SIZE = 3000
 QP_EPS, QUICK_QP_EPS = (1e-3, 1e-6), (1e-3,)
 QP_MAX_ITER, QP_TIME_LIMIT = 4000, 5.0

@@ -1,9 +1,9 @@
 """Performance profiles (Dolan & More 2002) and the figures that show them.
 
 A study measures a cost t[p, s] (iterations, seconds) of each solver s on
-each problem p, with inf where s failed on p.  The profile of s is
+each problem p, with inf where s failed on p.  The profile of s is::
 
-    rho_s(tau) = |{p : t[p, s] <= tau min_s' t[p, s']}| / |problems|,
+    rho_s(tau) = #{p : t[p, s] <= tau min_s' t[p, s']} / #problems,
 
 the fraction of the problems that s solves within tau times the best cost
 (a problem no solver solves counts against every solver).  rho_s(1) is the

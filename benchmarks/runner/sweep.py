@@ -136,7 +136,7 @@ class Executor:
     - ``chunk``: at most this many cases per task; a larger group is split
       (a worker that already holds the group's problem does not build it
       again).  Default: a whole group per task on local processes (their
-      records stream back case by case), :data:`DASK_CHUNK` on Dask (a task's
+      records stream back case by case), ``DASK_CHUNK`` on Dask (a task's
       records arrive when it ends: smaller tasks give a finer progress line
       and resume point and spread a large group over the workers).
     """

@@ -62,6 +62,7 @@ def _worker(conn, func_path: str, env: dict | None, timeout: float | None, ppid:
     except Exception as err:    # every case records why (instead of workers dying one after another)
         def func(case, err=err):
             raise RuntimeError(f"cannot load {func_path}: {type(err).__name__}: {err}")
+    conn.send(("ready", None, None))
     while True:
         try:
             message = conn.recv()
@@ -88,6 +89,7 @@ class _Slot:
         self.proc.start()
         child.close()
         self.task = None        # (task id, list of (cid, case) not yet recorded)
+        self.ready = False      # the worker has started (imported its modules and the case runner)
         self.since = 0.0        # when the running case started (the last record or the hand-over)
 
     def give(self, task_id, cases) -> None:
@@ -125,6 +127,7 @@ def run_local(tasks: list[list], func_path: str, emit, *, workers: int, env: dic
     ctx = mp.get_context("spawn")
     queue = collections.deque(enumerate(tasks))
     deaths: dict[str, int] = collections.Counter()
+    any_started, startup_deaths = False, 0
     slots: list[_Slot] = []
     try:
         while queue or any(s.task for s in slots):
@@ -140,6 +143,10 @@ def run_local(tasks: list[list], func_path: str, emit, *, workers: int, env: dic
             ready = wait([s.conn for s in busy] + [s.proc.sentinel for s in busy], timeout=0.5)
             for s in busy:
                 dead = _drain(s, emit) or s.proc.sentinel in ready and not s.proc.is_alive()
+                any_started = any_started or s.ready
+                startup_deaths += bool(dead and not s.ready)
+                if startup_deaths >= 2 * workers and not any_started:
+                    raise RuntimeError(_startup_failure(func_path, startup_deaths))
                 overdue = timeout and s.task and time.monotonic() - s.since > timeout + GRACE
                 if s.task and (dead or overdue):
                     _lost_worker(s, emit, queue, deaths, retries, overdue=bool(overdue and not dead))
@@ -157,6 +164,14 @@ def run_local(tasks: list[list], func_path: str, emit, *, workers: int, env: dic
                 os.environ[k] = v
 
 
+def _startup_failure(func_path: str, deaths: int) -> str:
+    """Why a sweep stops when its workers die before they start (the usual cause: an unguarded script)."""
+    main = getattr(sys.modules.get("__main__"), "__file__", None)
+    return (f"the sweep's worker processes died {deaths} times while starting, before loading {func_path}. "
+            f"Each spawned worker imports the main script again{f' ({main})' if main else ''}: a script that runs "
+            f"a sweep on local processes must start it under `if __name__ == \"__main__\":` (or use workers=1)")
+
+
 def _drain(slot: _Slot, emit) -> bool:
     """Take every message the worker has sent; True if its pipe is closed (the worker is gone)."""
     try:
@@ -168,6 +183,8 @@ def _drain(slot: _Slot, emit) -> bool:
                 emit(rec)
             elif kind == "done":
                 slot.task = None
+            elif kind == "ready":
+                slot.ready = True
     except (EOFError, OSError):
         return True
     return False

@@ -187,10 +187,19 @@ def test_bench_policies_resumes(tmp_path, ids_in_file):
     lines = path.read_text().splitlines()
     assert len(lines) == 2 * 3                             # orders x rho_0
     path.write_text("\n".join(lines[:3]) + "\n" + lines[3][:30])   # interrupted: 3 whole lines and a torn one
-    csv_before = (tmp_path / "sweep.csv").read_text()
+    table_before = _without_times(tmp_path / "sweep.csv")
     run(tmp_path, **kwargs)
     assert sorted(ids_in_file(path)) == sorted(json.loads(x)["id"] for x in lines)
-    assert (tmp_path / "sweep.csv").read_text() == csv_before       # the same iterations, the same table
+    assert _without_times(tmp_path / "sweep.csv") == table_before    # the same iterations, the same table
+
+
+def _without_times(path: Path) -> list[dict]:
+    """The table's rows without the wall-clock column (a re-run case takes another time, nothing else changes)."""
+    import csv
+    with path.open(newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    assert rows and "iterations" in rows[0]
+    return [{k: v for k, v in row.items() if k != "seconds"} for row in rows]
 
 
 def test_executor_bad_input_names_the_parameter(tmp_path):
@@ -208,3 +217,22 @@ def test_executor_bad_input_names_the_parameter(tmp_path):
     records = run_sweep([{"value": v, "group": "g"} for v in range(5)], FUNC, tmp_path / "r.jsonl", progress=False,
                         executor=Executor(workers=2, chunk=2))       # one group split into tasks of 2 cases
     assert sorted(r["result"]["square"] for r in records.values()) == [0, 1, 4, 9, 16]
+
+
+# ---------------------------------------------------------------- an unguarded script
+def test_a_sweep_in_an_unguarded_script_stops_with_the_reason(tmp_path):
+    """Spawned workers import the main script again; without the __main__ guard they die while starting.
+
+    The driver must stop with a message that says so, instead of replacing dying workers case after case.
+    """
+    script = tmp_path / "unguarded.py"
+    script.write_text(textwrap.dedent(f"""
+        from pathlib import Path
+        from admmkit.benchmarks.runner.sweep import run_sweep
+        run_sweep([{{"value": v}} for v in range(20)], "json:dumps", Path({str(tmp_path / 'r.jsonl')!r}),
+                  workers=2, progress=False, table=False)
+    """))
+    run = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=120, cwd=tmp_path)
+    assert run.returncode != 0
+    assert "if __name__ ==" in run.stderr and "unguarded.py" in run.stderr, run.stderr[-2000:]
+    assert len((tmp_path / "r.jsonl").read_text().splitlines()) < 20      # it stopped before working through them
