@@ -143,3 +143,14 @@ def test_solve_scene_names_a_bad_method(method):
     from admmkit.problems.contact import example1, solve_scene
     with pytest.raises(ValueError, match="method must be a name|unknown method"):
         solve_scene(example1(h=1 / 10), method)
+
+
+def test_caret_is_freefems_power_with_its_precedence():
+    """#24: a gap written as in FreeFEM ("0.003*(x-1.5)^2 + 0.001") is a power, not Python's XOR."""
+    f = expression("0.003*(x - 1.5)^2 + 0.001")
+    assert f(0.5, 0.0) == pytest.approx(0.003 * 1.0 + 0.001, rel=1e-15)
+    assert expression("2*x^2")(3.0, 0.0) == 18.0             # the power binds tighter than *
+    assert expression("-x^2")(3.0, 0.0) == -9.0
+    cf = expression("x^2 + y^3")(ng.x, ng.y)
+    mesh = ng.Mesh(ng.unit_square.GenerateMesh(maxh=0.5))
+    assert cf(mesh(0.5, 0.5)) == pytest.approx(0.375, rel=1e-12)

@@ -2,8 +2,10 @@
 
 A gap, a traction component, a body force, a slip bound or a friction
 coefficient may be a number, a Python callable f(x, y) (in 3D: of the
-point (x, y) of the contact face z = 0) or an expression string.  An expression may use x, y, numbers, + - * / ** and the
-functions in :data:`FUNCTIONS`; it evaluates on floats (math) and on NGSolve
+point (x, y) of the contact face z = 0) or an expression string.  An
+expression may use x, y, numbers, + - * / ** and the functions in
+:data:`FUNCTIONS`; ``^`` is read as ``**`` (FreeFEM's power, the paper's
+tool: ``0.003*(x-1.5)^2`` is ``0.003*(x-1.5)**2``); it evaluates on floats (math) and on NGSolve
 coefficient functions (ngsolve), so one string serves both the nodal values
 (the gap at the contact nodes) and the assembled load (a traction integrated
 by NGSolve).
@@ -41,7 +43,7 @@ def _cf_max(*args):
 
 
 def expression(text: str) -> Callable:
-    """Turn a string in x and y (e.g. ``"-10*exp(-x)"``) into f(x, y).
+    """Turn a string in x and y (e.g. ``"-10*exp(-x)"``, ``"0.003*(x-1.5)^2"``) into f(x, y).
 
     f works on floats (math's functions) and on NGSolve coefficient functions
     (ngsolve.x, ngsolve.y: ngsolve's functions; abs, min and max via IfPos).
@@ -51,7 +53,7 @@ def expression(text: str) -> Callable:
     if not isinstance(text, str):
         raise TypeError(f"expression must be a string, got {type(text).__name__}")
     try:
-        code = compile(text, "<expression>", "eval")
+        code = compile(text.replace("^", "**"), "<expression>", "eval")   # FreeFEM's power, with its precedence
     except SyntaxError as err:
         raise ValueError(f"expression {text!r} is not valid Python syntax: {err.msg}") from None
     unknown = set(code.co_names) - set(FUNCTIONS) - {"x", "y"}
