@@ -215,10 +215,14 @@ def progress(args, total: int):
     return Progress(total, enabled=not getattr(args, "quiet", False), lines=progress_callback(lines))
 
 
-def run_solve(problem, args) -> Result:
-    """Solve with the common options, print the summary, write the history if asked."""
+def run_solve(problem, args, stop: StoppingRule | None = None) -> Result:
+    """Solve with the common options, print the summary, write the history if asked.
+
+    ``stop``: a plug-in's own stopping rule (e.g. one balanced with its error estimate) in place of the
+    one the common options ask for.
+    """
     order, policy, name = resolve_policy(args)
-    stop = stop_rule(args)
+    stop = stop if stop is not None else stop_rule(args)
     with progress(args, args.max_iter) as show:
         result = solve(problem, rho=args.rho, policy=policy, order=order, stop=stop,
                        max_iter=args.max_iter, callback=show)

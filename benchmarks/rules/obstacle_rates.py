@@ -36,6 +36,7 @@ from admmkit.problems.obstacle.plot import plot_solution
 from admmkit.problems.obstacle.problem import make_problem, solve_with_cvxpy
 from admmkit.problems.obstacle.scene import A_STAR, pyramid, radial
 
+from admmkit.benchmarks.rules import obstacle_stops
 from admmkit.benchmarks.runner.report import write_csv
 
 MESHES = (16, 32, 64, 128, 256, 512)          # squares per side of (-2, 2)^2: h = 4/N
@@ -230,6 +231,7 @@ def run(out="out/obstacle", *, quick: bool = False, command: str = "admmkit benc
         write_csv(out / "convergence.csv", rows)
         write_text(out / "convergence.md", convergence_markdown(rows) + f"\nMade by `{command}`.\n")
         plot_convergence(rows, out / "convergence.png")
+        obstacle_stops.run(out, meshes[:-1] if len(meshes) > 3 else meshes, command)
 
     print(f"policy sweep (radial, h = 4/{n_sweep}):", flush=True)
     srows = sweep(n_sweep, rhos, out=out / "sweep", executor=executor, progress=progress, report_only=report_only)

@@ -6,6 +6,7 @@ from admmkit.cli import (add_common_options, add_output_file, add_result_outputs
                          run_solve, write_result_csv, write_result_json)
 from admmkit.policies.paper_methods import PAPER_METHODS
 
+from .estimate import BalancedStop
 from .plot import plot_solution
 from .problem import DEFAULT_BACKEND, make_problem
 from .scene import A_STAR, SCENES, scene as named_scene
@@ -19,19 +20,40 @@ def register(subparsers) -> None:
     p.add_argument("--h", type=positive_float, default=1 / 16, help="cell size, fractions allowed (default 1/16)")
     p.add_argument("--backend", default=DEFAULT_BACKEND, help=f"sparse solver of K + rho M, or iterative for AMG-preconditioned CG (default {DEFAULT_BACKEND})")
     add_output_file(p, "--plot", "FILE", "write a plot of u, psi and the contact set (PNG)")
+    p.add_argument("--balance", type=positive_float, default=None, metavar="GAMMA",
+                   help="stop when a guaranteed bound of the algebraic error is below GAMMA x the estimated "
+                        "discretisation error, 0 < GAMMA <= 1 (the default stop, GAMMA = 0.1, unless --tol or "
+                        "--eps-abs is given)")
     add_common_options(p, policy="summable", order="zx", methods=PAPER_METHODS)
     add_result_outputs(p, json_help="write the run (provenance, scene, summary, errors, u on the free nodes) as JSON",
                        csv_help="write one row per free node: x, y, u, psi, in_contact")
     p.set_defaults(func=run)
 
 
+def balance_gamma(args) -> float | None:
+    """gamma of the balanced stop: --balance, or 0.1 when no other stop is given; None for --tol / --eps-abs alone."""
+    other = args.tol is not None or args.eps_abs is not None
+    if args.balance is None:
+        return None if other else 0.1
+    if other:
+        raise ValueError("--balance cannot be combined with --tol or --eps-abs: give one stop")
+    if not 0 < args.balance <= 1:
+        raise ValueError(f"--balance = {args.balance:g} is outside the accepted range (0, 1]")
+    return args.balance
+
+
 def run(args) -> int:
     """Build the scene, solve it, print the summary and the errors against the exact solution; 0 only if converged."""
+    gamma = balance_gamma(args)
     problem = make_problem(named_scene(args.scene, h=args.h), backend=args.backend)
     nx, ny = problem.scene.counts
     print(f"problem      obstacle/{args.scene}: h = {args.h:.6g} ({nx} x {ny} squares), "
           f"{problem.n} free nodes, side {problem.scene.side}")
-    result = run_solve(problem, args)
+    stop = None if gamma is None else BalancedStop(problem, gamma)
+    result = run_solve(problem, args, stop=stop)
+    if stop is not None:
+        print(f"balance      algebraic error <= {stop.algebraic:.3e} (guaranteed bound, H1 seminorm)   "
+              f"discretisation error ~ {stop.discretisation:.3e} (ZZ estimate)   gamma {stop.gamma:g}")
     contact = problem.contact_set(result.z)
     print(f"contact set  {int(contact.sum())} nodes, area {problem.contact_area(result.z):.6g}")
     err = radius = None
@@ -49,6 +71,9 @@ def run(args) -> int:
         arrays = {"u": result.x, "z": result.z, "lam": result.lam, "free_nodes": problem.free,
                   "node_xy": problem.nodes[problem.free]}
         extra = {"contact_nodes": int(contact.sum()), "errors": err, "contact_radius": radius}
+        if stop is not None:
+            extra["balance"] = {"gamma": stop.gamma, "algebraic_bound": stop.algebraic,
+                                "discretisation_estimate": stop.discretisation}
         print(f"json         {write_result_json(args.json, result, args, problem=scene | extra, arrays=arrays)}")
     if args.csv:
         xy = problem.nodes[problem.free]

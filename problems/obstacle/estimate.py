@@ -1,0 +1,175 @@
+"""Error estimates of the obstacle plug-in, and an ADMM stop balanced with the discretisation error.
+
+Two errors stand between an ADMM iterate and the exact solution u of the
+variational inequality: the *algebraic* error ||z - u_h||_a (z the iterate,
+u_h the exact discrete solution) and the *discretisation* error
+||u_h - u||_a, both in the energy norm ``||v||_a = |v|_{H^1}`` (the H1 seminorm).
+Iterating once the first is far below the second buys nothing (Ern &
+Vohralik 2013, adaptive inexact stopping).
+
+**Algebraic error: a guaranteed bound from the duality gap.**  The discrete
+problem is min J(v) = 1/2 v'Kv - F'v subject to s (v - psi) >= 0 (s = +1
+for a lower obstacle).  z, the ADMM z-iterate, is feasible (the z-step
+projects onto the constraint).  For any mu >= 0 the dual function
+
+    D(mu) = min_v J(v) - mu' s (v - psi) = -1/2 (F + s mu)' K^{-1} (F + s mu) + s mu' psi
+
+is a lower bound of J(u_h) (weak duality), and since u_h minimises J over
+the feasible set, J(z) - J(u_h) >= 1/2 ||z - u_h||_K^2.  Hence
+
+    ||z - u_h||_a = ||z - u_h||_K <= sqrt(2 (J(z) - D(mu)))                  (B)
+
+for any mu >= 0.  Two are tried and the larger D(mu) kept: the nodal
+contact force of the ADMM multiplier, max(-s M lam, 0) (K u - F + M lam = 0
+at a solution), and z's own contact force, max(s (K z - F), 0) on the nodes
+where z touches the obstacle (the sharper one once the contact set has
+settled).  The bound needs a solve with K (factorised once) per multiplier
+and tends to 0 as ADMM converges.
+
+**Discretisation error: a gradient-recovery (ZZ) estimate.**  Zienkiewicz &
+Zhu: G u_h, the recovered gradient (grad u_h averaged to a continuous P1
+vector field, at each vertex the area-weighted mean of the gradients of the
+triangles around it), and eta_T = ||grad u_h - G u_h||_{L2(T)};
+eta = (sum eta_T^2)^{1/2} estimates ``|u_h - u|_{H1}``.  It is the simple
+baseline; it is not a guaranteed bound (the residual estimators of the
+literature are), and ``tests/problems/test_obstacle_estimate.py`` measures
+its effectivity ``eta / |u_h - u|_{H1}`` on the radial obstacle, whose exact
+solution is known.
+
+**The balanced stop** (:class:`BalancedStop`) fires when (B) <= gamma eta:
+the algebraic error of z is then certainly below gamma times the estimated
+discretisation error.  Its ``converged`` means exactly that, and the result
+says so.
+"""
+from __future__ import annotations
+
+import math
+
+import ngsolve as ng
+import numpy as np
+import scipy.sparse.linalg as spla
+
+from admmkit.stopping import StoppingRule
+
+
+class ZZ:
+    """The ZZ estimator of one mesh: the P1 gradient per triangle, recovered by area-weighted vertex averages.
+
+    Built once per problem (the triangles, their areas and the gradient of each
+    hat function); :meth:`indicators` is then a few array operations.
+    ``eta_T^2 = int_T |g_T - G|^2`` with G linear on T is integrated exactly:
+    ``|T|/12 (sum_i |w_i|^2 + |sum_i w_i|^2)``, ``w_i = g_T - G(vertex i)``.
+    """
+
+    def __init__(self, problem):
+        self.problem = problem
+        tri = np.array([[v.nr for v in el.vertices] for el in problem.mesh.Elements(ng.VOL)], dtype=np.int64)
+        p = problem.nodes[tri]                                            # (elements, 3 vertices, 2)
+        edges = np.stack([p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]], axis=1)  # rows: the two edges
+        self.tri, self.area = tri, 0.5 * np.abs(np.linalg.det(edges))
+        self._inv = np.linalg.inv(edges)                                  # g_T = inv @ (u1 - u0, u2 - u0)
+        weights = np.zeros(problem.nodes.shape[0])
+        np.add.at(weights, tri.ravel(), np.repeat(self.area, 3))
+        self._weights = weights
+
+    def indicators(self, u: np.ndarray) -> np.ndarray:
+        """eta_T for every triangle (u: values on the free nodes)."""
+        full = self.problem.full_vector(u)[self.tri]                      # (elements, 3)
+        g = np.einsum("eij,ej->ei", self._inv, full[:, 1:] - full[:, :1])  # the P1 gradient on each triangle
+        G = np.zeros((self._weights.size, 2))
+        for k in range(2):
+            np.add.at(G[:, k], self.tri.ravel(), np.repeat(self.area * g[:, k], 3))
+        G /= self._weights[:, None]                                       # area-weighted vertex averages
+        w = g[:, None, :] - G[self.tri]                                   # (elements, 3, 2)
+        eta2 = self.area / 12 * (np.sum(w ** 2, axis=(1, 2)) + np.sum(w.sum(axis=1) ** 2, axis=1))
+        return np.sqrt(eta2)
+
+
+def _zz(problem) -> ZZ:
+    if getattr(problem, "_zz", None) is None:
+        problem._zz = ZZ(problem)
+    return problem._zz
+
+
+def zz_indicators(problem, u: np.ndarray) -> np.ndarray:
+    """eta_T = ||grad u_h - G u_h||_{L2(T)} for every element T (u: values on the free nodes)."""
+    return _zz(problem).indicators(u)
+
+
+def zz_estimate(problem, u: np.ndarray) -> float:
+    """eta = (sum_T eta_T^2)^{1/2}: the ZZ estimate of the discretisation error ``|u_h - u|_{H1}``."""
+    return float(np.sqrt(np.sum(zz_indicators(problem, u) ** 2)))
+
+
+class EnergyGap:
+    """The guaranteed bound (B) of the algebraic error ||z - u_h||_a, with K factorised once."""
+
+    def __init__(self, problem):
+        self.problem = problem
+        self._K = spla.splu(problem.K.tocsc())
+        #: how far below psi a value may lie and still count as on the obstacle (rounding of the projection)
+        self._feasibility = 1e-12 * max(1.0, float(np.max(np.abs(problem.psi), initial=0.0)))
+
+    def bound(self, z: np.ndarray, lam: np.ndarray) -> float:
+        """sqrt(2 (J(z) - D(mu))) with the better of two multipliers; inf if z is not feasible.
+
+        mu_1 = max(-s M lam, 0) (the ADMM multiplier) and mu_2 = max(s (K z - F), 0) on the nodes where z
+        touches the obstacle, 0 elsewhere (z's own contact force, sharper once the contact set has
+        settled); any mu >= 0 gives a bound, so the larger D is taken.  The rounding of J and D is added,
+        so the bound never claims less than the floating point can tell.
+        """
+        p = self.problem
+        slack = p.sign * (z - p.psi)
+        if np.any(slack < -self._feasibility):
+            return math.inf
+        Kz = p.K @ z
+        primal = 0.5 * z @ Kz - p.F @ z                                    # J(z)
+        mu_lam = np.maximum(-p.sign * p.m * lam, 0.0)
+        mu_z = np.where(slack <= self._feasibility, np.maximum(p.sign * (Kz - p.F), 0.0), 0.0)
+        dual = max(self._dual(mu_lam), self._dual(mu_z))                  # D(mu) <= J(u_h)
+        rounding = 8 * np.finfo(float).eps * (abs(primal) + abs(dual))
+        return math.sqrt(2.0 * (max(primal - dual, 0.0) + rounding))
+
+    def _dual(self, mu: np.ndarray) -> float:
+        """D(mu) = -1/2 (F + s mu)' K^{-1} (F + s mu) + s mu' psi."""
+        p = self.problem
+        load = p.F + p.sign * mu
+        return float(-0.5 * load @ self._K.solve(load) + p.sign * mu @ p.psi)
+
+
+class BalancedStop(StoppingRule):
+    """Stop when the algebraic error bound (B) of z is at most ``gamma`` x the ZZ discretisation estimate.
+
+    Tested every ``every`` iterations (the bound costs a solve with K, the
+    estimate an NGSolve projection).  ``algebraic`` and ``discretisation`` hold
+    the last values compared (the result's report reads them).  ``tolerance``
+    is None: the rule's own test is the accuracy check, so ``converged`` means
+    "the algebraic error is below gamma x the estimated discretisation error".
+    """
+
+    requires = ()
+    tolerance = None
+
+    def __init__(self, problem, gamma: float = 0.1, every: int = 10):
+        if isinstance(gamma, bool) or not isinstance(gamma, (int, float)) or not 0 < gamma <= 1:
+            raise ValueError(f"gamma = {gamma!r} is outside the accepted range (0, 1]")
+        if isinstance(every, bool) or not isinstance(every, int) or every < 1:
+            raise ValueError(f"every = {every!r} is outside the accepted range: an integer >= 1")
+        self.problem, self.gamma, self.every = problem, float(gamma), every
+        self.gap = EnergyGap(problem)
+        _zz(problem)                                  # the estimator's mesh data, built before the run
+        self.algebraic = self.discretisation = math.nan
+        self.name = f"balanced(gamma={self.gamma:g}): algebraic error bound <= gamma x ZZ discretisation estimate"
+
+    def fired(self, rec) -> str | None:
+        """The rule's name when bound (B) <= gamma eta at this record, else None."""
+        if (rec.k + 1) % self.every:
+            return None
+        self.algebraic = self.gap.bound(rec.z, rec.lam)
+        if not math.isfinite(self.algebraic):
+            return None
+        self.discretisation = zz_estimate(self.problem, rec.z)
+        return self.name if self.algebraic <= self.gamma * self.discretisation else None
+
+
+__all__ = ["ZZ", "zz_indicators", "zz_estimate", "EnergyGap", "BalancedStop"]
