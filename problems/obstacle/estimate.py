@@ -72,10 +72,18 @@ class ZZ:
         np.add.at(weights, tri.ravel(), np.repeat(self.area, 3))
         self._weights = weights
 
+    def gradients(self, u: np.ndarray) -> np.ndarray:
+        """The P1 gradient on every triangle, (elements, 2) (u: values on the free nodes)."""
+        full = self.problem.full_vector(u)[self.tri]                      # (elements, 3)
+        return np.einsum("eij,ej->ei", self._inv, full[:, 1:] - full[:, :1])
+
+    def energy(self, u: np.ndarray) -> float:
+        """``|u_h|_{H1}``, the energy norm of the full field (boundary data included)."""
+        return float(np.sqrt(np.sum(self.area * np.sum(self.gradients(u) ** 2, axis=1))))
+
     def indicators(self, u: np.ndarray) -> np.ndarray:
         """eta_T for every triangle (u: values on the free nodes)."""
-        full = self.problem.full_vector(u)[self.tri]                      # (elements, 3)
-        g = np.einsum("eij,ej->ei", self._inv, full[:, 1:] - full[:, :1])  # the P1 gradient on each triangle
+        g = self.gradients(u)
         G = np.zeros((self._weights.size, 2))
         for k in range(2):
             np.add.at(G[:, k], self.tri.ravel(), np.repeat(self.area * g[:, k], 3))
@@ -83,6 +91,11 @@ class ZZ:
         w = g[:, None, :] - G[self.tri]                                   # (elements, 3, 2)
         eta2 = self.area / 12 * (np.sum(w ** 2, axis=(1, 2)) + np.sum(w.sum(axis=1) ** 2, axis=1))
         return np.sqrt(eta2)
+
+
+def zz(problem) -> ZZ:
+    """The problem's ZZ estimator (built on first use, then kept on the problem)."""
+    return _zz(problem)
 
 
 def _zz(problem) -> ZZ:
@@ -172,4 +185,4 @@ class BalancedStop(StoppingRule):
         return self.name if self.algebraic <= self.gamma * self.discretisation else None
 
 
-__all__ = ["ZZ", "zz_indicators", "zz_estimate", "EnergyGap", "BalancedStop"]
+__all__ = ["ZZ", "zz", "zz_indicators", "zz_estimate", "EnergyGap", "BalancedStop"]

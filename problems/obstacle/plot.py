@@ -40,3 +40,25 @@ def plot_solution(problem, u, z, path):
     ax2.set_aspect("equal"); ax2.set_title(f"{problem.scene.name}: u_h and contact set"); ax2.legend(loc="upper right")
     fig.tight_layout()
     return save_figure(fig, path, ("png",), dpi=120)[0]
+
+
+def plot_adapted(problem, indicators, z, path):
+    """Write a PNG: the adapted mesh coloured by the ZZ indicators, with the contact set and r = a*."""
+    plt = pyplot()
+    from .estimate import zz
+    tri = zz(problem).tri
+    x, y = problem.nodes.T
+    fig, ax = plt.subplots(figsize=(6.5, 5.5))
+    shade = ax.tripcolor(x, y, tri, facecolors=np.log10(np.maximum(indicators, 1e-16)), cmap="magma_r",
+                         edgecolors="k", linewidth=0.1)
+    fig.colorbar(shade, ax=ax, label="log10 eta_T (ZZ)")
+    free = problem.nodes[problem.free]
+    contact = problem.contact_set(z)
+    ax.plot(free[contact, 0], free[contact, 1], "c.", ms=0.8, alpha=0.5, label="contact set")
+    if problem.scene.exact is not None:
+        t = np.linspace(0, 2 * math.pi, 200)
+        ax.plot(A_STAR * np.cos(t), A_STAR * np.sin(t), "b-", lw=1, label="r = a* (exact free boundary)")
+    ax.set_aspect("equal"); ax.legend(loc="upper right", fontsize=8)
+    ax.set_title(f"{problem.scene.name}: adapted mesh, {len(tri)} triangles, {problem.n} unknowns")
+    fig.tight_layout()
+    return save_figure(fig, path, ("png",), dpi=130)[0]

@@ -64,12 +64,12 @@ class ObstacleProblem(Problem):
     the boundary), ``mesh``, ``fes``, ``scene``, ``n`` and ``c = 0``.
     """
 
-    def __init__(self, scene: Scene, *, backend: str = DEFAULT_BACKEND):
+    def __init__(self, scene: Scene, *, backend: str = DEFAULT_BACKEND, mesh: ng.Mesh | None = None):
         if not isinstance(scene, Scene):
             raise ValueError(f"scene must be a admmkit.problems.obstacle.Scene, got {type(scene).__name__}")
         self.scene = scene
         self.sign = 1.0 if scene.side == "lower" else -1.0   # u >= psi  <=>  sign*(u - psi) >= 0
-        self.mesh = mesh = build_mesh(scene)
+        self.mesh = mesh = build_mesh(scene) if mesh is None else mesh     # given: an adapted mesh of the box
         self.fes = fes = ng.H1(mesh, order=1, dirichlet=BOUNDARY)
         assert fes.ndof == mesh.nv  # P1: dof i is vertex i
         self.nodes = np.array(mesh.ngmesh.Coordinates())[:, :2]

@@ -1,0 +1,156 @@
+"""Adaptive meshes for the obstacle problem: solve -> estimate -> mark -> refine, until a target accuracy.
+
+One level (:func:`solve_adaptive`):
+
+1. **solve** the discrete problem on the current mesh with ADMM, stopped
+   balanced with the discretisation error
+   (:class:`admmkit.problems.obstacle.estimate.BalancedStop`) and started from
+   the previous level's u, lam and rho, prolongated to the new mesh (P1
+   interpolation by NGSolve's ``GridFunction.Update``), so later levels cost
+   few iterations;
+2. **estimate**: the ZZ indicators eta_T and the relative estimate
+   ``eta / |u_h|_{H1}``;
+3. stop if it is at most ``target``; else **mark** the smallest set of
+   triangles that carries a share ``theta`` of sum eta_T^2 (Dörfler 1996);
+4. **refine** the marked triangles with NGSolve's own refinement (bisection,
+   neighbours refined as conformity needs) and go on.
+
+The result says truthfully how it ended: ``target_reached``, or
+``level_cap`` / ``unknowns_cap`` (the target was not reached; the levels say
+what was), or ``admm_failed`` (a level's ADMM run did not converge).
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from admmkit import Result, solve
+
+from .estimate import BalancedStop, zz
+from .problem import DEFAULT_BACKEND, ObstacleProblem, build_mesh
+from .scene import Scene
+
+
+@dataclass
+class Level:
+    """One level of an adaptive solve."""
+
+    cells: int
+    unknowns: int
+    estimate: float                 # eta, the ZZ estimate of |u_h - u|_{H1}
+    relative_estimate: float        # eta / |u_h|_{H1}
+    algebraic_bound: float          # the guaranteed bound of ||z - u_h||_a at the stop
+    iterations: int
+    seconds: float
+    status: str
+    errors: dict | None = None      # against the exact solution, where the scene has one
+
+
+@dataclass
+class AdaptiveResult:
+    """The levels, how the loop ended, and the last level's problem and ADMM result."""
+
+    status: str
+    message: str
+    levels: list[Level] = field(default_factory=list)
+    problem: ObstacleProblem | None = None
+    result: Result | None = None
+    indicators: np.ndarray | None = None
+
+    @property
+    def reached(self) -> bool:
+        """True when the estimated relative energy error is at most the target."""
+        return self.status == "target_reached"
+
+
+def dorfler_mark(indicators: np.ndarray, theta: float) -> np.ndarray:
+    """The smallest set of cells whose eta_T^2 sum to at least theta x the total (a boolean mask)."""
+    eta2 = np.asarray(indicators, dtype=float) ** 2
+    order = np.argsort(-eta2, kind="stable")
+    count = int(np.searchsorted(np.cumsum(eta2[order]), theta * eta2.sum())) + 1
+    mask = np.zeros(eta2.size, dtype=bool)
+    mask[order[:min(count, eta2.size)]] = True
+    return mask
+
+
+def _check(target, theta, gamma, max_levels, max_unknowns) -> None:
+    for name, value, ok, accepted in [("target", target, lambda v: 0 < v < 1, "(0, 1)"),
+                                      ("theta", theta, lambda v: 0 < v < 1, "(0, 1)"),
+                                      ("gamma", gamma, lambda v: 0 < v <= 1, "(0, 1]")]:
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or not ok(value):
+            raise ValueError(f"{name} = {value!r} is outside the accepted range {accepted}")
+    for name, value in [("max_levels", max_levels), ("max_unknowns", max_unknowns)]:
+        if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+            raise ValueError(f"{name} = {value!r} is outside the accepted range: an integer >= 1")
+
+
+def solve_adaptive(scene: Scene, target: float, *, theta: float = 0.5, gamma: float = 0.1, max_levels: int = 30,
+                   max_unknowns: int = 2_000_000, policy="summable", order: str = "zx", rho: float = 1.0,
+                   max_iter: int = 10_000, backend: str = DEFAULT_BACKEND, log=None) -> AdaptiveResult:
+    """Refine adaptively from the scene's mesh until ``eta / |u_h|_{H1} <= target`` (see the module docstring).
+
+    ``log``: called with each finished :class:`Level` (progress).
+    """
+    _check(target, theta, gamma, max_levels, max_unknowns)
+    if not isinstance(scene, Scene):
+        raise ValueError(f"scene must be a admmkit.problems.obstacle.Scene, got {type(scene).__name__}")
+    mesh = build_mesh(scene)
+    out = AdaptiveResult("level_cap", "")
+    warm: dict = {"rho": rho}
+    for _ in range(max_levels):
+        if mesh.nv > max_unknowns:
+            out.status = "unknowns_cap"
+            out.message = (f"the next mesh has {mesh.nv} nodes, above max_unknowns = {max_unknowns}; "
+                           f"target {target:g} not reached")
+            return out
+        t0 = time.perf_counter()
+        problem = ObstacleProblem(scene, backend=backend, mesh=mesh)
+        stop = BalancedStop(problem, gamma)
+        start = {k: warm[k][problem.free] for k in ("x0", "lam0") if k in warm}
+        if "x0" in start:
+            start["z0"] = problem.psi + np.maximum(problem.sign * (start["x0"] - problem.psi), 0.0) * problem.sign
+        res = solve(problem, rho=warm["rho"], policy=policy, order=order, stop=stop, max_iter=max_iter, **start)
+        indicators = zz(problem).indicators(res.z)
+        eta = float(np.sqrt(np.sum(indicators ** 2)))
+        relative = eta / max(zz(problem).energy(res.z), 1e-300)
+        level = Level(cells=mesh.ne, unknowns=problem.n, estimate=eta, relative_estimate=relative,
+                      algebraic_bound=stop.algebraic, iterations=res.iterations,
+                      seconds=time.perf_counter() - t0, status=res.status.value,
+                      errors=problem.errors(res.z) if scene.exact is not None else None)
+        out.levels.append(level)
+        out.problem, out.result, out.indicators = problem, res, indicators
+        if log is not None:
+            log(level)
+        if not res.converged:
+            out.status, out.message = "admm_failed", f"level {len(out.levels)}: ADMM ended {res.status.value}"
+            return out
+        if relative <= target:
+            out.status = "target_reached"
+            out.message = f"estimated relative energy error {relative:.3e} <= target {target:g}"
+            return out
+        warm = _refine(problem, res, dorfler_mark(indicators, theta))
+    out.message = (f"max_levels = {max_levels} reached with an estimated relative energy error "
+                   f"{out.levels[-1].relative_estimate:.3e}; target {target:g} not reached")
+    return out
+
+
+def _refine(problem: ObstacleProblem, res: Result, marked: np.ndarray) -> dict:
+    """Refine the marked cells of the problem's mesh; u and lam prolongated to the new nodes, and rho."""
+    import ngsolve as ng
+    u = problem.gridfunction(res.z)
+    lam = ng.GridFunction(problem.fes)
+    lam.vec.FV().NumPy()[problem.free] = res.lam
+    mesh = problem.mesh
+    for el in mesh.Elements(ng.VOL):
+        mesh.SetRefinementFlag(el, bool(marked[el.nr]))
+    mesh.Refine()
+    problem.fes.Update()
+    u.Update()
+    lam.Update()
+    return {"x0": u.vec.FV().NumPy().copy(), "lam0": lam.vec.FV().NumPy().copy(), "rho": res.rho}
+
+
+__all__ = ["Level", "AdaptiveResult", "dorfler_mark", "solve_adaptive"]

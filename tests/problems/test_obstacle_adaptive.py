@@ -1,0 +1,74 @@
+"""Adaptive meshes for the obstacle (#24): Dörfler marking, the loop, its truthful statuses, the command line."""
+import json
+import re
+
+import numpy as np
+import pytest
+
+from admmkit.cli import main
+from admmkit.problems.obstacle import radial
+from admmkit.problems.obstacle.adaptive import dorfler_mark, solve_adaptive
+
+
+def test_dorfler_marks_the_smallest_set_carrying_theta():
+    eta = np.sqrt(np.array([1.0, 4.0, 2.0, 3.0]))          # eta^2 = 1, 4, 2, 3 (total 10)
+    assert dorfler_mark(eta, 0.4).tolist() == [False, True, False, False]      # 4 >= 4
+    assert dorfler_mark(eta, 0.5).tolist() == [False, True, False, True]       # 4 + 3 >= 5
+    assert dorfler_mark(eta, 0.99).all()
+
+
+@pytest.fixture(scope="module")
+def adapted():
+    return solve_adaptive(radial(h=1 / 4), 5e-2)
+
+
+def test_the_loop_reaches_the_target_with_warm_started_levels(adapted):
+    out = adapted
+    assert out.reached and out.status == "target_reached"
+    rel = [lvl.relative_estimate for lvl in out.levels]
+    assert rel[-1] <= 5e-2 < min(rel[:-1]) and all(b < a for a, b in zip(rel, rel[1:]))
+    assert all(lvl.status == "converged" for lvl in out.levels)
+    assert max(lvl.iterations for lvl in out.levels[1:]) <= 40 < 2 * out.levels[0].iterations + 60
+    last = out.levels[-1]
+    assert last.estimate == pytest.approx(last.errors["H1_semi"], rel=0.3)    # against the exact solution
+
+
+def test_adapted_meshes_beat_uniform_ones_for_the_same_unknowns(adapted):
+    """Uniform h = 1/16 (3969 unknowns) has H1-seminorm error 6.82e-2, and it falls like n^(-1/2)."""
+    for lvl in adapted.levels[2:]:
+        uniform = 6.82e-2 * np.sqrt(3969 / lvl.unknowns)
+        assert lvl.errors["H1_semi"] <= 1.05 * uniform, (lvl.unknowns, lvl.errors["H1_semi"], uniform)
+
+
+def test_caps_say_the_target_was_not_reached():
+    out = solve_adaptive(radial(h=1 / 4), 1e-3, max_levels=2)
+    assert out.status == "level_cap" and not out.reached and len(out.levels) == 2
+    assert "not reached" in out.message
+    out = solve_adaptive(radial(h=1 / 4), 1e-3, max_unknowns=1000)
+    assert out.status == "unknowns_cap" and not out.reached and "not reached" in out.message
+    assert out.levels[-1].unknowns <= 1000
+
+
+@pytest.mark.parametrize("kwargs, match", [({"target": 0.0}, "target = 0.0 is outside the accepted range (0, 1)"),
+                                           ({"target": 1.0}, "target = 1.0"),
+                                           ({"target": 0.1, "theta": 1.0}, "theta = 1.0"),
+                                           ({"target": 0.1, "max_levels": 0}, "max_levels = 0"),
+                                           ({"target": 0.1, "gamma": 2.0}, "gamma = 2.0")])
+def test_bad_input_is_named(kwargs, match):
+    with pytest.raises(ValueError, match=re.escape(match)):
+        solve_adaptive(radial(h=1 / 4), **kwargs)
+
+
+def test_cli_target_error(tmp_path, capsys):
+    out = tmp_path / "levels.json"
+    assert main(["solve", "obstacle", "--h", "1/4", "--target-error", "0.1", "--json", str(out),
+                 "--plot", str(tmp_path / "mesh.png")]) == 0
+    text = capsys.readouterr().out
+    assert "status       target_reached" in text
+    body = json.loads(out.read_text())
+    assert body["status"] == "target_reached" and body["levels"][-1]["relative_estimate"] <= 0.1
+    assert (tmp_path / "mesh.png").stat().st_size > 1000
+    assert main(["solve", "obstacle", "--h", "1/4", "--target-error", "1e-3", "--max-levels", "2"]) == 1
+    assert "level_cap" in capsys.readouterr().out
+    assert main(["solve", "obstacle", "--target-error", "1.5"]) == 2
+    assert "--target-error = 1.5 is outside the accepted range (0, 1)" in capsys.readouterr().err
