@@ -34,6 +34,9 @@ def register(subparsers) -> None:
     p.add_argument("--slip-bound", default=None, metavar="S",
                    help="Tresca's slip bound s >= 0, a number or an expression in x, y "
                         "(with tresca; overrides the scene's)")
+    p.add_argument("--balance", type=positive_float, default=None, metavar="GAMMA",
+                   help="stop when a guaranteed bound of the algebraic error is below GAMMA x the ZZ estimate of "
+                        "the discretisation error, 0 < GAMMA <= 1 (frictionless, mode condensed; instead of --tol)")
     # the stop is in the energy norm (docs/contact.md); --policy takes admm1, admm2, sadmm or a rule (order zx)
     add_common_options(p, policy="sadmm", order="zx", rho=1e3, methods=METHODS, max_iter=20_000)
     add_result_outputs(p, json_help="write the run as JSON: provenance (version, date, command, scene, policy, "
@@ -80,10 +83,20 @@ def run(args) -> int:
 
     order, _, name = resolve_policy(args)          # refuses an unknown --policy before anything is built
     stop = stop_rule(args)
+    if args.balance is not None:
+        if args.tol is not None or args.eps_abs is not None:
+            raise ValueError("--balance cannot be combined with --tol or --eps-abs: give one stop")
+        if not 0 < args.balance <= 1:
+            raise ValueError(f"--balance = {args.balance:g} is outside the accepted range (0, 1]")
+        if args.mode not in ("auto", "condensed"):
+            raise ValueError(f"--balance needs --mode condensed (its bound lives on Gamma_C), got --mode {args.mode}")
     scene = _scene(args)
     with progress(args, args.max_iter) as show:
-        sol = solve_scene(scene, name, args.rho, mode=args.mode, stop=stop, max_iter=args.max_iter,
-                          order=order, callback=show)
+        sol = solve_scene(scene, name, args.rho, mode="condensed" if args.balance else args.mode,
+                          stop=None if args.balance else stop, max_iter=args.max_iter, order=order, callback=show,
+                          balance=args.balance)
+    if args.balance is not None:
+        stop = sol.stop
     ops, r = sol.ops, sol.result
     args.resolved = {"policy": name, "order": r.order, "policy_repr": r.policy, "stop": stop.name}
     cells = "tetrahedra" if ops.mesh.dim == 3 else "triangles"
@@ -91,6 +104,9 @@ def run(args) -> int:
           f"{ops.mesh.ne} {cells}, tangential {scene.tangential}")
     print(f"size         n_free {ops.n_free}   n_c {ops.n_c}   mode {sol.mode}   setup {sol.setup_time:.4f} s")
     print_summary(r, name, args.rho)
+    if args.balance is not None:
+        print(f"balance      algebraic error <= {stop.algebraic:.3e} (guaranteed bound, energy norm)   "
+              f"discretisation error ~ {stop.discretisation:.3e} (ZZ estimate)   gamma {stop.gamma:g}")
     if sol.coulomb is not None:
         print(f"coulomb      {sol.coulomb.summary()}")
     fields = boundary_fields(ops, r.x, r.lam, r.z)

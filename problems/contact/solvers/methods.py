@@ -31,6 +31,7 @@ class ContactSolution:
     mode: str
     setup_time: float
     coulomb: CoulombReport | None = None
+    stop: admmkit.StoppingRule | None = None     # the stopping rule of the run
 
     @property
     def u(self):
@@ -96,7 +97,7 @@ class ContactSolution:
 def solve_scene(scene, method_name: str = "sadmm", rho: float = 1e3, *,
                 mode: str = "auto", stop: admmkit.StoppingRule | None = None, max_iter: int = 20_000,
                 order: str | None = None, callback=None, coulomb_tol: float = 1e-4,
-                coulomb_max_outer: int = 30) -> ContactSolution:
+                coulomb_max_outer: int = 30, balance: float | None = None) -> ContactSolution:
     """Assemble (unless operators are given) and solve a scene with a named method.
 
     ``scene`` is a 2D :class:`Scene`, a 3D ``Scene3D`` (problems/contact/model/scene3d.py)
@@ -122,11 +123,16 @@ def solve_scene(scene, method_name: str = "sadmm", rho: float = 1e3, *,
     t0 = time.perf_counter()
     problem = contact_problem(ops, mode=mode)
     setup = time.perf_counter() - t0
+    if balance is not None:
+        from admmkit.problems.contact.solvers.estimate import BalancedStop
+        if stop is not None:
+            raise ValueError("balance and stop are two stops: give one")
+        stop = BalancedStop(problem, balance)
     stop = stop or RelativeChange(1e-5)
     if ops.friction is None or ops.friction.law == "tresca":
         result = admmkit.solve(problem, rho=rho, policy=policy, order=order or default_order,
                                stop=stop, max_iter=max_iter, callback=callback)
-        return ContactSolution(result=result, ops=ops, mode=problem.mode, setup_time=setup)
+        return ContactSolution(result=result, ops=ops, mode=problem.mode, setup_time=setup, stop=stop)
 
     def run(warm):   # one Tresca solve, a fresh rule each time, warm-started from the last one
         order_, rule = method(method_name, order)

@@ -1,0 +1,132 @@
+"""Error estimates of the contact plug-in and an ADMM stop balanced with the discretisation error.
+
+The energy norm is ||v||_a = ||v||_K = (v'Kv)^{1/2}, the x norm of the plug-in.
+
+**Algebraic error: a guaranteed bound** (frictionless contact, condensed
+mode).  The discrete problem is min J(u) = 1/2 u'Ku - f'u subject to
+B u <= g.  In the condensed mode every iterate is u = u0 + K^{-1} B'w
+(u0 = K^{-1} f, d0 = B u0, C = B K^{-1} B', e0 = f'u0), so that
+
+    B u = d0 + C w,      J(u) = -e0/2 + w'Cw/2.
+
+*A feasible point.*  For any d' <= g, w' = C^{-1}(d' - d0) gives a feasible
+u' with B u' = d'; two are tried, d' = min(B u, g) and d' = p (the
+z-iterate, p <= g), and the one of smaller J kept.  *A lower bound.*  For
+any mu >= 0 the dual function is
+
+    D(mu) = min_u J(u) + mu'(B u - g) = -e0/2 + mu'(d0 - g) - mu'C mu/2 <= J(u_h);
+
+two are tried, mu = max(M_c lam, 0) (the ADMM multiplier's nodal force) and
+u''s own contact force max(-w', 0) on the nodes where d' = g.  Since u_h
+minimises J over the feasible set, J(u') - J(u_h) >= ||u' - u_h||_a^2 / 2, and
+
+    ||u - u_h||_a <= ||u - u'||_a + sqrt(2 (J(u') - D(mu)))                   (B)
+
+with ||u - u'||_a^2 = (w - w')'C(w - w').  Everything lives on Gamma_C: one
+Cholesky factorisation of C (n_c x n_c) per problem, then O(n_c^2) per
+evaluation.
+
+**Discretisation error: a gradient-recovery (ZZ) estimate.**  G, the
+displacement gradient recovered into continuous finite elements of the
+scene's order (NGSolve's ``Set``), e = sym(grad u_h) - sym(G), and
+
+    eta_T^2 = int_T 2 mu e:e + lambda tr(e)^2,      eta = (sum_T eta_T^2)^{1/2},
+
+an estimate (not a bound) of ||u_h - u||_a in 2D and 3D, P1 and P2.
+
+**The balanced stop** (:class:`BalancedStop`) fires when (B) <= gamma eta;
+its ``converged`` means that the algebraic error of the returned u is
+certainly below gamma times the estimated discretisation error.
+"""
+from __future__ import annotations
+
+import math
+
+import ngsolve as ng
+import numpy as np
+import scipy.linalg as sla
+
+from admmkit.stopping import StoppingRule
+
+from admmkit.problems.contact.model.assembly import lame
+
+
+def zz_indicators(ops, u: np.ndarray) -> np.ndarray:
+    """eta_T in the energy norm for every element (u: the displacement on the free dofs)."""
+    d, order = ops.mesh.dim, ops.scene.order
+    gf = ops.to_gridfunction(u)
+    recovered = ng.GridFunction(ng.H1(ops.mesh, order=order, dim=d * d))
+    recovered.Set(ng.Grad(gf).Reshape((d * d,)))
+    e = ng.Sym(ng.Grad(gf)) - ng.Sym(recovered.Reshape((d, d)))
+    mu, lam = lame(ops.scene.E, ops.scene.nu)
+    density = 2 * mu * ng.InnerProduct(e, e) + lam * ng.Trace(e) ** 2
+    eta2 = ng.Integrate(density * ng.dx(bonus_intorder=2), ops.mesh, element_wise=True)
+    return np.sqrt(np.maximum(np.asarray(eta2), 0.0))
+
+
+def zz_estimate(ops, u: np.ndarray) -> float:
+    """eta = (sum_T eta_T^2)^{1/2}: the ZZ estimate of the discretisation error ||u_h - u||_a."""
+    return float(np.sqrt(np.sum(zz_indicators(ops, u) ** 2)))
+
+
+class CondensedGap:
+    """The guaranteed bound (B) of ||u - u_h||_a for the condensed frictionless mode."""
+
+    def __init__(self, problem):
+        if getattr(problem, "mode", None) != "condensed" or problem.friction is not None:
+            raise ValueError("the algebraic error bound needs a frictionless contact problem in mode 'condensed' "
+                             f"(got mode {getattr(problem, 'mode', None)!r}"
+                             f"{', with friction' if getattr(problem, 'friction', None) is not None else ''})")
+        self.problem = problem
+        self._C = sla.cho_factor(problem.C)
+
+    def bound(self, w: np.ndarray, p: np.ndarray, lam: np.ndarray) -> float:
+        """(B) for the iterate u = u0 + K^{-1} B'w with z-iterate p and multiplier lam."""
+        q = self.problem
+        C, d0, g = q.C, q.d0, q.g
+        feasible = []
+        for target in (np.minimum(d0 + C @ w, g), np.minimum(p, g)):
+            w1 = sla.cho_solve(self._C, target - d0)
+            feasible.append((0.5 * w1 @ (C @ w1), w1, target))      # J(u') + e0/2
+        J1, w1, d1 = min(feasible, key=lambda t: t[0])
+        touching = d1 >= g - 1e-12 * max(1.0, float(np.max(np.abs(g), initial=0.0)))
+        dual = max(mu @ (d0 - g) - 0.5 * mu @ (C @ mu)                   # D(mu) + e0/2
+                   for mu in (np.maximum(q.mc * lam, 0.0), np.where(touching, np.maximum(-w1, 0.0), 0.0)))
+        rounding = 8 * np.finfo(float).eps * (abs(J1) + abs(dual) + q.e0)
+        distance = math.sqrt(max((w - w1) @ (C @ (w - w1)), 0.0))
+        return distance + math.sqrt(2.0 * (max(J1 - dual, 0.0) + rounding))
+
+
+class BalancedStop(StoppingRule):
+    """Stop when the algebraic error bound (B) is at most ``gamma`` x the ZZ discretisation estimate.
+
+    Tested every ``every`` iterations (the estimate needs the full displacement,
+    one solve with K's factorisation).  ``algebraic`` and ``discretisation``
+    hold the last values compared.  ``tolerance`` is None: ``converged`` means
+    "the algebraic error is below gamma x the estimated discretisation error".
+    """
+
+    requires = ()
+    tolerance = None
+
+    def __init__(self, problem, gamma: float = 0.1, every: int = 10):
+        if isinstance(gamma, bool) or not isinstance(gamma, (int, float)) or not 0 < gamma <= 1:
+            raise ValueError(f"gamma = {gamma!r} is outside the accepted range (0, 1]")
+        if isinstance(every, bool) or not isinstance(every, int) or every < 1:
+            raise ValueError(f"every = {every!r} is outside the accepted range: an integer >= 1")
+        self.gap = CondensedGap(problem)
+        self.problem, self.gamma, self.every = problem, float(gamma), every
+        self.algebraic = self.discretisation = math.nan
+        self.name = f"balanced(gamma={self.gamma:g}): algebraic error bound <= gamma x ZZ discretisation estimate"
+
+    def fired(self, rec) -> str | None:
+        """The rule's name when bound (B) <= gamma eta at this record, else None."""
+        if (rec.k + 1) % self.every or rec.x[0] != 1.0:        # s = 1 after every x-step
+            return None
+        self.algebraic = self.gap.bound(rec.x[1:], rec.z, rec.lam)
+        u = self.problem.finalize(rec.x)
+        self.discretisation = zz_estimate(self.problem.ops, u)
+        return self.name if self.algebraic <= self.gamma * self.discretisation else None
+
+
+__all__ = ["zz_indicators", "zz_estimate", "CondensedGap", "BalancedStop"]

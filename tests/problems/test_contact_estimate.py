@@ -1,0 +1,87 @@
+"""The contact plug-in's error estimates and its balanced stop (#24).
+
+Independent checks: the discrete solution u_h from the plug-in's reference
+solve (cvxpy + Clarabel, problems/contact/validation/reference.py) for the algebraic error, and the energy
+of a much finer mesh for the discretisation error (for the contact problem
+J(u_h) - J(u) >= ||u_h - u||_a^2 / 2, so sqrt(2 (J(u_h) - J_fine)) estimates it).
+"""
+import numpy as np
+import pytest
+
+import admmkit
+from admmkit.cli import main
+from admmkit.problems.contact import assemble, contact_problem, example1, example2, solve_scene
+from admmkit.problems.contact.solvers.estimate import BalancedStop, CondensedGap, zz_estimate, zz_indicators
+from admmkit.problems.contact.validation.reference import energy_norm, reference_solution
+
+
+@pytest.fixture(scope="module")
+def ex1():
+    ops = assemble(example1(h=1 / 10))
+    return ops, contact_problem(ops, mode="condensed"), reference_solution(ops).u
+
+
+@pytest.mark.parametrize("tol", [1e-2, 1e-3, 1e-5, 1e-8])
+def test_the_bound_is_above_the_true_algebraic_error_and_sharp(ex1, tol):
+    ops, problem, u_h = ex1
+    seen = []
+
+    def watch(rec):
+        seen.append((rec.x.copy(), rec.z.copy(), rec.lam.copy()))
+    res = admmkit.solve(problem, rho=ops.scene.E, policy="summable", order="zx", stop=admmkit.RelativeChange(tol),
+                        callback=watch)
+    x, z, lam = seen[-1]
+    true = energy_norm(ops, res.x - u_h)
+    bound = CondensedGap(problem).bound(x[1:], z, lam)
+    assert true <= bound <= 20 * true + 1e-7
+
+
+def _tight(ops) -> np.ndarray:
+    sol = solve_scene(ops, "sadmm", 1e3, mode="condensed", stop=admmkit.ResidualTolerance(1e-12, 1e-12),
+                      max_iter=50_000)
+    assert sol.result.converged
+    return sol.result.x
+
+
+def _energy(ops, u) -> float:
+    return float(0.5 * u @ (ops.K @ u) - ops.f @ u)
+
+
+@pytest.mark.parametrize("make, order", [(example1, 1), (example1, 2), (example2, 1), (example2, 2)])
+def test_zz_tracks_the_discretisation_error(make, order):
+    fine = assemble(make(h=1 / 80, order=order))
+    J_fine = _energy(fine, _tight(fine))
+    ops = assemble(make(h=1 / 10, order=order))
+    u = _tight(ops)
+    error = np.sqrt(2 * max(_energy(ops, u) - J_fine, 0.0))
+    indicators = zz_indicators(ops, u)
+    assert indicators.shape == (ops.mesh.ne,) and np.all(indicators >= 0)
+    assert 0.5 <= zz_estimate(ops, u) / error <= 1.3
+
+
+def test_the_balanced_stop_means_what_it_says(ex1):
+    ops, problem, u_h = ex1
+    stop = BalancedStop(problem, gamma=0.1)
+    res = admmkit.solve(problem, rho=ops.scene.E, policy="summable", order="zx", stop=stop)
+    assert res.converged and res.stopped_by == stop.name
+    assert energy_norm(ops, res.x - u_h) <= stop.algebraic <= 0.1 * stop.discretisation
+
+
+def test_refusals_name_what_is_wrong():
+    ops = assemble(example1(h=1 / 10))
+    with pytest.raises(ValueError, match="mode 'condensed'"):
+        BalancedStop(contact_problem(ops, mode="full"))
+    with pytest.raises(ValueError, match=r"gamma = 0 is outside the accepted range \(0, 1\]"):
+        BalancedStop(contact_problem(ops, mode="condensed"), gamma=0)
+    with pytest.raises(ValueError, match="give one"):
+        solve_scene(ops, "sadmm", mode="condensed", stop=admmkit.RelativeChange(1e-5), balance=0.1)
+
+
+def test_cli_balance(capsys):
+    assert main(["solve", "contact", "--scene", "ex2", "--h", "1/10", "--balance", "0.1", "-q"]) == 0
+    out = capsys.readouterr().out
+    assert "balanced(gamma=0.1)" in out and "balance      algebraic error <=" in out
+    assert main(["solve", "contact", "--h", "1/10", "--balance", "0.1", "--mode", "full"]) == 2
+    assert "--balance needs --mode condensed" in capsys.readouterr().err
+    assert main(["solve", "contact", "--scene", "ex1_tresca", "--h", "1/10", "--balance", "0.1"]) == 2
+    assert "frictionless" in capsys.readouterr().err
