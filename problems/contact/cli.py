@@ -37,6 +37,13 @@ def register(subparsers) -> None:
     p.add_argument("--balance", type=positive_float, default=None, metavar="GAMMA",
                    help="stop when a guaranteed bound of the algebraic error is below GAMMA x the ZZ estimate of "
                         "the discretisation error, 0 < GAMMA <= 1 (frictionless, mode condensed; instead of --tol)")
+    p.add_argument("--target-error", type=positive_float, default=None, metavar="E",
+                   help="refine adaptively from --h until the estimated relative energy error is <= E, 0 < E < 1 "
+                        "(frictionless 2D scenes; ZZ estimate, Doerfler marking, balanced stop per level)")
+    p.add_argument("--theta", type=positive_float, default=0.5, help="Doerfler marking share with --target-error "
+                                                                     "(default 0.5)")
+    p.add_argument("--max-levels", type=int, default=20, help="level cap of --target-error (default 20)")
+    p.add_argument("--max-unknowns", type=int, default=2_000_000, help="unknowns cap of --target-error (default 2e6)")
     # the stop is in the energy norm (docs/contact.md); --policy takes admm1, admm2, sadmm or a rule (order zx)
     add_common_options(p, policy="sadmm", order="zx", rho=1e3, methods=METHODS, max_iter=20_000)
     add_result_outputs(p, json_help="write the run as JSON: provenance (version, date, command, scene, policy, "
@@ -83,6 +90,9 @@ def run(args) -> int:
 
     order, _, name = resolve_policy(args)          # refuses an unknown --policy before anything is built
     stop = stop_rule(args)
+    if args.target_error is not None:
+        from admmkit.problems.contact.output.adaptive_cli import run_adaptive
+        return run_adaptive(args, _scene(args), name)
     if args.balance is not None:
         if args.tol is not None or args.eps_abs is not None:
             raise ValueError("--balance cannot be combined with --tol or --eps-abs: give one stop")

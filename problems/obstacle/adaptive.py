@@ -21,13 +21,13 @@ what was), or ``admm_failed`` (a level's ADMM run did not converge).
 """
 from __future__ import annotations
 
-import math
 import time
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from admmkit import Result, solve
+from admmkit.marking import check_adaptive, dorfler_mark
 
 from .estimate import BalancedStop, zz
 from .problem import DEFAULT_BACKEND, ObstacleProblem, build_mesh
@@ -66,27 +66,6 @@ class AdaptiveResult:
         return self.status == "target_reached"
 
 
-def dorfler_mark(indicators: np.ndarray, theta: float) -> np.ndarray:
-    """The smallest set of cells whose eta_T^2 sum to at least theta x the total (a boolean mask)."""
-    eta2 = np.asarray(indicators, dtype=float) ** 2
-    order = np.argsort(-eta2, kind="stable")
-    count = int(np.searchsorted(np.cumsum(eta2[order]), theta * eta2.sum())) + 1
-    mask = np.zeros(eta2.size, dtype=bool)
-    mask[order[:min(count, eta2.size)]] = True
-    return mask
-
-
-def _check(target, theta, gamma, max_levels, max_unknowns) -> None:
-    for name, value, ok, accepted in [("target", target, lambda v: 0 < v < 1, "(0, 1)"),
-                                      ("theta", theta, lambda v: 0 < v < 1, "(0, 1)"),
-                                      ("gamma", gamma, lambda v: 0 < v <= 1, "(0, 1]")]:
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or not ok(value):
-            raise ValueError(f"{name} = {value!r} is outside the accepted range {accepted}")
-    for name, value in [("max_levels", max_levels), ("max_unknowns", max_unknowns)]:
-        if isinstance(value, bool) or not isinstance(value, int) or value < 1:
-            raise ValueError(f"{name} = {value!r} is outside the accepted range: an integer >= 1")
-
-
 def solve_adaptive(scene: Scene, target: float, *, theta: float = 0.5, gamma: float = 0.1, max_levels: int = 30,
                    max_unknowns: int = 2_000_000, policy="summable", order: str = "zx", rho: float = 1.0,
                    max_iter: int = 10_000, backend: str = DEFAULT_BACKEND, log=None) -> AdaptiveResult:
@@ -94,7 +73,7 @@ def solve_adaptive(scene: Scene, target: float, *, theta: float = 0.5, gamma: fl
 
     ``log``: called with each finished :class:`Level` (progress).
     """
-    _check(target, theta, gamma, max_levels, max_unknowns)
+    check_adaptive(target, theta, gamma, max_levels, max_unknowns)
     if not isinstance(scene, Scene):
         raise ValueError(f"scene must be a admmkit.problems.obstacle.Scene, got {type(scene).__name__}")
     mesh = build_mesh(scene)

@@ -7,7 +7,8 @@ import pytest
 
 from admmkit.cli import main
 from admmkit.problems.obstacle import radial
-from admmkit.problems.obstacle.adaptive import dorfler_mark, solve_adaptive
+from admmkit.marking import dorfler_mark
+from admmkit.problems.obstacle.adaptive import solve_adaptive
 
 
 def test_dorfler_marks_the_smallest_set_carrying_theta():

@@ -175,9 +175,12 @@ def _stick_components(scene: Scene, normals: np.ndarray) -> dict:
                      f"to the x or y axis; {scene.contact!r} is not (use tangential = 'frictionless')")
 
 
-def assemble(scene: Scene) -> ContactOperators:
-    """Assemble K, f, B, mc, g of the scene on the free dofs (see ContactOperators)."""
-    mesh = build_mesh(scene)
+def assemble(scene: Scene, mesh: ng.Mesh | None = None) -> ContactOperators:
+    """Assemble K, f, B, mc, g of the scene on the free dofs (see ContactOperators).
+
+    ``mesh``: a mesh of the scene's body to use instead of the scene's own (an adapted one).
+    """
+    mesh = build_mesh(scene) if mesh is None else mesh
     known = set(mesh.GetBoundaries())
     for label in (*scene.dirichlet, *scene.tractions, scene.contact):
         if label not in known:

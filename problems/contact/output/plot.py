@@ -141,3 +141,20 @@ def figure_solution(ops, u, lam, magnify, title, path, p=None, friction=None):
         plot_friction(fig.add_subplot(gs[3], sharex=ax1), ops, friction)
     fig.tight_layout()
     return save_figure(fig, path, ("png",))[0]
+
+
+def figure_adapted(ops, u, lam, indicators, title, path):
+    """The adapted mesh coloured by the ZZ indicators (top) and the contact pressure along Gamma_C (bottom)."""
+    plt = pyplot()
+    points, triangles, _ = vertex_displacement(ops, u)
+    fig, (ax, bx) = plt.subplots(2, 1, figsize=(9, 6.5), gridspec_kw={"height_ratios": [2, 1]})
+    shade = ax.tripcolor(points[:, 0], points[:, 1], triangles, facecolors=np.log10(np.maximum(indicators, 1e-300)),
+                         cmap="magma_r", edgecolors="k", linewidth=0.08)
+    fig.colorbar(shade, ax=ax, label="log10 eta_T (ZZ)")
+    ax.set_aspect("equal"); ax.set_title(title)
+    order = np.argsort(ops.xc[:, 0])
+    bx.plot(ops.xc[order, 0], lam[:ops.n_c][order], "b.-", ms=3)
+    bx.set_xlabel("x on Gamma_C"); bx.set_ylabel("contact pressure lam"); bx.grid(alpha=0.3)
+    bx.set_xlim(ax.get_xlim())
+    fig.tight_layout()
+    return save_figure(fig, path, ("png",), dpi=130)[0]

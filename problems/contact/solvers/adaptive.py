@@ -1,0 +1,149 @@
+"""Adaptive meshes for frictionless 2D contact: solve -> estimate -> mark -> refine, until a target accuracy.
+
+One level (:func:`solve_adaptive`):
+
+1. **solve** the scene on the current mesh (mode condensed) with ADMM,
+   stopped balanced with the discretisation error
+   (:class:`admmkit.problems.contact.solvers.estimate.BalancedStop`), started
+   from the previous level's contact pressure (interpolated along Gamma_C to
+   the new contact nodes) and rho, so later levels cost few iterations;
+2. **estimate**: the ZZ indicators eta_T and the relative estimate
+   ``eta / ||u_h||_a``;
+3. stop if it is at most ``target``; else **mark** the smallest set of
+   elements that carries a share ``theta`` of sum eta_T^2 (Dörfler);
+4. **refine** them with NGSolve's refinement and assemble the scene's data
+   (tractions, gap, contact boundary) on the new mesh.
+
+It ends ``target_reached``, or says truthfully that the target was not
+reached (``level_cap``, ``unknowns_cap``) or that a level's ADMM run did not
+converge (``admm_failed``).
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import ngsolve as ng
+import numpy as np
+
+import admmkit
+from admmkit import Result
+from admmkit.marking import check_adaptive, dorfler_mark
+
+from admmkit.problems.contact.model.assembly import ContactOperators, assemble, build_mesh
+from admmkit.problems.contact.model.scene import Scene
+from admmkit.problems.contact.solvers.estimate import BalancedStop, zz_indicators
+from admmkit.problems.contact.solvers.methods import method
+from admmkit.problems.contact.solvers.problem import contact_problem
+
+
+@dataclass
+class Level:
+    """One level of an adaptive contact solve."""
+
+    cells: int
+    unknowns: int
+    contact_nodes: int
+    estimate: float                 # eta, the ZZ estimate of ||u_h - u||_a
+    relative_estimate: float        # eta / ||u_h||_a
+    algebraic_bound: float          # the guaranteed bound of ||u - u_h||_a at the stop
+    iterations: int
+    seconds: float
+    status: str
+
+
+@dataclass
+class AdaptiveResult:
+    """The levels, how the loop ended, and the last level's operators, ADMM result and indicators."""
+
+    status: str
+    message: str
+    levels: list[Level] = field(default_factory=list)
+    ops: ContactOperators | None = None
+    result: Result | None = None
+    indicators: np.ndarray | None = None
+
+    @property
+    def reached(self) -> bool:
+        """True when the estimated relative energy error is at most the target."""
+        return self.status == "target_reached"
+
+
+def solve_adaptive(scene: Scene, target: float, *, theta: float = 0.5, gamma: float = 0.1, max_levels: int = 20,
+                   max_unknowns: int = 2_000_000, method_name: str = "sadmm", rho: float = 1e3,
+                   max_iter: int = 20_000, log=None) -> AdaptiveResult:
+    """Refine adaptively from the scene's mesh until ``eta / ||u_h||_a <= target`` (module docstring).
+
+    ``log``: called with each finished :class:`Level` (progress).
+    """
+    check_adaptive(target, theta, gamma, max_levels, max_unknowns)
+    if not isinstance(scene, Scene):
+        raise ValueError(f"scene must be a 2D admmkit.problems.contact.Scene, got {type(scene).__name__}")
+    if scene.tangential != "frictionless":
+        raise ValueError(f"adaptive contact needs a frictionless scene (its error bound), got tangential = "
+                         f"{scene.tangential!r}")
+    default_order, _ = method(method_name)
+    mesh, out, warm = build_mesh(scene), AdaptiveResult("level_cap", ""), None
+    for _ in range(max_levels):
+        dofs = 2 * (mesh.nv + (mesh.nedge if scene.order == 2 else 0))       # before the Dirichlet ones go
+        if dofs > max_unknowns:
+            out.status = "unknowns_cap"
+            out.message = f"the next mesh has about {dofs} unknowns, above max_unknowns = {max_unknowns}; " \
+                          f"target {target:g} not reached"
+            return out
+        t0 = time.perf_counter()
+        ops = assemble(scene, mesh=mesh)
+        problem = contact_problem(ops, mode="condensed")
+        stop = BalancedStop(problem, gamma)
+        _, policy = method(method_name)
+        start = {} if warm is None else _warm_start(ops, problem, *warm)
+        res = admmkit.solve(problem, rho=rho if warm is None else warm[2], policy=policy, order=default_order,
+                            stop=stop, max_iter=max_iter, **start)
+        indicators = zz_indicators(ops, res.x)
+        eta = float(np.sqrt(np.sum(indicators ** 2)))
+        relative = eta / max(float(np.sqrt(res.x @ (ops.K @ res.x))), 1e-300)
+        level = Level(cells=mesh.ne, unknowns=ops.n_free, contact_nodes=ops.n_c, estimate=eta,
+                      relative_estimate=relative, algebraic_bound=stop.algebraic, iterations=res.iterations,
+                      seconds=time.perf_counter() - t0, status=res.status.value)
+        out.levels.append(level)
+        out.ops, out.result, out.indicators = ops, res, indicators
+        if log is not None:
+            log(level)
+        if not res.converged:
+            out.status, out.message = "admm_failed", f"level {len(out.levels)}: ADMM ended {res.status.value}"
+            return out
+        if relative <= target:
+            out.status = "target_reached"
+            out.message = f"estimated relative energy error {relative:.3e} <= target {target:g}"
+            return out
+        warm = (ops.xc.copy(), res.lam.copy(), res.rho)
+        marked = dorfler_mark(indicators, theta)
+        for el in mesh.Elements(ng.VOL):
+            mesh.SetRefinementFlag(el, bool(marked[el.nr]))
+        mesh.Refine()
+    out.message = (f"max_levels = {max_levels} reached with an estimated relative energy error "
+                   f"{out.levels[-1].relative_estimate:.3e}; target {target:g} not reached")
+    return out
+
+
+def _warm_start(ops: ContactOperators, problem, xc_old: np.ndarray, lam_old: np.ndarray, rho: float) -> dict:
+    """x0, lam0 on the new mesh: the pressure interpolated along Gamma_C, w0 = -M_c lam0 (stationarity)."""
+    lam0 = _along_boundary(xc_old, lam_old, ops.xc)
+    x0 = np.concatenate(([1.0], -problem.w * lam0))
+    return {"x0": x0, "lam0": lam0, "z0": np.minimum(problem.g, problem.apply_A(x0))}
+
+
+def _along_boundary(xc_old: np.ndarray, values: np.ndarray, xc_new: np.ndarray) -> np.ndarray:
+    """Linear interpolation between the two nearest old contact nodes of every new one."""
+    from scipy.spatial import cKDTree
+    dist, idx = cKDTree(xc_old).query(xc_new, k=min(2, len(xc_old)))
+    if dist.ndim == 1:
+        return values[idx]
+    weights = 1.0 / np.maximum(dist, 1e-300)
+    exact = dist[:, 0] <= 1e-14
+    out = np.sum(weights * values[idx], axis=1) / np.sum(weights, axis=1)
+    out[exact] = values[idx[exact, 0]]
+    return out
+
+
+__all__ = ["Level", "AdaptiveResult", "dorfler_mark", "solve_adaptive"]
