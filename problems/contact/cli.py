@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from admmkit.cli_adaptive import add_adaptive_options
 from admmkit.cli import (add_common_options, add_output_file, add_result_outputs, exit_code, positive_float,
                          print_summary, progress, resolve_policy, stop_rule, write_result_csv)
 
@@ -34,16 +35,7 @@ def register(subparsers) -> None:
     p.add_argument("--slip-bound", default=None, metavar="S",
                    help="Tresca's slip bound s >= 0, a number or an expression in x, y "
                         "(with tresca; overrides the scene's)")
-    p.add_argument("--balance", type=positive_float, default=None, metavar="GAMMA",
-                   help="stop when a guaranteed bound of the algebraic error is below GAMMA x the ZZ estimate of "
-                        "the discretisation error, 0 < GAMMA <= 1 (frictionless, mode condensed; instead of --tol)")
-    p.add_argument("--target-error", type=positive_float, default=None, metavar="E",
-                   help="refine adaptively from --h until the estimated relative energy error is <= E, 0 < E < 1 "
-                        "(frictionless 2D scenes; ZZ estimate, Doerfler marking, balanced stop per level)")
-    p.add_argument("--theta", type=positive_float, default=0.5, help="Doerfler marking share with --target-error "
-                                                                     "(default 0.5)")
-    p.add_argument("--max-levels", type=int, default=20, help="level cap of --target-error (default 20)")
-    p.add_argument("--max-unknowns", type=int, default=2_000_000, help="unknowns cap of --target-error (default 2e6)")
+    add_adaptive_options(p)    # --balance, --target-error (frictionless, mode condensed; docs/contact.md)
     # the stop is in the energy norm (docs/contact.md); --policy takes admm1, admm2, sadmm or a rule (order zx)
     add_common_options(p, policy="sadmm", order="zx", rho=1e3, methods=METHODS, max_iter=20_000)
     add_result_outputs(p, json_help="write the run as JSON: provenance (version, date, command, scene, policy, "

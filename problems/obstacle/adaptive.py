@@ -22,12 +22,12 @@ what was), or ``admm_failed`` (a level's ADMM run did not converge).
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
 from admmkit import Result, solve
-from admmkit.marking import check_adaptive, dorfler_mark
+from admmkit.adaptive import AdaptiveResult, check_adaptive, dorfler_mark
 
 from .estimate import BalancedStop, zz
 from .problem import DEFAULT_BACKEND, ObstacleProblem, build_mesh
@@ -47,23 +47,6 @@ class Level:
     seconds: float
     status: str
     errors: dict | None = None      # against the exact solution, where the scene has one
-
-
-@dataclass
-class AdaptiveResult:
-    """The levels, how the loop ended, and the last level's problem and ADMM result."""
-
-    status: str
-    message: str
-    levels: list[Level] = field(default_factory=list)
-    problem: ObstacleProblem | None = None
-    result: Result | None = None
-    indicators: np.ndarray | None = None
-
-    @property
-    def reached(self) -> bool:
-        """True when the estimated relative energy error is at most the target."""
-        return self.status == "target_reached"
 
 
 def solve_adaptive(scene: Scene, target: float, *, theta: float = 0.5, gamma: float = 0.1, max_levels: int = 30,
@@ -100,7 +83,7 @@ def solve_adaptive(scene: Scene, target: float, *, theta: float = 0.5, gamma: fl
                       seconds=time.perf_counter() - t0, status=res.status.value,
                       errors=problem.errors(res.z) if scene.exact is not None else None)
         out.levels.append(level)
-        out.problem, out.result, out.indicators = problem, res, indicators
+        out.model, out.result, out.indicators = problem, res, indicators
         if log is not None:
             log(level)
         if not res.converged:

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 from admmkit import policies  # noqa: F401  (registers the rules the --policy option offers)
+from admmkit.cli_adaptive import adaptive_options, add_adaptive_options
 from admmkit.cli import (add_common_options, add_output_file, add_result_outputs, exit_code, positive_float,
                          run_solve, write_result_csv, write_result_json)
 from admmkit.policies.paper_methods import PAPER_METHODS
@@ -20,18 +21,7 @@ def register(subparsers) -> None:
     p.add_argument("--h", type=positive_float, default=1 / 16, help="cell size, fractions allowed (default 1/16)")
     p.add_argument("--backend", default=DEFAULT_BACKEND, help=f"sparse solver of K + rho M, or iterative for AMG-preconditioned CG (default {DEFAULT_BACKEND})")
     add_output_file(p, "--plot", "FILE", "write a plot of u, psi and the contact set (PNG)")
-    p.add_argument("--balance", type=positive_float, default=None, metavar="GAMMA",
-                   help="stop when a guaranteed bound of the algebraic error is below GAMMA x the estimated "
-                        "discretisation error, 0 < GAMMA <= 1 (the default stop, GAMMA = 0.1, unless --tol or "
-                        "--eps-abs is given)")
-    p.add_argument("--target-error", type=positive_float, default=None, metavar="E",
-                   help="refine adaptively from --h until the estimated relative energy error is <= E, 0 < E < 1 "
-                        "(ZZ estimate, Doerfler marking, each level warm-started and stopped balanced)")
-    p.add_argument("--theta", type=positive_float, default=0.5, help="Doerfler marking share, 0 < theta < 1 "
-                                                                     "(default 0.5; with --target-error)")
-    p.add_argument("--max-levels", type=int, default=30, help="level cap of --target-error (default 30)")
-    p.add_argument("--max-unknowns", type=int, default=2_000_000,
-                   help="unknowns cap of --target-error (default 2e6, about 2 GB)")
+    add_adaptive_options(p, max_levels=30)     # --balance (here the default stop, GAMMA = 0.1), --target-error
     add_common_options(p, policy="summable", order="zx", methods=PAPER_METHODS)
     add_result_outputs(p, json_help="write the run (provenance, scene, summary, errors, u on the free nodes) as JSON",
                        csv_help="write one row per free node: x, y, u, psi, in_contact")
@@ -54,7 +44,7 @@ def run(args) -> int:
     """Build the scene, solve it, print the summary and the errors against the exact solution; 0 only if converged."""
     gamma = balance_gamma(args)
     if args.target_error is not None:
-        return run_adaptive(args, 0.1 if gamma is None else gamma)
+        return run_adaptive(args)
     problem = make_problem(named_scene(args.scene, h=args.h), backend=args.backend)
     nx, ny = problem.scene.counts
     print(f"problem      obstacle/{args.scene}: h = {args.h:.6g} ({nx} x {ny} squares), "
@@ -93,24 +83,16 @@ def run(args) -> int:
     return exit_code(result)
 
 
-def run_adaptive(args, gamma: float) -> int:
+def run_adaptive(args) -> int:
     """``--target-error``: the adaptive loop, one line per level; 0 only if the target was reached."""
     from admmkit.cli import resolve_policy
     from .adaptive import solve_adaptive
     from .plot import plot_adapted
-    if args.tol is not None or args.eps_abs is not None:
-        raise ValueError("--target-error stops every level balanced (--balance); it cannot be combined with "
-                         "--tol or --eps-abs")
-    for flag, value, ok, accepted in [("--target-error", args.target_error, 0 < args.target_error < 1, "(0, 1)"),
-                                      ("--theta", args.theta, 0 < args.theta < 1, "(0, 1)"),
-                                      ("--max-levels", args.max_levels, args.max_levels >= 1, "an integer >= 1"),
-                                      ("--max-unknowns", args.max_unknowns, args.max_unknowns >= 1, "an integer >= 1")]:
-        if not ok:
-            raise ValueError(f"{flag} = {value:g} is outside the accepted range {accepted}")
+    options = adaptive_options(args)
     order, policy, name = resolve_policy(args)
     scene = named_scene(args.scene, h=args.h)
-    print(f"adaptive     obstacle/{args.scene}: from h = {args.h:.6g}, target {args.target_error:g}, "
-          f"theta {args.theta:g}, gamma {gamma:g}, {name} order {order}")
+    print(f"adaptive     obstacle/{args.scene}: from h = {args.h:.6g}, target {options['target']:g}, "
+          f"theta {options['theta']:g}, gamma {options['gamma']:g}, {name} order {order}")
     print("level    cells  unknowns   estimate  rel.estimate  H1-semi error  iterations  seconds  status")
 
     def show(level):
@@ -119,18 +101,17 @@ def run_adaptive(args, gamma: float) -> int:
               f"  {err:>13s}  {level.iterations:10d}  {level.seconds:7.2f}  {level.status}", flush=True)
         show.k += 1
     show.k = 1
-    out = solve_adaptive(scene, args.target_error, theta=args.theta, gamma=gamma, max_levels=args.max_levels,
-                         max_unknowns=args.max_unknowns, policy=policy, order=order, rho=args.rho,
-                         max_iter=args.max_iter, backend=args.backend, log=show)
+    out = solve_adaptive(scene, **options, policy=policy, order=order, rho=args.rho, max_iter=args.max_iter,
+                         backend=args.backend, log=show)
     print(f"status       {out.status}  ({out.message})")
-    if args.plot and out.problem is not None:
-        print(f"plot         {plot_adapted(out.problem, out.indicators, out.result.z, args.plot)}")
+    if args.plot and out.model is not None:
+        print(f"plot         {plot_adapted(out.model, out.indicators, out.result.z, args.plot)}")
     if args.json:
         import json
         from dataclasses import asdict
         from admmkit.io import write_text
         body = {"command": "solve obstacle --target-error", "scene": args.scene, "h0": args.h,
-                "target": args.target_error, "theta": args.theta, "gamma": gamma, "status": out.status,
+                **options, "status": out.status,
                 "message": out.message, "levels": [asdict(level) for level in out.levels]}
         print(f"json         {write_text(args.json, json.dumps(body, indent=1, default=float) + chr(10))}")
     return 0 if out.reached else 1

@@ -44,7 +44,7 @@ def test_the_estimate_tracks_the_error_and_beats_uniform_meshes(adapted):
 
 
 def _last(out):
-    return out.ops, out.result.x
+    return out.model, out.result.x
 
 
 def test_caps_and_refusals():

@@ -7,7 +7,7 @@ import pytest
 
 from admmkit.cli import main
 from admmkit.problems.obstacle import radial
-from admmkit.marking import dorfler_mark
+from admmkit.adaptive import dorfler_mark
 from admmkit.problems.obstacle.adaptive import solve_adaptive
 
 

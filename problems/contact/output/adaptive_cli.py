@@ -7,21 +7,12 @@ from dataclasses import asdict
 
 def run_adaptive(args, scene, method_name: str) -> int:
     """Refine until the estimated relative energy error is <= --target-error; 0 only if it was reached."""
+    from admmkit.cli_adaptive import adaptive_options
     from admmkit.io import write_text
     from admmkit.problems.contact.model.scene import Scene
     from admmkit.problems.contact.output.plot import figure_adapted
     from admmkit.problems.contact.solvers.adaptive import solve_adaptive
-    gamma = 0.1 if args.balance is None else args.balance
-    for flag, value, ok, accepted in [("--target-error", args.target_error, 0 < args.target_error < 1, "(0, 1)"),
-                                      ("--theta", args.theta, 0 < args.theta < 1, "(0, 1)"),
-                                      ("--balance", gamma, 0 < gamma <= 1, "(0, 1]"),
-                                      ("--max-levels", args.max_levels, args.max_levels >= 1, "an integer >= 1"),
-                                      ("--max-unknowns", args.max_unknowns, args.max_unknowns >= 1, "an integer >= 1")]:
-        if not ok:
-            raise ValueError(f"{flag} = {value:g} is outside the accepted range {accepted}")
-    if args.tol is not None or args.eps_abs is not None:
-        raise ValueError("--target-error stops every level balanced (--balance); it cannot be combined with "
-                         "--tol or --eps-abs")
+    options = adaptive_options(args)
     if args.mode not in ("auto", "condensed"):
         raise ValueError(f"--target-error runs every level in mode condensed, got --mode {args.mode}")
     if not isinstance(scene, Scene):
@@ -29,8 +20,8 @@ def run_adaptive(args, scene, method_name: str) -> int:
     if scene.tangential != "frictionless":
         raise ValueError(f"--target-error needs a frictionless scene (its error bound), got tangential "
                          f"{scene.tangential!r}")
-    print(f"adaptive     contact/{scene.name}: from h = {scene.h:.6g}, P{scene.order}, target {args.target_error:g}, "
-          f"theta {args.theta:g}, gamma {gamma:g}, {method_name}")
+    print(f"adaptive     contact/{scene.name}: from h = {scene.h:.6g}, P{scene.order}, target {options['target']:g}, "
+          f"theta {options['theta']:g}, gamma {options['gamma']:g}, {method_name}")
     print("level    cells  unknowns  n_c   estimate  rel.estimate  alg.bound  iterations  seconds  status")
     count = iter(range(1, 10 ** 9))
 
@@ -38,17 +29,15 @@ def run_adaptive(args, scene, method_name: str) -> int:
         print(f"{next(count):5d} {level.cells:8d} {level.unknowns:9d} {level.contact_nodes:4d}  {level.estimate:.3e}"
               f"  {level.relative_estimate:12.3e}  {level.algebraic_bound:9.2e}  {level.iterations:10d}"
               f"  {level.seconds:7.2f}  {level.status}", flush=True)
-    out = solve_adaptive(scene, args.target_error, theta=args.theta, gamma=gamma, max_levels=args.max_levels,
-                         max_unknowns=args.max_unknowns, method_name=method_name, rho=args.rho,
-                         max_iter=args.max_iter, log=show)
+    out = solve_adaptive(scene, **options, method_name=method_name, rho=args.rho, max_iter=args.max_iter, log=show)
     print(f"status       {out.status}  ({out.message})")
-    if args.plot and out.ops is not None:
+    if args.plot and out.model is not None:
         last = out.levels[-1]
         title = f"{scene.name}: adapted mesh, {last.cells} triangles, {last.unknowns} unknowns"
-        print(f"plot         {figure_adapted(out.ops, out.result.x, out.result.lam, out.indicators, title, args.plot)}")
+        print(f"plot         {figure_adapted(out.model, out.result.x, out.result.lam, out.indicators, title, args.plot)}")
     if args.json:
         body = {"command": "solve contact --target-error", "scene": scene.name, "h0": scene.h, "order": scene.order,
-                "target": args.target_error, "theta": args.theta, "gamma": gamma, "method": method_name,
+                **options, "method": method_name,
                 "status": out.status, "message": out.message, "levels": [asdict(level) for level in out.levels]}
         print(f"json         {write_text(args.json, json.dumps(body, indent=1) + chr(10))}")
     return 0 if out.reached else 1

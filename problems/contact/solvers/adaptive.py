@@ -21,14 +21,13 @@ converge (``admm_failed``).
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import ngsolve as ng
 import numpy as np
 
 import admmkit
-from admmkit import Result
-from admmkit.marking import check_adaptive, dorfler_mark
+from admmkit.adaptive import AdaptiveResult, check_adaptive, dorfler_mark
 
 from admmkit.problems.contact.model.assembly import ContactOperators, assemble, build_mesh
 from admmkit.problems.contact.model.scene import Scene
@@ -50,23 +49,6 @@ class Level:
     iterations: int
     seconds: float
     status: str
-
-
-@dataclass
-class AdaptiveResult:
-    """The levels, how the loop ended, and the last level's operators, ADMM result and indicators."""
-
-    status: str
-    message: str
-    levels: list[Level] = field(default_factory=list)
-    ops: ContactOperators | None = None
-    result: Result | None = None
-    indicators: np.ndarray | None = None
-
-    @property
-    def reached(self) -> bool:
-        """True when the estimated relative energy error is at most the target."""
-        return self.status == "target_reached"
 
 
 def solve_adaptive(scene: Scene, target: float, *, theta: float = 0.5, gamma: float = 0.1, max_levels: int = 20,
@@ -106,7 +88,7 @@ def solve_adaptive(scene: Scene, target: float, *, theta: float = 0.5, gamma: fl
                       relative_estimate=relative, algebraic_bound=stop.algebraic, iterations=res.iterations,
                       seconds=time.perf_counter() - t0, status=res.status.value)
         out.levels.append(level)
-        out.ops, out.result, out.indicators = ops, res, indicators
+        out.model, out.result, out.indicators = ops, res, indicators
         if log is not None:
             log(level)
         if not res.converged:

@@ -1,4 +1,4 @@
-"""Dörfler marking and the checks of an adaptive loop: the pieces every adaptive finite element plug-in reuses.
+"""The pieces every adaptive finite element loop reuses: Dörfler marking, the checks, the result.
 
 Dörfler (1996): given error indicators eta_T, mark the smallest set M of
 cells with sum_{T in M} eta_T^2 >= theta sum_T eta_T^2 (the cells of the
@@ -7,8 +7,33 @@ largest indicators first).
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
+
+
+@dataclass
+class AdaptiveResult:
+    """How an adaptive loop ended, its levels, and the last level's model, ADMM result and indicators.
+
+    ``status``: ``target_reached``; ``level_cap`` or ``unknowns_cap`` (the target
+    was not reached; ``levels`` say what was); ``admm_failed`` (a level's ADMM
+    run did not converge).  ``model`` is the plug-in's discrete problem of the
+    last level (its operators).
+    """
+
+    status: str
+    message: str
+    levels: list = field(default_factory=list)
+    model: Any = None
+    result: Any = None
+    indicators: np.ndarray | None = None
+
+    @property
+    def reached(self) -> bool:
+        """True when the estimated relative energy error is at most the target."""
+        return self.status == "target_reached"
 
 
 def dorfler_mark(indicators, theta: float) -> np.ndarray:

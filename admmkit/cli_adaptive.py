@@ -1,0 +1,46 @@
+"""The options of an FE plug-in with error estimates: the balanced stop and adaptive refinement.
+
+``admmkit solve obstacle`` and ``admmkit solve contact`` register them with
+:func:`add_adaptive_options` and read them with :func:`adaptive_options`.
+"""
+from __future__ import annotations
+
+import argparse
+
+from .cli import positive_float
+
+
+def add_adaptive_options(parser: argparse.ArgumentParser, *, max_levels: int = 20) -> None:
+    """``--balance``, ``--target-error``, ``--theta``, ``--max-levels``, ``--max-unknowns`` of an FE plug-in
+    with error estimates (read by :func:`adaptive_options`)."""
+    parser.add_argument("--balance", type=positive_float, default=None, metavar="GAMMA",
+                        help="stop when a guaranteed bound of the algebraic error is below GAMMA x the estimated "
+                             "discretisation error, 0 < GAMMA <= 1 (instead of --tol / --eps-abs)")
+    parser.add_argument("--target-error", type=positive_float, default=None, metavar="E",
+                        help="refine adaptively from --h until the estimated relative energy error is <= E, "
+                             "0 < E < 1 (ZZ estimate, Doerfler marking, each level warm-started, stopped balanced)")
+    parser.add_argument("--theta", type=positive_float, default=0.5,
+                        help="Doerfler marking share with --target-error, 0 < theta < 1 (default 0.5)")
+    parser.add_argument("--max-levels", type=int, default=max_levels,
+                        help=f"level cap of --target-error (default {max_levels})")
+    parser.add_argument("--max-unknowns", type=int, default=2_000_000,
+                        help="unknowns cap of --target-error (default 2e6)")
+
+
+def adaptive_options(args) -> dict:
+    """The adaptive loop's keywords from :func:`add_adaptive_options` (gamma 0.1 unless --balance);
+    ValueError naming the option and its range, and refusing --tol / --eps-abs beside them."""
+    gamma = 0.1 if args.balance is None else args.balance
+    for flag, value, ok, accepted in [("--target-error", args.target_error, 0 < args.target_error < 1, "(0, 1)"),
+                                      ("--theta", args.theta, 0 < args.theta < 1, "(0, 1)"),
+                                      ("--balance", gamma, 0 < gamma <= 1, "(0, 1]"),
+                                      ("--max-levels", args.max_levels, args.max_levels >= 1, "an integer >= 1"),
+                                      ("--max-unknowns", args.max_unknowns, args.max_unknowns >= 1,
+                                       "an integer >= 1")]:
+        if not ok:
+            raise ValueError(f"{flag} = {value:g} is outside the accepted range {accepted}")
+    if args.tol is not None or args.eps_abs is not None:
+        raise ValueError("--target-error stops every level balanced (--balance); it cannot be combined with "
+                         "--tol or --eps-abs")
+    return {"target": args.target_error, "theta": args.theta, "gamma": gamma, "max_levels": args.max_levels,
+            "max_unknowns": args.max_unknowns}
