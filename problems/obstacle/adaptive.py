@@ -54,7 +54,8 @@ def solve_adaptive(scene: Scene, target: float, *, theta: float = 0.5, gamma: fl
                    max_iter: int = 10_000, backend: str = DEFAULT_BACKEND, log=None) -> AdaptiveResult:
     """Refine adaptively from the scene's mesh until ``eta / |u_h|_{H1} <= target`` (see the module docstring).
 
-    ``log``: called with each finished :class:`Level` (progress).
+    ``log``: called after each level with the :class:`Level` and the result so far (whose ``model``,
+    ``result`` and ``indicators`` are that level's), for progress and per-level output.
     """
     check_adaptive(target, theta, gamma, max_levels, max_unknowns)
     if not isinstance(scene, Scene):
@@ -85,7 +86,7 @@ def solve_adaptive(scene: Scene, target: float, *, theta: float = 0.5, gamma: fl
         out.levels.append(level)
         out.model, out.result, out.indicators = problem, res, indicators
         if log is not None:
-            log(level)
+            log(level, out)
         if not res.converged:
             out.status, out.message = "admm_failed", f"level {len(out.levels)}: ADMM ended {res.status.value}"
             return out

@@ -21,6 +21,8 @@ def register(subparsers) -> None:
     p.add_argument("--h", type=positive_float, default=1 / 16, help="cell size, fractions allowed (default 1/16)")
     p.add_argument("--backend", default=DEFAULT_BACKEND, help=f"sparse solver of K + rho M, or iterative for AMG-preconditioned CG (default {DEFAULT_BACKEND})")
     add_output_file(p, "--plot", "FILE", "write a plot of u, psi and the contact set (PNG)")
+    add_output_file(p, "--vtk", "FILE.vtu", "write u, psi, the contact set and the ZZ indicator per triangle as VTU "
+                    "(with --target-error one file per level, FILE_level<k>.vtu)", suffix=".vtu")
     add_adaptive_options(p, max_levels=30)     # --balance (here the default stop, GAMMA = 0.1), --target-error
     add_common_options(p, policy="summable", order="zx", methods=PAPER_METHODS)
     add_result_outputs(p, json_help="write the run (provenance, scene, summary, errors, u on the free nodes) as JSON",
@@ -65,6 +67,10 @@ def run(args) -> int:
               f"difference {radius - A_STAR:+.3e}")
     if args.plot:
         print(f"plot         {plot_solution(problem, result.x, result.z, args.plot)}")
+    if args.vtk:
+        from .estimate import zz_indicators
+        from .export import write_vtu
+        print(f"vtk          {write_vtu(args.vtk, problem, result.z, zz_indicators(problem, result.z))}")
     if args.json:
         scene = {"name": args.scene, "h": args.h, "counts": [nx, ny], "side": problem.scene.side,
                  "backend": args.backend, "n_free": problem.n}
@@ -95,15 +101,21 @@ def run_adaptive(args) -> int:
           f"theta {options['theta']:g}, gamma {options['gamma']:g}, {name} order {order}")
     print("level    cells  unknowns   estimate  rel.estimate  H1-semi error  iterations  seconds  status")
 
-    def show(level):
+    def show(level, out):
+        if args.vtk:
+            from .export import write_vtu
+            stem = args.vtk[:-4] if args.vtk.endswith(".vtu") else args.vtk
+            files.append(write_vtu(f"{stem}_level{show.k}.vtu", out.model, out.result.z, out.indicators))
         err = f"{level.errors['H1_semi']:.3e}" if level.errors else "-"
         print(f"{show.k:5d} {level.cells:8d} {level.unknowns:9d}  {level.estimate:.3e}  {level.relative_estimate:12.3e}"
               f"  {err:>13s}  {level.iterations:10d}  {level.seconds:7.2f}  {level.status}", flush=True)
         show.k += 1
-    show.k = 1
+    show.k, files = 1, []
     out = solve_adaptive(scene, **options, policy=policy, order=order, rho=args.rho, max_iter=args.max_iter,
                          backend=args.backend, log=show)
     print(f"status       {out.status}  ({out.message})")
+    if files:
+        print(f"vtk          {len(files)} levels: {files[0]} ... {files[-1]}")
     if args.plot and out.model is not None:
         print(f"plot         {plot_adapted(out.model, out.indicators, out.result.z, args.plot)}")
     if args.json:

@@ -23,14 +23,19 @@ def run_adaptive(args, scene, method_name: str) -> int:
     print(f"adaptive     contact/{scene.name}: from h = {scene.h:.6g}, P{scene.order}, target {options['target']:g}, "
           f"theta {options['theta']:g}, gamma {options['gamma']:g}, {method_name}")
     print("level    cells  unknowns  n_c   estimate  rel.estimate  alg.bound  iterations  seconds  status")
-    count = iter(range(1, 10 ** 9))
+    count, files = iter(range(1, 10 ** 9)), []
 
-    def show(level):
-        print(f"{next(count):5d} {level.cells:8d} {level.unknowns:9d} {level.contact_nodes:4d}  {level.estimate:.3e}"
+    def show(level, out):
+        k = next(count)
+        if args.vtk:
+            files.append(_level_vtu(args.vtk, k, out))
+        print(f"{k:5d} {level.cells:8d} {level.unknowns:9d} {level.contact_nodes:4d}  {level.estimate:.3e}"
               f"  {level.relative_estimate:12.3e}  {level.algebraic_bound:9.2e}  {level.iterations:10d}"
               f"  {level.seconds:7.2f}  {level.status}", flush=True)
     out = solve_adaptive(scene, **options, method_name=method_name, rho=args.rho, max_iter=args.max_iter, log=show)
     print(f"status       {out.status}  ({out.message})")
+    if files:
+        print(f"vtk          {len(files)} levels: {files[0]} ... {files[-1]}")
     if args.plot and out.model is not None:
         last = out.levels[-1]
         title = f"{scene.name}: adapted mesh, {last.cells} triangles, {last.unknowns} unknowns"
@@ -41,3 +46,14 @@ def run_adaptive(args, scene, method_name: str) -> int:
                 "status": out.status, "message": out.message, "levels": [asdict(level) for level in out.levels]}
         print(f"json         {write_text(args.json, json.dumps(body, indent=1) + chr(10))}")
     return 0 if out.reached else 1
+
+
+def _level_vtu(base: str, k: int, out):
+    """FILE_level<k>.vtu: displacement, contact fields and the ZZ indicator of level k."""
+    from pathlib import Path
+    from admmkit.problems.contact.output.export import boundary_fields, vtu_fields, write_vtu
+    path = Path(base)
+    stem = path.name[:-4] if path.name.endswith(".vtu") else path.name
+    ops, res = out.model, out.result
+    fields = vtu_fields(ops, boundary_fields(ops, res.x, res.lam, res.z))
+    return write_vtu(path.with_name(f"{stem}_level{k}.vtu"), ops, res.x, fields, cells={"zz_indicator": out.indicators})

@@ -171,8 +171,10 @@ def vtu_fields(ops, fields: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
     return out
 
 
-def write_vtu(path: str | Path, ops, u_free: np.ndarray, boundary: dict[str, np.ndarray] | None = None) -> Path:
-    """Write the displacement and the boundary arrays (one value per contact node) as a VTU file.
+def write_vtu(path: str | Path, ops, u_free: np.ndarray, boundary: dict[str, np.ndarray] | None = None,
+              cells: dict[str, np.ndarray] | None = None) -> Path:
+    """Write the displacement, the boundary arrays (one value per contact node) and the cell arrays (one value
+    per element, e.g. error indicators) as a VTU file.
 
     Written with meshio in double precision, whole or not at all (a temporary
     file renamed into place).  Returns the path (``.vtu`` appended if missing).
@@ -181,7 +183,7 @@ def write_vtu(path: str | Path, ops, u_free: np.ndarray, boundary: dict[str, np.
     path = Path(path)
     if path.suffix != ".vtu":
         path = path.with_name(path.name + ".vtu")
-    points, cell_type, cells = mesh_points(ops)
+    points, cell_type, elements = mesh_points(ops)
     data = {"displacement": point_displacement(ops, u_free)}
     if boundary:
         where = contact_point_index(ops, points)
@@ -195,7 +197,14 @@ def write_vtu(path: str | Path, ops, u_free: np.ndarray, boundary: dict[str, np.
                            dtype=np.int32 if integer else float)
             full[where] = values
             data[name] = full
-    mesh = meshio.Mesh(points, [(cell_type, cells)], point_data=data)
+    cell_data = {}
+    for name, values in (cells or {}).items():
+        values = np.asarray(values, dtype=float)
+        if values.shape != (len(elements),):
+            raise ValueError(f"cell array {name!r} must have one value per element ({len(elements)}), "
+                             f"got shape {values.shape}")
+        cell_data[name] = [values]
+    mesh = meshio.Mesh(points, [(cell_type, elements)], point_data=data, cell_data=cell_data)
     with atomic_path(path) as tmp:
         meshio.write(tmp, mesh, file_format="vtu")
     return path

@@ -56,7 +56,8 @@ def solve_adaptive(scene: Scene, target: float, *, theta: float = 0.5, gamma: fl
                    max_iter: int = 20_000, log=None) -> AdaptiveResult:
     """Refine adaptively from the scene's mesh until ``eta / ||u_h||_a <= target`` (module docstring).
 
-    ``log``: called with each finished :class:`Level` (progress).
+    ``log``: called after each level with the :class:`Level` and the result so far (whose ``model``,
+    ``result`` and ``indicators`` are that level's), for progress and per-level output.
     """
     check_adaptive(target, theta, gamma, max_levels, max_unknowns)
     if not isinstance(scene, Scene):
@@ -90,7 +91,7 @@ def solve_adaptive(scene: Scene, target: float, *, theta: float = 0.5, gamma: fl
         out.levels.append(level)
         out.model, out.result, out.indicators = ops, res, indicators
         if log is not None:
-            log(level)
+            log(level, out)
         if not res.converged:
             out.status, out.message = "admm_failed", f"level {len(out.levels)}: ADMM ended {res.status.value}"
             return out
