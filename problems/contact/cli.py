@@ -26,6 +26,8 @@ def register(subparsers) -> None:
     p.add_argument("--scene", default="ex1",
                    help="ex1, ex2 (the paper's examples) or a path to a scene TOML file (default ex1)")
     p.add_argument("--h", type=positive_float, default=None, help="mesh size, fractions allowed (default: the scene's)")
+    p.add_argument("--fe-order", type=int, choices=(1, 2), default=None,
+                   help="polynomial order of the finite elements, P1 or P2 (default: the scene's)")
     p.add_argument("--mode", choices=list(MODES), default="auto",
                    help="full: sparse x-steps; condensed: dense x-steps on Gamma_C (default auto)")
     p.add_argument("--tangential", choices=list(TANGENTIAL), default=None,
@@ -63,7 +65,7 @@ def _scene(args):
         raise ValueError(f"--scene: unknown scene {name!r}; give one of {known} or the path of a TOML scene file")
     if path.is_dir():
         raise ValueError(f"--scene: {name!r} is a directory, not a TOML scene file")
-    changes = {} if args.h is None else {"h": args.h}
+    changes = {key: value for key, value in (("h", args.h), ("order", args.fe_order)) if value is not None}
     try:
         scene = load_scene(name, **changes)
     except ValueError as err:

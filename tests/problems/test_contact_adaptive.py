@@ -76,3 +76,12 @@ def test_cli_target_error(tmp_path, capsys):
     assert "level_cap" in capsys.readouterr().out
     assert main(["solve", "contact", "--scene", "ex1_tresca", "--target-error", "0.1"]) == 2
     assert "needs a frictionless scene" in capsys.readouterr().err
+
+
+def test_cli_fe_order_picks_p2(capsys):
+    """--fe-order 2: Example 2 (nu = 0.49) in P2 reaches the target with far fewer unknowns than P1."""
+    assert main(["solve", "contact", "--scene", "ex2", "--h", "1/5", "--fe-order", "2", "--target-error", "0.05"]) == 0
+    text = capsys.readouterr().out
+    assert "P2, target 0.05" in text and "target_reached" in text
+    assert main(["solve", "contact", "--scene", "ex2", "--h", "1/10", "--fe-order", "2", "-q"]) == 0
+    assert "P2 structured" in capsys.readouterr().out
