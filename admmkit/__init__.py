@@ -23,14 +23,14 @@ from .record import IterationRecord
 from .result import Result, Status
 from .solver import solve
 from .split import SplitProblem
-from .stopping import AllOf, AnyOf, RelativeChange, ResidualTolerance, Stop, StoppingRule, default_stop
+from .stopping import AllOf, AnyOf, BalancedStop, RelativeChange, ResidualTolerance, Stop, StoppingRule, default_stop
 from .xstep import QuadraticXStep
 
 __version__ = "0.1.0"
 
 __all__ = [
     "solve", "Problem", "Policy", "IterationRecord", "Result", "Status", "History",
-    "StoppingRule", "Stop", "RelativeChange", "ResidualTolerance", "AnyOf", "AllOf", "default_stop",
+    "StoppingRule", "Stop", "RelativeChange", "ResidualTolerance", "BalancedStop", "AnyOf", "AllOf", "default_stop",
     "register_policy", "make_policy", "policy_names", "__version__",
     "LinearMap", "QuadraticXStep", "SplitProblem",
 ]

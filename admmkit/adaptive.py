@@ -35,6 +35,32 @@ class AdaptiveResult:
         """True when the estimated relative energy error is at most the target."""
         return self.status == "target_reached"
 
+    def record(self, level, model, result, indicators) -> None:
+        """Keep a finished level (with a ``relative_estimate``) and its model, ADMM result and indicators."""
+        self.levels.append(level)
+        self.model, self.result, self.indicators = model, result, indicators
+
+    def ends(self, target: float) -> bool:
+        """True (status and message set) when the loop ends at the last level: its ADMM run failed, or the target
+        is reached."""
+        relative = self.levels[-1].relative_estimate
+        if not self.result.converged:
+            self.status = "admm_failed"
+            self.message = f"level {len(self.levels)}: ADMM ended {self.result.status.value}"
+        elif relative <= target:
+            self.status = "target_reached"
+            self.message = f"estimated relative energy error {relative:.3e} <= target {target:g}"
+        else:
+            return False
+        return True
+
+    def capped(self, max_levels: int, target: float) -> "AdaptiveResult":
+        """The loop ran out of levels: status ``level_cap`` with what was reached."""
+        self.status = "level_cap"
+        self.message = (f"max_levels = {max_levels} reached with an estimated relative energy error "
+                        f"{self.levels[-1].relative_estimate:.3e}; target {target:g} not reached")
+        return self
+
 
 def dorfler_mark(indicators, theta: float) -> np.ndarray:
     """The smallest set of cells whose eta_T^2 sum to at least theta x the total (a boolean mask)."""

@@ -27,20 +27,38 @@ def add_adaptive_options(parser: argparse.ArgumentParser, *, max_levels: int = 2
                         help="unknowns cap of --target-error (default 2e6)")
 
 
+def balance_gamma(args, default: float | None) -> float | None:
+    """gamma of the balanced stop: --balance, else ``default`` when neither --tol nor --eps-abs is given (None
+    when one is); ValueError naming --balance for a value outside (0, 1] or beside --tol / --eps-abs."""
+    other = args.tol is not None or args.eps_abs is not None
+    if args.balance is None:
+        return None if other else default
+    if other:
+        raise ValueError("--balance cannot be combined with --tol or --eps-abs: give one stop")
+    if not 0 < args.balance <= 1:
+        raise ValueError(f"--balance = {args.balance:g} is outside the accepted range (0, 1]")
+    return args.balance
+
+
+def balance_line(stop, norm: str) -> str:
+    """The summary line of a balanced stop: the bound and the estimate it compared last, and gamma."""
+    return (f"balance      algebraic error <= {stop.algebraic:.3e} (guaranteed bound, {norm})   "
+            f"discretisation error ~ {stop.discretisation:.3e} (ZZ estimate)   gamma {stop.gamma:g}")
+
+
 def adaptive_options(args) -> dict:
     """The adaptive loop's keywords from :func:`add_adaptive_options` (gamma 0.1 unless --balance);
     ValueError naming the option and its range, and refusing --tol / --eps-abs beside them."""
-    gamma = 0.1 if args.balance is None else args.balance
+    if args.tol is not None or args.eps_abs is not None:
+        raise ValueError("--target-error stops every level balanced (--balance); it cannot be combined with "
+                         "--tol or --eps-abs")
+    gamma = balance_gamma(args, 0.1)
     for flag, value, ok, accepted in [("--target-error", args.target_error, 0 < args.target_error < 1, "(0, 1)"),
                                       ("--theta", args.theta, 0 < args.theta < 1, "(0, 1)"),
-                                      ("--balance", gamma, 0 < gamma <= 1, "(0, 1]"),
                                       ("--max-levels", args.max_levels, args.max_levels >= 1, "an integer >= 1"),
                                       ("--max-unknowns", args.max_unknowns, args.max_unknowns >= 1,
                                        "an integer >= 1")]:
         if not ok:
             raise ValueError(f"{flag} = {value:g} is outside the accepted range {accepted}")
-    if args.tol is not None or args.eps_abs is not None:
-        raise ValueError("--target-error stops every level balanced (--balance); it cannot be combined with "
-                         "--tol or --eps-abs")
     return {"target": args.target_error, "theta": args.theta, "gamma": gamma, "max_levels": args.max_levels,
             "max_unknowns": args.max_unknowns}

@@ -127,6 +127,50 @@ def default_stop() -> "ResidualTolerance":
     return ResidualTolerance(1e-6, 1e-5)
 
 
+class BalancedStop(StoppingRule):
+    """Stop when the algebraic error is below ``gamma`` x the estimated discretisation error (Ern & Vohralik).
+
+    A plug-in with error estimates subclasses it and gives the two measures of
+    an iterate, in the same (energy) norm: :meth:`algebraic_error_bound`
+    (a guaranteed bound; inf where it cannot tell) and
+    :meth:`discretisation_estimate`.  They are compared every ``every``
+    iterations; ``algebraic`` and ``discretisation`` hold the last values
+    compared.  ``tolerance`` is None: the rule's own test is the accuracy
+    check, so ``converged`` means "the algebraic error is below gamma x the
+    estimated discretisation error".
+    """
+
+    requires = ()
+    tolerance = None
+
+    def __init__(self, gamma: float = 0.1, every: int = 10):
+        if isinstance(gamma, bool) or not isinstance(gamma, (int, float)) or not 0 < gamma <= 1:
+            raise ValueError(f"gamma = {gamma!r} is outside the accepted range (0, 1]")
+        if isinstance(every, bool) or not isinstance(every, int) or every < 1:
+            raise ValueError(f"every = {every!r} is outside the accepted range: an integer >= 1")
+        self.gamma, self.every = float(gamma), every
+        self.algebraic = self.discretisation = math.nan
+        self.name = f"balanced(gamma={self.gamma:g}): algebraic error bound <= gamma x ZZ discretisation estimate"
+
+    def algebraic_error_bound(self, rec: IterationRecord) -> float:
+        """A guaranteed bound of the algebraic error of the iterate the run returns (inf: none here)."""
+        raise NotImplementedError
+
+    def discretisation_estimate(self, rec: IterationRecord) -> float:
+        """An estimate of the discretisation error of that iterate."""
+        raise NotImplementedError
+
+    def fired(self, rec: IterationRecord) -> str | None:
+        """The rule's name when the bound is at most gamma x the estimate at this record, else None."""
+        if (rec.k + 1) % self.every:
+            return None
+        self.algebraic = self.algebraic_error_bound(rec)
+        if not math.isfinite(self.algebraic):
+            return None
+        self.discretisation = self.discretisation_estimate(rec)
+        return self.name if self.algebraic <= self.gamma * self.discretisation else None
+
+
 class AnyOf(StoppingRule):
     """Fires when any of its rules fires (the first one's name is reported)."""
 

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from admmkit.cli_adaptive import add_adaptive_options
+from admmkit.cli_adaptive import add_adaptive_options, balance_gamma, balance_line
 from admmkit.cli import (add_common_options, add_output_file, add_result_outputs, exit_code, positive_float,
                          print_summary, progress, resolve_policy, stop_rule, write_result_csv)
 
@@ -87,20 +87,15 @@ def run(args) -> int:
     if args.target_error is not None:
         from admmkit.problems.contact.output.adaptive_cli import run_adaptive
         return run_adaptive(args, _scene(args), name)
-    if args.balance is not None:
-        if args.tol is not None or args.eps_abs is not None:
-            raise ValueError("--balance cannot be combined with --tol or --eps-abs: give one stop")
-        if not 0 < args.balance <= 1:
-            raise ValueError(f"--balance = {args.balance:g} is outside the accepted range (0, 1]")
-        if args.mode not in ("auto", "condensed"):
-            raise ValueError(f"--balance needs --mode condensed (its bound lives on Gamma_C), got --mode {args.mode}")
+    gamma = balance_gamma(args, None)
+    if gamma is not None and args.mode not in ("auto", "condensed"):
+        raise ValueError(f"--balance needs --mode condensed (its bound lives on Gamma_C), got --mode {args.mode}")
     scene = _scene(args)
     with progress(args, args.max_iter) as show:
-        sol = solve_scene(scene, name, args.rho, mode="condensed" if args.balance else args.mode,
-                          stop=None if args.balance else stop, max_iter=args.max_iter, order=order, callback=show,
-                          balance=args.balance)
-    if args.balance is not None:
-        stop = sol.stop
+        sol = solve_scene(scene, name, args.rho, mode="condensed" if gamma else args.mode,
+                          stop=None if gamma else stop, max_iter=args.max_iter, order=order, callback=show,
+                          balance=gamma)
+    stop = sol.stop
     ops, r = sol.ops, sol.result
     args.resolved = {"policy": name, "order": r.order, "policy_repr": r.policy, "stop": stop.name}
     cells = "tetrahedra" if ops.mesh.dim == 3 else "triangles"
@@ -108,9 +103,8 @@ def run(args) -> int:
           f"{ops.mesh.ne} {cells}, tangential {scene.tangential}")
     print(f"size         n_free {ops.n_free}   n_c {ops.n_c}   mode {sol.mode}   setup {sol.setup_time:.4f} s")
     print_summary(r, name, args.rho)
-    if args.balance is not None:
-        print(f"balance      algebraic error <= {stop.algebraic:.3e} (guaranteed bound, energy norm)   "
-              f"discretisation error ~ {stop.discretisation:.3e} (ZZ estimate)   gamma {stop.gamma:g}")
+    if gamma is not None:
+        print(balance_line(stop, "energy norm"))
     if sol.coulomb is not None:
         print(f"coulomb      {sol.coulomb.summary()}")
     fields = boundary_fields(ops, r.x, r.lam, r.z)

@@ -61,7 +61,7 @@ def solve_adaptive(scene: Scene, target: float, *, theta: float = 0.5, gamma: fl
     if not isinstance(scene, Scene):
         raise ValueError(f"scene must be a admmkit.problems.obstacle.Scene, got {type(scene).__name__}")
     mesh = build_mesh(scene)
-    out = AdaptiveResult("level_cap", "")
+    out = AdaptiveResult("running", "")
     warm: dict = {"rho": rho}
     for _ in range(max_levels):
         if mesh.nv > max_unknowns:
@@ -74,7 +74,7 @@ def solve_adaptive(scene: Scene, target: float, *, theta: float = 0.5, gamma: fl
         stop = BalancedStop(problem, gamma)
         start = {k: warm[k][problem.free] for k in ("x0", "lam0") if k in warm}
         if "x0" in start:
-            start["z0"] = problem.psi + np.maximum(problem.sign * (start["x0"] - problem.psi), 0.0) * problem.sign
+            start["z0"] = problem.z_step(start["x0"], np.zeros(problem.n), 1.0, None)    # x0 on the obstacle
         res = solve(problem, rho=warm["rho"], policy=policy, order=order, stop=stop, max_iter=max_iter, **start)
         indicators = zz(problem).indicators(res.z)
         eta = float(np.sqrt(np.sum(indicators ** 2)))
@@ -83,21 +83,13 @@ def solve_adaptive(scene: Scene, target: float, *, theta: float = 0.5, gamma: fl
                       algebraic_bound=stop.algebraic, iterations=res.iterations,
                       seconds=time.perf_counter() - t0, status=res.status.value,
                       errors=problem.errors(res.z) if scene.exact is not None else None)
-        out.levels.append(level)
-        out.model, out.result, out.indicators = problem, res, indicators
+        out.record(level, problem, res, indicators)
         if log is not None:
             log(level, out)
-        if not res.converged:
-            out.status, out.message = "admm_failed", f"level {len(out.levels)}: ADMM ended {res.status.value}"
-            return out
-        if relative <= target:
-            out.status = "target_reached"
-            out.message = f"estimated relative energy error {relative:.3e} <= target {target:g}"
+        if out.ends(target):
             return out
         warm = _refine(problem, res, dorfler_mark(indicators, theta))
-    out.message = (f"max_levels = {max_levels} reached with an estimated relative energy error "
-                   f"{out.levels[-1].relative_estimate:.3e}; target {target:g} not reached")
-    return out
+    return out.capped(max_levels, target)
 
 
 def _refine(problem: ObstacleProblem, res: Result, marked: np.ndarray) -> dict:

@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 from admmkit import policies  # noqa: F401  (registers the rules the --policy option offers)
-from admmkit.cli_adaptive import adaptive_options, add_adaptive_options
+from admmkit.cli_adaptive import adaptive_options, add_adaptive_options, balance_gamma, balance_line
 from admmkit.cli import (add_common_options, add_output_file, add_result_outputs, exit_code, positive_float,
                          run_solve, write_result_csv, write_result_json)
 from admmkit.policies.paper_methods import PAPER_METHODS
@@ -30,21 +30,9 @@ def register(subparsers) -> None:
     p.set_defaults(func=run)
 
 
-def balance_gamma(args) -> float | None:
-    """gamma of the balanced stop: --balance, or 0.1 when no other stop is given; None for --tol / --eps-abs alone."""
-    other = args.tol is not None or args.eps_abs is not None
-    if args.balance is None:
-        return None if other else 0.1
-    if other:
-        raise ValueError("--balance cannot be combined with --tol or --eps-abs: give one stop")
-    if not 0 < args.balance <= 1:
-        raise ValueError(f"--balance = {args.balance:g} is outside the accepted range (0, 1]")
-    return args.balance
-
-
 def run(args) -> int:
     """Build the scene, solve it, print the summary and the errors against the exact solution; 0 only if converged."""
-    gamma = balance_gamma(args)
+    gamma = balance_gamma(args, 0.1)        # the balanced stop is the default here
     if args.target_error is not None:
         return run_adaptive(args)
     problem = make_problem(named_scene(args.scene, h=args.h), backend=args.backend)
@@ -54,8 +42,7 @@ def run(args) -> int:
     stop = None if gamma is None else BalancedStop(problem, gamma)
     result = run_solve(problem, args, stop=stop)
     if stop is not None:
-        print(f"balance      algebraic error <= {stop.algebraic:.3e} (guaranteed bound, H1 seminorm)   "
-              f"discretisation error ~ {stop.discretisation:.3e} (ZZ estimate)   gamma {stop.gamma:g}")
+        print(balance_line(stop, "H1 seminorm"))
     contact = problem.contact_set(result.z)
     print(f"contact set  {int(contact.sum())} nodes, area {problem.contact_area(result.z):.6g}")
     err = radius = None

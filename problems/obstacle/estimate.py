@@ -49,7 +49,7 @@ import ngsolve as ng
 import numpy as np
 import scipy.sparse.linalg as spla
 
-from admmkit.stopping import StoppingRule
+from admmkit import BalancedStop as BaseBalancedStop
 
 
 class ZZ:
@@ -150,39 +150,26 @@ class EnergyGap:
         return float(-0.5 * load @ self._K.solve(load) + p.sign * mu @ p.psi)
 
 
-class BalancedStop(StoppingRule):
-    """Stop when the algebraic error bound (B) of z is at most ``gamma`` x the ZZ discretisation estimate.
+class BalancedStop(BaseBalancedStop):
+    """:class:`admmkit.BalancedStop` for the obstacle: bound (B) of z against the ZZ estimate of z.
 
-    Tested every ``every`` iterations (the bound costs a solve with K, the
-    estimate an NGSolve projection).  ``algebraic`` and ``discretisation`` hold
-    the last values compared (the result's report reads them).  ``tolerance``
-    is None: the rule's own test is the accuracy check, so ``converged`` means
-    "the algebraic error is below gamma x the estimated discretisation error".
+    Tested every ``every`` iterations (the bound costs two solves with K, the
+    estimate a few array operations on the mesh).
     """
 
-    requires = ()
-    tolerance = None
-
     def __init__(self, problem, gamma: float = 0.1, every: int = 10):
-        if isinstance(gamma, bool) or not isinstance(gamma, (int, float)) or not 0 < gamma <= 1:
-            raise ValueError(f"gamma = {gamma!r} is outside the accepted range (0, 1]")
-        if isinstance(every, bool) or not isinstance(every, int) or every < 1:
-            raise ValueError(f"every = {every!r} is outside the accepted range: an integer >= 1")
-        self.problem, self.gamma, self.every = problem, float(gamma), every
+        super().__init__(gamma, every)
+        self.problem = problem
         self.gap = EnergyGap(problem)
         _zz(problem)                                  # the estimator's mesh data, built before the run
-        self.algebraic = self.discretisation = math.nan
-        self.name = f"balanced(gamma={self.gamma:g}): algebraic error bound <= gamma x ZZ discretisation estimate"
 
-    def fired(self, rec) -> str | None:
-        """The rule's name when bound (B) <= gamma eta at this record, else None."""
-        if (rec.k + 1) % self.every:
-            return None
-        self.algebraic = self.gap.bound(rec.z, rec.lam)
-        if not math.isfinite(self.algebraic):
-            return None
-        self.discretisation = zz_estimate(self.problem, rec.z)
-        return self.name if self.algebraic <= self.gamma * self.discretisation else None
+    def algebraic_error_bound(self, rec) -> float:
+        """(B) for the z-iterate (inf if z is not feasible)."""
+        return self.gap.bound(rec.z, rec.lam)
+
+    def discretisation_estimate(self, rec) -> float:
+        """The ZZ estimate eta of the z-iterate."""
+        return zz_estimate(self.problem, rec.z)
 
 
 __all__ = ["ZZ", "zz", "zz_indicators", "zz_estimate", "EnergyGap", "BalancedStop"]

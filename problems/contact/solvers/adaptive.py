@@ -66,7 +66,7 @@ def solve_adaptive(scene: Scene, target: float, *, theta: float = 0.5, gamma: fl
         raise ValueError(f"adaptive contact needs a frictionless scene (its error bound), got tangential = "
                          f"{scene.tangential!r}")
     default_order, _ = method(method_name)
-    mesh, out, warm = build_mesh(scene), AdaptiveResult("level_cap", ""), None
+    mesh, out, warm = build_mesh(scene), AdaptiveResult("running", ""), None
     for _ in range(max_levels):
         dofs = 2 * (mesh.nv + (mesh.nedge if scene.order == 2 else 0))       # before the Dirichlet ones go
         if dofs > max_unknowns:
@@ -88,32 +88,24 @@ def solve_adaptive(scene: Scene, target: float, *, theta: float = 0.5, gamma: fl
         level = Level(cells=mesh.ne, unknowns=ops.n_free, contact_nodes=ops.n_c, estimate=eta,
                       relative_estimate=relative, algebraic_bound=stop.algebraic, iterations=res.iterations,
                       seconds=time.perf_counter() - t0, status=res.status.value)
-        out.levels.append(level)
-        out.model, out.result, out.indicators = ops, res, indicators
+        out.record(level, ops, res, indicators)
         if log is not None:
             log(level, out)
-        if not res.converged:
-            out.status, out.message = "admm_failed", f"level {len(out.levels)}: ADMM ended {res.status.value}"
-            return out
-        if relative <= target:
-            out.status = "target_reached"
-            out.message = f"estimated relative energy error {relative:.3e} <= target {target:g}"
+        if out.ends(target):
             return out
         warm = (ops.xc.copy(), res.lam.copy(), res.rho)
         marked = dorfler_mark(indicators, theta)
         for el in mesh.Elements(ng.VOL):
             mesh.SetRefinementFlag(el, bool(marked[el.nr]))
         mesh.Refine()
-    out.message = (f"max_levels = {max_levels} reached with an estimated relative energy error "
-                   f"{out.levels[-1].relative_estimate:.3e}; target {target:g} not reached")
-    return out
+    return out.capped(max_levels, target)
 
 
 def _warm_start(ops: ContactOperators, problem, xc_old: np.ndarray, lam_old: np.ndarray, rho: float) -> dict:
     """x0, lam0 on the new mesh: the pressure interpolated along Gamma_C, w0 = -M_c lam0 (stationarity)."""
     lam0 = _along_boundary(xc_old, lam_old, ops.xc)
     x0 = np.concatenate(([1.0], -problem.w * lam0))
-    return {"x0": x0, "lam0": lam0, "z0": np.minimum(problem.g, problem.apply_A(x0))}
+    return {"x0": x0, "lam0": lam0, "z0": problem.z_step(problem.apply_A(x0), np.zeros_like(lam0), 1.0, None)}
 
 
 def _along_boundary(xc_old: np.ndarray, values: np.ndarray, xc_new: np.ndarray) -> np.ndarray:

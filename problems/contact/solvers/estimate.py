@@ -46,7 +46,7 @@ import ngsolve as ng
 import numpy as np
 import scipy.linalg as sla
 
-from admmkit.stopping import StoppingRule
+from admmkit import BalancedStop as BaseBalancedStop
 
 from admmkit.problems.contact.model.assembly import lame
 
@@ -97,36 +97,25 @@ class CondensedGap:
         return distance + math.sqrt(2.0 * (max(J1 - dual, 0.0) + rounding))
 
 
-class BalancedStop(StoppingRule):
-    """Stop when the algebraic error bound (B) is at most ``gamma`` x the ZZ discretisation estimate.
+class BalancedStop(BaseBalancedStop):
+    """:class:`admmkit.BalancedStop` for contact: bound (B) of u against the ZZ estimate of u.
 
     Tested every ``every`` iterations (the estimate needs the full displacement,
-    one solve with K's factorisation).  ``algebraic`` and ``discretisation``
-    hold the last values compared.  ``tolerance`` is None: ``converged`` means
-    "the algebraic error is below gamma x the estimated discretisation error".
+    one solve with K's factorisation).
     """
 
-    requires = ()
-    tolerance = None
-
     def __init__(self, problem, gamma: float = 0.1, every: int = 10):
-        if isinstance(gamma, bool) or not isinstance(gamma, (int, float)) or not 0 < gamma <= 1:
-            raise ValueError(f"gamma = {gamma!r} is outside the accepted range (0, 1]")
-        if isinstance(every, bool) or not isinstance(every, int) or every < 1:
-            raise ValueError(f"every = {every!r} is outside the accepted range: an integer >= 1")
+        super().__init__(gamma, every)
         self.gap = CondensedGap(problem)
-        self.problem, self.gamma, self.every = problem, float(gamma), every
-        self.algebraic = self.discretisation = math.nan
-        self.name = f"balanced(gamma={self.gamma:g}): algebraic error bound <= gamma x ZZ discretisation estimate"
+        self.problem = problem
 
-    def fired(self, rec) -> str | None:
-        """The rule's name when bound (B) <= gamma eta at this record, else None."""
-        if (rec.k + 1) % self.every or rec.x[0] != 1.0:        # s = 1 after every x-step
-            return None
-        self.algebraic = self.gap.bound(rec.x[1:], rec.z, rec.lam)
-        u = self.problem.finalize(rec.x)
-        self.discretisation = zz_estimate(self.problem.ops, u)
-        return self.name if self.algebraic <= self.gamma * self.discretisation else None
+    def algebraic_error_bound(self, rec) -> float:
+        """(B) for the x-iterate (s, w); inf unless s = 1, as after every x-step."""
+        return self.gap.bound(rec.x[1:], rec.z, rec.lam) if rec.x[0] == 1.0 else math.inf
+
+    def discretisation_estimate(self, rec) -> float:
+        """The ZZ estimate eta of the full displacement of the x-iterate."""
+        return zz_estimate(self.problem.ops, self.problem.finalize(rec.x))
 
 
 __all__ = ["zz_indicators", "zz_estimate", "CondensedGap", "BalancedStop"]

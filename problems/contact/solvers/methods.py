@@ -144,4 +144,4 @@ def solve_scene(scene, method_name: str = "sadmm", rho: float = 1e3, *,
                              stop=stop, max_iter=max_iter, callback=callback, warm_start=warm, z0=z0)
 
     result, report = coulomb_fixed_point(problem, run, ops.friction.mu, tol=coulomb_tol, max_outer=coulomb_max_outer)
-    return ContactSolution(result=result, ops=ops, mode=problem.mode, setup_time=setup, coulomb=report)
+    return ContactSolution(result=result, ops=ops, mode=problem.mode, setup_time=setup, coulomb=report, stop=stop)

@@ -1,0 +1,56 @@
+"""admmkit.BalancedStop: the stop balanced with a discretisation estimate, on the scalar problem of conftest.
+
+A subclass reports max |z - z*| (z* from a tight solve) as its "algebraic
+error bound" and a fixed "discretisation estimate", so when the rule fires is
+known exactly.
+"""
+import math
+
+import numpy as np
+import pytest
+
+from admmkit import BalancedStop, ResidualTolerance, solve
+
+
+class Known(BalancedStop):
+    """Bound = max |z - z_star| (the true error), estimate = ``eta``; ``calls`` counts the checks."""
+
+    def __init__(self, eta, z_star=None, **kwargs):
+        super().__init__(**kwargs)
+        self.eta, self.z_star, self.calls = eta, z_star, []
+
+    def algebraic_error_bound(self, rec):
+        self.calls.append(rec.k + 1)
+        return float(np.max(np.abs(rec.z - self.z_star)))
+
+    def discretisation_estimate(self, rec):
+        return self.eta
+
+
+def test_fires_when_the_bound_is_below_gamma_times_the_estimate(vector_problem):
+    z_star = solve(vector_problem, rho=1.0, order="zx", stop=ResidualTolerance(1e-14, 1e-14), max_iter=5000).z
+    stop = Known(1e-5, z_star, gamma=0.1, every=5)
+    res = solve(vector_problem, rho=1.0, policy="fixed", order="zx", stop=stop, max_iter=5000)
+    assert res.converged and res.stopped_by == stop.name
+    assert stop.algebraic <= 0.1 * 1e-5 == 0.1 * stop.discretisation
+    assert np.max(np.abs(res.z - z_star)) <= 1e-6
+    assert all(k % 5 == 0 for k in stop.calls) and stop.calls[-1] == res.iterations
+    assert stop.calls[:-1] and all(k < res.iterations for k in stop.calls[:-1])   # it did not fire earlier
+
+
+def test_an_infinite_bound_never_fires(scalar_problem):
+    class Blind(Known):
+        def algebraic_error_bound(self, rec):
+            return math.inf
+    stop = Blind(1.0)
+    res = solve(scalar_problem, rho=1.0, policy="fixed", order="zx", stop=stop, max_iter=50)
+    assert res.status.value == "max_iter" and math.isnan(stop.discretisation)
+
+
+@pytest.mark.parametrize("kwargs, match", [({"gamma": 0}, r"gamma = 0 is outside the accepted range \(0, 1\]"),
+                                           ({"gamma": float("nan")}, "gamma = nan"),
+                                           ({"gamma": 1.5}, "gamma = 1.5"),
+                                           ({"every": 0}, "every = 0 is outside")])
+def test_bad_parameters_are_named(kwargs, match):
+    with pytest.raises(ValueError, match=match):
+        Known(1.0, **kwargs)
