@@ -4,7 +4,7 @@ from __future__ import annotations
 import math
 import numpy as np
 
-from admmkit.benchmarks.runner.profiles import profile
+from admmkit.benchmarks.runner.profiles import cost_table, profile
 
 RHO0 = 0.1
 SHIFT = 10.0
@@ -71,14 +71,8 @@ def performance_profile(rows: list[dict], metric: str, eps: float, keys=None):
     (the best among ``keys``, default every configuration)."""
     sel = [r for r in rows if r["eps"] == eps]
     keys = list(keys) if keys is not None else config_keys(sel)
-    problems = sorted({r["problem"] for r in sel})
-    table = np.full((len(problems), len(keys)), np.inf)
-    index = {p: i for i, p in enumerate(problems)}
-    column = {k: j for j, k in enumerate(keys)}
-    for r in sel:
-        j = column.get((r["variant"], r["solver"], r["order"]))
-        if j is not None and _true(r["neutral"]):
-            table[index[r["problem"]], j] = float(r[metric])
+    table = cost_table(sel, keys, metric, config=lambda r: (r["variant"], r["solver"], r["order"]),
+                       solved=lambda r: _true(r["neutral"]))
     taus, fractions = profile(table)
     return {key: (taus, fractions[:, j]) for j, key in enumerate(keys)}
 

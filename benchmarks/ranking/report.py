@@ -28,6 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
+from admmkit.benchmarks.runner import profiles
 from admmkit.benchmarks.runner.profiles import plot_profiles, profile, score
 from admmkit.benchmarks.runner.report import (NOISE_NOTE, fmt, md_table, pyplot, save_figure, write_csv,
                                                write_text)
@@ -67,13 +68,7 @@ def rows_of(records: dict) -> list[dict]:
 
 def cost_table(rows: list[dict], metric: str, configs: list[str]) -> np.ndarray:
     """problems x configurations: the metric where solved, inf where not (a missing run counts as a failure)."""
-    problems = sorted({r["problem"] for r in rows})
-    index, column = {p: i for i, p in enumerate(problems)}, {c: j for j, c in enumerate(configs)}
-    table = np.full((len(problems), len(configs)), np.inf)
-    for r in rows:
-        if r["solved"] and r["config"] in column:
-            table[index[r["problem"]], column[r["config"]]] = float(r[metric])
-    return table
+    return profiles.cost_table(rows, configs, metric, config=lambda r: r["config"], solved=lambda r: r["solved"])
 
 
 def robustness(rows: list[dict], config: str) -> tuple[float, float]:

@@ -20,6 +20,22 @@ import numpy as np
 FLOOR = 1e-9
 
 
+def cost_table(rows, configs, metric: str, *, config, solved) -> np.ndarray:
+    """problems x configurations: ``row[metric]`` where ``solved(row)``, inf where not (a missing run is a failure).
+
+    Problems are ``row["problem"]`` in sorted order; ``config(row)`` names the column (rows of other
+    configurations are left out).
+    """
+    problems = sorted({r["problem"] for r in rows})
+    index, column = {p: i for i, p in enumerate(problems)}, {c: j for j, c in enumerate(configs)}
+    table = np.full((len(problems), len(column)), np.inf)
+    for r in rows:
+        j = column.get(config(r))
+        if j is not None and solved(r):
+            table[index[r["problem"]], j] = float(r[metric])
+    return table
+
+
 def ratios(costs: np.ndarray) -> np.ndarray:
     """t[p, s] / min_s t[p, s]: the performance ratios (inf where s failed or no solver solved p)."""
     costs = np.maximum(np.asarray(costs, dtype=float), FLOOR)
