@@ -71,36 +71,80 @@ def _limit_scalar(v: float) -> float:
     return 1.0 if v < MIN_SCALING else min(v, MAX_SCALING)
 
 
-def _col_norms(M: sp.csc_matrix) -> np.ndarray:
-    return np.asarray(abs(M).max(axis=0).todense()).ravel() if M.shape[0] else np.zeros(M.shape[1])
+def _col_max(absdata: np.ndarray, indptr: np.ndarray) -> np.ndarray:
+    """Largest entry per column of a CSC matrix given its ``abs(data)`` and ``indptr`` (0 for an empty column)."""
+    out = np.zeros(len(indptr) - 1)
+    full = np.flatnonzero(np.diff(indptr))
+    if full.size:
+        out[full] = np.maximum.reduceat(absdata, indptr[full])
+    return out
 
 
-def _row_norms(M: sp.csr_matrix) -> np.ndarray:
-    return np.asarray(abs(M).max(axis=1).todense()).ravel() if M.shape[1] else np.zeros(M.shape[0])
+class _Entries:
+    """A CSC matrix's entries with the row and column of each, to scale them as diag(a) M diag(b) in place."""
+
+    def __init__(self, M: sp.csc_matrix):
+        M = sp.csc_matrix(M, dtype=float, copy=True)
+        M.sum_duplicates()
+        M.eliminate_zeros()                       # the pattern scipy's products keep
+        self.matrix, self.rows = M, M.indices
+        self.cols = np.repeat(np.arange(M.shape[1]), np.diff(M.indptr))
+
+    def scale(self, left: np.ndarray, right: np.ndarray) -> None:
+        """M <- diag(left) M diag(right), in the order scipy's ``diags(left) @ M @ diags(right)`` rounds."""
+        data = self.matrix.data
+        np.multiply(left[self.rows], data, out=data)
+        np.multiply(data, right[self.cols], out=data)
+
+    def col_max(self, upper: bool = False) -> np.ndarray:
+        """Largest ``abs`` entry per column (of the upper triangle only with ``upper``)."""
+        M = self.matrix
+        if not upper:
+            return _col_max(np.abs(M.data), M.indptr)
+        keep = self.rows <= self.cols
+        indptr = np.r_[0, np.cumsum(np.bincount(self.cols[keep], minlength=M.shape[1]))]
+        return _col_max(np.abs(M.data[keep]), indptr)
+
+
+class _RowMax:
+    """Largest ``abs`` entry per row of a CSC matrix's entries, through its CSR order (found once)."""
+
+    def __init__(self, entries: _Entries):
+        self.entries = entries
+        self.order = np.argsort(entries.rows, kind="stable")
+        m = entries.matrix.shape[0]
+        self.indptr = np.r_[0, np.cumsum(np.bincount(entries.rows, minlength=m))]
+
+    def __call__(self) -> np.ndarray:
+        return _col_max(np.abs(self.entries.matrix.data[self.order]), self.indptr)
 
 
 def ruiz(P: sp.spmatrix, q: np.ndarray, A: sp.spmatrix, iterations: int = 10):
     """Return (Scaling, Pb, qb, Ab): ``iterations`` Ruiz steps with cost scaling, as OSQP's ``scale_data``.
 
-    ``iterations = 0`` gives the identity scaling and the data unchanged.
+    ``iterations = 0`` gives the identity scaling and the data unchanged.  The
+    steps scale the entries of P and A in place (vector operations on the CSC
+    arrays, no new sparse matrix per step).
     """
     if isinstance(iterations, bool) or not isinstance(iterations, (int, np.integer)) or iterations < 0:
         raise ValueError(f"scaling must be an integer >= 0 (Ruiz iterations; OSQP uses 10), got {iterations!r}")
     n, m = P.shape[0], A.shape[0]
     D, E, c = np.ones(n), np.ones(m), 1.0
-    P, A, q = sp.csc_matrix(P), sp.csc_matrix(A), np.asarray(q, dtype=float).copy()
+    if not iterations:
+        return Scaling(D, E, c), sp.csc_matrix(P), np.asarray(q, dtype=float).copy(), sp.csc_matrix(A)
+    Pe, Ae, q = _Entries(P), _Entries(A), np.asarray(q, dtype=float).copy()
+    row_max = _RowMax(Ae)
     for _ in range(int(iterations)):
-        d = np.maximum(_col_norms(sp.triu(P, format="csc")), _col_norms(A))   # KKT columns 1..n (see below)
-        e = _row_norms(A.tocsr())                                          # KKT columns n+1..n+m
+        d = np.maximum(Pe.col_max(upper=True), Ae.col_max())              # KKT columns 1..n (see below)
+        e = row_max()                                                       # KKT columns n+1..n+m
         d, e = 1.0 / np.sqrt(_limit(d)), 1.0 / np.sqrt(_limit(e))
-        Dd, De = sp.diags(d), sp.diags(e)
-        P = (Dd @ P @ Dd).tocsc()                                          # P <- D P D
-        A = (De @ A @ Dd).tocsc()                                          # A <- E A D
+        Pe.scale(d, d)                                                      # P <- D P D
+        Ae.scale(e, d)                                                      # A <- E A D
         q = d * q
         D, E = D * d, E * e
-        mean_col = float(_col_norms(sp.triu(P, format="csc")).sum()) / n
+        mean_col = float(Pe.col_max(upper=True).sum()) / n
         c_step = 1.0 / _limit_scalar(max(mean_col, _limit_scalar(float(np.max(np.abs(q), initial=0.0)))))
-        P = (c_step * P).tocsc()
+        Pe.matrix.data *= c_step
         q = c_step * q
         c *= c_step
-    return Scaling(D, E, c), P, q, A
+    return Scaling(D, E, c), Pe.matrix, q, Ae.matrix
