@@ -13,6 +13,7 @@ Backends (all exact, direct solvers; the optional ones are imported lazily):
 * ``"cholmod"``: CHOLMOD via ``sksparse.cholmod`` (needs SuiteSparse headers),
 * ``"pardiso"``: MKL PARDISO via ``pypardiso`` (large MKL wheel).
 """
+import functools
 import importlib.util
 import math
 import os
@@ -52,7 +53,9 @@ _MODULES = {"superlu": "scipy", "ngsolve": "ngsolve", "qdldl": "qdldl",
             "cholmod": "sksparse.cholmod", "pardiso": "pypardiso"}
 
 
+@functools.lru_cache(maxsize=None)
 def _importable(module: str) -> bool:
+    """Whether ``module`` can be imported (asked once per process: a search of sys.path costs ~20 us)."""
     try:
         return importlib.util.find_spec(module) is not None
     except ImportError:  # a parent package is missing

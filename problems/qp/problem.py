@@ -45,12 +45,11 @@ import numpy as np
 import scipy.sparse as sp
 
 from admmkit import Problem
-from admmkit.linsolve import CachedFactorization
 
 from . import rows
 from .rows import FREE_ROW_PENALTY
 from .validate import _inf, _real, _validate
-from .xstep_forms import REDUCED_MAX_NNZ, XSTEPS, _kkt_backend, reduced_nnz_bound
+from .xstep_forms import REDUCED_MAX_NNZ, XSTEPS, reduced_nnz_bound, x_step_solver
 
 class QP(Problem):
     """A convex QP, validated on construction.
@@ -71,12 +70,17 @@ class QP(Problem):
     def __init__(self, P, q, A, l, u, r: float = 0.0, *, sigma: float = 1e-6, backend: str = "auto",
                  name: str = "qp", xstep: str = "auto", scaling: int = 0, row_weights: str = "uniform",
                  x_relaxation: float = 1.0, allow_nonconvex: bool = False):
-        from .scaling import ruiz
         self.P, self.q, self.A, self.l, self.u = _validate(P, q, A, l, u, allow_nonconvex)
-        self.r = _real("r", r)
-        if self.r.shape not in ((), (1,)) or not math.isfinite(self.r.item()):
+        r_value = _real("r", r)
+        if r_value.shape not in ((), (1,)) or not math.isfinite(r_value.item()):
             raise ValueError(f"r (the constant of the objective) must be one finite number, got {r!r:.60}")
-        self.r = float(self.r.item())
+        self._build(float(r_value.item()), sigma=sigma, backend=backend, name=name, xstep=xstep, scaling=scaling,
+                    row_weights=row_weights, x_relaxation=x_relaxation, allow_nonconvex=allow_nonconvex)
+
+    def _build(self, r: float, *, sigma, backend, name, xstep, scaling, row_weights, x_relaxation, allow_nonconvex):
+        """Everything but the data's validation: the options, the scaled copy and the x-step's matrices."""
+        from .scaling import ruiz
+        self.r = r
         if isinstance(sigma, (bool, str, bytes)) or not isinstance(sigma, (int, float, np.integer, np.floating)) \
                 or not (math.isfinite(sigma) and sigma >= 0):
             raise ValueError(f"sigma must be a finite number >= 0, got {sigma!r}")
@@ -106,30 +110,12 @@ class QP(Problem):
             xstep = "kkt" if reduced_nnz_bound(self.P, self.A) > REDUCED_MAX_NNZ else "reduced"
         self.xstep = xstep
         self.begin_run()
-        base = (self.Ps + self.sigma * sp.identity(self.n, format="csc")).tocsc()
         w = np.ones(self.m) if self.w is None else self.w
         # free rows (both bounds infinite) under "osqp": the x-step's penalty is RHO_MIN whatever rho is, as OSQP's
         # rho_vec; their lam and residual are 0 from the first iteration on, so only the x-step sees it (Q5)
         self._free = np.flatnonzero(np.isinf(self.ls) & np.isinf(self.us)) if self.w is not None else np.empty(0, int)
-        w_nf = w.copy()
-        w_nf[self._free] = 0.0
-        self._w_nf = w_nf
         self._w_free_over_penalty = w[self._free] / FREE_ROW_PENALTY
-        if xstep == "reduced":
-            G = (self.Ats @ sp.diags(w_nf) @ self.As).tocsc() if self.w is not None else (self.Ats @ self.As).tocsc()
-            if self._free.size:
-                Af = self.As[self._free]
-                base = (base + FREE_ROW_PENALTY * (Af.T @ Af)).tocsc()
-            self._solver = CachedFactorization(lambda rho: (base + rho * G).tocsc(), backend=backend)
-        else:
-            kkt_backend = _kkt_backend(backend)
-            top = sp.bmat([[base, self.As.T], [self.As, None]], format="csc")
-            # qdldl reads the upper triangle; given only that, its solves are several times faster (its ordering
-            # then sees the symmetric pattern once): 51 us against 302 us on PRIMAL4's KKT matrix
-            part = (lambda K: sp.triu(K, format="csc")) if kkt_backend == "qdldl" else (lambda K: K.tocsc())
-            self._solver = CachedFactorization(
-                lambda rho: part(top + sp.diags(np.r_[np.zeros(self.n), -1.0 / self.penalty(rho)], format="csc")),
-                backend=kkt_backend)
+        self._solver = x_step_solver(self, backend)
 
     def setup(self, rho: float) -> int:
         """Factorise the x-step matrix for ``rho`` now (OSQP's setup), unless cached; return the factorisations made.
@@ -150,9 +136,18 @@ class QP(Problem):
         return R
 
     def with_options(self, **options) -> "QP":
-        """The same data with some constructor options changed (a new QP, its own factorisations)."""
+        """The same data with some constructor options changed (a new QP, its own factorisations).
+
+        The data was validated when this QP was built, so it is not checked
+        again; only the options are (the constructor's messages).
+        """
         merged = {**self.options, **options}
-        return QP(self.P, self.q, self.A, self.l, self.u, self.r, name=self.name, **merged)
+        if merged["allow_nonconvex"] != self.options["allow_nonconvex"]:     # the convexity verdict may change
+            return QP(self.P, self.q, self.A, self.l, self.u, self.r, name=self.name, **merged)
+        qp = QP.__new__(QP)
+        qp.P, qp.q, qp.A, qp.l, qp.u = self.P, self.q, self.A, self.l, self.u
+        qp._build(self.r, name=self.name, **merged)
+        return qp
 
     # -- the splitting --------------------------------------------------------
     def begin_run(self):

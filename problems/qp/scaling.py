@@ -71,13 +71,20 @@ def _limit_scalar(v: float) -> float:
     return 1.0 if v < MIN_SCALING else min(v, MAX_SCALING)
 
 
-def _col_max(absdata: np.ndarray, indptr: np.ndarray) -> np.ndarray:
-    """Largest entry per column of a CSC matrix given its ``abs(data)`` and ``indptr`` (0 for an empty column)."""
-    out = np.zeros(len(indptr) - 1)
-    full = np.flatnonzero(np.diff(indptr))
-    if full.size:
-        out[full] = np.maximum.reduceat(absdata, indptr[full])
-    return out
+class _ColMax:
+    """Largest ``abs`` entry per column of a CSC matrix's ``data`` taken in the order ``take`` (all entries: None),
+    columns delimited by ``indptr``; the segments are found once, each call is two vector operations."""
+
+    def __init__(self, indptr: np.ndarray, take: np.ndarray | None = None):
+        self.take, self.n = take, len(indptr) - 1
+        self.full = np.flatnonzero(np.diff(indptr))          # the non-empty columns (empty ones stay 0)
+        self.starts = indptr[self.full]
+
+    def __call__(self, data: np.ndarray) -> np.ndarray:
+        out = np.zeros(self.n)
+        if self.full.size:
+            out[self.full] = np.maximum.reduceat(np.abs(data if self.take is None else data[self.take]), self.starts)
+        return out
 
 
 class _Entries:
@@ -96,27 +103,21 @@ class _Entries:
         np.multiply(left[self.rows], data, out=data)
         np.multiply(data, right[self.cols], out=data)
 
-    def col_max(self, upper: bool = False) -> np.ndarray:
-        """Largest ``abs`` entry per column (of the upper triangle only with ``upper``)."""
-        M = self.matrix
-        if not upper:
-            return _col_max(np.abs(M.data), M.indptr)
-        keep = self.rows <= self.cols
-        indptr = np.r_[0, np.cumsum(np.bincount(self.cols[keep], minlength=M.shape[1]))]
-        return _col_max(np.abs(M.data[keep]), indptr)
+    def col_max(self) -> _ColMax:
+        """Largest ``abs`` entry per column, as a function of the data."""
+        return _ColMax(self.matrix.indptr)
 
+    def upper_col_max(self) -> _ColMax:
+        """Largest ``abs`` entry per column of the upper triangle (what OSQP stores of P)."""
+        keep = np.flatnonzero(self.rows <= self.cols)
+        counts = np.bincount(self.cols[keep], minlength=self.matrix.shape[1])
+        return _ColMax(np.r_[0, np.cumsum(counts)], keep)
 
-class _RowMax:
-    """Largest ``abs`` entry per row of a CSC matrix's entries, through its CSR order (found once)."""
-
-    def __init__(self, entries: _Entries):
-        self.entries = entries
-        self.order = np.argsort(entries.rows, kind="stable")
-        m = entries.matrix.shape[0]
-        self.indptr = np.r_[0, np.cumsum(np.bincount(entries.rows, minlength=m))]
-
-    def __call__(self) -> np.ndarray:
-        return _col_max(np.abs(self.entries.matrix.data[self.order]), self.indptr)
+    def row_max(self) -> _ColMax:
+        """Largest ``abs`` entry per row (through the CSR order of the entries)."""
+        order = np.argsort(self.rows, kind="stable")
+        counts = np.bincount(self.rows, minlength=self.matrix.shape[0])
+        return _ColMax(np.r_[0, np.cumsum(counts)], order)
 
 
 def ruiz(P: sp.spmatrix, q: np.ndarray, A: sp.spmatrix, iterations: int = 10):
@@ -133,16 +134,16 @@ def ruiz(P: sp.spmatrix, q: np.ndarray, A: sp.spmatrix, iterations: int = 10):
     if not iterations:
         return Scaling(D, E, c), sp.csc_matrix(P), np.asarray(q, dtype=float).copy(), sp.csc_matrix(A)
     Pe, Ae, q = _Entries(P), _Entries(A), np.asarray(q, dtype=float).copy()
-    row_max = _RowMax(Ae)
+    P_cols, A_cols, A_rows = Pe.upper_col_max(), Ae.col_max(), Ae.row_max()
     for _ in range(int(iterations)):
-        d = np.maximum(Pe.col_max(upper=True), Ae.col_max())              # KKT columns 1..n (see below)
-        e = row_max()                                                       # KKT columns n+1..n+m
+        d = np.maximum(P_cols(Pe.matrix.data), A_cols(Ae.matrix.data))     # KKT columns 1..n (see below)
+        e = A_rows(Ae.matrix.data)                                          # KKT columns n+1..n+m
         d, e = 1.0 / np.sqrt(_limit(d)), 1.0 / np.sqrt(_limit(e))
         Pe.scale(d, d)                                                      # P <- D P D
         Ae.scale(e, d)                                                      # A <- E A D
         q = d * q
         D, E = D * d, E * e
-        mean_col = float(Pe.col_max(upper=True).sum()) / n
+        mean_col = float(P_cols(Pe.matrix.data).sum()) / n
         c_step = 1.0 / _limit_scalar(max(mean_col, _limit_scalar(float(np.max(np.abs(q), initial=0.0)))))
         Pe.matrix.data *= c_step
         q = c_step * q

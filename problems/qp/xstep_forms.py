@@ -6,7 +6,9 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from admmkit.linsolve import available_backends
+from admmkit.linsolve import CachedFactorization, available_backends
+
+from .rows import FREE_ROW_PENALTY
 
 XSTEPS = ("auto", "reduced", "kkt")
 #: "auto" uses the KKT form when A'A could have more entries than this (bound: nnz(P) + sum_i nnz(row_i of A)^2)
@@ -29,3 +31,31 @@ def _kkt_backend(backend: str) -> str:
         raise ValueError(f"backend for xstep 'kkt' must be 'auto' or one of {', '.join(KKT_BACKENDS)} "
                          f"(the KKT matrix is indefinite), got {backend!r}")
     return backend
+
+
+def x_step_solver(qp, backend: str) -> CachedFactorization:
+    """The x-step matrix of ``qp`` (its scaled data, its ``xstep`` form) for any rho, factorised once per rho.
+
+    reduced: P + sigma I + rho A'MA, with a free row's term at FREE_ROW_PENALTY instead (Q5);
+    kkt: [[P + sigma I, A'], [A, -R^-1]] with R = ``qp.penalty(rho)``.
+    """
+    base = (qp.Ps + qp.sigma * sp.identity(qp.n, format="csc")).tocsc()
+    if qp.xstep == "reduced":
+        if qp.w is None:
+            G = (qp.Ats @ qp.As).tocsc()
+        else:
+            w = qp.w.copy()
+            w[qp._free] = 0.0
+            G = (qp.Ats @ sp.diags(w) @ qp.As).tocsc()
+        if qp._free.size:
+            Af = qp.As[qp._free]
+            base = (base + FREE_ROW_PENALTY * (Af.T @ Af)).tocsc()
+        return CachedFactorization(lambda rho: (base + rho * G).tocsc(), backend=backend)
+    kkt_backend = _kkt_backend(backend)
+    top = sp.bmat([[base, qp.As.T], [qp.As, None]], format="csc")
+    # qdldl reads the upper triangle; given only that, its solves are several times faster (its ordering
+    # then sees the symmetric pattern once): 51 us against 302 us on PRIMAL4's KKT matrix
+    part = (lambda K: sp.triu(K, format="csc")) if kkt_backend == "qdldl" else (lambda K: K.tocsc())
+    zeros = np.zeros(qp.n)
+    return CachedFactorization(lambda rho: part(top + sp.diags(np.r_[zeros, -1.0 / qp.penalty(rho)], format="csc")),
+                               backend=kkt_backend)
