@@ -42,7 +42,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import scipy.sparse as sp
 
 from admmkit import Problem
 
