@@ -11,20 +11,35 @@ from .cli import positive_float
 
 
 def add_adaptive_options(parser: argparse.ArgumentParser, *, max_levels: int = 20) -> None:
-    """``--balance``, ``--target-error``, ``--theta``, ``--max-levels``, ``--max-unknowns`` of an FE plug-in
-    with error estimates (read by :func:`adaptive_options`)."""
+    """``--balance``, ``--target-error``, ``--theta``, ``--max-levels``, ``--max-unknowns``, ``--estimator`` of an
+    FE plug-in with error estimates (read by :func:`adaptive_options` and :func:`estimator_name`)."""
     parser.add_argument("--balance", type=positive_float, default=None, metavar="GAMMA",
                         help="stop when a guaranteed bound of the algebraic error is below GAMMA x the estimated "
                              "discretisation error, 0 < GAMMA <= 1 (instead of --tol / --eps-abs)")
     parser.add_argument("--target-error", type=positive_float, default=None, metavar="E",
                         help="refine adaptively from --h until the estimated relative energy error is <= E, "
-                             "0 < E < 1 (ZZ estimate, Doerfler marking, each level warm-started, stopped balanced)")
+                             "0 < E < 1 (--estimator, Doerfler marking, each level warm-started, stopped balanced)")
     parser.add_argument("--theta", type=positive_float, default=0.5,
                         help="Doerfler marking share with --target-error, 0 < theta < 1 (default 0.5)")
     parser.add_argument("--max-levels", type=int, default=max_levels,
                         help=f"level cap of --target-error (default {max_levels})")
     parser.add_argument("--max-unknowns", type=int, default=2_000_000,
                         help="unknowns cap of --target-error (default 2e6)")
+    parser.add_argument("--estimator", default="zz", metavar="zz|residual",
+                        help="the discretisation error estimate that --target-error marks by and the balanced stop "
+                             "compares with: zz (gradient recovery, default) or residual (residual-type)")
+
+
+#: the values of ``--estimator``
+ESTIMATORS = ("zz", "residual")
+
+
+def estimator_name(args) -> str:
+    """``--estimator``, checked: ValueError naming the option and the accepted values."""
+    name = getattr(args, "estimator", "zz")
+    if name not in ESTIMATORS:
+        raise ValueError(f"--estimator = {name!r} is unknown; accepted: {', '.join(ESTIMATORS)}")
+    return name
 
 
 def balance_gamma(args, default: float | None) -> float | None:
@@ -41,13 +56,15 @@ def balance_gamma(args, default: float | None) -> float | None:
 
 
 def balance_line(stop, norm: str) -> str:
-    """The summary line of a balanced stop: the bound and the estimate it compared last, and gamma."""
+    """The summary line of a balanced stop: the bound and the estimate it compared last (ZZ unless the stop's
+    ``estimator`` says otherwise), and gamma."""
+    which = "residual" if getattr(stop, "estimator", "zz") == "residual" else "ZZ"
     return (f"balance      algebraic error <= {stop.algebraic:.3e} (guaranteed bound, {norm})   "
-            f"discretisation error ~ {stop.discretisation:.3e} (ZZ estimate)   gamma {stop.gamma:g}")
+            f"discretisation error ~ {stop.discretisation:.3e} ({which} estimate)   gamma {stop.gamma:g}")
 
 
 def adaptive_options(args) -> dict:
-    """The adaptive loop's keywords from :func:`add_adaptive_options` (gamma 0.1 unless --balance);
+    """The adaptive loop's keywords from :func:`add_adaptive_options` (gamma 0.1 unless --balance, the estimator);
     ValueError naming the option and its range, and refusing --tol / --eps-abs beside them."""
     if args.tol is not None or args.eps_abs is not None:
         raise ValueError("--target-error stops every level balanced (--balance); it cannot be combined with "
@@ -61,4 +78,4 @@ def adaptive_options(args) -> dict:
         if not ok:
             raise ValueError(f"{flag} = {value:g} is outside the accepted range {accepted}")
     return {"target": args.target_error, "theta": args.theta, "gamma": gamma, "max_levels": args.max_levels,
-            "max_unknowns": args.max_unknowns}
+            "max_unknowns": args.max_unknowns, "estimator": estimator_name(args)}

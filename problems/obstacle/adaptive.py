@@ -8,7 +8,9 @@ One level (:func:`solve_adaptive`):
    the previous level's u, lam and rho, prolongated to the new mesh (P1
    interpolation by NGSolve's ``GridFunction.Update``), so later levels cost
    few iterations;
-2. **estimate**: the ZZ indicators eta_T and the relative estimate
+2. **estimate**: the indicators eta_T (``estimator="zz"``, the default, or
+   ``"residual"``: :mod:`admmkit.problems.obstacle.estimate_residual`; the
+   balanced stop uses the same one) and the relative estimate
    ``eta / |u_h|_{H1}``;
 3. stop if it is at most ``target``; else **mark** the smallest set of
    triangles that carries a share ``theta`` of sum eta_T^2 (Dörfler 1996);
@@ -29,7 +31,8 @@ import numpy as np
 from admmkit import Result, solve
 from admmkit.adaptive import AdaptiveResult, check_adaptive, dorfler_mark
 
-from .estimate import BalancedStop, zz
+from .estimate import BalancedStop, estimator_of, zz
+from .estimate_residual import check_estimator
 from .problem import DEFAULT_BACKEND, ObstacleProblem, build_mesh
 from .scene import Scene
 
@@ -40,7 +43,7 @@ class Level:
 
     cells: int
     unknowns: int
-    estimate: float                 # eta, the ZZ estimate of |u_h - u|_{H1}
+    estimate: float                 # eta, the chosen (ZZ or residual) estimate of |u_h - u|_{H1}
     relative_estimate: float        # eta / |u_h|_{H1}
     algebraic_bound: float          # the guaranteed bound of ||z - u_h||_a at the stop
     iterations: int
@@ -51,13 +54,17 @@ class Level:
 
 def solve_adaptive(scene: Scene, target: float, *, theta: float = 0.5, gamma: float = 0.1, max_levels: int = 30,
                    max_unknowns: int = 2_000_000, policy="summable", order: str = "zx", rho: float = 1.0,
-                   max_iter: int = 10_000, backend: str = DEFAULT_BACKEND, log=None) -> AdaptiveResult:
+                   max_iter: int = 10_000, backend: str = DEFAULT_BACKEND, estimator: str = "zz",
+                   log=None) -> AdaptiveResult:
     """Refine adaptively from the scene's mesh until ``eta / |u_h|_{H1} <= target`` (see the module docstring).
+
+    ``estimator``: ``"zz"`` or ``"residual"``, for the marking and the balanced stop.
 
     ``log``: called after each level with the :class:`Level` and the result so far (whose ``model``,
     ``result`` and ``indicators`` are that level's), for progress and per-level output.
     """
     check_adaptive(target, theta, gamma, max_levels, max_unknowns)
+    check_estimator(estimator)
     if not isinstance(scene, Scene):
         raise ValueError(f"scene must be a admmkit.problems.obstacle.Scene, got {type(scene).__name__}")
     mesh = build_mesh(scene)
@@ -71,12 +78,12 @@ def solve_adaptive(scene: Scene, target: float, *, theta: float = 0.5, gamma: fl
             return out
         t0 = time.perf_counter()
         problem = ObstacleProblem(scene, backend=backend, mesh=mesh)
-        stop = BalancedStop(problem, gamma)
+        stop = BalancedStop(problem, gamma, estimator=estimator)
         start = {k: warm[k][problem.free] for k in ("x0", "lam0") if k in warm}
         if "x0" in start:
             start["z0"] = problem.z_step(start["x0"], np.zeros(problem.n), 1.0, None)    # x0 on the obstacle
         res = solve(problem, rho=warm["rho"], policy=policy, order=order, stop=stop, max_iter=max_iter, **start)
-        indicators = zz(problem).indicators(res.z)
+        indicators = estimator_of(problem, estimator)(res.z)
         eta = float(np.sqrt(np.sum(indicators ** 2)))
         relative = eta / max(zz(problem).energy(res.z), 1e-300)
         level = Level(cells=mesh.ne, unknowns=problem.n, estimate=eta, relative_estimate=relative,

@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 from admmkit import policies  # noqa: F401  (registers the rules the --policy option offers)
-from admmkit.cli_adaptive import adaptive_options, add_adaptive_options, balance_gamma, balance_line
+from admmkit.cli_adaptive import adaptive_options, add_adaptive_options, balance_gamma, balance_line, estimator_name
 from admmkit.cli import (add_common_options, add_output_file, add_result_outputs, exit_code, positive_float,
                          run_solve, write_result_csv, write_result_json)
 from admmkit.policies.paper_methods import PAPER_METHODS
@@ -21,7 +21,7 @@ def register(subparsers) -> None:
     p.add_argument("--h", type=positive_float, default=1 / 16, help="cell size, fractions allowed (default 1/16)")
     p.add_argument("--backend", default=DEFAULT_BACKEND, help=f"sparse solver of K + rho M, or iterative for AMG-preconditioned CG (default {DEFAULT_BACKEND})")
     add_output_file(p, "--plot", "FILE", "write a plot of u, psi and the contact set (PNG)")
-    add_output_file(p, "--vtk", "FILE.vtu", "write u, psi, the contact set and the ZZ indicator per triangle as VTU "
+    add_output_file(p, "--vtk", "FILE.vtu", "write u, psi, the contact set and the --estimator's indicator per triangle as VTU "
                     "(with --target-error one file per level, FILE_level<k>.vtu)", suffix=".vtu")
     add_adaptive_options(p, max_levels=30)     # --balance (here the default stop, GAMMA = 0.1), --target-error
     add_common_options(p, policy="summable", order="zx", methods=PAPER_METHODS)
@@ -33,13 +33,14 @@ def register(subparsers) -> None:
 def run(args) -> int:
     """Build the scene, solve it, print the summary and the errors against the exact solution; 0 only if converged."""
     gamma = balance_gamma(args, 0.1)        # the balanced stop is the default here
+    estimator = estimator_name(args)
     if args.target_error is not None:
         return run_adaptive(args)
     problem = make_problem(named_scene(args.scene, h=args.h), backend=args.backend)
     nx, ny = problem.scene.counts
     print(f"problem      obstacle/{args.scene}: h = {args.h:.6g} ({nx} x {ny} squares), "
           f"{problem.n} free nodes, side {problem.scene.side}")
-    stop = None if gamma is None else BalancedStop(problem, gamma)
+    stop = None if gamma is None else BalancedStop(problem, gamma, estimator=estimator)
     result = run_solve(problem, args, stop=stop)
     if stop is not None:
         print(balance_line(stop, "H1 seminorm"))
@@ -55,9 +56,9 @@ def run(args) -> int:
     if args.plot:
         print(f"plot         {plot_solution(problem, result.x, result.z, args.plot)}")
     if args.vtk:
-        from .estimate import zz_indicators
+        from .estimate import estimator_of
         from .export import write_vtu
-        print(f"vtk          {write_vtu(args.vtk, problem, result.z, zz_indicators(problem, result.z))}")
+        print(f"vtk          {write_vtu(args.vtk, problem, result.z, estimator_of(problem, estimator)(result.z))}")
     if args.json:
         scene = {"name": args.scene, "h": args.h, "counts": [nx, ny], "side": problem.scene.side,
                  "backend": args.backend, "n_free": problem.n}
@@ -85,7 +86,7 @@ def run_adaptive(args) -> int:
     order, policy, name = resolve_policy(args)
     scene = named_scene(args.scene, h=args.h)
     print(f"adaptive     obstacle/{args.scene}: from h = {args.h:.6g}, target {options['target']:g}, "
-          f"theta {options['theta']:g}, gamma {options['gamma']:g}, {name} order {order}")
+          f"theta {options['theta']:g}, gamma {options['gamma']:g}, {options['estimator']} estimator, {name} order {order}")
     print("level    cells  unknowns   estimate  rel.estimate  H1-semi error  iterations  seconds  status")
 
     def show(level, out):

@@ -51,6 +51,8 @@ import scipy.sparse.linalg as spla
 
 from admmkit import BalancedStop as BaseBalancedStop
 
+from .estimate_residual import check_estimator, residual_estimator
+
 
 class ZZ:
     """The ZZ estimator of one mesh: the P1 gradient per triangle, recovered by area-weighted vertex averages.
@@ -114,6 +116,14 @@ def zz_estimate(problem, u: np.ndarray) -> float:
     return float(np.sqrt(np.sum(zz_indicators(problem, u) ** 2)))
 
 
+def estimator_of(problem, name: str = "zz"):
+    """The indicator function u -> eta_T of the named estimator, ``"zz"`` (this module) or ``"residual"``
+    (:mod:`admmkit.problems.obstacle.estimate_residual`), its mesh data built now; ValueError for another name."""
+    if check_estimator(name) == "zz":
+        return _zz(problem).indicators
+    return residual_estimator(problem).indicators
+
+
 class EnergyGap:
     """The guaranteed bound (B) of the algebraic error ||z - u_h||_a, with K factorised once."""
 
@@ -151,25 +161,30 @@ class EnergyGap:
 
 
 class BalancedStop(BaseBalancedStop):
-    """:class:`admmkit.BalancedStop` for the obstacle: bound (B) of z against the ZZ estimate of z.
+    """:class:`admmkit.BalancedStop` for the obstacle: bound (B) of z against an estimate of z's discretisation error.
 
-    Tested every ``every`` iterations (the bound costs two solves with K, the
-    estimate a few array operations on the mesh).
+    ``estimator``: ``"zz"`` (this module's ZZ estimate, the default) or ``"residual"``
+    (:mod:`admmkit.problems.obstacle.estimate_residual`).  Tested every ``every``
+    iterations (the bound costs two solves with K, the estimate a few array
+    operations or NGSolve integrals on the mesh).
     """
 
-    def __init__(self, problem, gamma: float = 0.1, every: int = 10):
+    def __init__(self, problem, gamma: float = 0.1, every: int = 10, estimator: str = "zz"):
+        self._estimate = estimator_of(problem, estimator)      # refuses an unknown name before anything is built
         super().__init__(gamma, every)
+        if estimator != "zz":
+            self.name = self.name.replace("ZZ", estimator)
         self.problem = problem
+        self.estimator = estimator
         self.gap = EnergyGap(problem)
-        _zz(problem)                                  # the estimator's mesh data, built before the run
 
     def algebraic_error_bound(self, rec) -> float:
         """(B) for the z-iterate (inf if z is not feasible)."""
         return self.gap.bound(rec.z, rec.lam)
 
     def discretisation_estimate(self, rec) -> float:
-        """The ZZ estimate eta of the z-iterate."""
-        return zz_estimate(self.problem, rec.z)
+        """The chosen estimate eta (ZZ or residual) of the z-iterate."""
+        return float(np.sqrt(np.sum(self._estimate(rec.z) ** 2)))
 
 
-__all__ = ["ZZ", "zz", "zz_indicators", "zz_estimate", "EnergyGap", "BalancedStop"]
+__all__ = ["ZZ", "zz", "zz_indicators", "zz_estimate", "estimator_of", "EnergyGap", "BalancedStop"]

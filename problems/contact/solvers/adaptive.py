@@ -53,13 +53,15 @@ class Level:
 
 def solve_adaptive(scene: Scene, target: float, *, theta: float = 0.5, gamma: float = 0.1, max_levels: int = 20,
                    max_unknowns: int = 2_000_000, method_name: str = "sadmm", rho: float = 1e3,
-                   max_iter: int = 20_000, log=None) -> AdaptiveResult:
+                   max_iter: int = 20_000, estimator: str = "zz", log=None) -> AdaptiveResult:
     """Refine adaptively from the scene's mesh until ``eta / ||u_h||_a <= target`` (module docstring).
 
     ``log``: called after each level with the :class:`Level` and the result so far (whose ``model``,
     ``result`` and ``indicators`` are that level's), for progress and per-level output.
     """
     check_adaptive(target, theta, gamma, max_levels, max_unknowns)
+    if estimator != "zz":
+        raise ValueError(f"estimator = {estimator!r} is unknown; accepted: zz")
     if not isinstance(scene, Scene):
         raise ValueError(f"scene must be a 2D admmkit.problems.contact.Scene, got {type(scene).__name__}")
     if scene.tangential != "frictionless":
