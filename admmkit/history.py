@@ -44,6 +44,13 @@ class History:
         d, ctx = rec._d, rec._ctx
         self._rows.append((d[0], d[1], ctx.primal_unit, ctx.dual_unit, d[2], rec._vals, rho_next))
 
+    def append_unread(self, k: int, count: int, rho: float, ctx, t: float) -> None:
+        """Add the rows of iterations k .. k + count - 1 that ran without records (:mod:`admmkit.segments`):
+        rho unchanged, no norm computed, ``t`` (seconds since the start) at the segment's end."""
+        vals = [None] * len(LAZY_FIELDS)
+        pu, du = ctx.primal_unit, ctx.dual_unit
+        self._rows.extend((i, rho, pu, du, t, vals, rho) for i in range(k, k + count))
+
     def replace_last(self, rec: IterationRecord) -> None:
         """Refresh the last row from ``rec`` (the loop completes the last record of a run)."""
         k, rho, pu, du, t, _, rho_next = self._rows[-1]

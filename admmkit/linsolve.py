@@ -107,7 +107,12 @@ def _factor_qdldl(A):
     import qdldl
     # qdldl reads the upper triangle; handing it only that (not the full matrix) made its solves 6x faster
     # on a QP's KKT matrix (PRIMAL4: 51 us against 302 us), same factor
-    return qdldl.Solver(sp.triu(A, format="csc")).solve
+    solver = qdldl.Solver(sp.triu(A, format="csc"))
+
+    def solve(b):
+        return solver.solve(b)
+    solve.ldl = solver.factors          # (L, D, p) with A = P (I + L) D (I + L)' P': for compiled solves
+    return solve
 
 
 def _factor_cholmod(A):
@@ -168,6 +173,7 @@ def factorize(matrix, backend: str = "auto") -> Callable[[np.ndarray], np.ndarra
             raise np.linalg.LinAlgError(
                 f"backend {name!r} returned a non-finite solution: the matrix is singular")
         return x
+    solve.ldl = getattr(solve1, "ldl", None)
     return solve
 
 
@@ -207,8 +213,8 @@ class CachedFactorization:
         """Whether a factorisation for this rho is currently held."""
         return float(rho) in self._cache
 
-    def solve(self, rho: float, rhs: np.ndarray) -> np.ndarray:
-        """Solve ``matrix(rho) @ x = rhs``, factorising matrix(rho) if not cached."""
+    def _factor(self, rho: float):
+        """The cached solve for ``rho``, factorising matrix(rho) first if it is not cached."""
         key = float(rho)
         if not (math.isfinite(key) and key > 0):
             raise ValueError(f"rho must be a finite number > 0, got {rho!r}")
@@ -221,8 +227,27 @@ class CachedFactorization:
             self.factorizations += 1
             if len(self._cache) > self.max_cached:
                 self._cache.popitem(last=False)
+        return self._cache[key]
+
+    def solve(self, rho: float, rhs: np.ndarray) -> np.ndarray:
+        """Solve ``matrix(rho) @ x = rhs``, factorising matrix(rho) if not cached."""
+        solve = self._factor(rho)
         start = time.perf_counter()
-        x = self._cache[key](rhs)
+        x = solve(rhs)
         self.solve_time += time.perf_counter() - start
         self.solves += 1
         return x
+
+    def ldl(self, rho: float):
+        """The LDL' factors of matrix(rho) as arrays (Lp, Li, Lx, Dinv, perm), factorising if not cached;
+        None unless the backend is qdldl.  ``admmkit.compiled.ldl_solve`` solves with them as qdldl does
+        (the same operations, so the same bits); they are read from the factor once per rho."""
+        solve = self._factor(rho)
+        if solve.ldl is None:
+            return None
+        if not hasattr(solve, "ldl_arrays"):
+            L, d, p = solve.ldl()
+            L = sp.csc_matrix(L)
+            solve.ldl_arrays = (L.indptr.astype(np.int64), L.indices.astype(np.int64), L.data.astype(np.float64),
+                                1.0 / np.asarray(d, dtype=np.float64), np.asarray(p, dtype=np.int64))
+        return solve.ldl_arrays

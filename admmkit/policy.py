@@ -47,6 +47,17 @@ class Policy(ABC):
     def update(self, rec: IterationRecord) -> float:
         """Return rho_{k+1} from the record of iteration k (``rec.rho`` is rho_k)."""
 
+    def unchanged_until(self, k: int) -> int:
+        """The first iteration j >= k whose record the rule reads.
+
+        At iterations k .. j - 1 it would return rho unchanged without
+        reading their records (nor keeping anything of them), so the loop
+        may run them without records (:mod:`admmkit.segments`).  The default,
+        k, says the rule reads every record; a rule that acts every
+        ``interval`` iterations, or never, says so here.
+        """
+        return k
+
     def __repr__(self) -> str:
         names = [p for p in inspect.signature(type(self).__init__).parameters if p != "self"]
         params = ", ".join(f"{k}={getattr(self, k)!r}" for k in names if hasattr(self, k))

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any
 from enum import Enum
 
 import numpy as np
@@ -46,7 +47,11 @@ class Result:
     a primal infeasibility certificate; then ``objective`` is +inf (primal
     infeasible) or -inf (dual infeasible), as in OSQP.  ``acceleration``
     names the accelerator of an accelerated run and counts its extrapolated,
-    rejected and restarted steps (None for plain ADMM).
+    rejected and restarted steps (None for plain ADMM).  ``last_record`` is
+    the :class:`admmkit.IterationRecord` of the last iteration, every norm
+    computed (None if no iteration ran).  Iterations that ran in a compiled
+    segment (:mod:`admmkit.segments`) are counted in
+    ``counters["compiled_iterations"]`` and timed in ``timings["segments"]``.
     """
 
     x: np.ndarray
@@ -70,6 +75,7 @@ class Result:
     alpha: float = 1.0
     certificate: np.ndarray | None = None
     acceleration: dict | None = None     # the accelerator and its counts, when the run had one
+    last_record: Any = None              # the IterationRecord of the last iteration, complete
 
     @property
     def converged(self) -> bool:

@@ -29,6 +29,7 @@ from .policy import Policy
 from .problem import Problem
 from .record import IterationRecord, loop_record
 from .result import Result, Status
+from .segments import FastForward
 from .steps import ITERATIONS, PolicyStep
 from .stopping import StoppingRule
 from .termination import Termination
@@ -63,6 +64,7 @@ def solve(
     history: str = "lean",
     warm_start: Result | None = None,
     acceleration: Accelerator | str | None = None,
+    compiled: bool = True,
 ) -> Result:
     """Run ADMM on ``problem`` and return a :class:`Result`.
 
@@ -117,7 +119,13 @@ def solve(
         :class:`admmkit.acceleration.Accelerator`; None (default): plain
         ADMM.  Each iteration then starts from the accelerator's state
         (:mod:`admmkit.acceleration`); a change of rho resets it.
+    compiled : bool
+        True (default): the iterations whose records nobody reads run in
+        the problem's compiled segment when it has one (:mod:`admmkit.segments`;
+        the same iterates bit for bit); False: every iteration in Python.
     """
+    if not isinstance(compiled, bool):
+        raise TypeError(f"compiled must be True or False, got {compiled!r}")
     accelerator = make_accelerator(acceleration)
     run = checks.prepare(problem, rho=rho, policy=policy, order=order, stop=stop, max_iter=max_iter,
                          callback=callback, x0=x0, z0=z0, lam0=lam0, time_limit=time_limit, blas_threads=blas_threads,
@@ -128,10 +136,13 @@ def solve(
     ctx, rho, rho_changes, every, last = run.ctx, run.rho, 0, run.check_every, run.max_iter - 1
     x, z, lam, Ax = run.x, run.z, run.lam, run.Ax
     accel = None if accelerator is None else Acceleration(accelerator, run.order, checks.inner_of(problem))
+    fast = FastForward(run, enabled=compiled and accel is None)    # iterations nobody reads, compiled (admmkit.segments)
     rec = final = old = None
+    k = 0
     with run.blas_limit():       # the BLAS thread count is restored however the loop ends (an exception, Ctrl-C)
         start = ctx.start = perf()
-        for k in range(run.max_iter):
+        while k < run.max_iter:
+            x, z, lam, Ax, k = fast(k, x, z, lam, Ax, rho)      # (11)-(13) up to the next record read, if it can
             rec = hat = None                        # drop the last record and its vectors now: fewer arrays alive
             check = (k + 1) % every == 0 or k == last       # a tested iteration: every check_every-th, and the last
             try:
@@ -152,13 +163,18 @@ def solve(
                 z, lam, Ax = accel.step(old, (z, lam, Ax), rho, rho_next)
             if rho_next != rho:
                 rho, rho_changes = float(rho_next), rho_changes + 1
+            k += 1
         total = perf() - start
     ledger.finish(rec)
     x_seconds, z_seconds = iterate.seconds()
     timings = dict(x_step=x_seconds, z_step=z_seconds, policy=rho_step.seconds,
                    residuals=watch.seconds, total=total)
     result = _result(run, x, z, lam, rec, final, watch.stopped_by, rho, rho_changes, timings)
+    if fast.segments:       # the iterations run in compiled segments, and their seconds (in no step's time)
+        result.timings["segments"] = fast.seconds
+        result.counters["compiled_iterations"] = fast.iterations
     result.acceleration = None if accel is None else accel.summary()
+    result.last_record = rec
     return result
 
 

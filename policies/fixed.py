@@ -1,6 +1,8 @@
 """Fixed penalty: rho_k = rho_0 for every k (the paper's ADMM1 and ADMM2)."""
 from __future__ import annotations
 
+import sys
+
 from admmkit import IterationRecord, Policy, register_policy
 
 
@@ -11,3 +13,7 @@ class Fixed(Policy):
     def update(self, rec: IterationRecord) -> float:
         """Return rho_k unchanged."""
         return rec.rho
+
+    def unchanged_until(self, k: int) -> int:
+        """Never reads a record."""
+        return sys.maxsize

@@ -94,6 +94,10 @@ class OSQPRule(Policy):
         s = min(max(s, DIVISION_TOL), 1 / DIVISION_TOL)
         return rec.rho * math.sqrt(r / s)
 
+    def unchanged_until(self, k: int) -> int:
+        """The next iteration j >= k with (j + 1) a multiple of ``interval``: the rule reads no other record."""
+        return k + (-(k + 1)) % self.interval
+
     def update(self, rec: IterationRecord) -> float:
         """Adopt rho_est at iterations interval, 2 interval, ... when it differs by more than ``tolerance``."""
         if (rec.k + 1) % self.interval:

@@ -54,6 +54,10 @@ class Quantized(Policy):
         """The grid value rho_0 10^(j / per_decade)."""
         return self.rho0 * 10.0 ** (j / self.per_decade)
 
+    def unchanged_until(self, k: int) -> int:
+        """The wrapped rule's."""
+        return self.inner.unchanged_until(k)
+
     def update(self, rec: IterationRecord) -> float:
         """The wrapped rule's rho, snapped to the nearest grid value (unchanged if that is rho_k's)."""
         wish = self.inner.update(rec)

@@ -184,6 +184,18 @@ class QP(Problem):
             self._x_rel_prev, self._x_rel, self._x_last = xp, a * x_new + (1.0 - a) * xp, x_new      # (Q4)
         return x_new
 
+    def segment(self, x, z, lam, Ax, rho, alpha, order, count):
+        """``count`` iterations in one compiled call (:mod:`admmkit.segments`), or None where it does not apply."""
+        from .segment import run_segment
+        return run_segment(self, x, z, lam, Ax, rho, alpha, order, count)
+
+    def after_segment(self, x, x_prev, x_rel, x_rel_prev, done: int) -> None:
+        """The x-step's bookkeeping after a segment of ``done`` iterations ended at x (its x-step's output)."""
+        self._x_in = x_prev
+        if self.x_relaxation != 1.0:
+            self._x_last, self._x_rel, self._x_rel_prev = x, x_rel, x_rel_prev
+        self._solver.solves += done
+
     def relaxed_x(self, x):
         """OSQP's x for the loop's iterate ``x`` (the relaxed one of (Q4) when ``x`` is the last x-step's, else x)."""
         if self._is_last(x):

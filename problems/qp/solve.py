@@ -23,7 +23,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -126,21 +126,16 @@ def solve_qp(qp: QP, settings: QPSettings | None = None, *, policy="osqp", warm_
     stop = QPTermination(run_qp, settings.eps_abs, settings.eps_rel, gap=settings.gap,
                          infeasibility=settings.infeasibility, eps_prim_inf=settings.eps_prim_inf,
                          eps_dual_inf=settings.eps_dual_inf)
-    last = [None]
     start = time.perf_counter()
     setup_factorizations = run_qp.setup(rho0)                               # OSQP factorises in its setup too
     setup_time = time.perf_counter() - start
-
-    def keep_last(rec):
-        last[0] = rec
-        return callback(rec) if callback is not None else None
-
     res = admmkit.solve(run_qp, rho=rho0, policy=rule, order=settings.order, stop=stop, max_iter=settings.max_iter,
                         alpha=settings.alpha, check_every=settings.check_every, x0=x0, z0=z0, lam0=lam0,
-                        time_limit=settings.time_limit, callback=keep_last, acceleration=acceleration)
+                        time_limit=settings.time_limit, callback=callback, acceleration=acceleration,
+                        compiled=settings.compiled)
     res.timings["setup"] = setup_time
     res.counters["factorizations"] = res.counters.get("factorizations", 0) + setup_factorizations
-    return _qp_result(run_qp, settings, res, stop, last[0])
+    return _qp_result(run_qp, settings, res, stop, res.last_record)
 
 
 def _qp_result(qp: QP, settings: QPSettings, res: Result, stop: QPTermination, rec) -> QPResult:

@@ -1,0 +1,80 @@
+"""Compiled kernels for the iterations between checks (numba), each the same operations as its Python twin.
+
+A plug-in may run the iterations that no stopping rule, policy or callback
+reads in one compiled call (a *segment*, :mod:`admmkit.segments`).  The
+kernels here are its pieces, written so that each floating-point operation is
+the one the Python path does, in the same order, so that a segment's iterates
+are those of the Python loop bit for bit:
+
+- :func:`ldl_solve`: qdldl's solve with its own factors
+  (``CachedFactorization.ldl``): x = P (I + L)^-T D^-1 (I + L)^-1 P' b, as
+  ``QDLDL_solve`` does (column-oriented forward solve, multiplication by
+  1/D, row-oriented backward solve);
+- :func:`csc_matvec`: y = A x for a CSC matrix, as scipy's ``csc_matvec``
+  (y = 0, then columns in order).
+
+Why numba: it compiles these loops to machine code at the first call (cached
+on disk, so later processes load them in milliseconds), is pip-installable
+with wheels for every platform NumPy has, and needs no compiler on the user's
+machine; a C extension would.  ``fastmath`` stays off: no reassociation, no
+fused multiply-add, so the bits are the Python path's.  Without numba
+(``AVAILABLE`` False) every run takes the Python path.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+try:
+    from numba import njit
+    AVAILABLE = True
+except ImportError:  # pragma: no cover - numba is a dependency; a platform without its wheels runs in Python
+    AVAILABLE = False
+
+    def njit(*args, **kwargs):
+        """Stand-in decorator when numba is missing: the function stays Python (never called by the loop)."""
+        if args and callable(args[0]):
+            return args[0]
+        return lambda f: f
+
+
+@njit(cache=True)
+def ldl_solve(Lp, Li, Lx, Dinv, perm, b, work, out):
+    """out = K^-1 b with K = P (I + L) D (I + L)' P' (qdldl's factors); ``work`` is scratch of length n.
+
+    ``b`` and ``out`` may be the same array.
+    """
+    n = perm.shape[0]
+    for i in range(n):
+        work[i] = b[perm[i]]
+    for i in range(n):                                  # (I + L) y = b, column by column
+        xi = work[i]
+        for j in range(Lp[i], Lp[i + 1]):
+            work[Li[j]] -= Lx[j] * xi
+    for i in range(n):                                  # y <- D^-1 y
+        work[i] *= Dinv[i]
+    for i in range(n - 1, -1, -1):                      # (I + L)' x = y, row by row
+        s = work[i]
+        for j in range(Lp[i], Lp[i + 1]):
+            s -= Lx[j] * work[Li[j]]
+        work[i] = s
+    for i in range(n):
+        out[perm[i]] = work[i]
+
+
+@njit(cache=True)
+def csc_matvec(indptr, indices, data, x, y):
+    """y = A x for the CSC matrix (indptr, indices, data), summed as scipy sums it."""
+    y[:] = 0.0
+    for j in range(x.shape[0]):
+        xj = x[j]
+        for p in range(indptr[j], indptr[j + 1]):
+            y[indices[p]] += data[p] * xj
+
+
+@njit(cache=True)
+def all_finite(v, start, stop):
+    """Whether v[start:stop] holds only finite numbers."""
+    for i in range(start, stop):
+        if not np.isfinite(v[i]):
+            return False
+    return True

@@ -1,0 +1,93 @@
+"""The QP's compiled segment: OSQP's iteration, ``count`` times in one call (:mod:`admmkit.segments`).
+
+Order "xz" with the KKT form of the x-step factorised by qdldl (OSQP's
+machinery: :func:`admmkit.problems.qp.solve_qp`'s default), with
+over-relaxation alpha and OSQP's relaxed x (Q4).  One iteration, as
+:meth:`admmkit.problems.qp.QP.x_step`, ``apply_A``,
+``z_step`` and :mod:`admmkit.steps` compute it::
+
+    [x~; v] = K(rho)^-1 [sigma x^k - q; z^k - lam^k / rho]      (Q1), free rows: z - w lam / 1e-6 (Q5)
+    x^{k+1} = a x~ + (1 - a) x^k                                 (Q4, a = x_relaxation)
+    Ax_hat  = alpha A x~ + (1 - alpha) z^k
+    z^{k+1} = clip(Ax_hat + lam^k / rho, l, u)                   (Q2)
+    lam^{k+1} = lam^k + rho (Ax_hat - z^{k+1})
+
+with the same floating-point operations in the same order, so the iterates
+are the Python loop's bit for bit (tests/problems/test_qp_segment.py).  The
+kernel stops before an iteration whose right-hand side or solution is not
+finite; the loop's Python iteration then meets the failure where it would
+have anyway.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from admmkit.compiled import AVAILABLE, all_finite, csc_matvec, ldl_solve, njit
+
+
+@njit(cache=True)
+def _xz_kkt(count, rho, alpha, a, sigma, Lp, Li, Lx, Dinv, perm, Ap, Ai, Ad, q, lo, up, free, w_free,
+            x, x_prev, x_rel, x_rel_prev, z, lam, Ax, rhs, sol, work):
+    """``count`` iterations on the state arrays (x, x_prev, x_rel, x_rel_prev, z, lam, Ax), in place;
+    returns the number done (fewer if a step would meet a non-finite number)."""
+    n, m = x.shape[0], z.shape[0]
+    relax_x, relax = a != 1.0, alpha != 1.0
+    for it in range(count):
+        for i in range(n):
+            rhs[i] = sigma * x_rel[i] - q[i]                                    # (Q1)
+        for i in range(m):
+            rhs[n + i] = z[i] - lam[i] / rho
+        for f in range(free.shape[0]):                                          # (Q5)
+            rhs[n + free[f]] = z[free[f]] - w_free[f] * lam[free[f]]
+        if not all_finite(rhs, 0, n + m):
+            return it
+        ldl_solve(Lp, Li, Lx, Dinv, perm, rhs, work, sol)
+        if not all_finite(sol, 0, n + m):
+            return it
+        for i in range(n):
+            x_prev[i] = x[i]
+            x[i] = sol[i]
+            if relax_x:                                                         # (Q4)
+                x_rel_prev[i] = x_rel[i]
+                x_rel[i] = a * sol[i] + (1.0 - a) * x_rel_prev[i]
+            else:
+                x_rel_prev[i] = x_rel[i]
+                x_rel[i] = sol[i]
+        csc_matvec(Ap, Ai, Ad, x, Ax)
+        for i in range(m):
+            h = alpha * Ax[i] + (1.0 - alpha) * z[i] if relax else Ax[i]
+            v = h + lam[i] / rho                                                # (Q2)
+            if v < lo[i]:
+                v = lo[i]
+            if v > up[i]:
+                v = up[i]
+            lam[i] = lam[i] + rho * (h - v)
+            z[i] = v
+    return count
+
+
+def run_segment(qp, x, z, lam, Ax, rho: float, alpha: float, order: str, count: int):
+    """``count`` iterations of ``qp`` from (x, z, lam, Ax) in one compiled call, or None where the kernel does
+    not apply (order "zx", the reduced x-step, a backend other than qdldl, numba missing).
+
+    Returns (x, z, lam, Ax, done) in new arrays; the QP's relaxed-x bookkeeping (Q4) follows, and its
+    solve counter grows by ``done``.
+    """
+    if not AVAILABLE or order != "xz" or qp.xstep != "kkt":
+        return None
+    factors = qp._solver.ldl(rho)
+    if factors is None:
+        return None
+    x, z, lam, Ax = (np.array(v, dtype=np.float64) for v in (x, z, lam, Ax))
+    a = qp.x_relaxation
+    x_rel = np.array(qp._x_rel if a != 1.0 and qp._x_rel is not None else x, dtype=np.float64)
+    x_prev, x_rel_prev = np.empty_like(x), np.empty_like(x)
+    size = qp.n + qp.m
+    rhs, sol, work = np.empty(size), np.empty(size), np.empty(size)
+    As = qp.As
+    done = _xz_kkt(count, float(rho), float(alpha), a, qp.sigma, *factors, As.indptr, As.indices, As.data,
+                   qp.qs, qp.ls, qp.us, qp._free, qp._w_free_over_penalty,
+                   x, x_prev, x_rel, x_rel_prev, z, lam, Ax, rhs, sol, work)
+    if done:
+        qp.after_segment(x, x_prev, x_rel, x_rel_prev, done)
+    return x, z, lam, Ax, done

@@ -1,0 +1,122 @@
+"""The QP's compiled segment (issue #25): the iterations between checks in one numba call, bit for bit the Python loop's."""
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import admmkit
+from admmkit import Policy, compiled
+from admmkit.policies import Fixed, OSQPRule, Summable
+from admmkit.problems.qp import load_mat, osqp_settings, random_qp, solve_qp
+from admmkit.problems.qp.generate import infeasible_qp, unbounded_qp
+from admmkit.problems.qp.segment import run_segment
+from admmkit.problems.qp.solve import qp_for
+
+MM = Path(__file__).resolve().parents[3] / "shared" / "data" / "maros_meszaros"
+pytestmark = pytest.mark.skipif(not compiled.AVAILABLE, reason="numba is not installed: no compiled segment")
+
+
+def same_run(a, b):
+    """Two results with the same iterates, iterations, rho path and status."""
+    assert a.status == b.status and a.iterations == b.iterations and a.rho == b.rho
+    assert np.array_equal(a.x, b.x) and np.array_equal(a.y, b.y) and np.array_equal(a.z, b.z)
+    assert np.array_equal(a.history["rho"], b.history["rho"])
+    assert a.termination == b.termination
+    assert a.objective == b.objective or (np.isnan(a.objective) and np.isnan(b.objective))
+
+
+def qdldl_or_skip():
+    if "qdldl" not in admmkit.linsolve.available_backends():
+        pytest.skip("the segment reads qdldl's factors; qdldl is not installed")
+
+
+@pytest.mark.parametrize("make", [
+    lambda: random_qp(40, 60, seed=1),
+    lambda: random_qp(30, 50, kind="equality", seed=2),
+    lambda: random_qp(25, 40, kind="lp", seed=3),
+    lambda: infeasible_qp(seed=4),
+    lambda: unbounded_qp(seed=5),
+], ids=["mixed", "equality", "lp", "infeasible", "unbounded"])
+def test_compiled_iterates_are_the_python_ones_bit_for_bit(make):
+    qdldl_or_skip()
+    qp = make()
+    fast, slow = solve_qp(qp), solve_qp(qp, compiled=False)
+    same_run(fast, slow)
+    assert fast.counters["compiled_iterations"] >= fast.iterations - 2 * (fast.iterations // 25 + 1)
+    assert "compiled_iterations" not in slow.counters
+    assert fast.counters["solves"] == slow.counters["solves"]      # the segment counts its x-step solves
+
+
+def test_tight_tolerances_and_no_relaxation_bit_for_bit():
+    qdldl_or_skip()
+    qp = random_qp(50, 80, seed=7)
+    for changes in (dict(eps_abs=1e-9, eps_rel=1e-9), dict(alpha=1.0, relax_x=False), dict(check_every=7)):
+        same_run(solve_qp(qp, **changes), solve_qp(qp, compiled=False, **changes))
+
+
+@pytest.mark.skipif(not MM.is_dir(), reason="Maros-Meszaros data not present")
+@pytest.mark.parametrize("name", ["QPCBLEND", "HS21", "DUAL1", "CVXQP1_S", "QSHARE1B", "PRIMAL1"])
+def test_maros_meszaros_bit_for_bit(name):
+    qdldl_or_skip()
+    qp = load_mat(MM / f"{name}.mat")
+    same_run(solve_qp(qp), solve_qp(qp, compiled=False))
+
+
+def test_a_rule_that_reads_every_record_runs_in_python():
+    qp = random_qp(30, 40, seed=8)
+    fast = solve_qp(qp, policy=Summable(), max_iter=200)
+    assert "compiled_iterations" not in fast.counters
+    same_run(fast, solve_qp(qp, policy=Summable(), max_iter=200, compiled=False))
+
+
+def test_a_callback_or_the_full_history_sees_every_iteration():
+    qp = random_qp(30, 40, seed=9)
+    seen = []
+    res = solve_qp(qp, callback=lambda rec: seen.append(rec.k))
+    assert seen == list(range(res.iterations)) and "compiled_iterations" not in res.counters
+
+
+def test_history_rows_of_a_segment():
+    qdldl_or_skip()
+    res = solve_qp(random_qp(30, 40, seed=10), eps_abs=1e-8, eps_rel=1e-8)
+    h = res.history
+    assert len(h) == res.iterations and np.array_equal(h["k"], np.arange(res.iterations))
+    assert np.isnan(h["primal_residual"][0]) and np.isfinite(h["primal_residual"][24])   # unread / tested
+    assert np.all(np.diff(h["time"]) >= 0)
+
+
+def test_kernel_stops_before_a_non_finite_step():
+    qdldl_or_skip()
+    run = qp_for(random_qp(20, 30, seed=11), osqp_settings())
+    run.setup(0.1)
+    x, z, lam = np.zeros(run.n), np.zeros(run.m), np.zeros(run.m)
+    z[3] = np.nan
+    out = run_segment(run, x, z, lam, run.As @ x, 0.1, 1.6, "xz", 10)
+    assert out[-1] == 0 and np.array_equal(out[0], x)
+
+
+def test_segment_declines_what_it_does_not_compile():
+    qp = random_qp(20, 30, seed=12)
+    reduced = qp_for(qp, osqp_settings(xstep="reduced"))
+    x, z = np.zeros(qp.n), np.zeros(qp.m)
+    assert run_segment(reduced, x, z, z, z, 0.1, 1.6, "xz", 10) is None
+    assert run_segment(qp_for(qp, osqp_settings()), x, z, z, z, 0.1, 1.6, "zx", 10) is None
+
+
+def test_policies_say_when_they_read_a_record():
+    assert OSQPRule(interval=50).unchanged_until(0) == 49 and OSQPRule(interval=50).unchanged_until(49) == 49
+    assert OSQPRule(interval=50).unchanged_until(50) == 99
+    assert Fixed().unchanged_until(7) > 10 ** 9
+
+    class EveryIteration(Policy):
+        def update(self, rec):
+            return rec.rho
+    assert EveryIteration().unchanged_until(7) == 7 and Summable().unchanged_until(3) == 3
+
+
+def test_compiled_must_be_a_bool():
+    qp = random_qp(10, 10, seed=13)
+    with pytest.raises(TypeError, match="compiled must be True or False"):
+        admmkit.solve(qp_for(qp, osqp_settings()), compiled="yes")
+    with pytest.raises(ValueError, match="compiled must be True or False"):
+        osqp_settings(compiled=1)
