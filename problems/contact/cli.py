@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from admmkit.cli_adaptive import add_adaptive_options, balance_gamma, balance_line
+from admmkit.cli_adaptive import add_adaptive_options, balance_gamma, balance_line, estimator_name
 from admmkit.cli import (add_common_options, add_output_file, add_result_outputs, exit_code, positive_float,
                          print_summary, progress, resolve_policy, stop_rule, write_result_csv)
 
@@ -83,6 +83,7 @@ def run(args) -> int:
     from admmkit.problems.contact.solvers.methods import solve_scene
 
     order, _, name = resolve_policy(args)          # refuses an unknown --policy before anything is built
+    estimator = estimator_name(args)               # and an unknown --estimator
     stop = stop_rule(args)
     if args.target_error is not None:
         from admmkit.problems.contact.output.adaptive_cli import run_adaptive
@@ -91,10 +92,14 @@ def run(args) -> int:
     if gamma is not None and args.mode not in ("auto", "condensed"):
         raise ValueError(f"--balance needs --mode condensed (its bound lives on Gamma_C), got --mode {args.mode}")
     scene = _scene(args)
+    if gamma is not None and estimator != "zz":    # the stop compares with the residual estimate: built here
+        from admmkit.problems.contact.solvers.estimate import balanced_residual_stop
+        model, stop, gamma_arg = *balanced_residual_stop(scene, gamma), None
+    else:
+        model, stop, gamma_arg = scene, (None if gamma else stop), gamma
     with progress(args, args.max_iter) as show:
-        sol = solve_scene(scene, name, args.rho, mode="condensed" if gamma else args.mode,
-                          stop=None if gamma else stop, max_iter=args.max_iter, order=order, callback=show,
-                          balance=gamma)
+        sol = solve_scene(model, name, args.rho, mode="condensed" if gamma else args.mode,
+                          stop=stop, max_iter=args.max_iter, order=order, callback=show, balance=gamma_arg)
     stop = sol.stop
     ops, r = sol.ops, sol.result
     args.resolved = {"policy": name, "order": r.order, "policy_repr": r.policy, "stop": stop.name}

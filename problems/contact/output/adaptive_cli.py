@@ -21,7 +21,7 @@ def run_adaptive(args, scene, method_name: str) -> int:
         raise ValueError(f"--target-error needs a frictionless scene (its error bound), got tangential "
                          f"{scene.tangential!r}")
     print(f"adaptive     contact/{scene.name}: from h = {scene.h:.6g}, P{scene.order}, target {options['target']:g}, "
-          f"theta {options['theta']:g}, gamma {options['gamma']:g}, {method_name}")
+          f"theta {options['theta']:g}, gamma {options['gamma']:g}, {options['estimator']} estimator, {method_name}")
     print("level    cells  unknowns  n_c   estimate  rel.estimate  alg.bound  iterations  seconds  status")
     count, files = iter(range(1, 10 ** 9)), []
 
@@ -49,7 +49,8 @@ def run_adaptive(args, scene, method_name: str) -> int:
 
 
 def _level_vtu(base: str, k: int, out):
-    """FILE_level<k>.vtu: displacement, contact fields and the ZZ indicator of level k."""
+    """FILE_level<k>.vtu: displacement, contact fields and the indicator of level k (zz_indicator: whichever
+    --estimator marked)."""
     from pathlib import Path
     from admmkit.problems.contact.output.export import boundary_fields, vtu_fields, write_vtu
     path = Path(base)

@@ -7,8 +7,9 @@ One level (:func:`solve_adaptive`):
    (:class:`admmkit.problems.contact.solvers.estimate.BalancedStop`), started
    from the previous level's contact pressure (interpolated along Gamma_C to
    the new contact nodes) and rho, so later levels cost few iterations;
-2. **estimate**: the ZZ indicators eta_T and the relative estimate
-   ``eta / ||u_h||_a``;
+2. **estimate**: the indicators eta_T (``estimator="zz"``, the default, or
+   ``"residual"``, Hild & Nicaise's, with the ADMM pressure; the balanced stop
+   uses the same one) and the relative estimate ``eta / ||u_h||_a``;
 3. stop if it is at most ``target``; else **mark** the smallest set of
    elements that carries a share ``theta`` of sum eta_T^2 (Dörfler);
 4. **refine** them with NGSolve's refinement and assemble the scene's data
@@ -31,7 +32,8 @@ from admmkit.adaptive import AdaptiveResult, check_adaptive, dorfler_mark
 
 from admmkit.problems.contact.model.assembly import ContactOperators, assemble, build_mesh
 from admmkit.problems.contact.model.scene import Scene
-from admmkit.problems.contact.solvers.estimate import BalancedStop, zz_indicators
+from admmkit.problems.contact.solvers.estimate import BalancedStop, estimator_indicators
+from admmkit.problems.contact.solvers.estimate_residual import check_estimator
 from admmkit.problems.contact.solvers.methods import method
 from admmkit.problems.contact.solvers.problem import contact_problem
 
@@ -43,7 +45,7 @@ class Level:
     cells: int
     unknowns: int
     contact_nodes: int
-    estimate: float                 # eta, the ZZ estimate of ||u_h - u||_a
+    estimate: float                 # eta, the chosen (ZZ or residual) estimate of ||u_h - u||_a
     relative_estimate: float        # eta / ||u_h||_a
     algebraic_bound: float          # the guaranteed bound of ||u - u_h||_a at the stop
     iterations: int
@@ -60,8 +62,7 @@ def solve_adaptive(scene: Scene, target: float, *, theta: float = 0.5, gamma: fl
     ``result`` and ``indicators`` are that level's), for progress and per-level output.
     """
     check_adaptive(target, theta, gamma, max_levels, max_unknowns)
-    if estimator != "zz":
-        raise ValueError(f"estimator = {estimator!r} is unknown; accepted: zz")
+    check_estimator(estimator)
     if not isinstance(scene, Scene):
         raise ValueError(f"scene must be a 2D admmkit.problems.contact.Scene, got {type(scene).__name__}")
     if scene.tangential != "frictionless":
@@ -79,12 +80,12 @@ def solve_adaptive(scene: Scene, target: float, *, theta: float = 0.5, gamma: fl
         t0 = time.perf_counter()
         ops = assemble(scene, mesh=mesh)
         problem = contact_problem(ops, mode="condensed")
-        stop = BalancedStop(problem, gamma)
+        stop = BalancedStop(problem, gamma, estimator=estimator)
         _, policy = method(method_name)
         start = {} if warm is None else _warm_start(ops, problem, *warm)
         res = admmkit.solve(problem, rho=rho if warm is None else warm[2], policy=policy, order=default_order,
                             stop=stop, max_iter=max_iter, **start)
-        indicators = zz_indicators(ops, res.x)
+        indicators = estimator_indicators(ops, res.x, res.lam, estimator)
         eta = float(np.sqrt(np.sum(indicators ** 2)))
         relative = eta / max(float(np.sqrt(res.x @ (ops.K @ res.x))), 1e-300)
         level = Level(cells=mesh.ne, unknowns=ops.n_free, contact_nodes=ops.n_c, estimate=eta,

@@ -49,6 +49,8 @@ import scipy.linalg as sla
 from admmkit import BalancedStop as BaseBalancedStop
 
 from admmkit.problems.contact.model.assembly import lame
+from admmkit.problems.contact.solvers.estimate_residual import (check_estimator, condensed_pressure, residual_estimate,
+                                                               residual_estimator, residual_indicators)
 
 
 def zz_indicators(ops, u: np.ndarray) -> np.ndarray:
@@ -98,24 +100,56 @@ class CondensedGap:
 
 
 class BalancedStop(BaseBalancedStop):
-    """:class:`admmkit.BalancedStop` for contact: bound (B) of u against the ZZ estimate of u.
+    """:class:`admmkit.BalancedStop` for contact: bound (B) of u against an estimate of u's discretisation error.
 
-    Tested every ``every`` iterations (the estimate needs the full displacement,
-    one solve with K's factorisation).
+    ``estimator``: ``"zz"`` (this module's, the default) or ``"residual"``
+    (:mod:`admmkit.problems.contact.solvers.estimate_residual`, with the pressure
+    that balances the iterate, -w / m_c).  Tested every ``every`` iterations (the
+    estimate needs the full displacement, one solve with K's factorisation).
     """
 
-    def __init__(self, problem, gamma: float = 0.1, every: int = 10):
+    def __init__(self, problem, gamma: float = 0.1, every: int = 10, estimator: str = "zz"):
+        check_estimator(estimator)
         super().__init__(gamma, every)
         self.gap = CondensedGap(problem)
         self.problem = problem
+        self.estimator = estimator
+        if estimator != "zz":
+            self.name = self.name.replace("ZZ", estimator)
+            residual_estimator(problem.ops)           # the estimator's mesh data, built before the run
 
     def algebraic_error_bound(self, rec) -> float:
         """(B) for the x-iterate (s, w); inf unless s = 1, as after every x-step."""
         return self.gap.bound(rec.x[1:], rec.z, rec.lam) if rec.x[0] == 1.0 else math.inf
 
     def discretisation_estimate(self, rec) -> float:
-        """The ZZ estimate eta of the full displacement of the x-iterate."""
-        return zz_estimate(self.problem.ops, self.problem.finalize(rec.x))
+        """The chosen estimate eta (ZZ or residual) of the full displacement of the x-iterate."""
+        u = self.problem.finalize(rec.x)
+        if self.estimator == "zz":
+            return zz_estimate(self.problem.ops, u)
+        return residual_estimate(self.problem.ops, u, condensed_pressure(self.problem, rec.x))
 
 
-__all__ = ["zz_indicators", "zz_estimate", "CondensedGap", "BalancedStop"]
+def balanced_residual_stop(scene, gamma: float):
+    """(operators, stop) for ``solve_scene(operators, stop=stop, mode="condensed")``: the scene assembled and a
+    balanced stop comparing with the residual estimate, on a condensed problem of these operators."""
+    from admmkit.problems.contact.model.assembly import ContactOperators, assemble
+    from admmkit.problems.contact.model.scene3d import Scene3D, assemble3d
+    from admmkit.problems.contact.solvers.problem import contact_problem
+    if isinstance(scene, ContactOperators):
+        ops = scene
+    else:
+        ops = assemble3d(scene) if isinstance(scene, Scene3D) else assemble(scene)
+    return ops, BalancedStop(contact_problem(ops, mode="condensed"), gamma, estimator="residual")
+
+
+def estimator_indicators(ops, u: np.ndarray, lam: np.ndarray, name: str = "zz") -> np.ndarray:
+    """eta_T of the named estimator, ``"zz"`` or ``"residual"`` (lam, the pressure at the contact nodes, is used
+    by the residual one only); ValueError for another name."""
+    if check_estimator(name) == "zz":
+        return zz_indicators(ops, u)
+    return residual_indicators(ops, u, lam)
+
+
+__all__ = ["zz_indicators", "zz_estimate", "CondensedGap", "BalancedStop", "estimator_indicators",
+           "balanced_residual_stop"]
