@@ -90,3 +90,12 @@ def test_cli_estimator(capsys):
     assert main(["solve", "obstacle", "--h", "1/4", "--estimator", "zz2"]) == 2
     err = capsys.readouterr().err
     assert err.strip() == "admmkit: error: --estimator = 'zz2' is unknown; accepted: zz, residual"
+
+
+def test_the_estimators_study_writes_its_table_and_figure(tmp_path):
+    from admmkit.benchmarks.rules.estimators import run
+    paths = run(tmp_path, "admmkit bench estimators --quick", quick=True)
+    assert [p.name for p in paths] == ["estimators.csv", "estimators.md", "estimators.png"]
+    text = (tmp_path / "estimators.md").read_text()
+    assert "radial obstacle" in text and "contact Example 1" in text and "residual effectivity" in text
+    assert (tmp_path / "estimators.png").stat().st_size > 10_000
