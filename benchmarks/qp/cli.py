@@ -55,3 +55,7 @@ qp_fidelity = own_parser("qp-fidelity", "admmkit.benchmarks.qp.qp_fidelity",
 
 qp_agreement = own_parser("qp-agreement", "admmkit.benchmarks.qp.qp_agreement",
                            "random feasible QPs against cvxpy + Clarabel")
+
+
+qp_speed = own_parser("qp-speed", "admmkit.benchmarks.qp.qp_speed",
+                      "a whole QP solve (compiled and Python) against OSQP 1.x's C, problem by problem")

@@ -38,7 +38,8 @@ import numpy as np
 import scipy.io
 import scipy.sparse as sp
 
-DEFAULT_DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "maros_meszaros"
+#: the README runs every command from the repository root, with the shared data beside the clone
+DEFAULT_DATA = Path("../shared/data/maros_meszaros")
 EPS = (1e-3, 1e-6)
 MAX_ITER = 10_000
 TIME_LIMIT = 20.0

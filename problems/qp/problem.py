@@ -48,7 +48,7 @@ from admmkit import Problem
 from . import rows
 from .rows import FREE_ROW_PENALTY
 from .validate import _inf, _real, _validate
-from .xstep_forms import REDUCED_MAX_NNZ, XSTEPS, reduced_nnz_bound, x_step_solver
+from .xstep_forms import REDUCED_MAX_NNZ, XSTEPS, reduced_nnz_bound, x_step_backend, x_step_solver
 
 class QP(Problem):
     """A convex QP, validated on construction.
@@ -114,7 +114,14 @@ class QP(Problem):
         # rho_vec; their lam and residual are 0 from the first iteration on, so only the x-step sees it (Q5)
         self._free = np.flatnonzero(np.isinf(self.ls) & np.isinf(self.us)) if self.w is not None else np.empty(0, int)
         self._w_free_over_penalty = w[self._free] / FREE_ROW_PENALTY
-        self._solver = x_step_solver(self, backend)
+        self._backend, self._x_solver = x_step_backend(backend, xstep), None
+
+    @property
+    def _solver(self):
+        """The x-step's factorisations (built on first use: a QP that ``solve_qp`` copies never needs its own)."""
+        if self._x_solver is None:
+            self._x_solver = x_step_solver(self, self._backend)
+        return self._x_solver
 
     def setup(self, rho: float) -> int:
         """Factorise the x-step matrix for ``rho`` now (OSQP's setup), unless cached; return the factorisations made.
@@ -291,4 +298,6 @@ class QP(Problem):
 
     def counters(self):
         """Factorisations and solves of the x-step matrix so far."""
+        if self._x_solver is None:
+            return {"factorizations": 0, "solves": 0}
         return {"factorizations": self._solver.factorizations, "solves": self._solver.solves}

@@ -33,14 +33,24 @@ def _kkt_backend(backend: str) -> str:
     return backend
 
 
+def x_step_backend(backend: str, xstep: str) -> str:
+    """The backend name checked for the form (a clear ValueError now, not at the first solve)."""
+    if xstep == "kkt":
+        return _kkt_backend(backend)
+    if backend != "auto" and backend not in available_backends():
+        raise ValueError(f"backend must be 'auto' or one of the installed sparse solvers "
+                         f"{', '.join(available_backends())}, got {backend!r}")
+    return backend
+
+
 def x_step_solver(qp, backend: str) -> CachedFactorization:
     """The x-step matrix of ``qp`` (its scaled data, its ``xstep`` form) for any rho, factorised once per rho.
 
     reduced: P + sigma I + rho A'MA, with a free row's term at FREE_ROW_PENALTY instead (Q5);
     kkt: [[P + sigma I, A'], [A, -R^-1]] with R = ``qp.penalty(rho)``.
     """
-    base = (qp.Ps + qp.sigma * sp.identity(qp.n, format="csc")).tocsc()
     if qp.xstep == "reduced":
+        base = (qp.Ps + qp.sigma * sp.identity(qp.n, format="csc")).tocsc()
         if qp.w is None:
             G = (qp.Ats @ qp.As).tocsc()
         else:
@@ -52,10 +62,41 @@ def x_step_solver(qp, backend: str) -> CachedFactorization:
             base = (base + FREE_ROW_PENALTY * (Af.T @ Af)).tocsc()
         return CachedFactorization(lambda rho: (base + rho * G).tocsc(), backend=backend)
     kkt_backend = _kkt_backend(backend)
-    top = sp.bmat([[base, qp.As.T], [qp.As, None]], format="csc")
-    # qdldl reads the upper triangle; given only that, its solves are several times faster (its ordering
-    # then sees the symmetric pattern once): 51 us against 302 us on PRIMAL4's KKT matrix
-    part = (lambda K: sp.triu(K, format="csc")) if kkt_backend == "qdldl" else (lambda K: K.tocsc())
-    zeros = np.zeros(qp.n)
-    return CachedFactorization(lambda rho: part(top + sp.diags(np.r_[zeros, -1.0 / qp.penalty(rho)], format="csc")),
-                               backend=kkt_backend)
+    # the KKT matrix is assembled once, with a placeholder on the -R^-1 diagonal; a new rho writes that
+    # diagonal only (OSQP's update_kkt_rho_vec).  qdldl reads the upper triangle; given only that, its solves
+    # are several times faster (its ordering then sees the symmetric pattern once): 51 us against 302 us on
+    # PRIMAL4's KKT matrix
+    K0, slots = _kkt_pattern(qp, upper=kkt_backend == "qdldl")
+
+    def matrix(rho):
+        K = K0.copy()
+        K.data[slots] = -1.0 / qp.penalty(rho)
+        return K
+    return CachedFactorization(matrix, backend=kkt_backend)
+
+
+def _kkt_pattern(qp, upper: bool):
+    """The KKT matrix [[P + sigma I, A'], [A, 1]] (its upper triangle if ``upper``) in CSC, assembled in one
+    COO -> CSC pass, and the positions of its last m diagonal entries (the -R^-1 slots).
+
+    The same entries as scipy's ``bmat`` of the blocks plus ``diags``: P_ii + sigma is the one sum, and exact
+    zeros are dropped as scipy's sums drop them.
+    """
+    n, m = qp.n, qp.m
+    P, A = qp.Ps.tocoo(), qp.As.tocoo()
+    keep = P.row <= P.col if upper else slice(None)
+    diag = np.arange(n)
+    rows = [P.row[keep], diag, A.col, n + np.arange(m)]
+    cols = [P.col[keep], diag, n + A.row, n + np.arange(m)]
+    data = [P.data[keep], np.full(n, qp.sigma), A.data, np.ones(m)]
+    if not upper:                                   # the lower block A too
+        rows.append(n + A.row)
+        cols.append(A.col)
+        data.append(A.data)
+    size = n + m
+    K0 = sp.csc_matrix((np.concatenate(data), (np.concatenate(rows), np.concatenate(cols))), shape=(size, size))
+    K0.sum_duplicates()
+    K0.eliminate_zeros()
+    K0.sort_indices()
+    col_of = np.repeat(np.arange(size), np.diff(K0.indptr))
+    return K0, np.flatnonzero((K0.indices == col_of) & (col_of >= n))

@@ -1,0 +1,199 @@
+"""``admmkit bench qp-speed``: a whole QP solve, admmkit against OSQP 1.x's C, problem by problem.
+
+    admmkit bench qp-speed --max-size 3000 --out docs/results/qp_speed
+
+What a user of the plug-in waits for, from the arrays to the answer, for every
+convex Maros-Meszaros problem with n + m <= ``--max-size``:
+
+- ``osqp``: ``osqp.OSQP().setup(...)`` then ``solve()`` (OSQP 1.x, deterministic:
+  rho every 50 iterations, the test every 25, the gap test on, no polishing);
+- ``admmkit``: ``QP(P, q, A, l, u)`` then ``solve_qp(qp)`` with the OSQP preset,
+  the iterations between checks in the compiled segment (:mod:`admmkit.segments`);
+- ``admmkit-python``: the same with ``compiled=False`` (every iteration in Python).
+
+Each is timed whole (``perf_counter`` around construction and solve), the best
+of ``--repeat`` runs taken in turn, in one process with BLAS on one thread;
+the loop alone too (OSQP's ``solve_time``, admmkit's ``timings["total"]``).
+The numba kernels are compiled (or loaded from numba's cache) before the
+first timing; that one-off time is reported apart.  The summary gives the
+ratios admmkit / OSQP over the problems both solve with the same iteration
+count, for small (n + m < 1000) and larger problems.
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import shlex
+import statistics
+import sys
+import time
+import warnings
+from pathlib import Path
+
+import numpy as np
+import scipy.sparse as sp
+
+from .qp_fidelity import DEFAULT_DATA, select
+
+CONFIGS = ("osqp", "admmkit", "admmkit-python")
+COLUMNS = ("problem", "n", "m", "eps", "solver", "status", "iterations", "whole_ms", "loop_ms", "ratio_whole",
+           "ratio_loop")
+SMALL = 1000
+
+
+def _osqp(P, q, A, l, u, eps: float, max_iter: int):
+    import osqp
+    t0 = time.perf_counter()
+    solver = osqp.OSQP()
+    solver.setup(sp.triu(P, format="csc"), q, A, l, u, verbose=False, polishing=False, eps_abs=eps, eps_rel=eps,
+                 max_iter=max_iter, adaptive_rho=1, adaptive_rho_interval=50, check_termination=25,
+                 check_dualgap=True)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        res = solver.solve()
+    whole = time.perf_counter() - t0
+    return res.info.status, res.info.iter, whole, res.info.solve_time
+
+
+def _admmkit(P, q, A, l, u, eps: float, max_iter: int, compiled: bool):
+    from admmkit.problems.qp import QP, solve_qp
+    t0 = time.perf_counter()
+    res = solve_qp(QP(P, q, A, l, u), eps_abs=eps, eps_rel=eps, max_iter=max_iter, compiled=compiled)
+    whole = time.perf_counter() - t0
+    return res.termination or res.status.value, res.iterations, whole, res.timings["total"]
+
+
+def measure(name: str, data: Path, eps: float, max_iter: int, repeat: int) -> list[dict]:
+    """The three configurations on one problem, each the best of ``repeat`` runs taken in turn."""
+    from admmkit.problems.qp import load_mat
+    qp = load_mat(data / f"{name}.mat")
+    P, q, A, l, u = qp.P, qp.q, qp.A, qp.l, qp.u
+    runs = {"osqp": lambda: _osqp(P, q, A, l, u, eps, max_iter),
+            "admmkit": lambda: _admmkit(P, q, A, l, u, eps, max_iter, True),
+            "admmkit-python": lambda: _admmkit(P, q, A, l, u, eps, max_iter, False)}
+    best: dict[str, tuple] = {}
+    for _ in range(repeat):
+        for config in CONFIGS:
+            out = runs[config]()
+            if config not in best or out[2] < best[config][2]:
+                best[config] = out
+    base = best["osqp"]
+    rows = []
+    for config in CONFIGS:
+        status, iterations, whole, loop = best[config]
+        rows.append({"problem": name, "n": qp.n, "m": qp.m, "eps": eps, "solver": config, "status": status,
+                     "iterations": iterations, "whole_ms": 1e3 * whole, "loop_ms": 1e3 * loop,
+                     "ratio_whole": whole / base[2], "ratio_loop": (loop / iterations) / (base[3] / base[1])
+                     if iterations and base[1] and base[3] > 0 else float("nan")})
+    return rows
+
+
+def _stats(values) -> str:
+    if not values:
+        return "none"
+    v = np.sort(np.asarray(values))
+    return (f"median {np.median(v):.2f} (p10 {np.percentile(v, 10):.2f}, p90 {np.percentile(v, 90):.2f}, "
+            f"max {v[-1]:.2f}; {len(v)} problems)")
+
+
+def comparable(rows: list[dict]) -> dict[str, dict]:
+    """Per problem and eps: the rows of the three configurations, kept where all solved with the same iterations."""
+    by: dict[tuple, dict] = {}
+    for r in rows:
+        by.setdefault((r["problem"], r["eps"]), {})[r["solver"]] = r
+    return {k: v for k, v in by.items() if len(v) == len(CONFIGS)
+            and all(r["status"] == "solved" for r in v.values())
+            and len({r["iterations"] for r in v.values()}) == 1}
+
+
+def summarise(rows: list[dict]) -> list[str]:
+    """Markdown lines: the ratios admmkit / OSQP, whole solve and loop per iteration, small and larger problems."""
+    same = comparable(rows)
+    lines = [f"Problems solved by all three with the same iteration count: {len(same)} "
+             f"(of {len({(r['problem'], r['eps']) for r in rows})}).", "",
+             "| admmkit / OSQP | problems | whole solve, compiled | whole solve, Python | loop per iteration, "
+             "compiled | loop per iteration, Python |", "|---|---|---|---|---|---|"]
+    for label, keep in ((f"n + m < {SMALL}", lambda r: r["n"] + r["m"] < SMALL),
+                        (f"n + m >= {SMALL}", lambda r: r["n"] + r["m"] >= SMALL), ("all", lambda r: True)):
+        group = [v for v in same.values() if keep(v["osqp"])]
+        cells = [_stats([v[c][key] for v in group]) for key in ("ratio_whole", "ratio_loop")
+                 for c in ("admmkit", "admmkit-python")]
+        lines.append(f"| {label} | {len(group)} | {cells[0]} | {cells[1]} | {cells[2]} | {cells[3]} |")
+    return lines
+
+
+def plot(rows: list[dict], path: Path) -> None:
+    """Whole-solve ratio admmkit / OSQP against n + m, compiled and Python, on a log scale."""
+    from admmkit.figures import save_figure
+    import matplotlib.pyplot as plt
+    same = comparable(rows)
+    fig, ax = plt.subplots(figsize=(7, 4.2))
+    for config, marker in (("admmkit-python", "x"), ("admmkit", "o")):
+        size = [v["osqp"]["n"] + v["osqp"]["m"] for v in same.values()]
+        ax.scatter(size, [v[config]["ratio_whole"] for v in same.values()], marker=marker, s=18,
+                   label=f"{config} (median {np.median([v[config]['ratio_whole'] for v in same.values()]):.1f}x)")
+    ax.axhline(1, color="k", lw=0.8)
+    ax.axhline(2, color="k", lw=0.8, ls="--", label="2x OSQP")
+    ax.set(xscale="log", yscale="log", xlabel="n + m", ylabel="whole solve time / OSQP's",
+           title="A whole QP solve against OSQP 1.x (Maros-Meszaros, same iterations)")
+    ax.legend(fontsize=8)
+    save_figure(fig, path)
+    plt.close(fig)
+
+
+def main(argv=None, prog: str = "admmkit bench qp-speed") -> int:
+    """Run the study, print the summary and write qp_speed.csv, qp_speed.png and README.md under --out."""
+    parser = argparse.ArgumentParser(prog=prog, description=__doc__.splitlines()[0])
+    parser.add_argument("--data", default=str(DEFAULT_DATA), help="folder of Maros-Meszaros MAT files")
+    parser.add_argument("--out", default="out/qp_speed", help="output folder (default ./out/qp_speed/)")
+    parser.add_argument("--max-size", type=int, default=3000, help="largest n + m (default 3000)")
+    parser.add_argument("--problems", nargs="*", help="only these problems")
+    parser.add_argument("--eps", type=float, default=1e-3, help="eps_abs = eps_rel (default 1e-3)")
+    parser.add_argument("--max-iter", type=int, default=4000, help="iteration cap (default 4000, OSQP's)")
+    parser.add_argument("--repeat", type=int, default=3, help="runs per configuration, the best kept (default 3)")
+    args = parser.parse_args(argv)
+    if args.max_size < 1 or args.eps <= 0 or args.max_iter < 1 or args.repeat < 1:
+        parser.error("--max-size, --eps, --max-iter and --repeat must be positive")
+    if not Path(args.data).is_dir():
+        parser.error(f"--data: no folder {args.data}")
+    for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+        os.environ.setdefault(var, "1")
+    from threadpoolctl import threadpool_limits
+    from admmkit.io import write_text
+    from admmkit.problems.qp import random_qp
+    from admmkit.problems.qp.mat import read_matrices
+    from admmkit.benchmarks.runner.report import machine_info, machine_markdown, write_csv
+    data, out = Path(args.data), Path(args.out)
+    command = prog + " " + " ".join(shlex.quote(a) for a in (argv if argv is not None else sys.argv[1:]))
+    chosen = []
+    for name, _ in select(data, float("inf"), args.problems):
+        P, A = read_matrices(data / f"{name}.mat")
+        if args.problems or P.shape[0] + A.shape[0] <= args.max_size:
+            chosen.append(name)
+    t0 = time.perf_counter()
+    _admmkit(*(lambda p: (p.P, p.q, p.A, p.l, p.u))(random_qp(5, 5)), 1e-3, 100, True)   # numba: compile or load
+    jit = time.perf_counter() - t0
+    print(f"{len(chosen)} problems with n + m <= {args.max_size}; kernels ready in {jit:.2f} s", flush=True)
+    rows, start = [], time.perf_counter()
+    with threadpool_limits(1):
+        for i, name in enumerate(chosen):
+            new = measure(name, data, args.eps, args.max_iter, args.repeat)
+            rows += new
+            print(f"[{i + 1}/{len(chosen)}] {name}: " + "  ".join(
+                f"{r['solver']} {r['whole_ms']:.2f} ms/{r['iterations']} it" for r in new), flush=True)
+    write_csv(out / "qp_speed.csv", rows, list(COLUMNS), float_format=".6g")
+    plot(rows, out / "qp_speed.png")
+    text = "\n".join([
+        "# A whole QP solve: admmkit against OSQP 1.x (Maros-Meszaros)", "", f"Command: `{command}`", "",
+        f"{len(chosen)} convex problems with n + m <= {args.max_size}, eps_abs = eps_rel = {args.eps:g}, "
+        f"iteration cap {args.max_iter}, best of {args.repeat} runs taken in turn, BLAS on one thread; "
+        f"the numba kernels were ready after {jit:.2f} s (compiled, or loaded from numba's cache) before the "
+        f"first timing. Study wall time {time.perf_counter() - start:.0f} s.", "",
+        *summarise(rows), "", "![ratios](qp_speed.png)", "", machine_markdown(machine_info())]) + "\n"
+    write_text(out / "README.md", text)
+    print(text)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
