@@ -32,3 +32,26 @@ def test_qp_agreement_on_a_few_qps(tmp_path):
     solved = [r for r in rows if r["status"] == "solved"]
     assert solved and all(float(r["objective_error"]) < 1e-3 for r in solved)
     assert "Command: `admmkit bench qp-agreement" in (tmp_path / "README.md").read_text()
+
+
+def test_qp_speed_on_three_problems(tmp_path):
+    pytest.importorskip("osqp")
+    from admmkit.benchmarks.qp import qp_speed
+    assert qp_speed.main(["--data", str(MM), "--problems", "HS21", "HS35", "QPCBLEND", "--out", str(tmp_path),
+                          "--repeat", "1"]) == 0
+    rows = list(csv.DictReader((tmp_path / "qp_speed.csv").open()))
+    assert len(rows) == 3 * 3 and {r["solver"] for r in rows} == set(qp_speed.CONFIGS)
+    for p in ("HS21", "HS35", "QPCBLEND"):            # the same iterations in all three: the ratios compare like work
+        assert len({r["iterations"] for r in rows if r["problem"] == p}) == 1
+        osqp_row = next(r for r in rows if r["problem"] == p and r["solver"] == "osqp")
+        assert float(osqp_row["ratio_whole"]) == 1.0
+    readme = (tmp_path / "README.md").read_text()
+    assert "Command: `admmkit bench qp-speed" in readme and "same iteration count: 3 (of 3)" in readme
+    assert (tmp_path / "qp_speed.png").stat().st_size > 0
+
+
+def test_qp_speed_rejects_bad_options(capsys):
+    from admmkit.benchmarks.qp import qp_speed
+    with pytest.raises(SystemExit) as exit_:
+        qp_speed.main(["--repeat", "0"])
+    assert exit_.value.code == 2 and "--repeat" in capsys.readouterr().err
