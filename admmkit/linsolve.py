@@ -13,126 +13,16 @@ Backends (all exact, direct solvers; the optional ones are imported lazily):
 * ``"cholmod"``: CHOLMOD via ``sksparse.cholmod`` (needs SuiteSparse headers),
 * ``"pardiso"``: MKL PARDISO via ``pypardiso`` (large MKL wheel).
 """
-import functools
-import importlib.util
 import math
-import os
 import time
-import weakref
 from collections import OrderedDict
 from typing import Callable
 
 import numpy as np
 import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 
-# Order used by backend="auto": the first one installed wins.  Measured by
-# benchmarks/contact/linsolve_backends.py (docs/results/linsolve.md; 2-core Xeon) on
-# plane-strain elasticity, 1 thread, seconds factor / solve:
-#
-#     n        cholmod      superlu      qdldl        ngsolve      pardiso
-#     1e3   0.0013/3e-5  0.0020/7e-5  0.0015/4e-5  0.0045/1.4e-4 0.0026/1.7e-4
-#     1e4   0.039/8e-4   0.030/1.1e-3 0.029/8.8e-4 0.048/1.8e-3  0.023/2.0e-3
-#     1e5   0.55/0.011   0.68/0.021   1.3/0.028    0.74/0.037    0.35/0.026
-#     1e6   10/0.24      21/0.29      50/0.38      14/0.74       5.5/0.49
-#
-# - cholmod is the fastest solver whenever it is installed (it rarely is: pip
-#   needs Debian's libsuitesparse-dev, and scikit-sparse 0.5 needs SuiteSparse
-#   7; 0.4.16 builds against Debian 12's SuiteSparse 5).
-# - An ADMM run does many solves per factorisation, so solves weigh most.
-#   superlu (MMD on A^T+A, symmetric mode) is always installed and has the
-#   best solves of the rest from 1e5 on; qdldl solves a little faster below
-#   1e4 (tens of microseconds) but factors 2x slower from 1e5 on.
-# - ngsolve is slower than superlu at every size and its own thread pool adds
-#   ~25 ms per factorisation when the other core is busy.
-# - pardiso (MKL) factors fastest from 1e4 but solves slower than superlu,
-#   and its OpenMP threads slow small solves badly on a loaded machine.
-AUTO_ORDER = ["cholmod", "superlu", "qdldl", "ngsolve", "pardiso"]
-
-_MODULES = {"superlu": "scipy", "ngsolve": "ngsolve", "qdldl": "qdldl",
-            "cholmod": "sksparse.cholmod", "pardiso": "pypardiso"}
-
-
-@functools.lru_cache(maxsize=None)
-def _importable(module: str) -> bool:
-    """Whether ``module`` can be imported (asked once per process: a search of sys.path costs ~20 us)."""
-    try:
-        return importlib.util.find_spec(module) is not None
-    except ImportError:  # a parent package is missing
-        return False
-
-
-def available_backends() -> list[str]:
-    """Names of the backends importable on this machine, fastest first."""
-    return [name for name in AUTO_ORDER if _importable(_MODULES[name])]
-
-
-def _resolve(backend: str) -> str:
-    """Map ``"auto"`` to the fastest installed backend and check the name."""
-    available = available_backends()
-    if backend == "auto":
-        return available[0]
-    if backend not in _MODULES:
-        raise ValueError(f"backend must be 'auto' or one of {sorted(_MODULES)}, got {backend!r}; "
-                         f"available here: {available}")
-    if backend not in available:
-        raise ValueError(f"backend {backend!r} is not installed here; available: {available}")
-    return backend
-
-
-# Each _factor_<name>(A) takes a CSC float64 SPD matrix and returns solve(b)
-# for a 1-D right-hand side b.
-
-def _factor_superlu(A):
-    lu = spla.splu(A, permc_spec="MMD_AT_PLUS_A", options=dict(SymmetricMode=True))
-    return lu.solve
-
-
-def _factor_ngsolve(A):
-    from ngsolve.la import SparseMatrixd
-    L = sp.tril(A).tocoo()  # sparsecholesky reads the lower triangle only
-    n = A.shape[0]
-    mat = SparseMatrixd.CreateFromCOO(L.row, L.col, L.data, n, n)
-    inverse = mat.Inverse(inverse="sparsecholesky")
-    r, x = mat.CreateColVector(), mat.CreateColVector()
-
-    def solve(b):
-        r.FV().NumPy()[:] = b
-        x.data = inverse * r
-        return x.FV().NumPy().copy()
-    return solve
-
-
-def _factor_qdldl(A):
-    import qdldl
-    # qdldl reads the upper triangle; handing it only that (not the full matrix) made its solves 6x faster
-    # on a QP's KKT matrix (PRIMAL4: 51 us against 302 us), same factor
-    solver = qdldl.Solver(sp.triu(A, format="csc"))
-
-    def solve(b):
-        return solver.solve(b)
-    solve.ldl = solver.factors          # (L, D, p) with A = P (I + L) D (I + L)' P': for compiled solves
-    return solve
-
-
-def _factor_cholmod(A):
-    from sksparse import cholmod
-    return cholmod.cholesky(A)
-
-
-def _factor_pardiso(A):
-    import pypardiso
-    U = sp.triu(A, format="csr")  # mtype 2 (real SPD) reads the upper triangle
-    U.sort_indices()
-    solver = pypardiso.PyPardisoSolver(mtype=2)
-    # Each new solver searches the file system for mkl_rt (~0.25 s); remember it.
-    os.environ.setdefault("PYPARDISO_MKL_RT", solver.libmkl._name)
-    solver.factorize(U)
-
-    def solve(b):
-        return solver.solve(U, b)
-    weakref.finalize(solve, solver.free_memory, True)  # release MKL's memory
-    return solve
+from .sparse_backends import AUTO_ORDER, available_backends, _resolve  # noqa: F401  (the public names here)
+from . import sparse_backends
 
 
 def factorize(matrix, backend: str = "auto") -> Callable[[np.ndarray], np.ndarray]:
@@ -144,18 +34,34 @@ def factorize(matrix, backend: str = "auto") -> Callable[[np.ndarray], np.ndarra
     factorised (the singularity may only show in the first solve).
     """
     name = _resolve(backend)
+    A = _canonical(matrix)
+    return _checked(_backend_factor(name, A, getattr(sparse_backends, f"_factor_{name}")), name, A)
+
+
+def _canonical(matrix) -> sp.csc_matrix:
+    """``matrix`` as a square float64 CSC matrix without duplicates, indices sorted."""
     A = sp.csc_matrix(matrix, dtype=np.float64)
     if A.ndim != 2 or A.shape[0] != A.shape[1]:
         raise ValueError(f"matrix must be square, got shape {A.shape}")
-    n = A.shape[0]
     A.sum_duplicates()
     A.sort_indices()
+    return A
+
+
+def _backend_factor(name: str, A, factor):
+    """``factor(A)``, any backend error as LinAlgError."""
     try:
-        solve1 = globals()[f"_factor_{name}"](A)
+        return factor(A)
     except Exception as err:  # backends raise RuntimeError, their own errors, ...
         raise np.linalg.LinAlgError(
-            f"backend {name!r} could not factorise the {n}x{n} matrix "
+            f"backend {name!r} could not factorise the {A.shape[0]}x{A.shape[0]} matrix "
             f"(singular or not positive definite?): {err}") from err
+
+
+def _checked(solve1, name: str, A):
+    """The backend's ``solve1`` with its input and output checked; ``solve.refactor(matrix)`` refactorises in
+    place when the backend can and the pattern is ``A``'s (else None: factorise anew)."""
+    n = A.shape[0]
 
     def solve(rhs: np.ndarray) -> np.ndarray:
         """Solve matrix @ x = rhs for a 1-D (n,) or 2-D (n, k) rhs."""
@@ -174,6 +80,14 @@ def factorize(matrix, backend: str = "auto") -> Callable[[np.ndarray], np.ndarra
                 f"backend {name!r} returned a non-finite solution: the matrix is singular")
         return x
     solve.ldl = getattr(solve1, "ldl", None)
+    refactor = getattr(solve1, "refactor", None)
+
+    def refactor_in_place(matrix):
+        B = _canonical(matrix)
+        if not (B.shape == A.shape and np.array_equal(B.indptr, A.indptr) and np.array_equal(B.indices, A.indices)):
+            return None
+        return _checked(_backend_factor(name, B, refactor), name, B)
+    solve.refactor = None if refactor is None else refactor_in_place
     return solve
 
 
@@ -183,7 +97,11 @@ class CachedFactorization:
     ``matrix(rho)`` returns the sparse SPD matrix for a penalty ``rho``; it is
     called and factorised the first time a rho value is seen.  Entries are
     keyed on ``float(rho)`` exactly; when more than ``max_cached`` values are
-    held, the least recently used one is dropped.
+    held, the least recently used one is dropped.  ``in_place=True`` keeps one
+    factorisation and refactorises it in place for a new rho when the backend
+    can and the pattern is the same (qdldl: the numeric factorisation only, its
+    ordering kept, as OSQP does on a change of rho; the same factor as a new
+    one), else factorises anew.
 
     Attributes: ``factorizations`` and ``solves`` count the work done,
     ``factor_time`` and ``solve_time`` the seconds spent in it, ``backend`` is
@@ -191,14 +109,15 @@ class CachedFactorization:
     """
 
     def __init__(self, matrix: Callable[[float], "sp.spmatrix"], *, backend: str = "auto",
-                 max_cached: int = 32):
+                 max_cached: int = 32, in_place: bool = False):
         if not callable(matrix):
             raise TypeError("matrix must be a callable rho -> sparse matrix")
         if isinstance(max_cached, bool) or not isinstance(max_cached, int) or max_cached < 1:
             raise ValueError(f"max_cached must be an integer >= 1, got {max_cached!r}")
         self.matrix = matrix
         self.backend = _resolve(backend)
-        self.max_cached = max_cached
+        self.max_cached = 1 if in_place else max_cached
+        self.in_place = bool(in_place)
         self.factorizations = 0
         self.solves = 0
         self.factor_time = 0.0
@@ -222,12 +141,24 @@ class CachedFactorization:
             self._cache.move_to_end(key)
         else:
             start = time.perf_counter()
-            self._cache[key] = factorize(self.matrix(key), self.backend)
+            self._cache[key] = self._new_factor(key)
             self.factor_time += time.perf_counter() - start
             self.factorizations += 1
             if len(self._cache) > self.max_cached:
                 self._cache.popitem(last=False)
         return self._cache[key]
+
+    def _new_factor(self, key: float):
+        """A factorisation of matrix(key): in place of the held one when ``in_place`` allows, else a new one."""
+        matrix = self.matrix(key)
+        if self.in_place and self._cache:
+            old = self._cache[next(iter(self._cache))]
+            if old.refactor is not None:
+                solve = old.refactor(matrix)
+                if solve is not None:
+                    self._cache.clear()
+                    return solve
+        return factorize(matrix, self.backend)
 
     def solve(self, rho: float, rhs: np.ndarray) -> np.ndarray:
         """Solve ``matrix(rho) @ x = rhs``, factorising matrix(rho) if not cached."""

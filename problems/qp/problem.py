@@ -46,8 +46,9 @@ import numpy as np
 from admmkit import Problem
 
 from . import rows
+from .kkt import kkt_residuals
 from .rows import FREE_ROW_PENALTY
-from .validate import _inf, _real, _validate
+from .validate import _real, _validate
 from .xstep_forms import REDUCED_MAX_NNZ, XSTEPS, reduced_nnz_bound, x_step_backend, x_step_solver
 
 class QP(Problem):
@@ -273,28 +274,9 @@ class QP(Problem):
         return float(0.5 * x @ (self.P @ x) + self.q @ x + self.r)
 
     def kkt(self, x, z, lam):
-        """KKT residuals (inf-norms) of the user's QP at the user's x and the loop's (z, lam), OSQP's definitions and more.
-
-        primal: ||A x - z||_inf (OSQP), infeasibility: distance of A x to the box,
-        dual: ||P x + q + A' y||_inf, complementarity: max of y_i times the
-        slack of the bound it pushes against, sign: max ``|y_i|`` pushing against
-        an infinite bound; y = E M lam / c and z = E^-1 zb are the user's.
-        """
-        if self.scaled:
-            z = self.scaling.unscale_z(z)
-        y = self.multiplier(lam)
-        Ax = self.A @ x
-        y_pos, y_neg = np.maximum(y, 0.0), np.maximum(-y, 0.0)
-        fin_u, fin_l = np.isfinite(self.u), np.isfinite(self.l)
-        comp_u = y_pos[fin_u] * np.abs(self.u[fin_u] - Ax[fin_u])
-        comp_l = y_neg[fin_l] * np.abs(Ax[fin_l] - self.l[fin_l])
-        return {
-            "primal": _inf(Ax - z),
-            "infeasibility": _inf(Ax - np.clip(Ax, self.l, self.u)),
-            "dual": _inf(self.P @ x + self.q + self.At @ y),
-            "complementarity": max(_inf(comp_u), _inf(comp_l)),
-            "sign": max(_inf(y_pos[~fin_u]), _inf(y_neg[~fin_l])),
-        }
+        """KKT residuals (inf-norms) of the user's QP at the user's x and the loop's (z, lam), OSQP's definitions and
+        more (``admmkit.problems.qp.kkt``)."""
+        return kkt_residuals(self, x, z, lam)
 
     def counters(self):
         """Factorisations and solves of the x-step matrix so far."""

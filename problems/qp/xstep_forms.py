@@ -72,7 +72,8 @@ def x_step_solver(qp, backend: str) -> CachedFactorization:
         K = K0.copy()
         K.data[slots] = -1.0 / qp.penalty(rho)
         return K
-    return CachedFactorization(matrix, backend=kkt_backend)
+    # in place: a new rho refactorises the one factorisation numerically (OSQP's update_rho), without a new ordering
+    return CachedFactorization(matrix, backend=kkt_backend, in_place=True)
 
 
 def _kkt_pattern(qp, upper: bool):

@@ -106,7 +106,7 @@ def test_unknown_backend():
 
 
 def test_backend_not_installed(monkeypatch):
-    monkeypatch.setattr(linsolve, "_importable", lambda module: module == "scipy")
+    monkeypatch.setattr(linsolve.sparse_backends, "_importable", lambda module: module == "scipy")
     assert available_backends() == ["superlu"]
     assert CachedFactorization(penalized).backend == "superlu"
     with pytest.raises(ValueError, match="'qdldl' is not installed.*superlu"):
@@ -160,3 +160,19 @@ def test_singular_matrix(backend):
     cache = CachedFactorization(lambda rho: A, backend=backend)
     with pytest.raises(np.linalg.LinAlgError):
         cache.solve(1.0, np.ones(4))
+
+
+def test_in_place_refactorisation_is_the_new_factor():
+    """in_place: one factorisation held; a new rho refactorises it numerically (qdldl), with the solutions of a
+    fresh factorisation bit for bit; a changed pattern factorises anew."""
+    if "qdldl" not in available_backends():
+        pytest.skip("qdldl is not installed")
+    fresh = CachedFactorization(penalized, backend="qdldl")
+    kept = CachedFactorization(penalized, backend="qdldl", in_place=True)
+    b = np.arange(1.0, penalized(1.0).shape[0] + 1)
+    for rho in (1.0, 7.5, 0.3, 1.0):
+        assert np.array_equal(kept.solve(rho, b), fresh.solve(rho, b))
+        assert len(kept) == 1
+    assert kept.factorizations == 4 and fresh.factorizations == 3      # 1.0 came back: a refactorisation
+    solve = kept._cache[1.0]
+    assert solve.refactor(sp.identity(b.size, format="csc")) is None     # another pattern: not in place
