@@ -178,7 +178,5 @@ class CachedFactorization:
             return None
         if not hasattr(solve, "ldl_arrays"):
             L, d, p = solve.ldl()
-            L = sp.csc_matrix(L)
-            solve.ldl_arrays = (L.indptr.astype(np.int64), L.indices.astype(np.int64), L.data.astype(np.float64),
-                                1.0 / np.asarray(d, dtype=np.float64), np.asarray(p, dtype=np.int64))
+            solve.ldl_arrays = (L.indptr, L.indices, L.data, 1.0 / d, p)
         return solve.ldl_arrays

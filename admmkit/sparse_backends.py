@@ -10,6 +10,7 @@ import importlib.util
 import os
 import weakref
 
+import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
@@ -94,7 +95,13 @@ def _factor_qdldl(A):
     import qdldl
     # qdldl reads the upper triangle; handing it only that (not the full matrix) made its solves 6x faster
     # on a QP's KKT matrix (PRIMAL4: 51 us against 302 us), same factor
-    return _qdldl_solve(qdldl.Solver(sp.triu(A, format="csc")))
+    return _qdldl_solve(qdldl.Solver(_upper(A), upper=True))
+
+
+def _upper(A):
+    """The upper triangle of CSC ``A`` (``A`` itself when it has no entry below the diagonal: no copy)."""
+    below = A.indices > np.repeat(np.arange(A.shape[1], dtype=A.indices.dtype), np.diff(A.indptr))
+    return sp.triu(A, format="csc") if below.any() else A
 
 
 def _qdldl_solve(solver):
@@ -104,7 +111,7 @@ def _qdldl_solve(solver):
         return solver.solve(b)
 
     def refactor(A):
-        solver.update(sp.triu(A, format="csc"), upper=True)
+        solver.update(_upper(A), upper=True)
         return _qdldl_solve(solver)
     solve.ldl = solver.factors          # (L, D, p) with A = P (I + L) D (I + L)' P': for compiled solves
     solve.refactor = refactor

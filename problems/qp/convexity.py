@@ -4,7 +4,9 @@ With the diagonal kept as the pivot (SuperLU with ``diag_pivot_thresh=0``
 and a symmetric fill-reducing ordering), the LU factors of the symmetric
 matrix P + delta I are L D L' up to scaling, and by Sylvester's law of
 inertia the number of negative pivots is the number of eigenvalues of P
-below -delta.  The shift delta = 1e-9 max|P| keeps a singular PSD P (an LP
+below -delta: one sparse factorisation of P (smaller than the x-step's),
+at every size (a dense eigenvalue solve cost more than the whole QP solve
+below n = 500).  A diagonal P (an LP, a separable QP) is read off directly.  The shift delta = 1e-9 max|P| keeps a singular PSD P (an LP
 part, a rank-deficient least-squares term) factorable.  For the message, the
 smallest eigenvalue is estimated by Lanczos (``eigsh``), or exactly when P is
 small.
@@ -38,16 +40,18 @@ def check_convex(P: sp.csc_matrix) -> None:
     n = P.shape[0]
     if P.nnz == 0 or n == 0:
         return
-    scale = float(abs(P).max())
+    scale = float(np.max(np.abs(P.data)))
     delta = SHIFT * max(scale, 1e-300)
-    if n <= DENSE_MAX:
-        lowest = float(np.linalg.eigvalsh(P.toarray())[0])
-        indefinite = lowest < -delta
+    if np.all(P.indices == np.repeat(np.arange(n), np.diff(P.indptr))):      # diagonal: its entries are the eigenvalues
+        indefinite = bool(np.any(P.data < -delta))
     else:
-        lu = spla.splu((P + delta * sp.identity(n, format="csc")).tocsc(), permc_spec="MMD_AT_PLUS_A",
-                       diag_pivot_thresh=0.0, options=dict(SymmetricMode=True))
-        indefinite = bool(np.any(lu.U.diagonal() < -delta))
-        lowest = smallest_eigenvalue(P) if indefinite else None
-    if indefinite:
+        try:
+            lu = spla.splu((P + delta * sp.identity(n, format="csc")).tocsc(), permc_spec="MMD_AT_PLUS_A",
+                           diag_pivot_thresh=0.0, options=dict(SymmetricMode=True))
+            indefinite = bool(np.any(lu.U.diagonal() < -delta))
+        except RuntimeError:                  # an exactly singular pivot: P + delta I is not positive definite
+            indefinite = True
+    lowest = smallest_eigenvalue(P) if indefinite else 0.0
+    if indefinite and not lowest >= -delta:    # a singular pivot of a PSD P is not a verdict; NaN: trust the pivots
         raise ValueError(f"P must be positive semidefinite (a convex QP); its smallest eigenvalue is about "
                          f"{lowest:.3g} (max |P| = {scale:.3g}), so the QP has no minimum to find")
