@@ -66,6 +66,26 @@ def _contact_speed(args) -> int:
     return 0
 
 
+def contact_schur(targets) -> None:
+    """``admmkit bench contact-schur``: the condensed set-up (Schur complement on Gamma_C) by backend."""
+    b = targets.add_parser("contact-schur", help="the Schur complement's set-up by backend, Ex. 1-2, and SADMM / (factor + solve)",
+                           description="Time the candidate ways to build the contact-boundary Schur complement of K.")
+    b.add_argument("--out", default="out/contact/contact_schur.md",
+                   help="Markdown file to write (default out/contact/contact_schur.md)")
+    b.add_argument("--h", type=positive_float, action="append", default=None, dest="hs",
+                   help="mesh size (repeatable; default 1/40, 1/100 and 1/200)")
+    b.add_argument("--repeats", type=positive_int, default=3, help="repeats, the best reported (default 3)")
+    b.add_argument("--block", type=positive_int, default=64, help="columns per block of the block solves (default 64)")
+    b.set_defaults(func=_contact_schur)
+
+
+def _contact_schur(args) -> int:
+    from admmkit.benchmarks.contact.schur_study import DEFAULT_HS, run_study
+    run_study(out=args.out, hs=tuple(args.hs) if args.hs else DEFAULT_HS, repeats=args.repeats, block=args.block,
+              command=args.command_line)
+    return 0
+
+
 def hertz(targets) -> None:
     """``admmkit bench hertz``: contact half-width and peak pressure against Hertz."""
     h = targets.add_parser("hertz", help="Hertz validation: half-cylinder on a rigid plane, a and p0 vs Hertz",

@@ -1,0 +1,65 @@
+"""bench contact-schur: every candidate builds today's Schur complement (to round-off), the study writes its table."""
+import importlib.util
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+from admmkit.benchmarks.contact.schur_candidates import CANDIDATES, installed_candidates
+from admmkit.benchmarks.contact.schur_study import run_study
+from admmkit.problems.contact import assemble, example1, example2
+from admmkit.problems.contact.solvers.schur import BoundarySchur
+
+
+@pytest.fixture(scope="module", params=["ex1", "ex2"])
+def ops(request):
+    return assemble({"ex1": example1, "ex2": example2}[request.param](h=1 / 10))
+
+
+@pytest.mark.parametrize("name", list(CANDIDATES))
+def test_each_candidate_gives_todays_S(ops, name):
+    fn, module = CANDIDATES[name]
+    if importlib.util.find_spec(module) is None:
+        pytest.skip(f"{module} is not installed")
+    K = sp.csc_matrix(ops.K)
+    today = BoundarySchur(K, ops.B, backend="superlu")
+    contact = today.contact_dofs
+    inner = np.setdiff1d(np.arange(K.shape[0]), contact)
+    # block 8 and no extrapolation: every column computed, in several blocks
+    res = fn(K, ops.B, inner, contact, 8, None) if "block" in name else fn(K, ops.B, inner, contact)
+    assert res["setup"] == pytest.approx(sum(res["steps"].values()))
+    assert not res["extrapolated"]
+    if res["S"] is None:
+        assert name.startswith("qdldl")
+        return
+    assert res["S"].shape == today.S.shape
+    assert np.abs(res["S"] - today.S).max() <= 1e-12 * np.abs(today.S).max()
+
+
+def test_block_solves_extrapolate_from_the_first_blocks(ops):
+    fn = CANDIDATES["superlu K_ii + block solves"][0]
+    K = sp.csc_matrix(ops.K)
+    contact = np.unique(sp.csr_matrix(ops.B).indices)
+    inner = np.setdiff1d(np.arange(K.shape[0]), contact)
+    res = fn(K, ops.B, inner, contact, 4, 1)
+    assert res["extrapolated"] and res["S"].shape == (contact.size, 4)
+
+
+def test_study_writes_the_ratio_and_the_candidates(tmp_path):
+    out = tmp_path / "schur.md"
+    names = ["superlu, contact last (today)", "superlu K_ii + block solves", "qdldl factor of K (no S)"]
+    rows = run_study(out=out, hs=(1 / 10,), examples=("ex1",), repeats=1, candidates=names, block=16, progress=False)
+    (row,) = rows
+    assert row["sadmm"]["total"] / row["ref"] > 0 and set(row["candidates"]) == set(names)
+    assert row["candidates"]["superlu K_ii + block solves"]["error"] <= 1e-12
+    text = out.read_text()
+    assert "SADMM / (factorisation + solve)" in text and "qdldl factor of K (no S)" in text
+
+
+def test_unknown_candidate_is_refused():
+    with pytest.raises(ValueError, match="candidates must be among"):
+        run_study(hs=(1 / 10,), examples=("ex1",), repeats=1, candidates=["mumps"], progress=False)
+
+
+def test_installed_candidates_always_include_scipys():
+    assert "superlu, contact last (today)" in installed_candidates()
