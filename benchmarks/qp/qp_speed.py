@@ -134,7 +134,8 @@ def plot(rows: list[dict], path: Path) -> None:
     ax.axhline(1, color="k", lw=0.8)
     ax.axhline(2, color="k", lw=0.8, ls="--", label="2x OSQP")
     ax.set(xscale="log", yscale="log", xlabel="n + m", ylabel="whole solve time / OSQP's",
-           title="A whole QP solve against OSQP 1.x (Maros-Meszaros, same iterations)")
+           )
+    ax.set_title("A whole QP solve against OSQP 1.x (Maros-Meszaros, same iterations)", fontsize=10)
     ax.legend(fontsize=8)
     save_figure(fig, path)
     plt.close(fig)
