@@ -24,11 +24,13 @@ history computes none there either); a time limit is tested at its end.
 """
 from __future__ import annotations
 
+import importlib.util
 import time
 
-from .compiled import AVAILABLE
-
 perf = time.perf_counter
+#: whether numba is installed (asked without importing it: ``import admmkit`` stays light; the plug-in's kernel
+#: imports :mod:`admmkit.compiled` at its first segment)
+AVAILABLE = importlib.util.find_spec("numba") is not None
 #: a segment shorter than this is not worth the call
 MIN_SEGMENT = 2
 
