@@ -10,13 +10,14 @@ def run_adaptive(args, scene, method_name: str) -> int:
     from admmkit.cli_adaptive import adaptive_options
     from admmkit.io import write_text
     from admmkit.problems.contact.model.scene import Scene
+    from admmkit.problems.contact.model.scene3d import Scene3D
     from admmkit.problems.contact.output.plot import figure_adapted
     from admmkit.problems.contact.solvers.adaptive import solve_adaptive
     options = adaptive_options(args)
     if args.mode not in ("auto", "condensed"):
         raise ValueError(f"--target-error runs every level in mode condensed, got --mode {args.mode}")
-    if not isinstance(scene, Scene):
-        raise ValueError("--target-error refines 2D scenes only (a 3D scene was given)")
+    if not isinstance(scene, (Scene, Scene3D)):
+        raise ValueError(f"--target-error refines contact scenes (2D or 3D), got {type(scene).__name__}")
     if scene.tangential != "frictionless":
         raise ValueError(f"--target-error needs a frictionless scene (its error bound), got tangential "
                          f"{scene.tangential!r}")

@@ -1,4 +1,4 @@
-"""Adaptive meshes for frictionless 2D contact: solve -> estimate -> mark -> refine, until a target accuracy.
+"""Adaptive meshes for frictionless 2D and 3D contact: solve -> estimate -> mark -> refine, until a target accuracy.
 
 One level (:func:`solve_adaptive`):
 
@@ -6,14 +6,20 @@ One level (:func:`solve_adaptive`):
    stopped balanced with the discretisation error
    (:class:`admmkit.problems.contact.solvers.estimate.BalancedStop`), started
    from the previous level's contact pressure (interpolated along Gamma_C to
-   the new contact nodes) and rho, so later levels cost few iterations;
+   the new contact nodes; in 3D on the contact face,
+   ``surface_interpolate`` of
+   ``admmkit.problems.contact.solvers.adaptive3d``)
+   and rho, so later levels cost few iterations (in 2D; in 3D they cost as
+   many as a cold start, docs/contact.md);
 2. **estimate**: the indicators eta_T (``estimator="zz"``, the default, or
    ``"residual"``, Hild & Nicaise's, with the ADMM pressure; the balanced stop
    uses the same one) and the relative estimate ``eta / ||u_h||_a``;
 3. stop if it is at most ``target``; else **mark** the smallest set of
    elements that carries a share ``theta`` of sum eta_T^2 (Dörfler);
-4. **refine** them with NGSolve's refinement and assemble the scene's data
-   (tractions, gap, contact boundary) on the new mesh.
+4. **refine** them with NGSolve's refinement (bisection of the marked
+   triangles or tetrahedra and their closure) and assemble the scene's data
+   (tractions, gap, contact boundary) on the new mesh (a 3D scene by
+   ``adaptive3d.assemble3d_on``).
 
 It ends ``target_reached``, or says truthfully that the target was not
 reached (``level_cap``, ``unknowns_cap``) or that a level's ADMM run did not
@@ -32,6 +38,8 @@ from admmkit.adaptive import AdaptiveResult, check_adaptive, dorfler_mark
 
 from admmkit.problems.contact.model.assembly import ContactOperators, assemble, build_mesh
 from admmkit.problems.contact.model.scene import Scene
+from admmkit.problems.contact.model.scene3d import Scene3D
+from admmkit.problems.contact.solvers.adaptive3d import assemble3d_on, mesh3d, surface_interpolate, unknowns3d
 from admmkit.problems.contact.solvers.estimate import BalancedStop, estimator_indicators
 from admmkit.problems.contact.solvers.estimate_residual import check_estimator
 from admmkit.problems.contact.solvers.methods import method
@@ -63,22 +71,23 @@ def solve_adaptive(scene: Scene, target: float, *, theta: float = 0.5, gamma: fl
     """
     check_adaptive(target, theta, gamma, max_levels, max_unknowns)
     check_estimator(estimator)
-    if not isinstance(scene, Scene):
-        raise ValueError(f"scene must be a 2D admmkit.problems.contact.Scene, got {type(scene).__name__}")
+    if not isinstance(scene, (Scene, Scene3D)):
+        raise ValueError(f"scene must be an admmkit.problems.contact Scene (2D) or Scene3D, got {type(scene).__name__}")
     if scene.tangential != "frictionless":
         raise ValueError(f"adaptive contact needs a frictionless scene (its error bound), got tangential = "
                          f"{scene.tangential!r}")
     default_order, _ = method(method_name)
-    mesh, out, warm = build_mesh(scene), AdaptiveResult("running", ""), None
+    three = isinstance(scene, Scene3D)
+    mesh, out, warm = (mesh3d if three else build_mesh)(scene), AdaptiveResult("running", ""), None
     for _ in range(max_levels):
-        dofs = 2 * (mesh.nv + (mesh.nedge if scene.order == 2 else 0))       # before the Dirichlet ones go
+        dofs = unknowns3d(mesh, scene.order) if three else 2 * (mesh.nv + (mesh.nedge if scene.order == 2 else 0))
         if dofs > max_unknowns:
             out.status = "unknowns_cap"
             out.message = f"the next mesh has about {dofs} unknowns, above max_unknowns = {max_unknowns}; " \
                           f"target {target:g} not reached"
             return out
         t0 = time.perf_counter()
-        ops = assemble(scene, mesh=mesh)
+        ops = assemble3d_on(scene, mesh) if three else assemble(scene, mesh=mesh)
         problem = contact_problem(ops, mode="condensed")
         stop = BalancedStop(problem, gamma, estimator=estimator)
         _, policy = method(method_name)
@@ -106,7 +115,8 @@ def solve_adaptive(scene: Scene, target: float, *, theta: float = 0.5, gamma: fl
 
 def _warm_start(ops: ContactOperators, problem, xc_old: np.ndarray, lam_old: np.ndarray, rho: float) -> dict:
     """x0, lam0 on the new mesh: the pressure interpolated along Gamma_C, w0 = -M_c lam0 (stationarity)."""
-    lam0 = _along_boundary(xc_old, lam_old, ops.xc)
+    along = surface_interpolate if ops.mesh.dim == 3 else _along_boundary
+    lam0 = along(xc_old, lam_old, ops.xc)
     x0 = np.concatenate(([1.0], -problem.w * lam0))
     return {"x0": x0, "lam0": lam0, "z0": problem.z_step(problem.apply_A(x0), np.zeros_like(lam0), 1.0, None)}
 
