@@ -28,8 +28,8 @@ import importlib.util
 import time
 
 perf = time.perf_counter
-#: whether numba is installed (asked without importing it: ``import admmkit`` stays light; the plug-in's kernel
-#: imports :mod:`admmkit.compiled` at its first segment)
+#: True when numba is installed, asked without importing it so that ``import admmkit`` stays light
+#: (a plug-in's kernel imports :mod:`admmkit.compiled` at its first segment)
 AVAILABLE = importlib.util.find_spec("numba") is not None
 #: a segment shorter than this is not worth the call
 MIN_SEGMENT = 2
