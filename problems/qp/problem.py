@@ -160,6 +160,7 @@ class QP(Problem):
     def begin_run(self):
         """Forget the iterates of a previous run (called by :func:`admmkit.solve` at the start)."""
         self._x_in = self._x_last = self._x_rel = self._x_rel_prev = None
+        self._residuals_of = None                 # (record, OSQP's residuals at it): see termination._iterate
 
     def x_step(self, z, lam, rho, x):
         """Solve (Q1), in either form (KKT: [P + sigma I, A'; A, -R^-1] [x; v] = [sigma x^k - q; z - R^-1 M lam],

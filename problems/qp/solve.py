@@ -34,7 +34,7 @@ from .polish import polish as polish_solution
 from .problem import QP
 from .residuals import iterate_residuals, neutral_residuals
 from .settings import QPSettings, osqp_settings
-from .termination import DUAL_INFEASIBLE, PRIMAL_INFEASIBLE, SOLVED, QPTermination, osqp_relative_residuals
+from .termination import DUAL_INFEASIBLE, PRIMAL_INFEASIBLE, SOLVED, QPTermination, _iterate, osqp_relative_residuals
 
 #: OSQP_RHO_MIN, OSQP_RHO_MAX
 RHO_MIN, RHO_MAX = 1e-6, 1e6
@@ -161,7 +161,11 @@ def _qp_result(qp: QP, settings: QPSettings, res: Result, stop: QPTermination, r
     xb = qp.relaxed_x(res.x_iterate)                                       # OSQP's x under (Q4)
     x, z, y = qp.unscaled(xb, zb, lam_z)
     finite = np.all(np.isfinite(xb)) and np.all(np.isfinite(lam_z))
-    residuals = iterate_residuals(qp, xb, zb, lam_z) if finite else None
+    residuals = None
+    if finite:                  # the last test's residuals when they are of this iterate (OSQP's numbers, unscaled)
+        same = rec is not None and xb is qp.relaxed_x(rec.x)
+        residuals = _iterate(qp, rec) if same else iterate_residuals(qp, xb, zb, lam_z)
+        residuals = {k: v for k, v in residuals.items() if not k.startswith("scaled_")}
     objective, kkt = res.objective, (qp.kkt(x, zb, lam_z) if finite else None)
     if status is Status.PRIMAL_INFEASIBLE or status is Status.PRIMAL_INFEASIBLE_INACCURATE:
         objective = math.inf

@@ -34,10 +34,18 @@ from .residuals import iterate_residuals, osqp_residuals  # noqa: F401  (osqp_re
 
 def _iterate(qp: QP, rec: IterationRecord, scaled: bool = False) -> dict:
     """OSQP's residuals of the user's problem at the record's iterate, with y from ``rec.lam_z`` (and OSQP's
-    relaxed x when the QP relaxes x)."""
+    relaxed x when the QP relaxes x), the scaled ones for the rho estimate too.
+
+    Computed once per record: the policy, the termination test and the result read the same iterate
+    every 50 iterations and at the end (the QP keeps the last record's, ``qp._residuals_of``)."""
+    kept = qp._residuals_of
+    if kept is not None and kept[0] is rec:
+        return kept[1]
     x = qp.relaxed_x(rec.x)
     Ax = rec.Ax if x is rec.x else None
-    return iterate_residuals(qp, x, rec.z, rec.lam_z, Ax, scaled=scaled)
+    res = iterate_residuals(qp, x, rec.z, rec.lam_z, Ax, scaled=True)
+    qp._residuals_of = (rec, res)
+    return res
 
 
 def osqp_relative_residuals(qp: QP):
