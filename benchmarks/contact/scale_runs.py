@@ -12,6 +12,14 @@ solver's C/C++ allocations included).  Run in a fresh process per size so
 that the peak belongs to that size alone; :func:`run_in_subprocess` does
 that.  A size whose memory estimate exceeds the available memory is refused
 before anything is assembled.
+
+With ``accuracy=True`` (``admmkit bench scale``) :func:`accuracy_at_stop` adds,
+after the clock and the peak memory were read, what the computed solution is
+worth: the ZZ estimate of its discretisation error, the last relative change
+(the stop's quantity), its energy, and its algebraic error against a tight
+solution of the same discrete problem: an interior-point reference up to
+:data:`REFERENCE_MAX_N` unknowns, above that the same run continued from its
+stop to a relative change of :data:`TIGHT_CHANGE`.
 """
 from __future__ import annotations
 
@@ -26,8 +34,15 @@ import time
 from fractions import Fraction
 from pathlib import Path
 
+import numpy as np
+
 EXAMPLES = ("ex1", "ex2", "ex2_3d")
 RUN_MODES = ("full", "condensed", "iterative")
+#: the tight reference (cvxpy + Clarabel, cross-checked by SADMM) up to this many unknowns: 17 s at 1.0e5
+REFERENCE_MAX_N = 200_000
+#: above it, the run is continued (warm start, same method and mode) to this relative change: at 1.0e5 unknowns
+#: its algebraic error of the paper's stop, 7.4286e-05, agreed with the reference's 7.4240e-05
+TIGHT_CHANGE = 1e-8
 
 
 def peak_rss_bytes() -> int:
@@ -35,8 +50,44 @@ def peak_rss_bytes() -> int:
     return int(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss) * 1024
 
 
-def run_case(example: str, h: float, mode: str, rho: float = 1e3, max_iter: int = 2000) -> dict:
-    """Assemble, set up and solve one case; the figures of the run as a dict."""
+def accuracy_at_stop(ops, result, tight=None, reference_max: int | None = None) -> dict:
+    """What the returned displacement u is worth, measured after the run (not in its times or peak memory).
+
+    ``zz``: the ZZ estimate of the discretisation error ||u - u_h||_a (an estimate, not a bound);
+    ``u_energy``: ||u_h||_a = sqrt(u'Ku); ``zz_rel`` their ratio; ``energy``: J(u_h) = u'Ku/2 - f'u;
+    ``last_change``: the stop's quantity ||x^k - x^(k-1)|| / ||x^k|| at the last iteration;
+    ``alg_error``: ||u_h - u*||_a / ||u*||_a against the tight reference u* of the same discrete problem
+    (:func:`admmkit.problems.contact.validation.reference.reference_solution`) up to ``reference_max``
+    unknowns (default :data:`REFERENCE_MAX_N`); above, against ``tight()``'s Result (the run continued to a
+    tight stop), or NaN without it.  ``reference`` names the one used, ``reference_s`` its seconds.
+    """
+    from admmkit.problems.contact.solvers.estimate import zz_estimate
+    from admmkit.problems.contact.validation.reference import energy_norm, errors_against, reference_solution
+    u = np.asarray(result.x)
+    t0 = time.perf_counter()
+    zz, norm = zz_estimate(ops, u), energy_norm(ops, u)
+    rec = result.last_record
+    out = {"zz": zz, "u_energy": norm, "zz_rel": zz / norm if norm > 0 else math.nan,
+           "energy": float(0.5 * u @ (ops.K @ u) - ops.f @ u), "zz_s": time.perf_counter() - t0,
+           "last_change": rec.x_change / rec.x_norm if rec is not None and rec.x_norm > 0 else math.nan,
+           "alg_error": math.nan, "reference_s": math.nan, "reference": None}
+    if ops.n_free <= (REFERENCE_MAX_N if reference_max is None else reference_max):
+        ref = reference_solution(ops)
+        out |= {"alg_error": errors_against(ops, ref, u, result.lam)["err_u_energy"], "reference": ref.solver,
+                "reference_s": ref.seconds}
+    elif tight is not None:
+        t0 = time.perf_counter()
+        ref = tight()
+        out |= {"alg_error": energy_norm(ops, u - ref.x) / energy_norm(ops, ref.x),
+                "reference_s": time.perf_counter() - t0,
+                "reference": f"the run continued to relative change {TIGHT_CHANGE:g}: {ref.status.value}, "
+                             f"{ref.iterations} more iterations"}
+    return out
+
+
+def run_case(example: str, h: float, mode: str, rho: float = 1e3, max_iter: int = 2000,
+             accuracy: bool = False) -> dict:
+    """Assemble, set up and solve one case; the figures of the run as a dict (and :func:`accuracy_at_stop`'s)."""
     import admmkit
     from admmkit import policies
     from admmkit import RelativeChange
@@ -81,12 +132,21 @@ def run_case(example: str, h: float, mode: str, rho: float = 1e3, max_iter: int 
             "assemble_s": t1 - t0, "setup_s": t2 - t1, "solve_s": t3 - t2, "total_s": t3 - t0,
             "x_step_s": result.timings["x_step"],
             "penetration": kkt.get("penetration"), "stationarity": kkt.get("stationarity"),
-            "contact_force": kkt.get("contact_force"), "max_un": float((ops.B @ result.x).max()),
+            "contact_force": kkt.get("contact_force"), "message": result.message,
+            "max_un": float((ops.B @ result.x).max()),
             "peak_rss_bytes": peak_rss_bytes()}
     solver = getattr(problem, "solver", None)
     if solver is not None:
         row |= {"amg_setup_s": solver.setup_time, "amg_refresh_s": solver.refresh_time, "cg_s": solver.solve_time}
-    return row
+    if not accuracy:
+        return row
+
+    def tight():
+        return admmkit.solve(problem, rho=result.rho, policy=sadmm_rule, order=sadmm_order,
+                             stop=RelativeChange(TIGHT_CHANGE), max_iter=5 * max_iter, warm_start=result)
+    t4 = time.perf_counter()
+    row |= accuracy_at_stop(ops, result, tight)
+    return row | {"accuracy_s": time.perf_counter() - t4}
 
 
 def print_run(r: dict) -> None:
@@ -98,13 +158,14 @@ def print_run(r: dict) -> None:
         print(f"        {r.get('status')}: {r.get('message', '')}", flush=True)
 
 
-def run_in_subprocess(example: str, h: float, mode: str, timeout: float = 900.0, rho: float = 1e3) -> dict:
+def run_in_subprocess(example: str, h: float, mode: str, timeout: float = 900.0, rho: float = 1e3,
+                      accuracy: bool = False) -> dict:
     """run_case in a fresh Python process with BLAS pinned to one thread; timeouts are reported."""
     env = dict(os.environ, OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1", MKL_NUM_THREADS="1")
     root = str(Path(__file__).resolve().parents[2])
     env["PYTHONPATH"] = root + os.pathsep + env.get("PYTHONPATH", "")
     cmd = [sys.executable, "-m", "admmkit.benchmarks.contact.scale_runs", "--example", example, "--h", repr(h), "--mode", mode,
-           "--rho", repr(rho)]
+           "--rho", repr(rho)] + (["--accuracy"] if accuracy else [])
     start = time.perf_counter()
     try:
         proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, env=env)
@@ -125,11 +186,12 @@ def main(argv=None) -> int:
     p.add_argument("--h", required=True, help="mesh size (fractions allowed)")
     p.add_argument("--mode", default="iterative", choices=RUN_MODES)
     p.add_argument("--rho", type=float, default=1e3)
+    p.add_argument("--accuracy", action="store_true", help="add the ZZ estimate and the error against a reference")
     args = p.parse_args(argv)
     h = float(Fraction(args.h)) if "/" in args.h else float(args.h)
     from threadpoolctl import threadpool_limits
     with threadpool_limits(1):
-        row = run_case(args.example, h, args.mode, rho=args.rho)
+        row = run_case(args.example, h, args.mode, rho=args.rho, accuracy=args.accuracy)
     print(json.dumps(row))
     return 0
 
