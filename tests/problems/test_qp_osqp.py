@@ -47,6 +47,18 @@ def test_ruiz_scaling_identities():
         ruiz(qp.P, qp.q, qp.A, -1)
 
 
+def test_compiled_ruiz_is_the_numpy_one():
+    """The compiled steps scale as the numpy steps do: D and E bit for bit, c and the data to the last bits
+    (the mean column norm is summed in order, as OSQP sums it, not pairwise)."""
+    pytest.importorskip("numba")
+    for seed, kind in ((3, "mixed"), (4, "lp"), (5, "equality")):
+        qp = random_qp(30, 40, kind=kind, seed=seed)
+        (S1, P1, q1, A1), (S2, P2, q2, A2) = (ruiz(qp.P, qp.q, qp.A, 10, compiled=c) for c in (True, False))
+        assert np.array_equal(S1.D, S2.D) and np.array_equal(S1.E, S2.E) and S1.c == pytest.approx(S2.c, rel=1e-15)
+        assert abs(P1 - P2).max() <= 1e-15 * abs(P2).max() and abs(A1 - A2).max() <= 1e-15 * abs(A2).max()
+        assert np.allclose(q1, q2, rtol=1e-15, atol=0)
+
+
 def test_row_weights_are_osqps():
     qp = random_qp(20, 40, kind="mixed", seed=2, row_weights="osqp")
     free = np.isinf(qp.l) & np.isinf(qp.u)

@@ -1,0 +1,71 @@
+"""Ruiz equilibration compiled (numba): the steps of :func:`admmkit.problems.qp.scaling.ruiz` in one call.
+
+The same operations as the numpy steps in ``scaling.py``, entry by entry, with
+one difference: the mean column norm of P is summed in order, as OSQP's
+``vec_mean`` sums it, where numpy sums pairwise (the cost scaling c can then
+differ in its last bits).  On a small QP the numpy steps cost about 0.3 ms
+of Python overhead (ten steps of a dozen array operations); this kernel
+costs microseconds.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from admmkit.compiled import njit
+
+from .scaling import MAX_SCALING, MIN_SCALING
+
+
+@njit(cache=True, inline="always")
+def _limit(v):
+    """OSQP's limit_scaling of one value."""
+    if v < MIN_SCALING:
+        return 1.0
+    return min(v, MAX_SCALING)
+
+
+@njit(cache=True)
+def ruiz_steps(iterations, Pd, Pr, Pc, Ad, Ar, Ac, q, D, E):
+    """``iterations`` Ruiz steps with cost scaling on the entries (data, rows, cols) of P and A and on q, D, E,
+    in place; returns the cost scaling c."""
+    n, m = D.shape[0], E.shape[0]
+    d, e, cols = np.empty(n), np.empty(m), np.empty(n)
+    c = 1.0
+    for _ in range(iterations):
+        d[:] = 0.0
+        e[:] = 0.0
+        for p in range(Pd.shape[0]):                       # KKT columns 1..n: triu(P), as OSQP stores it ...
+            if Pr[p] <= Pc[p]:
+                d[Pc[p]] = max(d[Pc[p]], abs(Pd[p]))
+        for p in range(Ad.shape[0]):                       # ... and A
+            d[Ac[p]] = max(d[Ac[p]], abs(Ad[p]))
+            e[Ar[p]] = max(e[Ar[p]], abs(Ad[p]))           # KKT columns n+1..n+m: the rows of A
+        for j in range(n):
+            d[j] = 1.0 / np.sqrt(_limit(d[j]))
+        for i in range(m):
+            e[i] = 1.0 / np.sqrt(_limit(e[i]))
+        for p in range(Pd.shape[0]):                       # P <- D P D
+            Pd[p] = (d[Pr[p]] * Pd[p]) * d[Pc[p]]
+        for p in range(Ad.shape[0]):                       # A <- E A D
+            Ad[p] = (e[Ar[p]] * Ad[p]) * d[Ac[p]]
+        qmax = 0.0
+        for j in range(n):
+            q[j] = d[j] * q[j]
+            D[j] = D[j] * d[j]
+            qmax = max(qmax, abs(q[j]))
+        for i in range(m):
+            E[i] = E[i] * e[i]
+        cols[:] = 0.0
+        for p in range(Pd.shape[0]):
+            if Pr[p] <= Pc[p]:
+                cols[Pc[p]] = max(cols[Pc[p]], abs(Pd[p]))
+        total = 0.0
+        for j in range(n):
+            total += cols[j]
+        c_step = 1.0 / _limit(max(total / n, _limit(qmax)))
+        for p in range(Pd.shape[0]):
+            Pd[p] *= c_step
+        for j in range(n):
+            q[j] = c_step * q[j]
+        c *= c_step
+    return c
