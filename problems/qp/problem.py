@@ -104,6 +104,7 @@ class QP(Problem):
         else:
             self.Ps, self.qs, self.As, self.ls, self.us = self.P, self.q, self.A, self.l, self.u
         self.w = rows.row_weights(self.ls, self.us, row_weights)
+        self._ones = (np.ones(self.m), np.ones(self.n))         # unit weights and scalings for compiled kernels
         self.At = self.A.T.tocsr()      # A' once: scipy builds a new matrix on every A.T (~40 us)
         self.Ats = self.As.T.tocsr() if self.scaled else self.At
         if xstep == "auto":

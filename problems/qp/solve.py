@@ -32,9 +32,10 @@ from admmkit import Result, Status
 
 from .polish import polish as polish_solution
 from .problem import QP
-from .residuals import iterate_residuals, neutral_residuals
+from .residuals import neutral_residuals
 from .settings import QPSettings, osqp_settings
-from .termination import DUAL_INFEASIBLE, PRIMAL_INFEASIBLE, SOLVED, QPTermination, _iterate, osqp_relative_residuals
+from .termination import (DUAL_INFEASIBLE, PRIMAL_INFEASIBLE, SOLVED, QPTermination, _iterate, osqp_relative_residuals,
+                          residuals_of_iterate)
 
 #: OSQP_RHO_MIN, OSQP_RHO_MAX
 RHO_MIN, RHO_MAX = 1e-6, 1e6
@@ -164,7 +165,7 @@ def _qp_result(qp: QP, settings: QPSettings, res: Result, stop: QPTermination, r
     residuals = None
     if finite:                  # the last test's residuals when they are of this iterate (OSQP's numbers, unscaled)
         same = rec is not None and xb is qp.relaxed_x(rec.x)
-        residuals = _iterate(qp, rec) if same else iterate_residuals(qp, xb, zb, lam_z)
+        residuals = _iterate(qp, rec) if same else residuals_of_iterate()(qp, xb, zb, lam_z)
         residuals = {k: v for k, v in residuals.items() if not k.startswith("scaled_")}
     objective, kkt = res.objective, (qp.kkt(x, zb, lam_z) if finite else None)
     if status is Status.PRIMAL_INFEASIBLE or status is Status.PRIMAL_INFEASIBLE_INACCURATE:

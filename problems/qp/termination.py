@@ -20,6 +20,7 @@ rule, so one run to 1e-6 also gives the result of a run to 1e-3.
 """
 from __future__ import annotations
 
+import importlib.util
 import math
 import time
 
@@ -30,6 +31,9 @@ from admmkit import IterationRecord, Status, Stop, StoppingRule
 from .infeasibility import DIVISION_TOL, confirmed_certificate, dual_certificate, iterate_deltas, primal_certificate
 from .problem import QP
 from .residuals import iterate_residuals, osqp_residuals  # noqa: F401  (osqp_residuals: re-exported)
+
+
+_NUMBA = importlib.util.find_spec("numba") is not None
 
 
 def _iterate(qp: QP, rec: IterationRecord, scaled: bool = False) -> dict:
@@ -43,9 +47,17 @@ def _iterate(qp: QP, rec: IterationRecord, scaled: bool = False) -> dict:
         return kept[1]
     x = qp.relaxed_x(rec.x)
     Ax = rec.Ax if x is rec.x else None
-    res = iterate_residuals(qp, x, rec.z, rec.lam_z, Ax, scaled=True)
+    res = residuals_of_iterate()(qp, x, rec.z, rec.lam_z, Ax, scaled=True)
     qp._residuals_of = (rec, res)
     return res
+
+
+def residuals_of_iterate():
+    """:func:`iterate_residuals`, compiled in one pass when numba is installed (``residual_kernel``)."""
+    if _NUMBA:
+        from .residual_kernel import iterate_residuals_compiled
+        return iterate_residuals_compiled
+    return iterate_residuals
 
 
 def osqp_relative_residuals(qp: QP):

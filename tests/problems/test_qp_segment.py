@@ -120,3 +120,23 @@ def test_compiled_must_be_a_bool():
         admmkit.solve(qp_for(qp, osqp_settings()), compiled="yes")
     with pytest.raises(ValueError, match="compiled must be True or False"):
         osqp_settings(compiled=1)
+
+
+@pytest.mark.parametrize("settings", [osqp_settings(), osqp_settings(scaling=0, row_weights="uniform")],
+                         ids=["scaled", "plain"])
+def test_compiled_residuals_are_numpys(settings):
+    """OSQP's residuals in one compiled pass: every inf-norm bit for bit, the gap's inner products summed in order
+    (as OSQP's C) to round-off of numpy's blockwise BLAS sums; with A x given or computed."""
+    from admmkit.problems.qp.residual_kernel import iterate_residuals_compiled
+    from admmkit.problems.qp.residuals import iterate_residuals
+    qp = qp_for(random_qp(30, 40, seed=14), settings)
+    rng = np.random.default_rng(0)
+    x, z, lam = rng.standard_normal(qp.n), rng.standard_normal(qp.m), rng.standard_normal(qp.m)
+    for Ax in (None, qp.As @ x):
+        a, b = iterate_residuals(qp, x, z, lam, Ax, scaled=True), iterate_residuals_compiled(qp, x, z, lam, Ax, True)
+        assert a.keys() == b.keys()
+        for key in a:
+            if key.startswith("gap"):
+                assert b[key] == pytest.approx(a[key], rel=1e-12)
+            else:
+                assert b[key] == a[key], key
