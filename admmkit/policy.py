@@ -15,6 +15,7 @@ Writing a rule takes a few lines::
 """
 from __future__ import annotations
 
+import functools
 import hashlib
 import importlib
 import importlib.util
@@ -59,9 +60,15 @@ class Policy(ABC):
         return k
 
     def __repr__(self) -> str:
-        names = [p for p in inspect.signature(type(self).__init__).parameters if p != "self"]
+        names = _init_names(type(self))
         params = ", ".join(f"{k}={getattr(self, k)!r}" for k in names if hasattr(self, k))
         return f"{type(self).__name__}({params})"
+
+
+@functools.lru_cache(maxsize=None)
+def _init_names(cls) -> tuple[str, ...]:
+    """The parameters of ``cls.__init__`` (read once per class: every result names its rule)."""
+    return tuple(p for p in inspect.signature(cls.__init__).parameters if p != "self")
 
 
 def register_policy(name: str):

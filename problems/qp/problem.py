@@ -107,16 +107,23 @@ class QP(Problem):
         self._ones = (np.ones(self.m), np.ones(self.n))         # unit weights and scalings for compiled kernels
         self.At = self.A.T.tocsr()      # A' once: scipy builds a new matrix on every A.T (~40 us)
         self.Ats = self.As.T.tocsr() if self.scaled else self.At
-        if xstep == "auto":
-            xstep = "kkt" if reduced_nnz_bound(self.P, self.A) > REDUCED_MAX_NNZ else "reduced"
-        self.xstep = xstep
+        self._xstep = xstep                         # "auto" is resolved at first use (xstep)
         self.begin_run()
         w = np.ones(self.m) if self.w is None else self.w
         # free rows (both bounds infinite) under "osqp": the x-step's penalty is RHO_MIN whatever rho is, as OSQP's
         # rho_vec; their lam and residual are 0 from the first iteration on, so only the x-step sees it (Q5)
         self._free = np.flatnonzero(np.isinf(self.ls) & np.isinf(self.us)) if self.w is not None else np.empty(0, int)
         self._w_free_over_penalty = w[self._free] / FREE_ROW_PENALTY
-        self._backend, self._x_solver = x_step_backend(backend, xstep), None
+        # a named backend is checked against the form now; "auto" fits either form (decided at first use)
+        self._backend = backend if backend == "auto" else x_step_backend(backend, self.xstep)
+        self._x_solver = None
+
+    @property
+    def xstep(self) -> str:
+        """The x-step's form, "reduced" or "kkt" ("auto" decided here, the first time it is asked)."""
+        if self._xstep == "auto":
+            self._xstep = "kkt" if reduced_nnz_bound(self.P, self.A) > REDUCED_MAX_NNZ else "reduced"
+        return self._xstep
 
     @property
     def _solver(self):
