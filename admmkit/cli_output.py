@@ -41,6 +41,10 @@ class Progress:
     On a stream that is not a terminal (a log) the bar's last frame ends with a newline.
     """
 
+    #: the bar reads k and rho of the records it is given and never stops a run: the loop may run the iterations
+    #: between its tests in a compiled segment (``admmkit.segments``), and the bar sees the tested ones
+    observes_only = True
+
     def __init__(self, total: int, *, enabled: bool = True, lines=None, delay: float | None = None,
                  interval: float | None = None, file=None) -> None:
         self.total, self.enabled, self.lines = int(total), enabled, lines

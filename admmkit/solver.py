@@ -90,7 +90,11 @@ def solve(
     callback : callable or None
         Called with every :class:`IterationRecord`, the last one included;
         returning True stops the run with status ``stopped`` (unless it
-        has already ended for another reason at that iteration).
+        has already ended for another reason at that iteration).  A callback
+        with the attribute ``observes_only = True`` (a progress display that
+        never stops the run) is called only with the records of the
+        iterations that run in Python, so that the others may run in a
+        compiled segment (:mod:`admmkit.segments`).
     x0, z0, lam0 : numpy.ndarray or None
         Starting point (default ``problem.initial_point()``, or the final
         iterate of ``warm_start``).

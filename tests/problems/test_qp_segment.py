@@ -140,3 +140,14 @@ def test_compiled_residuals_are_numpys(settings):
                 assert b[key] == pytest.approx(a[key], rel=1e-12)
             else:
                 assert b[key] == a[key], key
+
+
+def test_a_progress_bar_lets_the_segments_run():
+    """The command line's progress bar (observes_only) is fed the tested iterations; the rest run compiled."""
+    qdldl_or_skip()
+    from admmkit.cli_output import Progress
+    qp = random_qp(30, 40, seed=15)
+    with Progress(4000, delay=0.0, interval=0.0, file=open("/dev/null", "w")) as bar:
+        watched = solve_qp(qp, callback=bar)
+    same_run(watched, solve_qp(qp))
+    assert watched.counters["compiled_iterations"] > 0
