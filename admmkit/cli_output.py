@@ -41,9 +41,9 @@ class Progress:
     On a stream that is not a terminal (a log) the bar's last frame ends with a newline.
     """
 
-    #: the bar reads k and rho of the records it is given and never stops a run: the loop may run the iterations
-    #: between its tests in a compiled segment (``admmkit.segments``), and the bar sees the tested ones
-    observes_only = True
+    #: the bar needs no record of every iteration (it reads k and rho of those it is given): the loop may run the
+    #: iterations between its tests in a compiled segment (``admmkit.segments``), and the bar sees the tested ones
+    every_record = False
 
     def __init__(self, total: int, *, enabled: bool = True, lines=None, delay: float | None = None,
                  interval: float | None = None, file=None) -> None:

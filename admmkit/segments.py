@@ -3,9 +3,9 @@
 The loop reads a record at a tested iteration (every ``check_every``-th and
 the last), where the policy asks for one (:meth:`admmkit.Policy.unchanged_until`),
 and at every iteration when a callback, an accelerator or the full history is
-set (a callback marked ``observes_only = True``, such as the command line's
-progress bar, reads no record it needs every iteration of: it is called at
-the iterations that run in Python).  In between, an iteration only moves the
+set (a callback with ``every_record = False``, such as the command line's
+progress bar, is given only the records of the iterations that run in
+Python, every tested one among them).  In between, an iteration only moves the
 state (x, z, lam, A x) to the next one, with rho fixed.  A plug-in that can run such iterations of the run's
 order in one call implements
 
@@ -48,7 +48,7 @@ class FastForward:
     def __init__(self, run, enabled: bool = True) -> None:
         problem = run.problem
         self.problem, self.run = problem, run
-        watcher = run.callback is None or getattr(run.callback, "observes_only", False)   # e.g. a progress bar
+        watcher = run.callback is None or not getattr(run.callback, "every_record", True)   # e.g. a progress bar
         self.enabled = (enabled and AVAILABLE and callable(getattr(problem, "segment", None))
                         and watcher and run.history.mode == "lean")
         self.segments = self.iterations = 0

@@ -91,10 +91,11 @@ def solve(
         Called with every :class:`IterationRecord`, the last one included;
         returning True stops the run with status ``stopped`` (unless it
         has already ended for another reason at that iteration).  A callback
-        with the attribute ``observes_only = True`` (a progress display that
-        never stops the run) is called only with the records of the
-        iterations that run in Python, so that the others may run in a
-        compiled segment (:mod:`admmkit.segments`).
+        with the attribute ``every_record = False`` (a progress display, a
+        watcher of the tested iterations) is called only with the records
+        of the iterations that run in Python, every tested one among them,
+        so that the others may run in a compiled segment
+        (:mod:`admmkit.segments`); its True still stops the run there.
     x0, z0, lam0 : numpy.ndarray or None
         Starting point (default ``problem.initial_point()``, or the final
         iterate of ``warm_start``).

@@ -113,6 +113,7 @@ def run_admmkit_at(qp: QP, variant: str, rule: str, order: str, eps: list[float]
                                "factorizations": run_qp.counters()["factorizations"]}
         return clock() > deadline
 
+    watch.every_record = False      # it reads tested iterations (and rho, fixed in between): segments may run
     policy = None if rule == "fixed" else rule     # "osqp": OSQP's rule as OSQP runs it (solve_qp's default)
     res = solve_qp(run_qp, settings, policy=policy, callback=watch, acceleration=acceleration)
     total = clock() - t0

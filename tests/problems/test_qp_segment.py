@@ -143,7 +143,7 @@ def test_compiled_residuals_are_numpys(settings):
 
 
 def test_a_progress_bar_lets_the_segments_run():
-    """The command line's progress bar (observes_only) is fed the tested iterations; the rest run compiled."""
+    """The command line's progress bar (every_record = False) is fed the tested iterations; the rest run compiled."""
     qdldl_or_skip()
     from admmkit.cli_output import Progress
     qp = random_qp(30, 40, seed=15)
