@@ -37,7 +37,8 @@ def test_the_files_are_written(quick):
         assert (out / name).stat().st_size > 0
     assert {(r["scene"], r["order"], r["method"]) for r in rows} == {
         ("obstacle", 1, "adaptive"), ("obstacle", 1, "uniform"), ("obstacle", 1, "uniform_today"),
-        ("ex1", 1, "adaptive"), ("ex1", 1, "uniform"), ("ex1", 2, "adaptive"), ("ex1", 2, "uniform")}
+        ("ex1", 1, "adaptive"), ("ex1", 1, "uniform"), ("ex1", 2, "adaptive"), ("ex1", 2, "uniform"),
+        ("ex2", 2, "adaptive"), ("ex2", 2, "uniform")}
     assert "## At the same true error" in md and "Made by `admmkit bench adaptive --quick" in md
 
 
@@ -63,8 +64,8 @@ def test_errors_fall_with_refinement_and_the_estimates_are_effective(quick):
 def test_adaptive_needs_fewer_unknowns_on_example1(quick):
     _, rows, _ = quick
     comp = {c["scene"]: c for c in comparison(rows)}
-    for order in (1, 2):
-        c = comp[f"contact Example 1, P{order}"]
+    for name in ("Example 1, P1", "Example 1, P2", "Example 2, P2"):
+        c = comp[f"contact {name}"]
         assert c["unknowns_ratio"] is not None and c["unknowns_ratio"] > 1.5, c
         assert c["adaptive_rate"] < c["uniform_rate"] < 0                 # steeper: errors fall faster
     assert comp["radial obstacle, P1 (exact solution)"]["uniform_rate"] == pytest.approx(-0.5, abs=0.1)
