@@ -13,21 +13,19 @@ import numpy as np
 
 from admmkit.compiled import njit
 
-from .scaling import MAX_SCALING, MIN_SCALING
-
 
 @njit(cache=True, inline="always")
-def _limit(v):
-    """OSQP's limit_scaling of one value."""
-    if v < MIN_SCALING:
+def _limit(v, low, high):
+    """OSQP's limit_scaling of one value: below ``low`` it counts as 1, above ``high`` as ``high``."""
+    if v < low:
         return 1.0
-    return min(v, MAX_SCALING)
+    return min(v, high)
 
 
 @njit(cache=True)
-def ruiz_steps(iterations, Pd, Pr, Pc, Ad, Ar, Ac, q, D, E):
+def ruiz_steps(iterations, low, high, Pd, Pr, Pc, Ad, Ar, Ac, q, D, E):
     """``iterations`` Ruiz steps with cost scaling on the entries (data, rows, cols) of P and A and on q, D, E,
-    in place; returns the cost scaling c."""
+    in place, with OSQP's limits ``low``, ``high`` (MIN_SCALING, MAX_SCALING); returns the cost scaling c."""
     n, m = D.shape[0], E.shape[0]
     d, e, cols = np.empty(n), np.empty(m), np.empty(n)
     c = 1.0
@@ -41,9 +39,9 @@ def ruiz_steps(iterations, Pd, Pr, Pc, Ad, Ar, Ac, q, D, E):
             d[Ac[p]] = max(d[Ac[p]], abs(Ad[p]))
             e[Ar[p]] = max(e[Ar[p]], abs(Ad[p]))           # KKT columns n+1..n+m: the rows of A
         for j in range(n):
-            d[j] = 1.0 / np.sqrt(_limit(d[j]))
+            d[j] = 1.0 / np.sqrt(_limit(d[j], low, high))
         for i in range(m):
-            e[i] = 1.0 / np.sqrt(_limit(e[i]))
+            e[i] = 1.0 / np.sqrt(_limit(e[i], low, high))
         for p in range(Pd.shape[0]):                       # P <- D P D
             Pd[p] = (d[Pr[p]] * Pd[p]) * d[Pc[p]]
         for p in range(Ad.shape[0]):                       # A <- E A D
@@ -62,7 +60,7 @@ def ruiz_steps(iterations, Pd, Pr, Pc, Ad, Ar, Ac, q, D, E):
         total = 0.0
         for j in range(n):
             total += cols[j]
-        c_step = 1.0 / _limit(max(total / n, _limit(qmax)))
+        c_step = 1.0 / _limit(max(total / n, _limit(qmax, low, high)), low, high)
         for p in range(Pd.shape[0]):
             Pd[p] *= c_step
         for j in range(n):

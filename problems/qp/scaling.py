@@ -143,7 +143,8 @@ def ruiz(P: sp.spmatrix, q: np.ndarray, A: sp.spmatrix, iterations: int = 10, co
     Pe, Ae, q = _Entries(P), _Entries(A), np.asarray(q, dtype=float).copy()
     if compiled and _numba():
         from .ruiz_kernel import ruiz_steps
-        c = ruiz_steps(int(iterations), Pe.matrix.data, Pe.rows, Pe.cols, Ae.matrix.data, Ae.rows, Ae.cols, q, D, E)
+        c = ruiz_steps(int(iterations), MIN_SCALING, MAX_SCALING, Pe.matrix.data, Pe.rows, Pe.cols,
+                       Ae.matrix.data, Ae.rows, Ae.cols, q, D, E)
         return Scaling(D, E, c), Pe.matrix, q, Ae.matrix
     P_cols, A_cols, A_rows = Pe.upper_col_max(), Ae.col_max(), Ae.row_max()
     for _ in range(int(iterations)):
