@@ -58,8 +58,24 @@ class AdaptiveResult:
         """The loop ran out of levels: status ``level_cap`` with what was reached."""
         self.status = "level_cap"
         self.message = (f"max_levels = {max_levels} reached with an estimated relative energy error "
-                        f"{self.levels[-1].relative_estimate:.3e}; target {target:g} not reached")
+                        f"{self.levels[-1].relative_estimate:.3e}; target {target:g} not reached"
+                        + needed_unknowns(self.levels, target))
         return self
+
+
+def needed_unknowns(levels, target: float) -> str:
+    """What the levels' own convergence says the target needs: "; at the observed rate N^-p (last levels) the
+    target needs about K unknowns", or "" when there are too few levels to tell (or no decrease)."""
+    if len(levels) < 3:
+        return ""
+    last = levels[-3:]
+    n = np.log([lvl.unknowns for lvl in last])
+    e = np.log([lvl.relative_estimate for lvl in last])
+    slope = float(np.polyfit(n, e, 1)[0])
+    if not slope < -1e-3:
+        return ""
+    need = math.exp(n[-1] + (math.log(target) - e[-1]) / slope)
+    return f"; at the rate of the last levels (estimate ~ N^{slope:.2f}) it needs about {need:.1e} unknowns"
 
 
 def dorfler_mark(indicators, theta: float) -> np.ndarray:

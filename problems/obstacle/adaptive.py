@@ -29,7 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from admmkit import Result, solve
-from admmkit.adaptive import AdaptiveResult, check_adaptive, dorfler_mark
+from admmkit.adaptive import AdaptiveResult, check_adaptive, dorfler_mark, needed_unknowns
 
 from .estimate import BalancedStop, estimator_of, zz
 from .estimate_residual import check_estimator
@@ -74,7 +74,7 @@ def solve_adaptive(scene: Scene, target: float, *, theta: float = 0.5, gamma: fl
         if mesh.nv > max_unknowns:
             out.status = "unknowns_cap"
             out.message = (f"the next mesh has {mesh.nv} nodes, above max_unknowns = {max_unknowns}; "
-                           f"target {target:g} not reached")
+                           f"target {target:g} not reached" + needed_unknowns(out.levels, target))
             return out
         t0 = time.perf_counter()
         problem = ObstacleProblem(scene, backend=backend, mesh=mesh)

@@ -54,3 +54,16 @@ def test_an_infinite_bound_never_fires(scalar_problem):
 def test_bad_parameters_are_named(kwargs, match):
     with pytest.raises(ValueError, match=match):
         Known(1.0, **kwargs)
+
+
+def test_needed_unknowns_extrapolates_the_last_levels():
+    """A capped adaptive run says what the target needs at the levels' own rate (N^-1/2 here: 100x the unknowns
+    for a tenth of the error), and nothing when it cannot tell."""
+    from types import SimpleNamespace as L
+
+    from admmkit.adaptive import needed_unknowns
+    levels = [L(unknowns=n, relative_estimate=n ** -0.5) for n in (1e2, 1e3, 1e4)]
+    text = needed_unknowns(levels, 1e-3)
+    assert "N^-0.50" in text and "1.0e+06 unknowns" in text
+    assert needed_unknowns(levels[:2], 1e-3) == ""
+    assert needed_unknowns([L(unknowns=n, relative_estimate=0.1) for n in (1e2, 1e3, 1e4)], 1e-3) == ""
