@@ -13,7 +13,8 @@ Tasks carry priorities in the driver's order (cheapest group first).
 
 A worker that dies has its task rerun by the scheduler on another worker
 (Dask's ``distributed.scheduler.allowed-failures``, set here from
-``retries`` for a cluster this driver starts).  A task the scheduler gives up
+``retries`` for a cluster this driver starts, with ``worker-saturation``
+1, so that a worker holds no queued task that would die with it).  A task the scheduler gives up
 on (``KilledWorker``) is split into one task per case and resubmitted once,
 so that only the case that kills its workers is recorded as an error and its
 group's other cases still run.
@@ -24,6 +25,10 @@ import logging
 import time
 
 from admmkit.benchmarks.runner.sweep_worker import THREAD_ENV, run_task
+
+
+#: the scheduler's setting that lets a worker hold tasks beyond the one it runs (this driver's clusters: 1.0)
+WORKER_SATURATION = "distributed.scheduler.worker-saturation"
 
 
 def _error_record(cid, case, err) -> dict:
@@ -44,7 +49,9 @@ def run_dask(tasks: list[list], func_path: str, emit, *, scheduler: str | None =
     if not tasks:
         return
     cluster = None
-    with dask.config.set({"distributed.scheduler.allowed-failures": retries}):
+    # worker-saturation 1: a worker holds only the task it runs, so a worker that dies takes no queued task of
+    # another group with it (with Dask's default 1.1 the next task waits on the worker and counts as suspicious)
+    with dask.config.set({"distributed.scheduler.allowed-failures": retries, WORKER_SATURATION: 1.0}):
         if scheduler:
             client = Client(scheduler, timeout=connect_timeout)
         else:

@@ -36,7 +36,8 @@ def cluster():
     """A LocalCluster of 2 single-threaded worker processes (a dead task is retried once, then given up)."""
     import dask
     from distributed import LocalCluster
-    with dask.config.set({"distributed.scheduler.allowed-failures": 1}):
+    from admmkit.benchmarks.runner.sweep_dask import WORKER_SATURATION
+    with dask.config.set({"distributed.scheduler.allowed-failures": 1, WORKER_SATURATION: 1.0}):
         with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None,
                           silence_logs=logging.ERROR) as c:
             yield c
