@@ -1,13 +1,14 @@
 """Segments: the iterations whose records nobody reads, run by the plug-in in one compiled call.
 
 The loop reads a record at a tested iteration (every ``check_every``-th and
-the last), where the policy asks for one (:meth:`admmkit.Policy.unchanged_until`),
-and at every iteration when a callback, an accelerator or the full history is
-set (a callback with ``every_record = False``, such as the command line's
-progress bar, is given only the records of the iterations that run in
-Python, every tested one among them).  In between, an iteration only moves the
-state (x, z, lam, A x) to the next one, with rho fixed.  A plug-in that can run such iterations of the run's
-order in one call implements
+the last), where the policy asks for one
+(:meth:`admmkit.Policy.unchanged_until`), and at every iteration when a
+callback, an accelerator or the full history is set (a callback with
+``every_record = False``, such as the command line's progress bar, is given
+only the records of the iterations that run in Python, every tested one
+among them).  In between, an iteration only moves the state (x, z, lam, A x)
+to the next one, with rho fixed.  A plug-in that can run such iterations of
+the run's order in one call implements
 
     problem.segment(x, z, lam, Ax, rho, alpha, order, count) -> (x, z, lam, Ax, done) or None
 
@@ -16,9 +17,8 @@ step would meet a non-finite number: the loop's own iteration then meets the
 failure where it would have anyway), or None where it cannot (another order,
 another solver).  Its iterates must be those of the Python steps bit for
 bit; the QP plug-in's (``admmkit.problems.qp.segment``) is built from
-:mod:`admmkit.compiled`.  OSQP, which tests termination every 25 iterations
-and changes rho every 50, runs its iterations the same way: the loop's Python
-is met once per check.
+:mod:`admmkit.compiled`.  With OSQP's settings (the test every 25
+iterations, rho every 50) the loop's Python runs once in 25 iterations.
 
 What a segment changes, and nothing else: its iterations get history rows
 with rho and the time at the segment's end, and NaN for every norm (a lean
