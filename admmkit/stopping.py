@@ -135,9 +135,12 @@ class BalancedStop(StoppingRule):
     (a guaranteed bound; inf where it cannot tell) and
     :meth:`discretisation_estimate`.  They are compared every ``every``
     iterations; ``algebraic`` and ``discretisation`` hold the last values
-    compared.  ``tolerance`` is None: the rule's own test is the accuracy
-    check, so ``converged`` means "the algebraic error is below gamma x the
-    estimated discretisation error".
+    computed.  The estimate, often the dearer of the two, is computed afresh
+    only where the bound is within twice gamma x the last estimate (it moves
+    little from one iterate to the next); the rule fires only on a fresh one.
+    ``tolerance`` is None: the rule's own test is the accuracy check, so
+    ``converged`` means "the algebraic error is below gamma x the estimated
+    discretisation error".
     """
 
     requires = ()
@@ -167,7 +170,9 @@ class BalancedStop(StoppingRule):
         self.algebraic = self.algebraic_error_bound(rec)
         if not math.isfinite(self.algebraic):
             return None
-        self.discretisation = self.discretisation_estimate(rec)
+        if math.isfinite(self.discretisation) and self.algebraic > 2.0 * self.gamma * self.discretisation:
+            return None            # far from firing by the last estimate (it moves little): the bound alone decides
+        self.discretisation = self.discretisation_estimate(rec)     # fresh at every iterate that may fire
         return self.name if self.algebraic <= self.gamma * self.discretisation else None
 
 

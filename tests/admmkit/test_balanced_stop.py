@@ -67,3 +67,26 @@ def test_needed_unknowns_extrapolates_the_last_levels():
     assert "N^-0.50" in text and "1.0e+06 unknowns" in text
     assert needed_unknowns(levels[:2], 1e-3) == ""
     assert needed_unknowns([L(unknowns=n, relative_estimate=0.1) for n in (1e2, 1e3, 1e4)], 1e-3) == ""
+
+
+def test_the_estimate_is_computed_only_near_firing():
+    """The dearer estimate is taken afresh only where the bound is within 2 gamma x the last one, and the rule
+    fires only on a fresh estimate: a bound halving each test meets a constant estimate of 1 at gamma 0.1."""
+    from types import SimpleNamespace
+
+    import admmkit
+
+    class Counted(admmkit.BalancedStop):
+        calls = 0
+
+        def algebraic_error_bound(self, rec):
+            return 2.0 ** -(rec.k // 10)                 # 1, 0.5, 0.25, ... at k = 9, 19, 29, ...
+
+        def discretisation_estimate(self, rec):
+            Counted.calls += 1
+            return 1.0
+
+    stop = Counted(gamma=0.1, every=10)
+    fired = next(k for k in range(9, 80, 10) if stop.fired(SimpleNamespace(k=k)))
+    # bounds 1, .5, .25, .125, .0625: estimated at k = 9 (first), then from .125 <= 0.2 on; fires at .0625
+    assert fired == 49 and Counted.calls == 3 and stop.discretisation == 1.0 and stop.algebraic == 0.0625
