@@ -108,9 +108,10 @@ class Result:
         if self.counters:
             lines.append("work         " + "   ".join(f"{k} {v}" for k, v in self.counters.items()))
         t = self.timings
+        segments = f", compiled segments {t['segments']:.4f}" if "segments" in t else ""
         lines.append(
             f"time         {t['total']:.4f} s  (x-step {t['x_step']:.4f}, z-step {t['z_step']:.4f},"
-            f" policy {t['policy']:.4f}, residuals {t['residuals']:.4f})"
+            f" policy {t['policy']:.4f}, residuals {t['residuals']:.4f}{segments})"
         )
         return "\n".join(lines)
 

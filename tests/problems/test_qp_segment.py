@@ -151,3 +151,11 @@ def test_a_progress_bar_lets_the_segments_run():
         watched = solve_qp(qp, callback=bar)
     same_run(watched, solve_qp(qp))
     assert watched.counters["compiled_iterations"] > 0
+
+
+def test_the_summary_shows_the_compiled_time():
+    qdldl_or_skip()
+    res = solve_qp(random_qp(30, 40, seed=16))
+    time_line = next(line for line in res.summary().splitlines() if line.startswith("time"))
+    assert f"compiled segments {res.timings['segments']:.4f}" in time_line
+    assert "compiled_iterations" in next(line for line in res.summary().splitlines() if line.startswith("work"))
