@@ -207,9 +207,19 @@ def example2_3d(h: float = 1 / 8, **changes) -> Scene3D:
 
 
 # ---------------------------------------------------------------- assembly
-def assemble3d(scene: Scene3D) -> ContactOperators:
-    """K, f, B, mc, g on the free dofs of the 3D scene (n = (0, 0, -1) on the contact face)."""
-    mesh = block_mesh(scene.Lx, scene.Ly, scene.Lz, scene.h)
+def assemble3d(scene: Scene3D, mesh=None) -> ContactOperators:
+    """K, f, B, mc, g on the free dofs of the 3D scene (n = (0, 0, -1) on the contact face).
+
+    ``mesh``: a tetrahedral mesh of the scene's block with its face names (e.g. an adaptively refined
+    one); default the structured mesh of ``scene.h``.
+    """
+    if mesh is None:
+        mesh = block_mesh(scene.Lx, scene.Ly, scene.Lz, scene.h)
+    else:
+        known = set(mesh.GetBoundaries())
+        for label in (*scene.dirichlet, *scene.tractions, scene.contact):
+            if label not in known:
+                raise ValueError(f"unknown boundary label {label!r}; known labels: {', '.join(sorted(known))}")
     stick = {"dirichletx": scene.contact, "dirichlety": scene.contact} if scene.tangential == "stick" else {}
     fes = ng.VectorH1(mesh, order=1, dirichlet="|".join(scene.dirichlet), **stick)
     u, v = fes.TnT()
@@ -241,6 +251,8 @@ def assemble3d(scene: Scene3D) -> ContactOperators:
     mc = weight[nodes]
     normals = np.tile([0.0, 0.0, -1.0], (len(nodes), 1))
     g = np.array([scene.gap_at(x, y) for x, y, _ in xc])
+    if not np.all(np.isfinite(g)):
+        raise ValueError(f"gap: not finite at the contact nodes {xc[~np.isfinite(g)].tolist()}")
     # u.n at node i = -u_z(node i); VectorH1 numbers the z-component dofs 2 nv + vertex
     Bfull = sp.csr_matrix((-np.ones(len(nodes)), (np.arange(len(nodes)), 2 * nv + nodes)), shape=(len(nodes), fes.ndof))
     B = Bfull[:, free].tocsr()
