@@ -37,6 +37,7 @@ from pathlib import Path
 import numpy as np
 
 import admmkit
+from admmkit.benchmarks.runner.options import print_files
 
 OBSTACLE_UNIFORM_N = (16, 32, 64, 128, 256, 512)          # h = 4/N on (-2, 2)^2
 CONTACT_UNIFORM_H = {1: (5, 10, 20, 40, 80, 160, 320), 2: (5, 10, 20, 40, 80, 160)}   # h = 1/value
@@ -253,8 +254,5 @@ def register(targets) -> None:
 
 
 def _run(args) -> int:
-    command = "admmkit bench adaptive" + (" --quick" if args.quick else "") + \
-        ("" if args.out == "out/adaptive_study" else f" --out {args.out}")
-    for path in run(Path(args.out), command, quick=args.quick):
-        print(f"wrote        {path}")
+    print_files(run(Path(args.out), args.command_line, quick=args.quick))     # the command as typed, for the report
     return 0

@@ -25,6 +25,7 @@ import admmkit
 from admmkit.figures import pyplot, save_figure
 from admmkit.io import write_text
 
+from admmkit.benchmarks.runner.options import print_files
 from admmkit.benchmarks.runner.report import fmt, md_table, write_csv
 
 OBSTACLE_N = (8, 16, 32, 64, 128)                  # h = 4/N on (-2, 2)^2
@@ -143,8 +144,5 @@ def register(targets) -> None:
 
 
 def _run(args) -> int:
-    command = "admmkit bench estimators" + (" --quick" if args.quick else "") + \
-        ("" if args.out == "docs/results/estimators" else f" --out {args.out}")
-    for path in run(Path(args.out), command, quick=args.quick):
-        print(f"wrote        {path}")
+    print_files(run(Path(args.out), args.command_line, quick=args.quick))     # the command as typed, for the report
     return 0
