@@ -48,6 +48,8 @@ from __future__ import annotations
 import ngsolve as ng
 import numpy as np
 
+from admmkit.problems.fe import facet_sizes
+
 
 class ResidualEstimator:
     """The residual estimator of one obstacle problem (module docstring); the mesh data built once."""
@@ -60,7 +62,7 @@ class ResidualEstimator:
         pts = p.nodes[tri]
         diam = np.max([np.linalg.norm(pts[:, i] - pts[:, j], axis=1) for i, j in ((0, 1), (1, 2), (0, 2))], axis=0)
         self.h_T = _cell_function(self.cells, diam)
-        self.h_E = _facet_sizes(mesh)
+        self.h_E = facet_sizes(mesh)
         x, y = p.nodes.T
         self.f_h = ng.GridFunction(p.fes)
         self.f_h.vec.FV().NumPy()[:] = p.scene.evaluate("f", x, y)
@@ -128,19 +130,6 @@ def _cell_function(space, values: np.ndarray) -> ng.GridFunction:
     """A piecewise constant function with one value per element (L2 order 0: dof i is element i)."""
     gf = ng.GridFunction(space)
     gf.vec.FV().NumPy()[:] = values
-    return gf
-
-
-def _facet_sizes(mesh: ng.Mesh) -> ng.GridFunction:
-    """h_E on every facet: its length (2D) or the square root of its area (3D), as a FacetFESpace function."""
-    facets = ng.FacetFESpace(mesh, order=0)
-    v = facets.TestFunction()
-    lf = ng.LinearForm(facets)
-    lf += v * ng.dx(skeleton=True)
-    lf += v * ng.ds(skeleton=True)
-    lf.Assemble()
-    gf = ng.GridFunction(facets)
-    gf.vec.FV().NumPy()[:] = np.abs(lf.vec.FV().NumPy()) ** (1.0 / (mesh.dim - 1))
     return gf
 
 

@@ -50,6 +50,7 @@ import numpy as np
 import scipy.sparse.linalg as spla
 
 from admmkit.problems.contact.model.assembly import _point_evaluation, _vector_cf, lame
+from admmkit.problems.fe import facet_sizes
 
 
 class ResidualEstimator:
@@ -71,7 +72,7 @@ class ResidualEstimator:
                        for i in range(k) for j in range(i + 1, k)], axis=0)
         self.h_T = ng.GridFunction(self.cells)
         self.h_T.vec.FV().NumPy()[:] = diam
-        self.h_E = _facet_sizes(mesh)
+        self.h_E = facet_sizes(mesh)
         self.scalar = ng.H1(mesh, order=self.order)
         self._nodes = _boundary_interpolation(mesh, self.scalar, ops.xc, pts, self.order)
         self.pressure = ng.GridFunction(self.scalar)
@@ -143,19 +144,6 @@ def _assemble(space, forms) -> np.ndarray:
         lf += form
     lf.Assemble()
     return np.maximum(lf.vec.FV().NumPy().copy(), 0.0)
-
-
-def _facet_sizes(mesh: ng.Mesh) -> ng.GridFunction:
-    """h_E on every facet: its length (2D) or the square root of its area (3D), as a FacetFESpace function."""
-    facets = ng.FacetFESpace(mesh, order=0)
-    v = facets.TestFunction()
-    lf = ng.LinearForm(facets)
-    lf += v * ng.dx(skeleton=True)
-    lf += v * ng.ds(skeleton=True)
-    lf.Assemble()
-    gf = ng.GridFunction(facets)
-    gf.vec.FV().NumPy()[:] = np.abs(lf.vec.FV().NumPy()) ** (1.0 / (mesh.dim - 1))
-    return gf
 
 
 def _boundary_interpolation(mesh, scalar, xc: np.ndarray, points: np.ndarray, order: int):
