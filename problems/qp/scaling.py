@@ -18,11 +18,12 @@ entry below the diagonal does not count in its column.
 """
 from __future__ import annotations
 
-import importlib.util
 from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
+
+from admmkit.segments import AVAILABLE as NUMBA      # numba installed (asked once, without importing it)
 
 #: OSQP_MIN_SCALING, OSQP_MAX_SCALING
 MIN_SCALING, MAX_SCALING = 1e-4, 1e4
@@ -121,10 +122,6 @@ class _Entries:
         return _ColMax(np.r_[0, np.cumsum(counts)], order)
 
 
-def _numba() -> bool:
-    return importlib.util.find_spec("numba") is not None
-
-
 def ruiz(P: sp.spmatrix, q: np.ndarray, A: sp.spmatrix, iterations: int = 10, compiled: bool = True):
     """Return (Scaling, Pb, qb, Ab): ``iterations`` Ruiz steps with cost scaling, as OSQP's ``scale_data``.
 
@@ -141,7 +138,7 @@ def ruiz(P: sp.spmatrix, q: np.ndarray, A: sp.spmatrix, iterations: int = 10, co
     if not iterations:
         return Scaling(D, E, c), sp.csc_matrix(P), np.asarray(q, dtype=float).copy(), sp.csc_matrix(A)
     Pe, Ae, q = _Entries(P), _Entries(A), np.asarray(q, dtype=float).copy()
-    if compiled and _numba():
+    if compiled and NUMBA:
         from .ruiz_kernel import ruiz_steps
         c = ruiz_steps(int(iterations), MIN_SCALING, MAX_SCALING, Pe.matrix.data, Pe.rows, Pe.cols,
                        Ae.matrix.data, Ae.rows, Ae.cols, q, D, E)

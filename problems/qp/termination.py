@@ -20,20 +20,17 @@ rule, so one run to 1e-6 also gives the result of a run to 1e-3.
 """
 from __future__ import annotations
 
-import importlib.util
 import math
 import time
 
 import numpy as np
 
 from admmkit import IterationRecord, Status, Stop, StoppingRule
+from admmkit.segments import AVAILABLE as NUMBA
 
 from .infeasibility import DIVISION_TOL, confirmed_certificate, dual_certificate, iterate_deltas, primal_certificate
 from .problem import QP
 from .residuals import iterate_residuals, osqp_residuals  # noqa: F401  (osqp_residuals: re-exported)
-
-
-_NUMBA = importlib.util.find_spec("numba") is not None
 
 
 def _iterate(qp: QP, rec: IterationRecord, scaled: bool = False) -> dict:
@@ -54,7 +51,7 @@ def _iterate(qp: QP, rec: IterationRecord, scaled: bool = False) -> dict:
 
 def residuals_of_iterate():
     """:func:`iterate_residuals`, compiled in one pass when numba is installed (``residual_kernel``)."""
-    if _NUMBA:
+    if NUMBA:
         from .residual_kernel import iterate_residuals_compiled
         return iterate_residuals_compiled
     return iterate_residuals
