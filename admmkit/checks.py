@@ -177,6 +177,7 @@ class Run:
     time_limit: float | None
     blas_threads: int | None
     history: History
+    compiled: bool               # iterations nobody reads may run in the problem's compiled segment
     x: np.ndarray                # x^0, z^0, lam^0 and A x^0
     z: np.ndarray
     lam: np.ndarray
@@ -192,7 +193,7 @@ class Run:
 
 
 def prepare(problem, *, rho, policy, order, stop, max_iter, callback, x0, z0, lam0, time_limit, blas_threads,
-            alpha, check_every, history, warm_start) -> Run:
+            alpha, check_every, history, warm_start, compiled=True) -> Run:
     """Check the arguments of ``admmkit.solve`` (same names and meanings), start the run and return it.
 
     Bad input raises ValueError or TypeError naming the parameter.  Starting the run calls the
@@ -220,6 +221,8 @@ def prepare(problem, *, rho, policy, order, stop, max_iter, callback, x0, z0, la
         raise ValueError(f"blas_threads must be an integer >= 1 or None, got {blas_threads!r}")
     if callback is not None and not callable(callback):
         raise TypeError(f"callback must be callable or None, got {type(callback).__name__}")
+    if not isinstance(compiled, bool):
+        raise TypeError(f"compiled must be True or False, got {compiled!r}")
     stop = default_stop() if stop is None else stop
     if not isinstance(stop, StoppingRule):
         raise TypeError(f"stop must be a StoppingRule (e.g. RelativeChange(1e-5)), got {type(stop).__name__}")
@@ -246,7 +249,8 @@ def prepare(problem, *, rho, policy, order, stop, max_iter, callback, x0, z0, la
     policy.reset(rho)
     return Run(problem=problem, order=order_key, rho=rho, policy=policy, stop=stop, alpha=alpha, max_iter=max_iter,
                check_every=check_every, callback=callback, time_limit=time_limit, blas_threads=blas_threads,
-               history=history_log, x=x, z=z, lam=lam, Ax=Ax, ctx=ctx, counters_before=dict(problem.counters()))
+               history=history_log, compiled=compiled, x=x, z=z, lam=lam, Ax=Ax, ctx=ctx,
+               counters_before=dict(problem.counters()))
 
 
 def inner_of(problem):

@@ -129,19 +129,18 @@ def solve(
         the problem's compiled segment when it has one (:mod:`admmkit.segments`;
         the same iterates bit for bit); False: every iteration in Python.
     """
-    if not isinstance(compiled, bool):
-        raise TypeError(f"compiled must be True or False, got {compiled!r}")
     accelerator = make_accelerator(acceleration)
     run = checks.prepare(problem, rho=rho, policy=policy, order=order, stop=stop, max_iter=max_iter,
                          callback=callback, x0=x0, z0=z0, lam0=lam0, time_limit=time_limit, blas_threads=blas_threads,
-                         alpha=alpha, check_every=check_every, history=history, warm_start=warm_start)
+                         alpha=alpha, check_every=check_every, history=history, warm_start=warm_start,
+                         compiled=compiled)
     iterate = ITERATIONS[run.order](problem, run.ctx)      # eqs. (11), (12), (13) in the run's order
     rho_step = PolicyStep(run.policy)                       # eq. (17)
     watch, ledger = Termination(run), Ledger(run)           # the tests; the history, the callback, the taken ||r||
     ctx, rho, rho_changes, every, last = run.ctx, run.rho, 0, run.check_every, run.max_iter - 1
     x, z, lam, Ax = run.x, run.z, run.lam, run.Ax
     accel = None if accelerator is None else Acceleration(accelerator, run.order, checks.inner_of(problem))
-    fast = FastForward(run, enabled=compiled and accel is None)    # iterations nobody reads, compiled (admmkit.segments)
+    fast = FastForward(run, enabled=run.compiled and accel is None)    # unread iterations, compiled (segments)
     rec = final = old = None
     k = 0
     with run.blas_limit():       # the BLAS thread count is restored however the loop ends (an exception, Ctrl-C)
