@@ -6,10 +6,11 @@ matrix P + delta I are L D L' up to scaling, and by Sylvester's law of
 inertia the number of negative pivots is the number of eigenvalues of P
 below -delta: one sparse factorisation of P (smaller than the x-step's),
 at every size (a dense eigenvalue solve cost more than the whole QP solve
-below n = 500).  A diagonal P (an LP, a separable QP) is read off directly.  The shift delta = 1e-9 max|P| keeps a singular PSD P (an LP
-part, a rank-deficient least-squares term) factorable.  For the message, the
-smallest eigenvalue is estimated by Lanczos (``eigsh``), or exactly when P is
-small.
+below n = 500).  A diagonal P (an LP, a separable QP) is read off directly.
+The shift delta = 1e-9 max|P| keeps a singular PSD P (an LP part, a
+rank-deficient least-squares term) factorable.  For the message, the
+smallest eigenvalue is estimated by Lanczos (``eigsh``), or exactly when P
+is small.
 """
 from __future__ import annotations
 
