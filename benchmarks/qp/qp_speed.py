@@ -22,6 +22,7 @@ count, for small (n + m < 1000) and larger problems.
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import shlex
 import sys
@@ -152,8 +153,8 @@ def main(argv=None, prog: str = "admmkit bench qp-speed") -> int:
     parser.add_argument("--max-iter", type=int, default=4000, help="iteration cap (default 4000, OSQP's)")
     parser.add_argument("--repeat", type=int, default=3, help="runs per configuration, the best kept (default 3)")
     args = parser.parse_args(argv)
-    if args.max_size < 1 or args.eps <= 0 or args.max_iter < 1 or args.repeat < 1:
-        parser.error("--max-size, --eps, --max-iter and --repeat must be positive")
+    if args.max_size < 1 or not 0 < args.eps < math.inf or args.max_iter < 1 or args.repeat < 1:
+        parser.error("--max-size, --eps, --max-iter and --repeat must be positive (and --eps finite)")
     if not Path(args.data).is_dir():
         parser.error(f"--data: no folder {args.data}")
     for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):

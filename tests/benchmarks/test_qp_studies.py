@@ -52,6 +52,7 @@ def test_qp_speed_on_three_problems(tmp_path):
 
 def test_qp_speed_rejects_bad_options(capsys):
     from admmkit.benchmarks.qp import qp_speed
-    with pytest.raises(SystemExit) as exit_:
-        qp_speed.main(["--repeat", "0"])
-    assert exit_.value.code == 2 and "--repeat" in capsys.readouterr().err
+    for bad in (["--repeat", "0"], ["--eps", "nan"]):
+        with pytest.raises(SystemExit) as exit_:
+            qp_speed.main(bad)
+        assert exit_.value.code == 2 and bad[0] in capsys.readouterr().err
