@@ -39,6 +39,7 @@ Two forms of the same x-step (``xstep=``):
 """
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -105,8 +106,6 @@ class QP(Problem):
             self.Ps, self.qs, self.As, self.ls, self.us = self.P, self.q, self.A, self.l, self.u
         self.w = rows.row_weights(self.ls, self.us, row_weights)
         self._ones = (np.ones(self.m), np.ones(self.n))         # unit weights and scalings for compiled kernels
-        self.At = self.A.T.tocsr()      # A' once: scipy builds a new matrix on every A.T (~40 us)
-        self.Ats = self.As.T.tocsr() if self.scaled else self.At
         self._xstep = xstep                         # "auto" is resolved at first use (xstep)
         self.begin_run()
         w = np.ones(self.m) if self.w is None else self.w
@@ -117,6 +116,16 @@ class QP(Problem):
         # a named backend is checked against the form now; "auto" fits either form (decided at first use)
         self._backend = backend if backend == "auto" else x_step_backend(backend, self.xstep)
         self._x_solver = None
+
+    @functools.cached_property
+    def At(self):
+        """A' (CSR), built once at first use: scipy builds a new matrix on every ``A.T``."""
+        return self.A.T.tocsr()
+
+    @functools.cached_property
+    def Ats(self):
+        """The scaled A' (CSR; ``At`` when the QP is not scaled), built once at first use."""
+        return self.As.T.tocsr() if self.scaled else self.At
 
     @property
     def xstep(self) -> str:

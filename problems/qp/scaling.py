@@ -93,9 +93,13 @@ class _Entries:
     """A CSC matrix's entries with the row and column of each, to scale them as diag(a) M diag(b) in place."""
 
     def __init__(self, M: sp.csc_matrix):
-        M = sp.csc_matrix(M, dtype=float, copy=True)
-        M.sum_duplicates()
-        M.eliminate_zeros()                       # the pattern scipy's products keep
+        M = sp.csc_matrix(M, dtype=float)
+        if M.has_canonical_format and M.data.all():     # a validated QP's matrix: its data copied, its pattern shared
+            M = sp.csc_matrix((M.data.copy(), M.indices, M.indptr), shape=M.shape)
+        else:
+            M = M.copy()
+            M.sum_duplicates()
+            M.eliminate_zeros()                   # the pattern scipy's products keep
         self.matrix, self.rows = M, M.indices
         self.cols = np.repeat(np.arange(M.shape[1]), np.diff(M.indptr))
 
@@ -122,6 +126,11 @@ class _Entries:
         return _ColMax(np.r_[0, np.cumsum(counts)], order)
 
 
+def _csc(M):
+    """``M`` as a float CSC matrix (``M`` itself when it is one)."""
+    return M if sp.isspmatrix_csc(M) and M.dtype == np.float64 else sp.csc_matrix(M, dtype=float)
+
+
 def ruiz(P: sp.spmatrix, q: np.ndarray, A: sp.spmatrix, iterations: int = 10, compiled: bool = True):
     """Return (Scaling, Pb, qb, Ab): ``iterations`` Ruiz steps with cost scaling, as OSQP's ``scale_data``.
 
@@ -135,8 +144,8 @@ def ruiz(P: sp.spmatrix, q: np.ndarray, A: sp.spmatrix, iterations: int = 10, co
         raise ValueError(f"scaling must be an integer >= 0 (Ruiz iterations; OSQP uses 10), got {iterations!r}")
     n, m = P.shape[0], A.shape[0]
     D, E, c = np.ones(n), np.ones(m), 1.0
-    if not iterations:
-        return Scaling(D, E, c), sp.csc_matrix(P), np.asarray(q, dtype=float).copy(), sp.csc_matrix(A)
+    if not iterations:                           # the data as it is (a CSC matrix is returned itself, not copied)
+        return Scaling(D, E, c), _csc(P), np.asarray(q, dtype=float).copy(), _csc(A)
     Pe, Ae, q = _Entries(P), _Entries(A), np.asarray(q, dtype=float).copy()
     if compiled and NUMBA:
         from .ruiz_kernel import ruiz_steps

@@ -139,6 +139,11 @@ def solve_qp(qp: QP, settings: QPSettings | None = None, *, policy="osqp", warm_
     return _qp_result(run_qp, settings, res, stop, res.last_record)
 
 
+def _same(view: np.ndarray, array: np.ndarray) -> bool:
+    """``view`` is ``array`` or a view of it (a record's read-only view of the loop's iterate)."""
+    return view is array or view.base is array
+
+
 def _qp_result(qp: QP, settings: QPSettings, res: Result, stop: QPTermination, rec) -> QPResult:
     status, termination, message = res.status, None, res.message
     if res.status in (Status.CONVERGED, Status.PRIMAL_INFEASIBLE, Status.DUAL_INFEASIBLE) and stop.outcome is not None:
@@ -167,7 +172,13 @@ def _qp_result(qp: QP, settings: QPSettings, res: Result, stop: QPTermination, r
         same = rec is not None and xb is qp.relaxed_x(rec.x)
         residuals = _iterate(qp, rec) if same else residuals_of_iterate()(qp, xb, zb, lam_z)
         residuals = {k: v for k, v in residuals.items() if not k.startswith("scaled_")}
-    objective, kkt = res.objective, (qp.kkt(x, zb, lam_z) if finite else None)
+    objective = res.objective
+    if not finite:
+        kkt = None
+    elif res.kkt is not None and _same(zb, res.z) and _same(lam_z, res.lam):
+        kkt = res.kkt                       # the loop's result measured this very point: x = D xb, z, lam
+    else:
+        kkt = qp.kkt(x, zb, lam_z)
     if status is Status.PRIMAL_INFEASIBLE or status is Status.PRIMAL_INFEASIBLE_INACCURATE:
         objective = math.inf
     elif status is Status.DUAL_INFEASIBLE or status is Status.DUAL_INFEASIBLE_INACCURATE:

@@ -6,6 +6,8 @@ import warnings
 import numpy as np
 import scipy.sparse as sp
 
+from admmkit.segments import AVAILABLE as NUMBA      # numba installed (asked once, without importing it)
+
 from .convexity import check_convex
 
 def _inf(v) -> float:
@@ -26,6 +28,27 @@ def _real(name: str, value, sparse_ok: bool = False):
         raise ValueError(f"{name} must be an array of numbers, got {value!r:.60}") from None
 
 
+def _canonical(M: sp.csc_matrix) -> sp.csc_matrix:
+    """``M`` in canonical CSC form (sorted row indices, no duplicates): ``M`` itself when it is, else a copy
+    (the user's matrix is never changed).  The compiled kernels read canonical arrays."""
+    if M.has_canonical_format:
+        return M
+    M = M.copy()
+    M.sum_duplicates()
+    return M
+
+
+def _symmetry_defect(P: sp.csc_matrix) -> tuple[float, float]:
+    """(max |P - P'|, max |P|) of canonical CSC ``P``: one compiled pass where numba is installed."""
+    if P.nnz == 0:
+        return 0.0, 0.0
+    if NUMBA:
+        from .sparse_kernels import symmetry_defect
+        defect, scale = symmetry_defect(P.indptr, P.indices, P.data)
+        return float(defect), float(scale)
+    return float(abs(P - P.T).max()), float(np.max(np.abs(P.data)))
+
+
 def _validate(P, q, A, l, u, allow_nonconvex: bool = False):
     """Check types, shapes, symmetry, convexity, finiteness and l <= u; return (P, q, A, l, u) as csc/arrays.
 
@@ -42,8 +65,9 @@ def _validate(P, q, A, l, u, allow_nonconvex: bool = False):
         raise ValueError("the QP needs at least one variable: P, q and A must have n >= 1 columns, got n = 0")
     if not np.all(np.isfinite(P.data)):
         raise ValueError("P must have finite entries")
-    asym = abs(P - P.T).max() if P.nnz else 0.0
-    if asym > 1e-10 * max(1.0, abs(P).max()):
+    P = _canonical(P)
+    asym, scale = _symmetry_defect(P)
+    if asym > 1e-10 * max(1.0, scale):
         raise ValueError(f"P must be symmetric; max |P - P'| = {asym:.3g}")
     try:
         check_convex(P)
@@ -65,6 +89,7 @@ def _validate(P, q, A, l, u, allow_nonconvex: bool = False):
         raise ValueError(f"A must have n = {n} columns (from P), got shape {A.shape}")
     if not np.all(np.isfinite(A.data)):
         raise ValueError("A must have finite entries")
+    A = _canonical(A)
     m = A.shape[0]
     l = _real("l", l).ravel()
     u = _real("u", u).ravel()

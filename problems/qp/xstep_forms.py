@@ -7,6 +7,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from admmkit.linsolve import CachedFactorization, available_backends
+from admmkit.segments import AVAILABLE as NUMBA      # numba installed (asked once, without importing it)
 
 from .rows import FREE_ROW_PENALTY
 
@@ -77,13 +78,22 @@ def x_step_solver(qp, backend: str) -> CachedFactorization:
 
 
 def _kkt_pattern(qp, upper: bool):
-    """The KKT matrix [[P + sigma I, A'], [A, 1]] (its upper triangle if ``upper``) in CSC, assembled in one
-    COO -> CSC pass, and the positions of its last m diagonal entries (the -R^-1 slots).
+    """The KKT matrix [[P + sigma I, A'], [A, 1]] (its upper triangle if ``upper``) in CSC, and the positions of
+    its last m diagonal entries (the -R^-1 slots).
 
     The same entries as scipy's ``bmat`` of the blocks plus ``diags``: P_ii + sigma is the one sum, and exact
-    zeros are dropped as scipy's sums drop them.
+    zeros are dropped as scipy's sums drop them.  One compiled pass over the arrays
+    (:func:`admmkit.problems.qp.sparse_kernels.kkt_arrays`) where numba is installed, else one COO -> CSC pass.
     """
     n, m = qp.n, qp.m
+    if NUMBA:
+        from .sparse_kernels import kkt_arrays
+        P, A = qp.Ps, qp.As
+        indptr, indices, data, slots = kkt_arrays(n, m, P.indptr, P.indices, P.data, qp.sigma,
+                                                  A.indptr, A.indices, A.data, upper)
+        K0 = sp.csc_matrix((data, indices, indptr), shape=(n + m, n + m))
+        K0.has_sorted_indices = True
+        return K0, slots
     P, A = qp.Ps.tocoo(), qp.As.tocoo()
     keep = P.row <= P.col if upper else slice(None)
     diag = np.arange(n)

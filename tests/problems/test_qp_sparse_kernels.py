@@ -1,0 +1,83 @@
+"""The QP's compiled passes over its CSC arrays give what the scipy/numpy steps give (problems/qp/sparse_kernels.py)."""
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+pytest.importorskip("numba")
+from admmkit.problems.qp import QP, kkt, residuals, validate, xstep_forms  # noqa: E402
+
+
+def awkward_qp(seed: int, sigma: float = 1e-6, **options) -> QP:
+    """A random convex QP whose matrices are not canonical: duplicates, unsorted rows, explicit zeros, a P
+    column without its diagonal, infinite bounds."""
+    rng = np.random.default_rng(seed)
+    n, m = int(rng.integers(1, 9)), int(rng.integers(1, 12))
+    G = sp.random(n + 2, n, density=0.5, random_state=seed).toarray()
+    P = G.T @ G
+    P[0, 0] = 0.0 if n > 1 and not P[0, 1:].any() else P[0, 0]
+    P = sp.coo_matrix(P)
+    P = sp.coo_matrix((np.r_[P.data, 0.0, 0.0], (np.r_[P.row, 0, n - 1], np.r_[P.col, n - 1, 0])), shape=(n, n))
+    A = sp.random(m, n, density=0.4, random_state=seed + 1).tocoo()
+    half = A.data / 2                                        # each entry stored twice, as two halves (duplicates)
+    A = sp.coo_matrix((np.r_[half, half, 0.0], (np.r_[A.row, A.row, 0], np.r_[A.col, A.col, 0])), shape=(m, n))
+    A = sp.csc_matrix(A)
+    A = sp.csc_matrix((np.concatenate([A.data[a:b][::-1] for a, b in zip(A.indptr, A.indptr[1:])] + [[]]),
+                       np.concatenate([A.indices[a:b][::-1] for a, b in zip(A.indptr, A.indptr[1:])] + [[]]).astype(int),
+                       A.indptr), shape=A.shape)                  # rows in descending order within each column
+    l, u = -rng.uniform(0, 2, m), rng.uniform(0, 2, m)
+    l[rng.random(m) < 0.3], u[rng.random(m) < 0.3] = -np.inf, np.inf
+    return QP(sp.csc_matrix(P), rng.standard_normal(n), A, l, u, sigma=sigma, **options)
+
+
+@pytest.mark.parametrize("seed", range(30))
+@pytest.mark.parametrize("sigma", [0.0, 1e-6])
+@pytest.mark.parametrize("upper", [True, False])
+@pytest.mark.parametrize("scaling", [0, 10])
+def test_the_kkt_matrix_is_the_scipy_assembly_entry_for_entry(seed, sigma, upper, scaling, monkeypatch):
+    qp = awkward_qp(seed, sigma=sigma, scaling=scaling)
+    K, slots = xstep_forms._kkt_pattern(qp, upper)
+    monkeypatch.setattr(xstep_forms, "NUMBA", False)
+    K_ref, slots_ref = xstep_forms._kkt_pattern(qp, upper)
+    assert np.array_equal(K.indptr, K_ref.indptr) and np.array_equal(K.indices, K_ref.indices)
+    assert np.array_equal(K.data, K_ref.data) and np.array_equal(slots, slots_ref)
+
+
+def test_validation_keeps_the_users_matrices_and_makes_them_canonical():
+    P = sp.csc_matrix((np.array([1.0, 1.0]), np.array([0, 0]), np.array([0, 2])), shape=(1, 1))   # a duplicate
+    qp = QP(P, [1.0], sp.csc_matrix([[1.0]]), [-1.0], [1.0])
+    assert P.nnz == 2 and qp.P.nnz == 1 and qp.P[0, 0] == 2.0 and qp.P.has_canonical_format
+
+
+@pytest.mark.parametrize("seed", range(40))
+def test_the_symmetry_defect_is_max_abs_p_minus_its_transpose(seed, monkeypatch):
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(1, 8))
+    M = sp.random(n, n, density=0.5, random_state=seed).toarray()
+    M = M + M.T
+    if seed % 2:
+        M[rng.integers(n), rng.integers(n)] += rng.uniform(0.5, 1.0)     # one entry off its mirror
+    M = validate._canonical(sp.csc_matrix(M))
+    compiled = validate._symmetry_defect(M)
+    monkeypatch.setattr(validate, "NUMBA", False)
+    assert compiled == pytest.approx(validate._symmetry_defect(M), abs=1e-15)
+    assert (compiled[0] > 0) == bool(seed % 2 and np.abs(M - M.T).max() > 0)
+
+
+def test_an_asymmetric_p_is_still_refused():
+    with pytest.raises(ValueError, match="P must be symmetric"):
+        QP(sp.csc_matrix([[1.0, 0.5], [0.0, 1.0]]), [0.0, 0.0], sp.csc_matrix([[1.0, 0.0]]), [0.0], [1.0])
+
+
+@pytest.mark.parametrize("seed", range(30))
+def test_kkt_and_neutral_measures_are_the_numpy_steps(seed, monkeypatch):
+    qp = awkward_qp(seed, scaling=10, row_weights="osqp")
+    rng = np.random.default_rng(seed)
+    x, z, lam = rng.standard_normal(qp.n), rng.standard_normal(qp.m), rng.standard_normal(qp.m)
+    y = qp.multiplier(lam)
+    got_kkt, got_neutral = qp.kkt(x, z, lam), residuals.neutral_residuals(qp, x, y)
+    monkeypatch.setattr(kkt, "NUMBA", False)
+    monkeypatch.setattr(residuals, "NUMBA", False)
+    assert got_kkt == qp.kkt(x, z, lam)                                      # bit for bit
+    ref = residuals.neutral_residuals(qp, x, y)
+    assert got_neutral["primal"] == ref["primal"] and got_neutral["dual"] == ref["dual"]
+    assert got_neutral["gap"] == pytest.approx(ref["gap"], rel=1e-12, abs=1e-12)
