@@ -32,6 +32,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from admmkit.segments import AVAILABLE as NUMBA      # numba installed (asked once, without importing it)
+
 from .problem import QP
 
 #: OSQP_DIVISION_TOL = 1 / OSQP_INFTY
@@ -56,7 +58,15 @@ def _support(dy: np.ndarray, l: np.ndarray, u: np.ndarray) -> float:
 
 
 def primal_certificate(qp: QP, dy: np.ndarray, eps: float) -> np.ndarray | None:
-    """The normalised certificate (I1) if ``dy`` (a change of the user's y) proves primal infeasibility, else None."""
+    """The normalised certificate (I1) if ``dy`` (a change of the user's y) proves primal infeasibility, else None.
+
+    In one compiled pass where numba is installed (``infeasibility_kernel``)."""
+    if NUMBA:
+        from .infeasibility_kernel import primal_candidate
+        out = np.empty(qp.m)
+        A = qp.A
+        return out if primal_candidate(A.indptr, A.indices, A.data, qp.l, qp.u, np.asarray(dy, dtype=float),
+                                       float(eps), out) else None
     dy = project_polar_recession_cone(np.asarray(dy, dtype=float), qp.l, qp.u)
     norm = _inf(dy)
     if norm <= DIVISION_TOL:
@@ -68,8 +78,16 @@ def primal_certificate(qp: QP, dy: np.ndarray, eps: float) -> np.ndarray | None:
 
 
 def dual_certificate(qp: QP, dx: np.ndarray, eps: float) -> np.ndarray | None:
-    """The normalised certificate (I2) if ``dx`` (a change of the user's x) proves dual infeasibility, else None."""
+    """The normalised certificate (I2) if ``dx`` (a change of the user's x) proves dual infeasibility, else None.
+
+    In one compiled pass where numba is installed (``infeasibility_kernel``)."""
     dx = np.asarray(dx, dtype=float)
+    if NUMBA:
+        from .infeasibility_kernel import dual_candidate
+        out = np.empty(qp.n)
+        P, A = qp.P, qp.A
+        return out if dual_candidate(P.indptr, P.indices, P.data, qp.q, A.indptr, A.indices, A.data, qp.l, qp.u,
+                                     dx, float(eps), out) else None
     norm = _inf(dx)
     if norm <= DIVISION_TOL:
         return None

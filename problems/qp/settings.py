@@ -76,17 +76,25 @@ class QPSettings:
             raise ValueError(f"time_limit must be a finite number > 0 or None, got {self.time_limit!r}")
 
     def replace(self, **changes) -> "QPSettings":
-        """A copy with some settings changed (unknown names raise TypeError)."""
-        unknown = sorted(set(changes) - {f.name for f in dataclasses.fields(self)})
-        if unknown:
-            known = ", ".join(f.name for f in dataclasses.fields(self))
-            raise TypeError(f"unknown QP setting(s) {', '.join(unknown)}; known: {known}")
+        """A copy with some settings changed (unknown names raise TypeError); no change: this object itself."""
+        if not changes:
+            return self
+        _check_names(changes)
         return dataclasses.replace(self, **changes)
+
+
+def _check_names(changes: dict) -> None:
+    """TypeError naming the unknown settings among ``changes`` and listing the known ones."""
+    known = [f.name for f in dataclasses.fields(QPSettings)]
+    unknown = sorted(set(changes) - set(known))
+    if unknown:
+        raise TypeError(f"unknown QP setting(s) {', '.join(unknown)}; known: {', '.join(known)}")
 
 
 def osqp_settings(**changes) -> QPSettings:
     """OSQP 1.x's defaults (the preset), with ``changes`` applied."""
-    return QPSettings().replace(**changes)
+    _check_names(changes)
+    return QPSettings(**changes)
 
 
 def textbook_settings(**changes) -> QPSettings:

@@ -108,8 +108,11 @@ def solve_qp(qp: QP, settings: QPSettings | None = None, *, policy="osqp", warm_
     """
     if not isinstance(qp, QP):
         raise TypeError(f"qp must be a admmkit.problems.qp.QP, got {type(qp).__name__}")
-    settings = (osqp_settings() if settings is None else settings).replace(**changes)
-    if not isinstance(settings, QPSettings):
+    if settings is None:
+        settings = osqp_settings(**changes)
+    elif isinstance(settings, QPSettings):
+        settings = settings.replace(**changes)
+    else:
         raise TypeError(f"settings must be a QPSettings (e.g. osqp_settings()), got {type(settings).__name__}")
     run_qp = qp_for(qp, settings)
     rule = default_policy(run_qp, settings) if isinstance(policy, str) and policy == "osqp" else policy

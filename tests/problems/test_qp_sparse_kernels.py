@@ -81,3 +81,21 @@ def test_kkt_and_neutral_measures_are_the_numpy_steps(seed, monkeypatch):
     ref = residuals.neutral_residuals(qp, x, y)
     assert got_neutral["primal"] == ref["primal"] and got_neutral["dual"] == ref["dual"]
     assert got_neutral["gap"] == pytest.approx(ref["gap"], rel=1e-12, abs=1e-12)
+
+
+@pytest.mark.parametrize("seed", range(20))
+def test_the_infeasibility_tests_decide_as_the_numpy_steps(seed, monkeypatch):
+    from admmkit.problems.qp import infeasibility
+    from admmkit.problems.qp.generate import infeasible_qp, unbounded_qp
+    rng = np.random.default_rng(seed)
+    qp = (infeasible_qp, unbounded_qp)[seed % 2](12, 18, seed=seed)
+    for _ in range(10):
+        dy = rng.standard_normal(qp.m) * (rng.random(qp.m) < 0.5)
+        dx = rng.standard_normal(qp.n) * (rng.random(qp.n) < 0.5)
+        for eps in (1e-4, 1.0, 1e3):
+            got = infeasibility.primal_certificate(qp, dy, eps), infeasibility.dual_certificate(qp, dx, eps)
+            with monkeypatch.context() as patch:
+                patch.setattr(infeasibility, "NUMBA", False)
+                ref = infeasibility.primal_certificate(qp, dy, eps), infeasibility.dual_certificate(qp, dx, eps)
+            for a, b in zip(got, ref):
+                assert (a is None) == (b is None) and (a is None or np.array_equal(a, b))
