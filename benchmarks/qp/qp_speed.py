@@ -39,6 +39,7 @@ CONFIGS = ("osqp", "admmkit", "admmkit-python")
 COLUMNS = ("problem", "n", "m", "eps", "solver", "status", "iterations", "whole_ms", "loop_ms", "ratio_whole",
            "ratio_loop")
 SMALL = 1000
+LARGE = 5000
 
 
 def _osqp(P, q, A, l, u, eps: float, max_iter: int):
@@ -106,38 +107,53 @@ def comparable(rows: list[dict]) -> dict[str, dict]:
             and len({r["iterations"] for r in v.values()}) == 1}
 
 
+GROUPS = ((f"n + m < {SMALL}", lambda size: size < SMALL), (f"{SMALL} <= n + m < {LARGE}", lambda size: SMALL <= size < LARGE),
+          (f"n + m >= {LARGE}", lambda size: size >= LARGE), ("all", lambda size: True))
+
+
 def summarise(rows: list[dict]) -> list[str]:
-    """Markdown lines: the ratios admmkit / OSQP, whole solve and loop per iteration, small and larger problems."""
+    """Markdown lines: per eps, the ratios admmkit / OSQP, whole solve and loop per iteration, by size."""
     same = comparable(rows)
     lines = [f"Problems solved by all three with the same iteration count: {len(same)} "
-             f"(of {len({(r['problem'], r['eps']) for r in rows})}).", "",
-             "| admmkit / OSQP | problems | whole solve, compiled | whole solve, Python | loop per iteration, "
-             "compiled | loop per iteration, Python |", "|---|---|---|---|---|---|"]
-    for label, keep in ((f"n + m < {SMALL}", lambda r: r["n"] + r["m"] < SMALL),
-                        (f"n + m >= {SMALL}", lambda r: r["n"] + r["m"] >= SMALL), ("all", lambda r: True)):
-        group = [v for v in same.values() if keep(v["osqp"])]
-        cells = [_stats([v[c][key] for v in group]) for key in ("ratio_whole", "ratio_loop")
-                 for c in ("admmkit", "admmkit-python")]
-        lines.append(f"| {label} | {len(group)} | {cells[0]} | {cells[1]} | {cells[2]} | {cells[3]} |")
+             f"(of {len({(r['problem'], r['eps']) for r in rows})} problem and eps pairs)."]
+    for eps in sorted({r["eps"] for r in rows}, reverse=True):
+        lines += ["", f"## eps = {eps:g}", "",
+                  "| admmkit / OSQP | problems | whole solve, compiled | whole solve, Python | loop per iteration, "
+                  "compiled | loop per iteration, Python |", "|---|---|---|---|---|---|"]
+        for label, keep in GROUPS:
+            group = [v for (_, e), v in same.items() if e == eps and keep(v["osqp"]["n"] + v["osqp"]["m"])]
+            if not group and label != "all":
+                continue
+            cells = [_stats([v[c][key] for v in group]) for key in ("ratio_whole", "ratio_loop")
+                     for c in ("admmkit", "admmkit-python")]
+            lines.append(f"| {label} | {len(group)} | {cells[0]} | {cells[1]} | {cells[2]} | {cells[3]} |")
     return lines
 
 
 def plot(rows: list[dict], path: Path) -> None:
-    """Whole-solve ratio admmkit / OSQP against n + m, compiled and Python, on a log scale."""
+    """Whole-solve ratio admmkit / OSQP against n + m, compiled and Python, on a log scale, one panel per eps."""
     from admmkit.figures import save_figure
     import matplotlib.pyplot as plt
+    from matplotlib.ticker import FormatStrFormatter, LogLocator, NullFormatter
     same = comparable(rows)
-    fig, ax = plt.subplots(figsize=(7, 4.2))
-    for config, marker in (("admmkit-python", "x"), ("admmkit", "o")):
-        size = [v["osqp"]["n"] + v["osqp"]["m"] for v in same.values()]
-        ax.scatter(size, [v[config]["ratio_whole"] for v in same.values()], marker=marker, s=18,
-                   label=f"{config} (median {np.median([v[config]['ratio_whole'] for v in same.values()]):.1f}x)")
-    ax.axhline(1, color="k", lw=0.8)
-    ax.axhline(2, color="k", lw=0.8, ls="--", label="2x OSQP")
-    ax.set(xscale="log", yscale="log", xlabel="n + m", ylabel="whole solve time / OSQP's",
-           )
-    ax.set_title("A whole QP solve against OSQP 1.x (Maros-Meszaros, same iterations)", fontsize=10)
-    ax.legend(fontsize=8)
+    epss = sorted({e for (_, e) in same}, reverse=True) or [None]
+    fig, axes = plt.subplots(1, len(epss), figsize=(5.2 * len(epss), 4.2), sharey=True, squeeze=False)
+    for ax, eps in zip(axes[0], epss):
+        cases = [v for (_, e), v in same.items() if e == eps]
+        for config, marker in (("admmkit-python", "x"), ("admmkit", "o")):
+            ratios = [v[config]["ratio_whole"] for v in cases]
+            ax.scatter([v["osqp"]["n"] + v["osqp"]["m"] for v in cases], ratios, marker=marker, s=18,
+                       label=f"{config} (median {np.median(ratios) if ratios else float('nan'):.2f}x)")
+        ax.axhline(1, color="k", lw=0.8)
+        ax.axhline(2, color="k", lw=0.8, ls="--", label="2x OSQP")
+        ax.set(xscale="log", yscale="log", xlabel="n + m", title=f"eps = {eps:g}" if eps else "")
+        for axis in (ax.xaxis, ax.yaxis):                 # labels at 1, 2, 5 x 10^k, none crowded on a narrow decade
+            axis.set_major_locator(LogLocator(base=10, subs=(1.0, 2.0, 5.0)))
+            axis.set_major_formatter(FormatStrFormatter("%g"))
+            axis.set_minor_formatter(NullFormatter())
+        ax.legend(fontsize=8)
+    axes[0][0].set_ylabel("whole solve time / OSQP's")
+    fig.suptitle("A whole QP solve against OSQP 1.x (Maros-Meszaros, same iterations)", fontsize=10)
     save_figure(fig, path)
     plt.close(fig)
 
@@ -148,13 +164,16 @@ def main(argv=None, prog: str = "admmkit bench qp-speed") -> int:
     parser.add_argument("--data", default=str(DEFAULT_DATA), help="folder of Maros-Meszaros MAT files")
     parser.add_argument("--out", default="out/qp_speed", help="output folder (default ./out/qp_speed/)")
     parser.add_argument("--max-size", type=int, default=3000, help="largest n + m (default 3000)")
+    parser.add_argument("--min-size", type=int, default=0, help="smallest n + m (default 0)")
     parser.add_argument("--problems", nargs="*", help="only these problems")
-    parser.add_argument("--eps", type=float, default=1e-3, help="eps_abs = eps_rel (default 1e-3)")
+    parser.add_argument("--eps", type=float, nargs="+", default=[1e-3, 1e-6],
+                        help="eps_abs = eps_rel, one study each (default 1e-3 1e-6)")
     parser.add_argument("--max-iter", type=int, default=4000, help="iteration cap (default 4000, OSQP's)")
     parser.add_argument("--repeat", type=int, default=3, help="runs per configuration, the best kept (default 3)")
     args = parser.parse_args(argv)
-    if args.max_size < 1 or not 0 < args.eps < math.inf or args.max_iter < 1 or args.repeat < 1:
-        parser.error("--max-size, --eps, --max-iter and --repeat must be positive (and --eps finite)")
+    if args.max_size < 1 or args.min_size < 0 or not all(0 < e < math.inf for e in args.eps) or args.max_iter < 1 \
+            or args.repeat < 1:
+        parser.error("--max-size, --eps, --max-iter and --repeat must be positive, --min-size >= 0 (and --eps finite)")
     if not Path(args.data).is_dir():
         parser.error(f"--data: no folder {args.data}")
     for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
@@ -169,24 +188,28 @@ def main(argv=None, prog: str = "admmkit bench qp-speed") -> int:
     chosen = []
     for name, _ in select(data, float("inf"), args.problems):
         P, A = read_matrices(data / f"{name}.mat")
-        if args.problems or P.shape[0] + A.shape[0] <= args.max_size:
+        if args.problems or args.min_size <= P.shape[0] + A.shape[0] <= args.max_size:
             chosen.append(name)
     t0 = time.perf_counter()
-    _admmkit(*(lambda p: (p.P, p.q, p.A, p.l, p.u))(random_qp(5, 5)), 1e-3, 100, True)   # numba: compile or load
+    warm = (lambda p: (p.P, p.q, p.A, p.l, p.u))(random_qp(5, 5))    # numba: compile or load every kernel (a
+    _admmkit(*warm, 1e-3, 100, True)                                   # tight eps runs the infeasibility tests)
+    _admmkit(*warm, 1e-12, 60, True)
     jit = time.perf_counter() - t0
-    print(f"{len(chosen)} problems with n + m <= {args.max_size}; kernels ready in {jit:.2f} s", flush=True)
+    print(f"{len(chosen)} problems with {args.min_size} <= n + m <= {args.max_size}; kernels ready in {jit:.2f} s",
+          flush=True)
     rows, start = [], time.perf_counter()
     with threadpool_limits(1):
-        for i, name in enumerate(chosen):
-            new = measure(name, data, args.eps, args.max_iter, args.repeat)
+        for i, (eps, name) in enumerate((e, n) for e in args.eps for n in chosen):
+            new = measure(name, data, eps, args.max_iter, args.repeat)
             rows += new
-            print(f"[{i + 1}/{len(chosen)}] {name}: " + "  ".join(
+            print(f"[{i + 1}/{len(chosen) * len(args.eps)}] {name} (eps {eps:g}): " + "  ".join(
                 f"{r['solver']} {r['whole_ms']:.2f} ms/{r['iterations']} it" for r in new), flush=True)
     write_csv(out / "qp_speed.csv", rows, list(COLUMNS), float_format=".6g")
     plot(rows, out / "qp_speed.png")
     text = "\n".join([
         "# A whole QP solve: admmkit against OSQP 1.x (Maros-Meszaros)", "", f"Command: `{command}`", "",
-        f"{len(chosen)} convex problems with n + m <= {args.max_size}, eps_abs = eps_rel = {args.eps:g}, "
+        f"{len(chosen)} convex problems with {args.min_size} <= n + m <= {args.max_size}, eps_abs = eps_rel = "
+        f"{', '.join(f'{e:g}' for e in args.eps)}, "
         f"iteration cap {args.max_iter}, best of {args.repeat} runs taken in turn, BLAS on one thread; "
         f"the numba kernels were ready after {jit:.2f} s (compiled, or loaded from numba's cache) before the "
         f"first timing. Study wall time {time.perf_counter() - start:.0f} s.", "",

@@ -40,19 +40,22 @@ def test_qp_speed_on_three_problems(tmp_path):
     assert qp_speed.main(["--data", str(MM), "--problems", "HS21", "HS35", "QPCBLEND", "--out", str(tmp_path),
                           "--repeat", "1"]) == 0
     rows = list(csv.DictReader((tmp_path / "qp_speed.csv").open()))
-    assert len(rows) == 3 * 3 and {r["solver"] for r in rows} == set(qp_speed.CONFIGS)
+    assert len(rows) == 3 * 3 * 2 and {r["solver"] for r in rows} == set(qp_speed.CONFIGS)
+    assert {float(r["eps"]) for r in rows} == {1e-3, 1e-6}            # both accuracies by default
     for p in ("HS21", "HS35", "QPCBLEND"):            # the same iterations in all three: the ratios compare like work
-        assert len({r["iterations"] for r in rows if r["problem"] == p}) == 1
+        for eps in ("0.001", "1e-06"):
+            assert len({r["iterations"] for r in rows if r["problem"] == p and r["eps"] == eps}) == 1
         osqp_row = next(r for r in rows if r["problem"] == p and r["solver"] == "osqp")
         assert float(osqp_row["ratio_whole"]) == 1.0
     readme = (tmp_path / "README.md").read_text()
-    assert "Command: `admmkit bench qp-speed" in readme and "same iteration count: 3 (of 3)" in readme
+    assert "Command: `admmkit bench qp-speed" in readme and "same iteration count: 6 (of 6" in readme
+    assert "## eps = 0.001" in readme and "## eps = 1e-06" in readme
     assert (tmp_path / "qp_speed.png").stat().st_size > 0
 
 
 def test_qp_speed_rejects_bad_options(capsys):
     from admmkit.benchmarks.qp import qp_speed
-    for bad in (["--repeat", "0"], ["--eps", "nan"]):
+    for bad in (["--repeat", "0"], ["--eps", "nan"], ["--eps", "1e-3", "0"], ["--min-size", "-1"]):
         with pytest.raises(SystemExit) as exit_:
             qp_speed.main(bad)
         assert exit_.value.code == 2 and bad[0] in capsys.readouterr().err
