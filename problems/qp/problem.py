@@ -49,8 +49,8 @@ from admmkit import Problem
 from . import rows
 from .kkt import kkt_residuals
 from .rows import FREE_ROW_PENALTY
-from .validate import _real, _validate
-from .xstep_forms import REDUCED_MAX_NNZ, XSTEPS, reduced_nnz_bound, x_step_backend, x_step_solver
+from .validate import _real, _validate, check_options
+from .xstep_forms import REDUCED_MAX_NNZ, reduced_nnz_bound, x_step_backend, x_step_solution, x_step_solver
 
 class QP(Problem):
     """A convex QP, validated on construction.
@@ -75,28 +75,35 @@ class QP(Problem):
         r_value = _real("r", r)
         if r_value.shape not in ((), (1,)) or not math.isfinite(r_value.item()):
             raise ValueError(f"r (the constant of the objective) must be one finite number, got {r!r:.60}")
-        self._build(float(r_value.item()), sigma=sigma, backend=backend, name=name, xstep=xstep, scaling=scaling,
-                    row_weights=row_weights, x_relaxation=x_relaxation, allow_nonconvex=allow_nonconvex)
+        self.r, self.name = float(r_value.item()), name
+        self._take_options(dict(sigma=sigma, backend=backend, xstep=xstep, scaling=scaling, row_weights=row_weights,
+                                x_relaxation=x_relaxation, allow_nonconvex=allow_nonconvex))
 
-    def _build(self, r: float, *, sigma, backend, name, xstep, scaling, row_weights, x_relaxation, allow_nonconvex):
-        """Everything but the data's validation: the options, the scaled copy and the x-step's matrices."""
+    def _take_options(self, options: dict) -> None:
+        """The options, checked now (the constructor's messages); what they build waits for its first use."""
+        self.options = check_options(**options)
+        self.n, self.m, self.c = self.P.shape[0], self.A.shape[0], 0.0
+        self.sigma, self.x_relaxation = self.options["sigma"], self.options["x_relaxation"]
+        self._xstep = self.options["xstep"]                 # "auto" is resolved at first use (xstep)
+        backend = self.options["backend"]
+        # a named backend is checked against the form now; "auto" fits either form (decided at first use)
+        self._backend = backend if backend == "auto" else x_step_backend(backend, self.xstep)
+        self._x_solver = None
+        self._built = False
+
+    def __getattr__(self, name: str):
+        """The scaled data and the x-step's pieces, built at the first use of one of them (:meth:`_build`): the
+        QP a user hands to ``solve_qp`` is copied with OSQP's options and never needs its own."""
+        if name.startswith("__") or self.__dict__.get("_built", True):
+            raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
+        self._build()
+        return getattr(self, name)
+
+    def _build(self) -> None:
+        """The scaled copy (S1), the row weights and the free rows (Q5) of the options taken."""
         from .scaling import ruiz
-        self.r = r
-        if isinstance(sigma, (bool, str, bytes)) or not isinstance(sigma, (int, float, np.integer, np.floating)) \
-                or not (math.isfinite(sigma) and sigma >= 0):
-            raise ValueError(f"sigma must be a finite number >= 0, got {sigma!r}")
-        if xstep not in XSTEPS:
-            raise ValueError(f"xstep must be one of {', '.join(XSTEPS)}, got {xstep!r}")
-        self.sigma = float(sigma)
-        self.name = name
-        self.n = self.P.shape[0]
-        self.m = self.A.shape[0]
-        self.c = 0.0
-        if not (isinstance(x_relaxation, (int, float)) and 0 < x_relaxation < 2):
-            raise ValueError(f"x_relaxation must be a number in (0, 2), got {x_relaxation!r}")
-        self.x_relaxation = float(x_relaxation)
-        self.options = dict(sigma=self.sigma, backend=backend, xstep=xstep, scaling=scaling, row_weights=row_weights,
-                            x_relaxation=self.x_relaxation, allow_nonconvex=bool(allow_nonconvex))
+        self._built = True
+        scaling = self.options["scaling"]
         self.scaling, Ps, qs, As = ruiz(self.P, self.q, self.A, scaling)                          # (S1)
         self.scaled = scaling > 0
         if self.scaled:
@@ -104,18 +111,14 @@ class QP(Problem):
             self.ls, self.us = self.scaling.E * self.l, self.scaling.E * self.u
         else:
             self.Ps, self.qs, self.As, self.ls, self.us = self.P, self.q, self.A, self.l, self.u
-        self.w = rows.row_weights(self.ls, self.us, row_weights)
+        self.w = rows.row_weights(self.ls, self.us, self.options["row_weights"])
         self._ones = (np.ones(self.m), np.ones(self.n))         # unit weights and scalings for compiled kernels
-        self._xstep = xstep                         # "auto" is resolved at first use (xstep)
         self.begin_run()
         w = np.ones(self.m) if self.w is None else self.w
         # free rows (both bounds infinite) under "osqp": the x-step's penalty is RHO_MIN whatever rho is, as OSQP's
         # rho_vec; their lam and residual are 0 from the first iteration on, so only the x-step sees it (Q5)
         self._free = np.flatnonzero(np.isinf(self.ls) & np.isinf(self.us)) if self.w is not None else np.empty(0, int)
         self._w_free_over_penalty = w[self._free] / FREE_ROW_PENALTY
-        # a named backend is checked against the form now; "auto" fits either form (decided at first use)
-        self._backend = backend if backend == "auto" else x_step_backend(backend, self.xstep)
-        self._x_solver = None
 
     @functools.cached_property
     def At(self):
@@ -169,8 +172,8 @@ class QP(Problem):
         if merged["allow_nonconvex"] != self.options["allow_nonconvex"]:     # the convexity verdict may change
             return QP(self.P, self.q, self.A, self.l, self.u, self.r, name=self.name, **merged)
         qp = QP.__new__(QP)
-        qp.P, qp.q, qp.A, qp.l, qp.u = self.P, self.q, self.A, self.l, self.u
-        qp._build(self.r, name=self.name, **merged)
+        qp.P, qp.q, qp.A, qp.l, qp.u, qp.r, qp.name = self.P, self.q, self.A, self.l, self.u, self.r, self.name
+        qp._take_options(merged)
         return qp
 
     # -- the splitting --------------------------------------------------------
@@ -190,21 +193,7 @@ class QP(Problem):
         self._x_in = x
         relax = self.x_relaxation != 1.0
         xp = self._x_rel if relax and self._x_rel is not None else x
-        if self.xstep == "kkt":
-            rhs = np.empty(self.n + self.m)
-            np.subtract(self.sigma * xp, self.qs, out=rhs[:self.n])
-            np.subtract(z, lam / rho, out=rhs[self.n:])
-            if self._free.size:
-                f = self._free
-                rhs[self.n + f] = z[f] - self._w_free_over_penalty * lam[f]
-            x_new = self._solver.solve(rho, rhs)[:self.n]
-        else:
-            v = rho * z - lam
-            v = v if self.w is None else self.w * v
-            if self._free.size:
-                f = self._free
-                v[f] = FREE_ROW_PENALTY * z[f] - self.w[f] * lam[f]
-            x_new = self._solver.solve(rho, self.sigma * xp - self.qs + self.Ats @ v)
+        x_new = x_step_solution(self, xp, z, lam, rho)                                      # (Q1), (Q5)
         if relax:
             a = self.x_relaxation
             self._x_rel_prev, self._x_rel, self._x_last = xp, a * x_new + (1.0 - a) * xp, x_new      # (Q4)

@@ -66,6 +66,42 @@ def _xz_kkt(count, rho, alpha, a, sigma, Lp, Li, Lx, Dinv, perm, Ap, Ai, Ad, q, 
     return count
 
 
+@njit(cache=True)
+def _kkt_solve(rho, sigma, Lp, Li, Lx, Dinv, perm, q, free, w_free, xp, z, lam, rhs, work, sol):
+    """One x-step (Q1), (Q5) in the KKT form into ``sol``, as :meth:`QP.x_step` computes it; False (nothing
+    to trust in ``sol``) if the right-hand side or the solution is not finite."""
+    n, m = xp.shape[0], z.shape[0]
+    for i in range(n):
+        rhs[i] = sigma * xp[i] - q[i]
+    for i in range(m):
+        rhs[n + i] = z[i] - lam[i] / rho
+    for f in range(free.shape[0]):
+        rhs[n + free[f]] = z[free[f]] - w_free[f] * lam[free[f]]
+    if not all_finite(rhs, 0, n + m):
+        return False
+    ldl_solve(Lp, Li, Lx, Dinv, perm, rhs, work, sol)
+    return all_finite(sol, 0, n + m)
+
+
+def kkt_x_step(qp, xp, z, lam, rho: float):
+    """The KKT x-step's solution x~ in one compiled call with qdldl's factors (the same bits as qdldl's solve), or
+    None where it does not apply (numba missing, another backend, a non-finite number: the Python path then
+    meets it as it would anyway)."""
+    if not AVAILABLE:
+        return None
+    factors = qp._solver.ldl(rho)
+    if factors is None:
+        return None
+    size = qp.n + qp.m
+    rhs, work, sol = np.empty(size), np.empty(size), np.empty(size)
+    if not _kkt_solve(float(rho), qp.sigma, *factors, qp.qs, qp._free, qp._w_free_over_penalty,
+                      np.asarray(xp, dtype=np.float64), np.asarray(z, dtype=np.float64),
+                      np.asarray(lam, dtype=np.float64), rhs, work, sol):
+        return None
+    qp._solver.solves += 1
+    return sol[:qp.n]
+
+
 def run_segment(qp, x, z, lam, Ax, rho: float, alpha: float, order: str, count: int):
     """``count`` iterations of ``qp`` from (x, z, lam, Ax) in one compiled call, or None where the kernel does
     not apply (order "zx", the reduced x-step, a backend other than qdldl, numba missing).

@@ -1,6 +1,7 @@
 """The QP's data checked once, at construction: real, finite where it must be, shapes that agree, l <= u."""
 from __future__ import annotations
 
+import math
 import warnings
 
 import numpy as np
@@ -105,3 +106,22 @@ def _validate(P, q, A, l, u, allow_nonconvex: bool = False):
         i = bad[0]
         raise ValueError(f"l must be <= u; row {i} has l = {l[i]:g} > u = {u[i]:g} ({bad.size} such rows)")
     return P, q, A, l, u
+
+
+def check_options(*, sigma, backend, xstep, scaling, row_weights, x_relaxation, allow_nonconvex) -> dict:
+    """The QP's options checked (a ValueError naming the option and its range), as a dict of plain values."""
+    from .rows import ROW_WEIGHTS
+    from .xstep_forms import XSTEPS
+    if isinstance(sigma, (bool, str, bytes)) or not isinstance(sigma, (int, float, np.integer, np.floating)) \
+            or not (math.isfinite(sigma) and sigma >= 0):
+        raise ValueError(f"sigma must be a finite number >= 0, got {sigma!r}")
+    if xstep not in XSTEPS:
+        raise ValueError(f"xstep must be one of {', '.join(XSTEPS)}, got {xstep!r}")
+    if isinstance(scaling, bool) or not isinstance(scaling, (int, np.integer)) or scaling < 0:
+        raise ValueError(f"scaling must be an integer >= 0 (Ruiz iterations; OSQP uses 10), got {scaling!r}")
+    if row_weights not in ROW_WEIGHTS:
+        raise ValueError(f"row_weights must be one of {', '.join(ROW_WEIGHTS)}, got {row_weights!r}")
+    if not (isinstance(x_relaxation, (int, float)) and 0 < x_relaxation < 2):
+        raise ValueError(f"x_relaxation must be a number in (0, 2), got {x_relaxation!r}")
+    return dict(sigma=float(sigma), backend=backend, xstep=xstep, scaling=int(scaling), row_weights=row_weights,
+                x_relaxation=float(x_relaxation), allow_nonconvex=bool(allow_nonconvex))

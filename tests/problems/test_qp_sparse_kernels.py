@@ -99,3 +99,22 @@ def test_the_infeasibility_tests_decide_as_the_numpy_steps(seed, monkeypatch):
                 ref = infeasibility.primal_certificate(qp, dy, eps), infeasibility.dual_certificate(qp, dx, eps)
             for a, b in zip(got, ref):
                 assert (a is None) == (b is None) and (a is None or np.array_equal(a, b))
+
+
+@pytest.mark.parametrize("seed", range(20))
+def test_the_compiled_x_step_is_qdldls_solve_bit_for_bit(seed, monkeypatch):
+    from admmkit.problems.qp import segment
+    qp = awkward_qp(seed, scaling=10, row_weights="osqp", xstep="kkt", backend="qdldl")
+    rng = np.random.default_rng(seed)
+    xp, z, lam = rng.standard_normal(qp.n), rng.standard_normal(qp.m), rng.standard_normal(qp.m)
+    got = xstep_forms.x_step_solution(qp, xp, z, lam, 0.37)
+    monkeypatch.setattr(segment, "AVAILABLE", False)              # the Python path: qdldl's own solve
+    assert np.array_equal(got, xstep_forms.x_step_solution(qp, xp, z, lam, 0.37))
+
+
+def test_a_qp_builds_its_scaled_data_only_when_used():
+    qp = awkward_qp(3, scaling=10, row_weights="osqp")
+    assert qp._built is False and qp.options["scaling"] == 10
+    assert qp.As.shape == qp.A.shape and qp._built is True            # built at the first use
+    with pytest.raises(ValueError, match="scaling must be an integer >= 0"):
+        awkward_qp(3, scaling=-1)                                     # options are still checked at construction
