@@ -126,18 +126,29 @@ def iterate_deltas(qp: QP, rec) -> tuple[np.ndarray | None, np.ndarray]:
     dx = D (x^{k+1} - x^k) from :meth:`QP.delta_x` (OSQP's relaxed x when the QP relaxes
     x), None when the QP does not know x^k.
     """
+    dx = qp.delta_x(rec.x)
+    if dx is not None and qp.scaled:
+        dx = qp.scaling.unscale_x(dx)
+    return dx, _dual_change(qp, rec)
+
+
+def _dual_change(qp: QP, rec) -> np.ndarray:
+    """dy = E M (lam^{k+1} - lam^k) / c from the record's public fields (one compiled pass in order xz)."""
     a = rec.alpha
     if rec.order == "xz":
+        if NUMBA and (a == 1.0 or rec.z_prev is not None):
+            from .infeasibility_kernel import dual_update_change
+            ones, dy = qp._ones[0], np.empty(qp.m)
+            E, c = (qp.scaling.E, qp.scaling.c) if qp.scaled else (ones, 1.0)
+            dual_update_change(rec.rho, a, rec.Ax, rec.z if a == 1.0 else rec.z_prev, rec.z,
+                               ones if qp.w is None else qp.w, E, c, dy)
+            return dy
         hat = rec.Ax if a == 1.0 else a * rec.Ax + (1.0 - a) * rec.z_prev
         dlam = rec.rho * (hat - rec.z)
     else:
         hat = rec.z if a == 1.0 else a * rec.z + (1.0 - a) * rec.Ax_prev
         dlam = rec.rho * (rec.Ax - hat)
-    dy = qp.multiplier(dlam)
-    dx = qp.delta_x(rec.x)
-    if dx is not None and qp.scaled:
-        dx = qp.scaling.unscale_x(dx)
-    return dx, dy
+    return qp.multiplier(dlam)
 
 
 def confirmed_certificate(qp: QP, kind: str) -> np.ndarray | None:

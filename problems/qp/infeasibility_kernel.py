@@ -81,3 +81,12 @@ def dual_candidate(Pp, Pi, Px, q, Ap, Ai, Ax, l, u, dx, eps, out):
         if (np.isfinite(u[i]) and Ad[i] > eps) or (np.isfinite(l[i]) and Ad[i] < -eps):
             return False
     return True
+
+
+@njit(cache=True)
+def dual_update_change(rho, alpha, Ax, z_prev, z, w, E, c, out):
+    """dy = E M dlam / c with dlam = lam^{k+1} - lam^k = rho (alpha A x^{k+1} + (1 - alpha) z^k - z^{k+1}) (order xz),
+    into ``out``: the operations of :func:`admmkit.problems.qp.infeasibility.iterate_deltas`, entry by entry."""
+    for i in range(z.shape[0]):
+        hat = Ax[i] if alpha == 1.0 else alpha * Ax[i] + (1.0 - alpha) * z_prev[i]
+        out[i] = (E[i] * (w[i] * (rho * (hat - z[i])))) / c

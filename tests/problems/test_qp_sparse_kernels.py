@@ -118,3 +118,16 @@ def test_a_qp_builds_its_scaled_data_only_when_used():
     assert qp.As.shape == qp.A.shape and qp._built is True            # built at the first use
     with pytest.raises(ValueError, match="scaling must be an integer >= 0"):
         awkward_qp(3, scaling=-1)                                     # options are still checked at construction
+
+
+@pytest.mark.parametrize("seed", range(6))
+@pytest.mark.parametrize("alpha, scaling, weights", [(1.6, 10, "osqp"), (1.0, 0, "uniform"), (1.3, 0, "osqp")])
+def test_the_dual_change_is_the_numpy_steps(seed, alpha, scaling, weights, monkeypatch):
+    from admmkit import solve
+    from admmkit.problems.qp import infeasibility
+    qp = awkward_qp(seed, scaling=scaling, row_weights=weights)
+    rec = solve(qp, rho=0.1, alpha=alpha, max_iter=7).last_record
+    got = infeasibility.iterate_deltas(qp, rec)
+    monkeypatch.setattr(infeasibility, "NUMBA", False)
+    ref = infeasibility.iterate_deltas(qp, rec)
+    assert np.array_equal(got[1], ref[1]) and np.array_equal(got[0], ref[0])
