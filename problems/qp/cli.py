@@ -122,21 +122,13 @@ def run_osqp(qp, args):
     shown = default_policy(qp_for(qp, settings), settings) if rule == "osqp" else rule
     with progress(args, settings.max_iter) as show:
         result = solve_qp(qp, settings, policy=rule, callback=show)
-    result.policy = readable(result.policy)                 # OSQP's rule shows its normalisation, not an address
-    args.resolved = {"policy": name, "order": order, "policy_repr": readable(repr(shown)),
+    args.resolved = {"policy": name, "order": order, "policy_repr": repr(shown),
                      "stop": f"osqp_termination(eps_abs={settings.eps_abs:g}, eps_rel={settings.eps_rel:g}, "
                              f"eps_prim_inf={settings.eps_prim_inf:g}, eps_dual_inf={settings.eps_dual_inf:g})"}
     print_summary(result, name, settings.rho)
     if args.history:
         print(f"history      {result.history.to_csv(args.history)}")
     return result
-
-
-def readable(text: str) -> str:
-    """A rule's repr with OSQP's normalisation named instead of a function's memory address."""
-    import re
-    return re.sub(r"<function osqp_relative_residuals\.<locals>\.\w+ at 0x[0-9a-fA-F]+>", "osqp_relative_residuals(qp)",
-                  str(text))
 
 
 def run_textbook(qp, args):

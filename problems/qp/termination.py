@@ -64,11 +64,25 @@ def osqp_relative_residuals(qp: QP):
     ``qp.scaling``): ||A x - z||_inf / (max(||A x||_inf, ||z||_inf) + 1e-30) and
     ||P x + q + A'y||_inf / (max(||P x||_inf, ||A'y||_inf, ||q||_inf) + 1e-30), with y = M ``rec.lam_z``.
     """
-    def relative(rec: IterationRecord) -> tuple[float, float]:
-        res = _iterate(qp, rec, scaled=True)
+    return _RelativeResiduals(qp)
+
+
+class _RelativeResiduals:
+    """The function :func:`osqp_relative_residuals` returns; its repr names it (a run's provenance reads the same
+    in every process, without a memory address)."""
+
+    __slots__ = ("qp",)
+
+    def __init__(self, qp: QP) -> None:
+        self.qp = qp
+
+    def __call__(self, rec: IterationRecord) -> tuple[float, float]:
+        res = _iterate(self.qp, rec, scaled=True)
         return (res["scaled_primal"] / (res["scaled_primal_scale"] + DIVISION_TOL),
                 res["scaled_dual"] / (res["scaled_dual_scale"] + DIVISION_TOL))
-    return relative
+
+    def __repr__(self) -> str:
+        return "osqp_relative_residuals(qp)"
 
 
 def osqp_satisfied(res: dict, eps: float) -> bool:
