@@ -104,13 +104,19 @@ def starting_point(problem, x0, z0, lam0):
     dx, dz, dlam = problem.initial_point()
     out = []
     for name, given, default in (("x0", x0, dx), ("z0", z0, dz), ("lam0", lam0, dlam)):
-        if given is not None and np.iscomplexobj(given):
+        if given is None:                  # the plug-in's own start: only its finiteness is in doubt
+            v = np.array(default, dtype=float)
+            if not np.isfinite(v).all():
+                raise ValueError(f"{type(problem).__name__}.initial_point() gave a non-finite {name}")
+            out.append(v)
+            continue
+        if np.iscomplexobj(given):
             raise ValueError(f"{name} must be real, got complex values")
         try:
-            v = np.array(default if given is None else given, dtype=float)
+            v = np.array(given, dtype=float)
         except (TypeError, ValueError):
             raise ValueError(f"{name} must be an array of numbers of shape {np.shape(default)}, got {given!r:.80}") from None
-        if given is not None and v.shape != np.shape(default):
+        if v.shape != np.shape(default):
             raise ValueError(f"{name} must have shape {np.shape(default)}, got {v.shape}")
         if not np.all(np.isfinite(v)):
             raise ValueError(f"{name} must be finite")
@@ -240,7 +246,8 @@ def prepare(problem, *, rho, policy, order, stop, max_iter, callback, x0, z0, la
     check_requirements(problem, order_key, adjoint, (("policy", policy), ("stop", stop)))
     primal_unit = problem.norm(np.ones_like(z))
     dual_unit = math.sqrt(getattr(problem, "n", x.size)) if order_key == "xz" else primal_unit
-    c_norm = problem.norm(np.broadcast_to(np.asarray(c, dtype=float), z.shape))
+    c_zero = np.isscalar(c) and c == 0
+    c_norm = 0.0 if c_zero else problem.norm(np.broadcast_to(np.asarray(c, dtype=float), z.shape))
     ctx = RunContext(problem, order_key, alpha, c, c_norm, adjoint, primal_unit, dual_unit)
 
     begin_run = getattr(problem, "begin_run", None)

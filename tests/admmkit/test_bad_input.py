@@ -57,6 +57,15 @@ def test_starting_point_shape(vector_problem):
         solve(vector_problem, lam0=np.full(vector_problem.n, np.nan))
 
 
+def test_a_plug_in_whose_start_is_not_finite_is_named(vector_problem, monkeypatch):
+    n = vector_problem.n
+    monkeypatch.setattr(type(vector_problem), "initial_point",
+                        lambda self: (np.zeros(n), np.full(n, np.inf), np.zeros(n)))
+    with pytest.raises(ValueError, match=r"Obstacle1D.initial_point\(\) gave a non-finite z0"):
+        solve(vector_problem)
+    assert solve(vector_problem, z0=np.zeros(n), max_iter=3).iterations == 3      # a given start replaces it
+
+
 def test_not_a_problem():
     with pytest.raises(TypeError, match="must implement x_step"):
         solve(object())
