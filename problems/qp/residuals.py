@@ -96,7 +96,7 @@ def neutral_residuals(qp: QP, x: np.ndarray, y: np.ndarray) -> dict:
     """(N): the neutral criteria's primal residual, dual residual and duality gap of (x, y) in the user's problem.
 
     One compiled pass where numba is installed
-    (:func:`admmkit.problems.qp.sparse_kernels.neutral_norms`: the same
+    (``sparse_kernels.neutral_norms``: the same
     primal and dual, the gap's sums in order)."""
     if NUMBA and np.all(np.isfinite(x)) and np.all(np.isfinite(y)):
         from .sparse_kernels import neutral_norms

@@ -110,7 +110,7 @@ def _kkt_pattern(qp, upper: bool):
 
     The same entries as scipy's ``bmat`` of the blocks plus ``diags``: P_ii + sigma is the one sum, and exact
     zeros are dropped as scipy's sums drop them.  One compiled pass over the arrays
-    (:func:`admmkit.problems.qp.sparse_kernels.kkt_arrays`) where numba is installed, else one COO -> CSC pass.
+    (``sparse_kernels.kkt_arrays``) where numba is installed, else one COO -> CSC pass.
     """
     n, m = qp.n, qp.m
     if NUMBA:
