@@ -1,4 +1,5 @@
-"""The pieces every adaptive finite element loop reuses: Dörfler marking, the checks, the result.
+"""The pieces every adaptive finite element loop reuses: Dörfler marking, the warm levels' rule, the checks,
+the result.
 
 Dörfler (1996): given error indicators eta_T, mark the smallest set M of
 cells with sum_{T in M} eta_T^2 >= theta sum_T eta_T^2 (the cells of the
@@ -11,6 +12,8 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+
+from .policy import Policy, make_policy
 
 
 @dataclass
@@ -98,3 +101,36 @@ def check_adaptive(target, theta, gamma, max_levels, max_unknowns) -> None:
     for name, value in [("max_levels", max_levels), ("max_unknowns", max_unknowns)]:
         if isinstance(value, bool) or not isinstance(value, int) or value < 1:
             raise ValueError(f"{name} = {value!r} is outside the accepted range: an integer >= 1")
+
+
+class HeldRho(Policy):
+    """The penalty rule of a warm level: rho held for the first ``hold`` iterations, then the wrapped rule.
+
+    A warm level starts from the previous level's solution and rho, which
+    that level's rule has already tuned; a move of rho costs the x-step a new
+    factorisation (or a new preconditioner), dear on a fine mesh.  Most warm
+    levels stop at their first test of the balanced stop (``hold`` = the
+    stop's interval), with one x-step matrix; one that does not gets the rule
+    (started afresh) from iteration ``hold`` on.  ``inner``: a Policy or a
+    registered name.
+    """
+
+    def __init__(self, inner: Policy | str, hold: int = 10):
+        self.inner = inner if isinstance(inner, Policy) else make_policy(inner)
+        if isinstance(hold, bool) or not isinstance(hold, int) or hold < 0:
+            raise ValueError(f"hold = {hold!r} is outside the accepted range: an integer >= 0")
+        self.hold = hold
+        self.requires = tuple(self.inner.requires)
+
+    def reset(self, rho0: float) -> None:
+        """Start a run: the wrapped rule too."""
+        super().reset(rho0)
+        self.inner.reset(rho0)
+
+    def update(self, rec) -> float:
+        """rho_k for k < hold, else the wrapped rule's rho_{k+1}."""
+        return rec.rho if rec.k < self.hold else self.inner.update(rec)
+
+    def unchanged_until(self, k: int) -> int:
+        """Iteration ``hold`` at the earliest, then the wrapped rule's."""
+        return self.inner.unchanged_until(max(k, self.hold))

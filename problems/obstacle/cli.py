@@ -10,6 +10,7 @@ from admmkit.policies.paper_methods import PAPER_METHODS
 from .estimate import BalancedStop
 from .plot import plot_solution
 from .problem import DEFAULT_BACKEND, make_problem
+from .xstep import ADAPTIVE_BACKEND
 from .scene import A_STAR, SCENES, scene as named_scene
 
 
@@ -19,7 +20,10 @@ def register(subparsers) -> None:
     p.add_argument("--scene", default="radial",
                    help=f"named scene: {', '.join(SCENES)} (default radial)")
     p.add_argument("--h", type=positive_float, default=1 / 16, help="cell size, fractions allowed (default 1/16)")
-    p.add_argument("--backend", default=DEFAULT_BACKEND, help=f"sparse solver of K + rho M, or iterative for AMG-preconditioned CG (default {DEFAULT_BACKEND})")
+    p.add_argument("--backend", default=None,
+                   help=f"sparse solver of K + rho M, iterative for AMG-preconditioned CG, or jacobi for "
+                        f"Jacobi-preconditioned CG with a factorisation where CG is dear (default {DEFAULT_BACKEND}; "
+                        f"{ADAPTIVE_BACKEND} with --target-error)")
     add_output_file(p, "--plot", "FILE", "write a plot of u, psi and the contact set (PNG)")
     add_output_file(p, "--vtk", "FILE.vtu", "write u, psi, the contact set and the --estimator's indicator per triangle as VTU "
                     "(with --target-error one file per level, FILE_level<k>.vtu)", suffix=".vtu")
@@ -36,7 +40,7 @@ def run(args) -> int:
     estimator = estimator_name(args)
     if args.target_error is not None:
         return run_adaptive(args)
-    problem = make_problem(named_scene(args.scene, h=args.h), backend=args.backend)
+    problem = make_problem(named_scene(args.scene, h=args.h), backend=args.backend or DEFAULT_BACKEND)
     nx, ny = problem.scene.counts
     print(f"problem      obstacle/{args.scene}: h = {args.h:.6g} ({nx} x {ny} squares), "
           f"{problem.n} free nodes, side {problem.scene.side}")
@@ -61,7 +65,7 @@ def run(args) -> int:
         print(f"vtk          {write_vtu(args.vtk, problem, result.z, estimator_of(problem, estimator)(result.z))}")
     if args.json:
         scene = {"name": args.scene, "h": args.h, "counts": [nx, ny], "side": problem.scene.side,
-                 "backend": args.backend, "n_free": problem.n}
+                 "backend": args.backend or DEFAULT_BACKEND, "n_free": problem.n}
         arrays = {"u": result.x, "z": result.z, "lam": result.lam, "free_nodes": problem.free,
                   "node_xy": problem.nodes[problem.free]}
         extra = {"contact_nodes": int(contact.sum()), "errors": err, "contact_radius": radius}
@@ -100,7 +104,7 @@ def run_adaptive(args) -> int:
         show.k += 1
     show.k, files = 1, []
     out = solve_adaptive(scene, **options, policy=policy, order=order, rho=args.rho, max_iter=args.max_iter,
-                         backend=args.backend, log=show)
+                         backend=args.backend or ADAPTIVE_BACKEND, log=show)
     print(f"status       {out.status}  ({out.message})")
     if files:
         print(f"vtk          {len(files)} levels: {files[0]} ... {files[-1]}")

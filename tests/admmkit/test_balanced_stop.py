@@ -90,3 +90,20 @@ def test_the_estimate_is_computed_only_near_firing():
     fired = next(k for k in range(9, 80, 10) if stop.fired(SimpleNamespace(k=k)))
     # bounds 1, .5, .25, .125, .0625: estimated at k = 9 (first), then from .125 <= 0.2 on; fires at .0625
     assert fired == 49 and Counted.calls == 3 and stop.discretisation == 1.0 and stop.algebraic == 0.0625
+
+
+def test_a_warm_level_holds_rho_then_hands_over_to_the_rule():
+    from admmkit import IterationRecord  # noqa: F401  (the records are built by the loop; a stand-in here)
+    from admmkit.adaptive import HeldRho
+    from admmkit.policies import Summable
+
+    class Record:
+        def __init__(self, k, rho):
+            self.k, self.rho, self.lam_change, self.rho_Ax_change = k, rho, 10.0, 1.0     # w = 10: raise rho
+    rule = HeldRho("summable", hold=3)
+    rule.reset(5.0)
+    assert [rule.update(Record(k, 5.0)) for k in range(3)] == [5.0, 5.0, 5.0]
+    assert rule.update(Record(3, 5.0)) == 15.0                     # the wrapped rule's (1 + tau) rho
+    assert rule.unchanged_until(0) == 3 and isinstance(rule.inner, Summable)
+    with pytest.raises(ValueError, match="hold"):
+        HeldRho("summable", hold=-1)

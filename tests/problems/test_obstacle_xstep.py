@@ -1,0 +1,72 @@
+"""The obstacle's Jacobi-CG x-step with rent-or-buy factorisation, its P1 mass without assembly, the bound's
+inexact K-solves (#24: the adaptive levels' costs)."""
+import numpy as np
+import ngsolve as ng
+import pytest
+import scipy.sparse as sp
+
+from admmkit import RelativeChange, solve
+from admmkit.problems.fe import p1_mass, triangles
+from admmkit.problems.obstacle import make_problem, radial, solve_with_cvxpy
+from admmkit.problems.obstacle.estimate import EnergyGap
+from admmkit.problems.obstacle.xstep import JacobiCG
+
+
+@pytest.fixture(scope="module")
+def radial16():
+    return make_problem(radial(h=1 / 16))
+
+
+def test_jacobi_cg_solves_the_x_step_and_factorises_only_where_cg_is_dear(radial16):
+    p = radial16
+    step = JacobiCG(p.K, p.F, p.m, price=50)
+    rng = np.random.default_rng(0)
+    z, lam = rng.standard_normal(p.n), rng.standard_normal(p.n)
+    for rho in (1e4, 1.0):
+        u = step(z, lam, rho, np.zeros(p.n))
+        residual = (p.K + rho * sp.diags(p.m)) @ u - (p.F + p.m * (rho * z - lam))
+        assert np.linalg.norm(residual) <= 1e-8 * np.linalg.norm(p.F + p.m * (rho * z - lam))
+    work = step.counters()
+    # rho 1e4: K + rho M is nearly diagonal, CG within the price; rho 1: CG hits the price of 50, factorised
+    assert work["solves"] == 2 and work["factorizations"] == 1 and work["factorizations_computed"] == 1
+    again = step(z, lam, 1.0, np.zeros(p.n))                   # the bought factorisation serves the next solve
+    assert step.counters()["cg_iterations"] == work["cg_iterations"] and np.allclose(again, u)
+
+
+def test_the_jacobi_backend_gives_the_direct_backends_solution(radial16):
+    runs = {b: solve(make_problem(radial(h=1 / 16), backend=b), rho=1.0, policy="summable", order="zx",
+                     stop=RelativeChange(1e-8), max_iter=5000) for b in ("superlu", "jacobi")}
+    a, b = runs["jacobi"], runs["superlu"]
+    assert a.status == b.status and abs(a.iterations - b.iterations) <= 2     # the same run, to CG's 1e-10
+    assert np.max(np.abs(a.z - b.z)) <= 1e-6
+
+
+def test_p1_mass_without_assembly_is_ngsolves():
+    mesh = make_problem(radial(h=1 / 4)).mesh
+    mesh.SetRefinementFlags([i % 3 == 0 for i in range(mesh.ne)])
+    mesh.Refine()
+    fes = ng.H1(mesh, order=1)
+    u, v = fes.TnT()
+    form = ng.BilinearForm(u * v * ng.dx).Assemble()          # kept alive while its CSR arrays are read
+    vals, cols, rows = form.mat.CSR()
+    M = sp.csr_matrix((np.array(vals), np.array(cols), np.array(rows)), shape=(fes.ndof, fes.ndof))
+    nodes = np.array(mesh.ngmesh.Coordinates())[:, :2]
+    lumped, apply = p1_mass(nodes, triangles(mesh))
+    f = np.cos(nodes[:, 0]) * nodes[:, 1]
+    assert np.allclose(apply(f), M @ f, rtol=0, atol=1e-14) and np.allclose(lumped, M.sum(axis=1).A1, atol=1e-14)
+
+
+def test_the_bound_stays_guaranteed_with_a_loose_cg():
+    """The correction r'M^{-1}r / c keeps (B) above the true algebraic error whatever CG's accuracy; loose, the
+    bound is larger, tight it equals the factorised one."""
+    problem = make_problem(radial(h=1 / 8))
+    u_h, _ = solve_with_cvxpy(problem, tol_gap_abs=1e-12, tol_gap_rel=1e-12, tol_feas=1e-12)
+    res = solve(problem, rho=1.0, policy="summable", order="zx", stop=RelativeChange(1e-4), max_iter=5000)
+    true = float(np.sqrt((res.z - u_h) @ (problem.K @ (res.z - u_h))))
+    exact = EnergyGap(problem, solver="direct").bound(res.z, res.lam)
+    tight = EnergyGap(problem, tol=1e-12).bound(res.z, res.lam)
+    loose = EnergyGap(problem, tol=0.5).bound(res.z, res.lam)
+    assert true <= exact and tight == pytest.approx(exact, rel=1e-6)
+    assert true <= loose and loose >= tight
+    with pytest.raises(ValueError, match="solver"):
+        EnergyGap(problem, solver="cholesky")
