@@ -33,6 +33,17 @@ def test_schur_and_compliance_match_dense(ops, backend):
     assert set(schur.timings) == {"ordering", "factorisation", "schur"}
 
 
+def test_nested_dissection_order_gives_the_same_schur_and_solves(ops):
+    schur = BoundarySchur(ops.K, ops.B, backend="superlu", coordinates=ops.dof_coordinates())
+    plain = BoundarySchur(ops.K, ops.B, backend="superlu")
+    assert not np.array_equal(schur.order, plain.order)
+    S_ref = dense_schur(ops.K, schur.contact_dofs)
+    assert np.abs(schur.S - S_ref).max() <= 1e-10 * np.abs(S_ref).max()
+    assert np.abs(schur.S - plain.S).max() <= 1e-12 * np.abs(plain.S).max()
+    u = schur.solve(ops.f)
+    assert np.linalg.norm(ops.K @ u - ops.f) <= 1e-10 * np.linalg.norm(ops.f)
+
+
 def test_minimum_degree_ordering_is_a_fill_reducing_permutation(ops):
     K = sp.csc_matrix(ops.K)
     order = minimum_degree_ordering(K)

@@ -66,6 +66,15 @@ class ContactOperators:
         gf.vec.FV().NumPy()[:] = self.full_vector(u_free)
         return gf
 
+    def dof_coordinates(self) -> np.ndarray | None:
+        """(n_free, d): the vertex each free dof sits at, for a nodal (order 1) vector space whose dofs are
+        the vertices component by component; None for any other space (its dofs have no single point)."""
+        points = np.asarray(self.mesh.ngmesh.Coordinates())
+        dim = points.shape[1]
+        if self.fes.ndof != dim * points.shape[0]:
+            return None
+        return np.tile(points, (dim, 1))[self.free]
+
 
 def lame(E: float, nu: float) -> tuple[float, float]:
     """Lame parameters (mu, lambda) for plane strain."""

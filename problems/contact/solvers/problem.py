@@ -102,7 +102,8 @@ class CondensedContact(_ContactBase):
     def __init__(self, ops: ContactOperators, backend: str = "auto"):
         super().__init__(ops)
         self.n = self.A.shape[0] + 1
-        self.schur = BoundarySchur(ops.K, self.A, backend=backend)   # "auto", "cholmod" or "superlu"
+        # "auto", "cholmod" or "superlu"; SuperLU orders by nested dissection where the dofs have coordinates
+        self.schur = BoundarySchur(ops.K, self.A, backend=backend, coordinates=_coordinates(ops))
         u0 = self.schur.solve(ops.f)
         self.d0 = self.A @ u0                      # A K^{-1} f
         self.e0 = float(ops.f @ u0)                # ||u0||_K^2
@@ -200,6 +201,12 @@ class IterativeContact(_ContactBase):
     def counters(self):
         """AMG setups and Galerkin refreshes, solves and CG iterations."""
         return self.solver.counters()
+
+
+def _coordinates(ops) -> np.ndarray | None:
+    """The free dofs' coordinates when the operators know them (None otherwise: minimum degree instead)."""
+    points = getattr(ops, "dof_coordinates", None)
+    return points() if callable(points) else None
 
 
 def contact_problem(ops: ContactOperators, mode: str = "auto", backend: str = "auto") -> _ContactBase:

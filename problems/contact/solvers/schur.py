@@ -18,10 +18,14 @@ Two backends, picked like :mod:`admmkit.linsolve` picks its solvers:
 
 * ``"cholmod"`` (scikit-sparse, when installed): AMD on K_ii, then CHOLMOD's
   L L' in that order; S from the last n_c columns of L.
-* ``"superlu"`` (scipy, always there): SuperLU's multiple minimum degree
-  ordering of K_ii (the one ``splu`` uses for a plain solve, read off a
-  factorisation that keeps no fill), then SuperLU's LU in that order without
-  pivoting; S from the last n_c columns of U.
+* ``"superlu"`` (scipy, always there): a fill-reducing order of the inner
+  dofs, then SuperLU's LU in that order without pivoting; S from the last n_c
+  rows and columns of U.  With the dofs' coordinates the order is geometric
+  nested dissection (:mod:`admmkit.problems.contact.solvers.dissection`),
+  else SuperLU's multiple minimum degree ordering of K_ii (the one ``splu``
+  uses for a plain solve, read off a factorisation that keeps no fill).  At
+  Example 2, h = 1/200, nested dissection took 0.06 s and its order 1.59 s
+  to factorise, minimum degree 0.33 s and 1.99 s.
 """
 from __future__ import annotations
 
@@ -33,6 +37,8 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from admmkit.blas import limit_blas
+
+from admmkit.problems.contact.solvers.dissection import nested_dissection
 
 SCHUR_BACKENDS = ("cholmod", "superlu")
 
@@ -66,7 +72,7 @@ def minimum_degree_ordering(A: sp.spmatrix) -> np.ndarray:
 class _CholmodSchur:
     """K = L L' by CHOLMOD, inner dofs in AMD order, contact dofs last."""
 
-    def __init__(self, K: sp.csc_matrix, inner: np.ndarray, contact: np.ndarray, timings: dict):
+    def __init__(self, K: sp.csc_matrix, inner: np.ndarray, contact: np.ndarray, timings: dict, coordinates=None):
         from sksparse import cholmod
         t0 = time.perf_counter()
         analysis = cholmod.analyze(K[inner][:, inner].tocsc(), ordering_method="amd")
@@ -79,6 +85,7 @@ class _CholmodSchur:
         L_c = sp.csc_matrix(self._factor.L()[:, -m:])   # the last m columns: [0; L_cc]
         L_cc = L_c[-m:, :].toarray()
         self.S = L_cc @ L_cc.T                          # S = L_cc L_cc'
+        self.R = L_cc.T                                 # S = R'R, R upper triangular
         timings.update(ordering=t1 - t0, factorisation=t2 - t1, schur=time.perf_counter() - t2)
 
     def solve_permuted(self, b: np.ndarray) -> np.ndarray:
@@ -86,11 +93,14 @@ class _CholmodSchur:
 
 
 class _SuperLUSchur:
-    """K = L U by SuperLU without pivoting, inner dofs in minimum degree order, contact dofs last."""
+    """K = L U by SuperLU without pivoting, inner dofs in nested dissection (given coordinates) or minimum
+    degree order, contact dofs last."""
 
-    def __init__(self, K: sp.csc_matrix, inner: np.ndarray, contact: np.ndarray, timings: dict):
+    def __init__(self, K: sp.csc_matrix, inner: np.ndarray, contact: np.ndarray, timings: dict, coordinates=None):
         t0 = time.perf_counter()
-        self.order = np.concatenate([inner[minimum_degree_ordering(K[inner][:, inner])], contact])
+        first = (nested_dissection(K, inner, coordinates) if coordinates is not None else
+                 inner[minimum_degree_ordering(K[inner][:, inner])])
+        self.order = np.concatenate([first, contact])
         Kp = K[self.order][:, self.order].tocsc()
         t1 = time.perf_counter()
         try:
@@ -103,7 +113,9 @@ class _SuperLUSchur:
         # no pivoting and K symmetric: L = U' D^{-1} with D = diag(U), so S = L_cc U_cc = U_cc' D_c^{-1} U_cc
         # (reading U alone halves the copy of the factors, which scipy only gives whole)
         U_cc = sp.csc_matrix(self._lu.U)[:, -m:][-m:, :].toarray()
-        self.S = U_cc.T @ (U_cc / np.diag(U_cc)[:, None])
+        d = np.diag(U_cc)[:, None]
+        self.S = U_cc.T @ (U_cc / d)
+        self.R = U_cc / np.sqrt(d)                      # S = R'R, R upper triangular (D > 0: K is SPD)
         timings.update(ordering=t1 - t0, factorisation=t2 - t1, schur=time.perf_counter() - t2)
 
     def solve_permuted(self, b: np.ndarray) -> np.ndarray:
@@ -124,9 +136,14 @@ class BoundarySchur:
     leave it alone).  One thread is the default, as in :func:`admmkit.solve`:
     on this 2-core machine, loaded by another process, CHOLMOD with two
     OpenBLAS threads took 0.45 s instead of 0.02 s at Example 2, h = 1/40.
+
+    ``coordinates`` ((n, d), the position of each dof, or None): with them
+    SuperLU's order of the inner dofs is nested dissection, else minimum
+    degree (CHOLMOD always takes AMD).
     """
 
-    def __init__(self, K: sp.spmatrix, B: sp.spmatrix, backend: str = "auto", blas_threads: int | None = 1):
+    def __init__(self, K: sp.spmatrix, B: sp.spmatrix, backend: str = "auto", blas_threads: int | None = 1,
+                 coordinates: np.ndarray | None = None):
         if backend not in ("auto",) + SCHUR_BACKENDS:
             raise ValueError(f"schur backend must be 'auto' or one of {', '.join(SCHUR_BACKENDS)}, got {backend!r}")
         installed = available_schur_backends()
@@ -144,7 +161,7 @@ class BoundarySchur:
         self.timings: dict[str, float] = {}
         try:
             with limit_blas(blas_threads):
-                self._impl = _IMPLEMENTATIONS[backend](K, inner, self.contact_dofs, self.timings)
+                self._impl = _IMPLEMENTATIONS[backend](K, inner, self.contact_dofs, self.timings, coordinates)
         except np.linalg.LinAlgError:
             raise
         except Exception as err:  # CHOLMOD reports a non-positive-definite K as CholmodNotPositiveDefiniteError
@@ -162,8 +179,12 @@ class BoundarySchur:
         return out
 
     def compliance(self, B: sp.spmatrix) -> np.ndarray:
-        """C = B K^{-1} B' = B_c S^{-1} B_c' (dense, n_c x n_c, symmetric positive definite)."""
+        """C = B K^{-1} B' = B_c S^{-1} B_c' = W'W with W = R^{-T} B_c' (dense, n_c x n_c, SPD).
+
+        R is S's Cholesky factor, read off the factorisation of K (S = R'R):
+        one triangular solve and one symmetric product, 2 n_c^3 flops where
+        factorising S, solving and multiplying took 4.3 n_c^3.
+        """
         Bc = sp.csr_matrix(B)[:, self.contact_dofs].toarray()
-        factor = sla.cho_factor(self.S)
-        C = Bc @ sla.cho_solve(factor, Bc.T)
-        return 0.5 * (C + C.T)
+        W = sla.solve_triangular(self._impl.R, Bc.T, trans="T", lower=False, check_finite=False)
+        return W.T @ W

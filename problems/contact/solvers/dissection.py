@@ -1,0 +1,172 @@
+"""A fill-reducing ordering by geometric nested dissection, compiled (numba).
+
+The boundary-condensed mode factorises K with the contact dofs last
+(:mod:`admmkit.problems.contact.solvers.schur`); the inner dofs need a
+fill-reducing order.  SuperLU's minimum degree gives one, but scipy exposes
+it only through an incomplete LU that keeps no fill, which costs more than the
+ordering (at Example 2, h = 1/200: 0.33 s, against 0.22 s for the ordering
+inside ``splu``), and minimum degree does not know that the contact dofs stay
+to the end: in that order the factorisation took 46 % more flops than an
+unconstrained one (7.7e9 against 5.2e9).
+
+Nested dissection with the dofs' coordinates: split a set of dofs at the
+median of its longest side, take as separator the dofs of the upper half that
+are coupled in K to the lower half, order the lower half, then the upper
+half without the separator, each the same way, and the separator last;
+sets of at most ``leaf`` dofs are ordered by their coordinates (the dofs of
+one node together).  Any split is a valid ordering; the coordinates only make
+it a good one.  On the paper's structured meshes, contact dofs last, it gave
+6.4e9 flops at Example 2, h = 1/200 (minimum degree: 7.7e9) and the same as
+minimum degree at h = 1/40, in under a millisecond there.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from admmkit.compiled import AVAILABLE, njit
+
+#: sets of at most this many dofs are not split (16 was the fastest factorisation of 8, 16, 32 at
+#: Examples 1 and 2, h = 1/40 and 1/100)
+LEAF = 16
+
+
+def nested_dissection(K, dofs: np.ndarray, coordinates: np.ndarray, leaf: int = LEAF) -> np.ndarray:
+    """An order of ``dofs`` by geometric nested dissection of K's graph restricted to them.
+
+    K: sparse (CSR or CSC; only its pattern is read, which must be
+    symmetric); ``dofs``: the indices to order; ``coordinates``: (n, d), the
+    position of every dof of K.  Returns ``dofs`` permuted: eliminating them
+    in that order (the others after) makes little fill.
+    """
+    if not AVAILABLE:   # pragma: no cover - numba is a dependency
+        raise RuntimeError("nested_dissection needs numba")
+    dofs = np.ascontiguousarray(dofs, dtype=np.int64)
+    X = np.ascontiguousarray(coordinates, dtype=np.float64)
+    if X.ndim != 2 or X.shape[0] != K.shape[0]:
+        raise ValueError(f"coordinates must have shape ({K.shape[0]}, d), got {X.shape}")
+    if leaf < 1:
+        raise ValueError(f"leaf must be >= 1, got {leaf}")
+    return _dissect(K.indptr.astype(np.int64, copy=False), K.indices.astype(np.int64, copy=False), X, dofs,
+                    int(leaf))
+
+
+@njit(cache=True)
+def _less(X, a, b):
+    """Whether dof a comes before dof b in a leaf: by coordinates, then index."""
+    for k in range(X.shape[1]):
+        if X[a, k] != X[b, k]:
+            return X[a, k] < X[b, k]
+    return a < b
+
+
+@njit(cache=True)
+def _sort_leaf(X, perm, lo, hi):
+    """Insertion sort of perm[lo:hi] by _less (leaves are small)."""
+    for i in range(lo + 1, hi):
+        v = perm[i]
+        j = i - 1
+        while j >= lo and _less(X, v, perm[j]):
+            perm[j + 1] = perm[j]
+            j -= 1
+        perm[j + 1] = v
+
+
+@njit(cache=True)
+def _split(indptr, indices, X, perm, lo, hi, stamp, mark, buf, sep, upper):
+    """Reorder perm[lo:hi] as [lower, upper without separator, separator]; return (n_lower, n_upper) or (-1, -1)
+    when the set cannot be split (all coordinates equal)."""
+    d = X.shape[1]
+    best, axis = -1.0, 0
+    for k in range(d):
+        lo_k, hi_k = np.inf, -np.inf
+        for i in range(lo, hi):
+            x = X[perm[i], k]
+            lo_k = min(lo_k, x)
+            hi_k = max(hi_k, x)
+        if hi_k - lo_k > best:
+            best, axis = hi_k - lo_k, k
+    if best <= 0.0:
+        return -1, -1
+    size = hi - lo
+    for i in range(size):
+        buf[i] = X[perm[lo + i], axis]
+    med = np.median(buf[:size])
+    lower_mark, upper_mark = 2 * stamp, 2 * stamp + 1
+    n_lower = 0
+    for i in range(lo, hi):
+        if X[perm[i], axis] < med:
+            mark[perm[i]] = lower_mark
+            n_lower += 1
+        else:
+            mark[perm[i]] = upper_mark
+    if n_lower == 0:   # at least half the set sits at the minimum: split there instead
+        for i in range(lo, hi):
+            if X[perm[i], axis] <= med:
+                mark[perm[i]] = lower_mark
+                n_lower += 1
+        if n_lower == size:
+            return -1, -1
+    # stable partition into buf: lower, upper inner, separator (upper dofs coupled to a lower one)
+    a, b, s = 0, 0, 0
+    for i in range(lo, hi):
+        v = perm[i]
+        if mark[v] == lower_mark:
+            perm[lo + a] = v
+            a += 1
+            continue
+        touches = False
+        for p in range(indptr[v], indptr[v + 1]):
+            if mark[indices[p]] == lower_mark:
+                touches = True
+                break
+        if touches:
+            sep[s] = v
+            s += 1
+        else:
+            upper[b] = v
+            b += 1
+    for i in range(b):
+        perm[lo + a + i] = upper[i]
+    for i in range(s):
+        perm[lo + a + b + i] = sep[i]
+    return a, b
+
+
+@njit(cache=True)
+def _dissect(indptr, indices, X, dofs, leaf):
+    """Nested dissection of dofs (an explicit stack, depth first, upper half first: the order is filled from
+    its end, each separator after the two halves it divides)."""
+    n = dofs.shape[0]
+    perm = dofs.copy()
+    out = np.empty(n, np.int64)
+    mark = np.full(X.shape[0], -1, np.int64)
+    buf = np.empty(n, np.float64)
+    sep, upper = np.empty(n, np.int64), np.empty(n, np.int64)
+    stack_lo = np.empty(n + 1, np.int64)
+    stack_hi = np.empty(n + 1, np.int64)
+    top, stamp = n, 0
+    stack_lo[0], stack_hi[0] = 0, n
+    depth = 1
+    while depth > 0:
+        depth -= 1
+        lo, hi = stack_lo[depth], stack_hi[depth]
+        if hi - lo == 0:
+            continue
+        n_lower, n_upper = -1, -1
+        if hi - lo > leaf:
+            n_lower, n_upper = _split(indptr, indices, X, perm, lo, hi, stamp, mark, buf, sep, upper)
+            stamp += 1
+        if n_lower < 0:   # a leaf (or a set that cannot be split): in coordinate order
+            _sort_leaf(X, perm, lo, hi)
+            for i in range(hi - lo):
+                out[top - (hi - lo) + i] = perm[lo + i]
+            top -= hi - lo
+            continue
+        n_sep = hi - lo - n_lower - n_upper
+        for i in range(n_sep):
+            out[top - n_sep + i] = perm[lo + n_lower + n_upper + i]
+        top -= n_sep
+        stack_lo[depth], stack_hi[depth] = lo, lo + n_lower               # the lower half: done last
+        stack_lo[depth + 1], stack_hi[depth + 1] = lo + n_lower, lo + n_lower + n_upper
+        depth += 2
+    return out

@@ -1,0 +1,79 @@
+"""Geometric nested dissection: a permutation of the given dofs, separators that separate, less fill."""
+import numpy as np
+import pytest
+import scipy.sparse as sp
+import scipy.sparse.linalg  # noqa: F401  (sp.linalg)
+
+from admmkit.problems.contact import assemble, example1, example2
+from admmkit.problems.contact.solvers.dissection import nested_dissection
+from admmkit.problems.contact.solvers.schur import minimum_degree_ordering
+
+
+@pytest.fixture(scope="module", params=["ex1", "ex2"])
+def ops(request):
+    return assemble({"ex1": example1, "ex2": example2}[request.param](h=1 / 20))
+
+
+def factor_nnz(K, order):
+    """nnz(L) + nnz(U) of SuperLU's LU of K in ``order`` (no pivoting): an independent count of the fill."""
+    lu = sp.linalg.splu(sp.csc_matrix(K)[order][:, order].tocsc(), permc_spec="NATURAL", diag_pivot_thresh=0.0,
+                        options=dict(SymmetricMode=True))
+    return lu.L.nnz + lu.U.nnz
+
+
+def grid_laplacian(nx, ny):
+    """The 5-point Laplacian on an nx x ny grid and its points (row by row)."""
+    T = lambda k: sp.diags([-1.0, 2.0, -1.0], [-1, 0, 1], shape=(k, k))  # noqa: E731
+    K = sp.kronsum(T(nx), T(ny)).tocsc()
+    y, x = np.divmod(np.arange(nx * ny), nx)
+    return K, np.column_stack([x, y]).astype(float)
+
+
+def test_is_a_permutation_of_the_given_dofs(ops):
+    K = sp.csc_matrix(ops.K)
+    dofs = np.arange(1, K.shape[0], 3)
+    order = nested_dissection(K, dofs, ops.dof_coordinates())
+    assert np.array_equal(np.sort(order), dofs)
+
+
+def test_less_fill_than_minimum_degree_with_the_contact_dofs_last(ops):
+    K = sp.csc_matrix(ops.K)
+    contact = np.unique(ops.B.indices)
+    inner = np.setdiff1d(np.arange(K.shape[0]), contact)
+    nd = np.concatenate([nested_dissection(K, inner, ops.dof_coordinates()), contact])
+    natural = np.concatenate([inner, contact])
+    md = np.concatenate([inner[minimum_degree_ordering(K[inner][:, inner])], contact])
+    assert factor_nnz(K, nd) < 0.5 * factor_nnz(K, natural)
+    assert factor_nnz(K, nd) < 1.1 * factor_nnz(K, md)
+
+
+def test_the_last_separator_splits_a_grid_in_two():
+    # 20 x 9 grid: the longest side is x, so the last dofs ordered are one grid column that cuts it in two
+    K, X = grid_laplacian(20, 9)
+    order = nested_dissection(K, np.arange(K.shape[0]), X, leaf=4)
+    last = order[-9:]
+    assert np.unique(X[last, 0]).size == 1 and np.array_equal(np.sort(X[last, 1]), np.arange(9.0))
+    left = X[:, 0] < X[last[0], 0]
+    rest = np.setdiff1d(np.arange(K.shape[0]), last)
+    coupled = K[rest][:, rest].tocoo()
+    assert not np.any(left[rest[coupled.row]] != left[rest[coupled.col]])   # nothing joins the two sides
+
+
+def test_equal_coordinates_and_leaf_sizes():
+    K, X = grid_laplacian(6, 5)
+    same = nested_dissection(K, np.arange(30), np.zeros((30, 2)))   # no split possible: one leaf, by index
+    assert np.array_equal(same, np.arange(30))
+    for leaf in (1, 2, 100):
+        assert np.array_equal(np.sort(nested_dissection(K, np.arange(30), X, leaf=leaf)), np.arange(30))
+    with pytest.raises(ValueError, match="coordinates"):
+        nested_dissection(K, np.arange(30), X[:-1])
+    with pytest.raises(ValueError, match="leaf"):
+        nested_dissection(K, np.arange(30), X, leaf=0)
+
+
+def test_dof_coordinates_only_for_nodal_spaces():
+    ops1 = assemble(example1(h=1 / 8))
+    X = ops1.dof_coordinates()
+    assert X.shape == (ops1.n_free, 2)
+    assert np.allclose(ops1.B @ X[:, 1], 0.0)          # the contact dofs sit on the bottom, y = 0
+    assert assemble(example1(h=1 / 8, order=2)).dof_coordinates() is None
