@@ -6,9 +6,11 @@ and returns a dict with ``S`` (dense, None when not computed in full), the
 seconds of each step (``steps``) and their sum (``setup``):
 
 * :func:`superlu_contact_last`: what :class:`admmkit.problems.contact.solvers.schur.BoundarySchur`
-  does with SuperLU
-  (minimum degree on K_ii, LU without pivoting in that order with the contact
-  dofs last, S read off the trailing block of U);
+  does with SuperLU given the dofs' coordinates
+  (nested dissection of the inner dofs, LU without pivoting in that order with
+  the contact dofs last, S read off the trailing block of U);
+* :func:`superlu_minimum_degree`: the same with SuperLU's minimum degree
+  ordering of K_ii instead (the path before nested dissection);
 * :func:`superlu_block_solves`: SuperLU LU of K_ii alone, then
   K_ii^{-1} K_ic by multi-right-hand-side solves of ``block`` columns;
 * :func:`ngsolve_block_solves`: the same with NGSolve's sparse Cholesky and
@@ -47,13 +49,19 @@ def _result(S, steps, extrapolated=False, **extra) -> dict:
     return dict(S=S, steps=steps, setup=sum(steps.values()), extrapolated=extrapolated, **extra)
 
 
-def superlu_contact_last(K, B, inner, contact, block=64, max_blocks=None) -> dict:
-    """Today's path: :class:`admmkit.problems.contact.solvers.schur.BoundarySchur` with SuperLU."""
+def superlu_contact_last(K, B, inner, contact, block=64, max_blocks=None, coordinates=None) -> dict:
+    """Today's path: :class:`admmkit.problems.contact.solvers.schur.BoundarySchur` with SuperLU, inner dofs in
+    nested dissection order by ``coordinates`` (minimum degree when None)."""
     t0 = time.perf_counter()
-    schur = BoundarySchur(K, B, backend="superlu")
+    schur = BoundarySchur(K, B, backend="superlu", coordinates=coordinates)
     steps = dict(schur.timings)
     steps["rest"] = time.perf_counter() - t0 - sum(steps.values())
     return _result(schur.S, steps)
+
+
+def superlu_minimum_degree(K, B, inner, contact, block=64, max_blocks=None) -> dict:
+    """The path before nested dissection: SuperLU's minimum degree order of K_ii, contact dofs last."""
+    return superlu_contact_last(K, B, inner, contact, block, max_blocks, coordinates=None)
 
 
 def _block_solves(solve, K, inner, contact, block, max_blocks, steps):
@@ -156,6 +164,7 @@ def pardiso_schur(K, B, inner, contact, block=64, max_blocks=None) -> dict:
 
 CANDIDATES = {
     "superlu, contact last (today)": (superlu_contact_last, "scipy"),
+    "superlu, minimum degree (before)": (superlu_minimum_degree, "scipy"),
     "superlu K_ii + block solves": (superlu_block_solves, "scipy"),
     "ngsolve K_ii + block solves": (ngsolve_block_solves, "ngsolve"),
     "qdldl factor of K (no S)": (qdldl_factor, "qdldl"),

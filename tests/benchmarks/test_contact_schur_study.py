@@ -36,6 +36,16 @@ def test_each_candidate_gives_todays_S(ops, name):
     assert np.abs(res["S"] - today.S).max() <= 1e-12 * np.abs(today.S).max()
 
 
+def test_todays_candidate_orders_by_nested_dissection_given_coordinates(ops):
+    fn = CANDIDATES["superlu, contact last (today)"][0]
+    K = sp.csc_matrix(ops.K)
+    plain = BoundarySchur(K, ops.B, backend="superlu")
+    inner = np.setdiff1d(np.arange(K.shape[0]), plain.contact_dofs)
+    res = fn(K, ops.B, inner, plain.contact_dofs, coordinates=ops.dof_coordinates())
+    assert np.abs(res["S"] - plain.S).max() <= 1e-12 * np.abs(plain.S).max()
+    assert set(res["steps"]) == {"ordering", "factorisation", "schur", "rest"}
+
+
 def test_block_solves_extrapolate_from_the_first_blocks(ops):
     fn = CANDIDATES["superlu K_ii + block solves"][0]
     K = sp.csc_matrix(ops.K)
