@@ -12,7 +12,10 @@ obstacle (P1).  For each:
   balanced stop (``solve_adaptive`` capped at one level); its wall time is
   that one solve's, not the sum over the coarser meshes (in uniform
   refinement's favour).  The obstacle also with today's stop
-  (``RelativeChange(1e-5)``, as ``admmkit solve obstacle --balance off``).
+  (``RelativeChange(1e-5)``, as ``admmkit solve obstacle --balance off``), with
+  the plug-in's default x-step (SuperLU) and with AMG-preconditioned CG
+  (``--backend iterative``).  The adaptive obstacle's x-step is Jacobi-CG
+  (``problems/obstacle/xstep.py``); the uniform cold solves keep SuperLU.
 
 The true relative energy error of every level and mesh:
 
@@ -40,6 +43,10 @@ import admmkit
 from admmkit.benchmarks.runner.options import print_files
 
 OBSTACLE_UNIFORM_N = (16, 32, 64, 128, 256, 512)          # h = 4/N on (-2, 2)^2
+#: the obstacle's uniform meshes with today's stop, by the x-step: the plug-in's default (a SuperLU
+#: factorisation per rho) and AMG-preconditioned CG (backend "iterative"), the faster on fine uniform meshes
+DEFAULT_BACKEND = "superlu"
+TODAY_BACKENDS = {"uniform_today": DEFAULT_BACKEND, "uniform_today_amg": "iterative"}
 CONTACT_UNIFORM_H = {1: (5, 10, 20, 40, 80, 160, 320), 2: (5, 10, 20, 40, 80, 160)}   # h = 1/value
 # (scene, order): the adaptive target; "reference": each contact scene's reference target
 FULL = {"obstacle_target": 5e-3, "contact_target": {("ex1", 1): 1e-2, ("ex1", 2): 3e-4, ("ex2", 2): 1e-3},
@@ -74,7 +81,7 @@ class _Clock:
         return time.perf_counter() - self.start - self.excluded
 
 
-def _uniform(solve_adaptive, scene, measure):
+def _uniform(solve_adaptive, scene, measure, **options):
     """One mesh, one level, cold: its Level, the wall time to the level's end, and ``measure(model, result)``.
 
     Taken in the level's callback: after it the loop refines the mesh, which a uniform solve does not need.
@@ -84,7 +91,7 @@ def _uniform(solve_adaptive, scene, measure):
     def log(level, out):
         got["wall"] = time.perf_counter() - t0
         got["level"], got["value"] = level, measure(out.model, out.result)
-    solve_adaptive(scene, 1e-9, max_levels=1, log=log)
+    solve_adaptive(scene, 1e-9, max_levels=1, log=log, **options)
     return got["level"], got["wall"], got["value"]
 
 
@@ -105,27 +112,30 @@ def obstacle_rows(target: float, meshes=OBSTACLE_UNIFORM_N) -> list[dict]:
                          level.relative_estimate, level.estimate, error / norm, error, level.iterations,
                          level.seconds, clock.now(), level.status, cold))
     solve_adaptive(scene(8), target, max_levels=40, log=log)
-    for i, N in enumerate(meshes):
-        level, wall, error = _uniform(solve_adaptive, scene(N), lambda model, res: _h1_error(model, res.z))
+    for i, N in enumerate(meshes):       # a cold start from rho 1: the plug-in's default, a factorisation per rho
+        level, wall, error = _uniform(solve_adaptive, scene(N), lambda model, res: _h1_error(model, res.z),
+                                      backend=DEFAULT_BACKEND)
         rows.append(_row("obstacle", 1, "uniform", i + 1, 4 / N, level.unknowns, level.relative_estimate,
                          level.estimate, error / norm, error, level.iterations, level.seconds, wall, level.status))
-    for i, N in enumerate(meshes):
-        rows.append(_obstacle_today(scene(N), i + 1, norm))
+    for method, backend in TODAY_BACKENDS.items():
+        for i, N in enumerate(meshes):
+            rows.append(_obstacle_today(scene(N), i + 1, norm, method, backend))
     return rows
 
 
-def _obstacle_today(scene, index: int, norm: float) -> dict:
+def _obstacle_today(scene, index: int, norm: float, method: str = "uniform_today",
+                    backend: str = DEFAULT_BACKEND) -> dict:
     """One uniform mesh solved with today's stop (RelativeChange 1e-5, summable rule, order zx, rho 1)."""
     from admmkit.problems.obstacle import ObstacleProblem
     from admmkit.problems.obstacle.estimate import estimator_of
     t0 = time.perf_counter()
-    problem = ObstacleProblem(scene)
+    problem = ObstacleProblem(scene, backend=backend)
     res = admmkit.solve(problem, rho=1.0, policy="summable", order="zx", stop=admmkit.RelativeChange(1e-5),
                         max_iter=10_000)
     wall = time.perf_counter() - t0
     estimate = float(math.sqrt(sum(estimator_of(problem, "zz")(res.z) ** 2)))
     error = _h1_error(problem, res.z)
-    return _row("obstacle", 1, "uniform_today", index, scene.h, problem.n, estimate / norm, estimate, error / norm,
+    return _row("obstacle", 1, method, index, scene.h, problem.n, estimate / norm, estimate, error / norm,
                 error, res.iterations, wall, wall, res.status.value)
 
 

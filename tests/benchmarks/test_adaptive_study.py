@@ -37,9 +37,10 @@ def test_the_files_are_written(quick):
         assert (out / name).stat().st_size > 0
     assert {(r["scene"], r["order"], r["method"]) for r in rows} == {
         ("obstacle", 1, "adaptive"), ("obstacle", 1, "uniform"), ("obstacle", 1, "uniform_today"),
-        ("ex1", 1, "adaptive"), ("ex1", 1, "uniform"), ("ex1", 2, "adaptive"), ("ex1", 2, "uniform"),
-        ("ex2", 2, "adaptive"), ("ex2", 2, "uniform")}
+        ("obstacle", 1, "uniform_today_amg"), ("ex1", 1, "adaptive"), ("ex1", 1, "uniform"), ("ex1", 2, "adaptive"),
+        ("ex1", 2, "uniform"), ("ex2", 2, "adaptive"), ("ex2", 2, "uniform")}
     assert "## At the same true error" in md and "Made by `admmkit bench adaptive --quick" in md
+    assert "SuperLU x-step (the default)" in md and "AMG-CG x-step (--backend iterative)" in md   # today, both
 
 
 def test_errors_fall_with_refinement_and_the_estimates_are_effective(quick):
@@ -51,11 +52,14 @@ def test_errors_fall_with_refinement_and_the_estimates_are_effective(quick):
         assert all(0 < r["effectivity"] < math.inf for r in s), key
         assert all(0.3 < r["effectivity"] < 3 for r in s), key     # the issue's factor 3 band, around 1
         # today's stop (RelativeChange) may end converged_inaccurate: its complementarity check (issue #24)
-        allowed = {"converged", "converged_inaccurate"} if key[2] == "uniform_today" else {"converged"}
+        allowed = {"converged", "converged_inaccurate"} if key[2].startswith("uniform_today") else {"converged"}
         assert all(r["status"] in allowed for r in s), key
         if key[2] == "adaptive":
             assert errors[-1] < 0.5 * errors[0]
-            assert all(r["iterations"] <= s[0]["iterations"] for r in s[1:]), key     # the warm start
+            # not the obstacle: its warm levels hold rho for one test interval (a move costs the x-step), so a
+            # coarse level whose inherited rho is untuned takes one interval more (20 against 10)
+            if key[0] != "obstacle":
+                assert all(r["iterations"] <= s[0]["iterations"] for r in s[1:]), key     # the warm start
             assert all(r["iterations"] <= r["cold_iterations"] for r in s[1:]), key  # against a cold start there
         else:
             assert all(r["iterations"] == r["cold_iterations"] for r in s), key
