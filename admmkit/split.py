@@ -49,6 +49,12 @@ class SplitProblem(Problem):
         v = (Ax if np.isscalar(self.c) and self.c == 0 else Ax - self.c) + lam / rho
         return self.g.prox(v, 1.0 / rho, self.m)
 
+    def segment(self, x, z, lam, Ax, rho, alpha, order, count):
+        """``count`` iterations in one compiled call (:mod:`admmkit.segments`), or None where a block has no kernel
+        (:mod:`admmkit.split_segment` lists the covered ones)."""
+        from .split_segment import run_segment
+        return run_segment(self, x, z, lam, Ax, rho, alpha, order, count)
+
     def apply_A(self, x):
         """A x."""
         return self.map.apply(x)

@@ -158,6 +158,24 @@ class QuadraticXStep:
             raise np.linalg.LinAlgError(f"CG did not converge in {self.cg_maxiter} iterations")
         return sol
 
+    # -- for a compiled segment (admmkit.split_segment)
+    def kernel_form(self, rho: float):
+        """What a compiled x-step needs at this rho: ("direct", qdldl's factors (Lp, Li, Lx, Dinv, perm)) or
+        ("diagonal", the denominators P + sigma + rho A'MA); None for other solvers and backends."""
+        if self.solver == "diagonal":
+            return "diagonal", self._P_diag + self.sigma + rho * self._G_diag     # as __call__ divides by it
+        if self.solver == "direct" and self._cache.backend == "qdldl":
+            return "direct", self._cache.ldl(rho)
+        return None
+
+    def count_solves(self, rho: float, solves: int) -> None:
+        """Count ``solves`` x-steps at ``rho`` done outside the call (by a compiled segment)."""
+        if solves:
+            self.solves += solves
+            self._run_rhos.add(float(rho))
+            if self.solver == "direct":
+                self._cache.solves += solves
+
     # -- f and the counters
     def f(self, x: np.ndarray) -> float:
         """1/2 x'Px + q'x."""
