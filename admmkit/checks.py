@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import contextlib
 import math
+import sys
 from dataclasses import dataclass
 from typing import Callable
 
@@ -31,6 +32,10 @@ class Fixed(Policy):
     def update(self, rec) -> float:
         """Return rho_k."""
         return rec.rho
+
+    def unchanged_until(self, k: int) -> int:
+        """Never reads a record (so the iterations between checks may run in a compiled segment)."""
+        return sys.maxsize
 
 
 #: the penalties admmkit accepts, from the user (rho_0) and from a policy (a rho outside ends the run as

@@ -159,3 +159,12 @@ def test_the_summary_shows_the_compiled_time():
     time_line = next(line for line in res.summary().splitlines() if line.startswith("time"))
     assert f"compiled segments {res.timings['segments']:.4f}" in time_line
     assert "compiled_iterations" in next(line for line in res.summary().splitlines() if line.startswith("work"))
+
+
+def test_a_fixed_rho_without_a_policy_runs_in_segments():
+    """policy=None keeps rho fixed and reads no record: its iterations between checks are compiled too."""
+    from admmkit.problems.qp import random_qp, solve_qp
+    qp = random_qp(20, 30, seed=4)
+    fast, slow = solve_qp(qp, policy=None), solve_qp(qp, policy=None, compiled=False)
+    assert fast.counters.get("compiled_iterations", 0) > 0 and "compiled_iterations" not in slow.counters
+    assert fast.iterations == slow.iterations and np.array_equal(fast.x, slow.x)
