@@ -5,7 +5,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg  # noqa: F401  (sp.linalg)
 
 from admmkit.problems.contact import assemble, example1, example2
-from admmkit.problems.contact.solvers.dissection import nested_dissection
+from admmkit.problems.contact.solvers.dissection import nested_dissection, permute_symmetric
 from admmkit.problems.contact.solvers.schur import minimum_degree_ordering
 
 
@@ -77,3 +77,16 @@ def test_dof_coordinates_only_for_nodal_spaces():
     assert X.shape == (ops1.n_free, 2)
     assert np.allclose(ops1.B @ X[:, 1], 0.0)          # the contact dofs sit on the bottom, y = 0
     assert assemble(example1(h=1 / 8, order=2)).dof_coordinates() is None
+
+
+def test_permute_symmetric_is_scipys_fancy_indexing_sorted(ops):
+    K = sp.csc_matrix(ops.K)
+    order = np.random.default_rng(3).permutation(K.shape[0])
+    mine = permute_symmetric(K, order)
+    ref = K[order][:, order].tocsc()
+    ref.sort_indices()
+    assert np.array_equal(mine.indptr, ref.indptr) and np.array_equal(mine.indices, ref.indices)
+    assert np.array_equal(mine.data, ref.data)
+    for bad in (order[:-1], np.r_[order[:-1], order[0]], np.r_[order[:-1], K.shape[0]]):
+        with pytest.raises(ValueError, match="order"):
+            permute_symmetric(K, bad)

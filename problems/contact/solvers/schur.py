@@ -38,7 +38,7 @@ import scipy.sparse.linalg as spla
 
 from admmkit.blas import limit_blas
 
-from admmkit.problems.contact.solvers.dissection import nested_dissection
+from admmkit.problems.contact.solvers.dissection import nested_dissection, permute_symmetric
 
 SCHUR_BACKENDS = ("cholmod", "superlu")
 
@@ -101,7 +101,7 @@ class _SuperLUSchur:
         first = (nested_dissection(K, inner, coordinates) if coordinates is not None else
                  inner[minimum_degree_ordering(K[inner][:, inner])])
         self.order = np.concatenate([first, contact])
-        Kp = K[self.order][:, self.order].tocsc()
+        Kp = permute_symmetric(K, self.order)
         t1 = time.perf_counter()
         try:
             self._lu = spla.splu(Kp, permc_spec="NATURAL", diag_pivot_thresh=0.0,
