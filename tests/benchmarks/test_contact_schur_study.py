@@ -73,3 +73,14 @@ def test_unknown_candidate_is_refused():
 
 def test_installed_candidates_always_include_scipys():
     assert "superlu, contact last (today)" in installed_candidates()
+
+
+def test_cli_writes_over_an_existing_file_and_refuses_a_folder(tmp_path, capsys):
+    from admmkit.cli import main
+    out = tmp_path / "schur.md"
+    out.write_text("old")
+    # the README's regeneration command names an existing file: it must run (it was refused as "not a folder")
+    assert main(["bench", "contact-schur", "--h", "1/10", "--repeats", "1", "--out", str(out)]) == 0
+    assert "SADMM / (factorisation + solve)" in out.read_text()
+    assert main(["bench", "contact-schur", "--h", "1/10", "--repeats", "1", "--out", str(tmp_path)]) != 0
+    assert "--out" in capsys.readouterr().err
