@@ -22,37 +22,59 @@ from admmkit.compiled import njit
 
 
 @njit(cache=True)
-def _find(indptr, indices, data, row, col):
-    """P[row, col] of a CSC matrix with sorted row indices (0 where not stored), by bisection."""
-    lo, hi = indptr[col], indptr[col + 1]
-    end = hi
-    while lo < hi:
-        mid = (lo + hi) // 2
-        if indices[mid] < row:
-            lo = mid + 1
-        else:
-            hi = mid
-    if lo < end and indices[lo] == row:
-        return data[lo]
-    return 0.0
+def _transpose(indptr, indices, data):
+    """The CSC arrays of P' (P's CSR arrays) by a counting sort: row indices sorted, O(nnz)."""
+    n = indptr.shape[0] - 1
+    tp = np.zeros(n + 1, dtype=indptr.dtype)
+    for p in range(indptr[n]):
+        tp[indices[p] + 1] += 1
+    for i in range(n):
+        tp[i + 1] += tp[i]
+    nxt = tp[:-1].copy()
+    ti = np.empty(indptr[n], dtype=indices.dtype)
+    tx = np.empty(indptr[n], dtype=data.dtype)
+    for j in range(n):
+        for p in range(indptr[j], indptr[j + 1]):
+            q = nxt[indices[p]]
+            ti[q] = j
+            tx[q] = data[p]
+            nxt[indices[p]] = q + 1
+    return tp, ti, tx
 
 
 @njit(cache=True)
 def symmetry_defect(indptr, indices, data):
     """(max |P_ij - P_ji|, max |P_ij|) over the stored entries of the canonical CSC matrix P (square).
 
-    An entry whose mirror is not stored counts with its mirror 0, so every
-    asymmetry is seen from one side at least."""
+    Column j of P and column j of P' (a counting-sort transpose) are merged
+    as two sorted lists, an entry stored on one side only counting against
+    0: every asymmetry is seen, in O(nnz).  A diagonal P (an LP's zero, a
+    separable QP) returns after the first pass."""
     n = indptr.shape[0] - 1
     defect = 0.0
     scale = 0.0
+    diagonal = True
     for j in range(n):
         for p in range(indptr[j], indptr[j + 1]):
-            i = indices[p]
-            v = data[p]
-            scale = max(scale, abs(v))
-            if i != j:
-                defect = max(defect, abs(v - _find(indptr, indices, data, j, i)))
+            scale = max(scale, abs(data[p]))
+            diagonal = diagonal and indices[p] == j
+    if diagonal:
+        return defect, scale
+    tp, ti, tx = _transpose(indptr, indices, data)
+    for j in range(n):
+        p, end_p = indptr[j], indptr[j + 1]
+        q, end_q = tp[j], tp[j + 1]
+        while p < end_p or q < end_q:
+            if q >= end_q or (p < end_p and indices[p] < ti[q]):
+                defect = max(defect, abs(data[p]))
+                p += 1
+            elif p >= end_p or ti[q] < indices[p]:
+                defect = max(defect, abs(tx[q]))
+                q += 1
+            else:
+                defect = max(defect, abs(data[p] - tx[q]))
+                p += 1
+                q += 1
     return defect, scale
 
 

@@ -51,8 +51,8 @@ def test_validation_keeps_the_users_matrices_and_makes_them_canonical():
 @pytest.mark.parametrize("seed", range(40))
 def test_the_symmetry_defect_is_max_abs_p_minus_its_transpose(seed, monkeypatch):
     rng = np.random.default_rng(seed)
-    n = int(rng.integers(1, 8))
-    M = sp.random(n, n, density=0.5, random_state=seed).toarray()
+    n = int(rng.integers(1, 8)) if seed < 20 else int(rng.integers(20, 60))
+    M = sp.random(n, n, density=0.5 if seed < 30 else 0.05, random_state=seed).toarray()
     M = M + M.T
     if seed % 2:
         M[rng.integers(n), rng.integers(n)] += rng.uniform(0.5, 1.0)     # one entry off its mirror
@@ -131,3 +131,20 @@ def test_the_dual_change_is_the_numpy_steps(seed, alpha, scaling, weights, monke
     monkeypatch.setattr(infeasibility, "NUMBA", False)
     ref = infeasibility.iterate_deltas(qp, rec)
     assert np.array_equal(got[1], ref[1]) and np.array_equal(got[0], ref[0])
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_a_small_dense_p_is_judged_by_dense_cholesky_as_by_its_eigenvalues(seed):
+    """Rank-deficient PSD (accepted) and one eigenvalue -1e-3 (refused), n 5-60, stored full."""
+    from admmkit.problems.qp.convexity import check_convex
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(5, 60))
+    Q, _ = np.linalg.qr(rng.standard_normal((n, n)))
+    eigenvalues = np.abs(rng.standard_normal(n))
+    eigenvalues[: n // 3] = 0.0                                  # singular, still PSD
+    psd = (Q * eigenvalues) @ Q.T
+    check_convex(sp.csc_matrix((psd + psd.T) / 2))
+    eigenvalues[0] = -1e-3
+    bad = (Q * eigenvalues) @ Q.T
+    with pytest.raises(ValueError, match="positive semidefinite.*about -0.001"):
+        check_convex(sp.csc_matrix((bad + bad.T) / 2))
