@@ -71,12 +71,39 @@ def test_equal_coordinates_and_leaf_sizes():
         nested_dissection(K, np.arange(30), X, leaf=0)
 
 
-def test_dof_coordinates_only_for_nodal_spaces():
+def test_dof_coordinates_of_p1_and_p2():
     ops1 = assemble(example1(h=1 / 8))
     X = ops1.dof_coordinates()
     assert X.shape == (ops1.n_free, 2)
     assert np.allclose(ops1.B @ X[:, 1], 0.0)          # the contact dofs sit on the bottom, y = 0
-    assert assemble(example1(h=1 / 8, order=2)).dof_coordinates() is None
+    ops2 = assemble(example1(h=1 / 8, order=2))
+    exact = _node_points(ops2)                           # vertex, or the edge's midpoint, node by node
+    X2 = ops2.dof_coordinates()
+    assert X2.shape == (ops2.n_free, 2)
+    vertex = np.isin(ops2.free % (ops2.fes.ndof // 2), np.arange(ops2.mesh.nv))
+    assert np.array_equal(X2[vertex], exact[vertex])
+    assert np.max(np.linalg.norm(X2 - exact, axis=1)) <= 0.2 * np.sqrt(2) / 8 + 1e-12   # a fifth of a diagonal
+
+
+def _node_points(ops) -> np.ndarray:
+    import ngsolve as ng
+    V = np.asarray(ops.mesh.ngmesh.Coordinates())
+    points = np.full((ops.fes.ndof, 2), np.nan)
+    for i in range(ops.mesh.nv):
+        points[list(ops.fes.GetDofNrs(ng.NodeId(ng.VERTEX, i)))] = V[i]
+    for edge in ops.mesh.edges:
+        a, b = edge.vertices
+        points[list(ops.fes.GetDofNrs(edge))] = (V[a.nr] + V[b.nr]) / 2
+    return points[ops.free]
+
+
+def test_p2_schur_complement_is_the_same_in_nested_dissection_order():
+    from admmkit.problems.contact.solvers.schur import BoundarySchur
+    ops2 = assemble(example1(h=1 / 10, order=2))
+    nd = BoundarySchur(ops2.K, ops2.B, backend="superlu", coordinates=ops2.dof_coordinates())
+    md = BoundarySchur(ops2.K, ops2.B, backend="superlu", coordinates=None)
+    S_nd, S_md = (s.S.toarray() if sp.issparse(s.S) else s.S for s in (nd, md))
+    assert np.max(np.abs(S_nd - S_md)) <= 1e-12 * np.max(np.abs(S_md))
 
 
 def test_permute_symmetric_is_scipys_fancy_indexing_sorted(ops):
