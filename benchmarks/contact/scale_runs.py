@@ -62,13 +62,13 @@ def accuracy_at_stop(ops, result, tight=None, reference_max: int | None = None) 
     tight stop), or NaN without it.  ``reference`` names the one used, ``reference_s`` its seconds.
     """
     from admmkit.problems.contact.solvers.estimate import zz_estimate
-    from admmkit.problems.contact.validation.reference import energy_norm, errors_against, reference_solution
+    from admmkit.problems.contact.validation.reference import energy, energy_norm, errors_against, reference_solution
     u = np.asarray(result.x)
     t0 = time.perf_counter()
     zz, norm = zz_estimate(ops, u), energy_norm(ops, u)
     rec = result.last_record
     out = {"zz": zz, "u_energy": norm, "zz_rel": zz / norm if norm > 0 else math.nan,
-           "energy": float(0.5 * u @ (ops.K @ u) - ops.f @ u), "zz_s": time.perf_counter() - t0,
+           "energy": energy(ops, u), "zz_s": time.perf_counter() - t0,
            "last_change": rec.x_change / rec.x_norm if rec is not None and rec.x_norm > 0 else math.nan,
            "alg_error": math.nan, "reference_s": math.nan, "reference": None}
     if ops.n_free <= (REFERENCE_MAX_N if reference_max is None else reference_max):

@@ -20,14 +20,11 @@ import numpy as np
 
 import admmkit
 
+from admmkit.problems.contact.validation.reference import energy, energy_norm
+
 from admmkit.benchmarks.rules.adaptive_levels import Clock, level_row, uniform_level
 
 CONTACT_NAMES = {"ex1": "Example 1", "ex2": "Example 2", "hertz": "Hertz"}
-
-
-def energy(ops, u) -> float:
-    """J(u) = u'Ku / 2 - f'u on the free dofs."""
-    return float(0.5 * u @ (ops.K @ u) - ops.f @ u)
 
 
 def contact_scene(name: str, h: float, order: int):
@@ -36,11 +33,12 @@ def contact_scene(name: str, h: float, order: int):
     return {"ex1": example1, "ex2": example2}[name](h=h, order=order)
 
 
-def reference(target: float, name: str = "ex1", scene=None, correction=None) -> dict:
+def reference(target: float, name: str = "ex1", scene=None, correction=None, start: str = "h = 1/5") -> dict:
     """J_ref of a contact scene: P2 adaptive to ``target`` (gamma 0.01), the energy extrapolated.
 
     ``scene``: the P2 scene to start from (default: Example ``name`` with h = 1/5); ``correction(ops, result)``:
-    c_h, added to every level's energy as in the true error (default 0). Returns J_ref,
+    c_h, added to every level's energy as in the true error (default 0); ``start``: how the report names the
+    start. Returns J_ref,
     ``norm`` = ||u||_a (of the finest solve), the finest level's unknowns, relative estimate and energy, and
     ``own_error``: the relative energy error of the finest solve against J_ref (the extrapolation's
     correction), the reference's own accuracy.
@@ -52,7 +50,7 @@ def reference(target: float, name: str = "ex1", scene=None, correction=None) -> 
     def log(level, out):
         u = out.result.x
         levels.append((level.unknowns, energy(out.model, u) + correction(out.model, out.result),
-                       float(math.sqrt(u @ (out.model.K @ u))), level.relative_estimate))
+                       energy_norm(out.model, u), level.relative_estimate))
     t0 = time.perf_counter()
     scene = contact_scene(name, 1 / 5, 2) if scene is None else scene
     out = solve_adaptive(scene, target, gamma=0.01, max_levels=60, log=log)
@@ -72,7 +70,7 @@ def reference(target: float, name: str = "ex1", scene=None, correction=None) -> 
           flush=True)
     return {"J_ref": j_ref, "norm": norm, "unknowns": n3, "relative_estimate": rel, "J_finest": j3, "p": p,
             "p_energy": p_energy, "own_error": own, "status": out.status, "target": target,
-            "scene": CONTACT_NAMES[name], "seconds": seconds}
+            "scene": CONTACT_NAMES[name], "start": start, "seconds": seconds}
 
 
 def contact_rows(name: str, order: int, target: float, ref: dict, start, uniform, a_priori=(), correction=None,

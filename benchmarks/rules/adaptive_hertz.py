@@ -35,8 +35,9 @@ from types import SimpleNamespace
 import numpy as np
 
 #: uniform refinements of the base mesh (maxh 1/16) and a priori a_target / h_c, by order.  P2 stops at
-#: 59,280 unknowns (two refinements; 11 s): the next uniform P2 mesh (about 237,000) sat in SuperLU's
-#: factorisation of the condensed set-up for over 5 minutes, where P1's of 946,752 unknowns takes 37 s
+#: 59,280 unknowns (two refinements): before P2 dofs had coordinates for the nested dissection, the next
+#: uniform P2 mesh (about 237,000) sat in SuperLU's factorisation of the condensed set-up for over 5 minutes
+#: (not tried since; the 59,280 one went from 10.7 s to 1.8 s)
 UNIFORM_BASE_H = 1 / 16
 UNIFORM_TIMES = {1: (0, 1, 2, 3, 4, 5), 2: (0, 1, 2)}
 A_PRIORI_K = {1: (5, 10, 20, 40, 80, 160), 2: (5, 10, 20, 40)}
@@ -158,8 +159,9 @@ def hertz_rows(order: int, target: float, ref: dict, cut: int | None = None) -> 
 
 
 def hertz_reference(target: float) -> dict:
-    """J_ref of Hertz: P2 adaptive from the adaptive start to ``target`` (gamma 0.01), extrapolated."""
+    """J_ref of Hertz: P2 adaptive from the adaptive start to ``target`` (gamma 0.01), c_h included."""
     from admmkit.benchmarks.rules.adaptive_contact import reference
     from admmkit.problems.contact.validation.hertz import HertzCase
     case = HertzCase()
-    return reference(target, "hertz", start_scene(case, 2), lambda ops, res: penetration_term(case, ops, res))
+    return reference(target, "hertz", start_scene(case, 2), lambda ops, res: penetration_term(case, ops, res),
+                     start="its coarse mesh (maxh R/4)")

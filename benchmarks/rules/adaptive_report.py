@@ -114,7 +114,7 @@ def write_report(out: Path, rows: list[dict], refs: list[dict], command: str, qu
 
 def _reference(ref: dict) -> str:
     """How a contact scene's J_ref was made, and its own accuracy."""
-    head = (f"Contact {ref['scene']}'s reference energy: P2 adaptive from {_start(ref)} to an estimated relative "
+    head = (f"Contact {ref['scene']}'s reference energy: P2 adaptive from {ref['start']} to an estimated relative "
             f"error {ref['target']:g} ({ref['status']}; gamma 0.01), {ref['unknowns']:,} unknowns on its finest "
             f"level (relative estimate {ref['relative_estimate']:.2e}); ")
     if not math.isfinite(ref["own_error"]):
@@ -126,10 +126,6 @@ def _reference(ref: dict) -> str:
                    f"p = {ref['p_energy']:.2f}). The finest level is {ref['own_error']:.2e} away from J_ref in "
                    f"relative energy error: the reference's own accuracy, to compare with the smallest true error "
                    f"below.")
-
-
-def _start(ref: dict) -> str:
-    return "its coarse mesh (maxh R/4)" if ref["scene"] == "Hertz" else "h = 1/5"
 
 
 def _percent(v) -> str:

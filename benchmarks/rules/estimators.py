@@ -52,14 +52,13 @@ def contact_rows(order: int, meshes=CONTACT_H) -> list[dict]:
     from admmkit.problems.contact import assemble, example1, solve_scene
     from admmkit.problems.contact.solvers.estimate import zz_estimate
     from admmkit.problems.contact.solvers.estimate_residual import residual_estimate
+    from admmkit.problems.contact.validation.reference import energy
 
     def tight(ops):
         sol = solve_scene(ops, "sadmm", 1e3, mode="condensed", stop=admmkit.ResidualTolerance(1e-10, 1e-10),
                           max_iter=50_000)
         return sol.result.x, sol.result.lam
 
-    def energy(ops, u):
-        return float(0.5 * u @ (ops.K @ u) - ops.f @ u)
     fine = assemble(example1(h=CONTACT_REFERENCE_H, order=order))
     J_ref = energy(fine, tight(fine)[0])
     rows = []

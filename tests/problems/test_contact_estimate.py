@@ -12,7 +12,7 @@ import admmkit
 from admmkit.cli import main
 from admmkit.problems.contact import assemble, contact_problem, example1, example2, solve_scene
 from admmkit.problems.contact.solvers.estimate import BalancedStop, CondensedGap, zz_estimate, zz_indicators
-from admmkit.problems.contact.validation.reference import energy_norm, reference_solution
+from admmkit.problems.contact.validation.reference import energy, energy_norm, reference_solution
 
 
 @pytest.fixture(scope="module")
@@ -34,6 +34,15 @@ def test_the_bound_is_above_the_true_algebraic_error_and_sharp(ex1, tol):
     true = energy_norm(ops, res.x - u_h)
     bound = CondensedGap(problem).bound(x[1:], z, lam)
     assert true <= bound <= 20 * true + 1e-7
+
+
+def test_energy_exceeds_the_minimum_by_half_the_squared_energy_norm_at_a_feasible_point(ex1):
+    """J(v) - J(u_h) >= ||v - u_h||_a^2 / 2 for a feasible v (the studies' true error rests on it)."""
+    ops, _, u_h = ex1
+    v = 0.5 * u_h                                      # B u_h <= g and B 0 = 0 <= g: feasible, g >= 0 here
+    assert np.all(ops.B @ v <= ops.g + 1e-12)
+    assert energy(ops, u_h) == pytest.approx(0.5 * u_h @ (ops.K @ u_h) - ops.f @ u_h, rel=1e-14)
+    assert energy(ops, v) - energy(ops, u_h) >= 0.5 * energy_norm(ops, v - u_h) ** 2 * (1 - 1e-8)
 
 
 def _tight(ops) -> np.ndarray:

@@ -36,6 +36,11 @@ def energy_norm(ops: ContactOperators, v: np.ndarray) -> float:
     return float(np.sqrt(max(v @ (ops.K @ v), 0.0)))
 
 
+def energy(ops: ContactOperators, u: np.ndarray) -> float:
+    """J(u) = u'Ku / 2 - f'u on the free dofs (frictionless: the contact plug-in's objective)."""
+    return float(0.5 * u @ (ops.K @ u) - ops.f @ u)
+
+
 def reference_solution(ops: ContactOperators, tol: float = 1e-10) -> Reference:
     """Solve the discrete QP tightly, cross-checked by a second solver.
 
