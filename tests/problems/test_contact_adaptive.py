@@ -81,3 +81,16 @@ def test_cli_fe_order_picks_p2(capsys):
     assert "P2, target 0.05" in text and "target_reached" in text
     assert main(["solve", "contact", "--scene", "ex2", "--h", "1/10", "--fe-order", "2", "-q"]) == 0
     assert "P2 structured" in capsys.readouterr().out
+
+
+def test_cli_target_error_picks_the_cheapest_model(capsys):
+    """--target-error without --fe-order or --h on a 2D scene: P2 from five cells across the thinner side, and
+    the issue's run reaches 1e-3 there (in P1 it does not within 2e6 unknowns); --fe-order 1 and --h are kept."""
+    assert main(["solve", "contact", "--scene", "ex1", "--target-error", "1e-3"]) == 0
+    text = capsys.readouterr().out
+    assert "from h = 0.2, P2, target 0.001" in text and "status       target_reached" in text
+    last = [line for line in text.splitlines() if line[:5].strip().isdigit()][-1].split()
+    assert float(last[5]) <= 1e-3 and int(last[2]) < 60_000        # rel. estimate and unknowns of the last level
+    assert main(["solve", "contact", "--scene", "ex1", "--fe-order", "1", "--h", "1/10", "--target-error", "0.05"]) == 0
+    text = capsys.readouterr().out
+    assert "from h = 0.1, P1, target 0.05" in text and "model " not in text
