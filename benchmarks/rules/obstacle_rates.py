@@ -33,7 +33,7 @@ from admmkit import RelativeChange, ResidualTolerance, solve
 from admmkit.figures import pyplot, save_figure
 from admmkit.io import write_text
 from admmkit.problems.obstacle.plot import plot_solution
-from admmkit.problems.obstacle.problem import make_problem, solve_with_cvxpy
+from admmkit.problems.obstacle import make_problem, solve_with_cvxpy
 from admmkit.problems.obstacle.scene import A_STAR, pyramid, radial
 
 from admmkit.benchmarks.rules import obstacle_stops

@@ -27,7 +27,7 @@ from admmkit import RelativeChange, ResidualTolerance, solve
 from admmkit.figures import pyplot, save_figure
 from admmkit.io import write_text
 from admmkit.problems.obstacle.estimate import BalancedStop
-from admmkit.problems.obstacle.problem import make_problem
+from admmkit.problems.obstacle import make_problem
 from admmkit.problems.obstacle.scene import radial
 
 from admmkit.benchmarks.runner.report import fmt, md_table, write_csv

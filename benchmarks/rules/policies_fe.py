@@ -65,7 +65,7 @@ def contact_case(h: float = 1 / 20, example: int = 1):
 
 def obstacle_case(h: float = 1 / 16):
     """(name, make_problem, relative_error, rho_0 values) for the radial obstacle."""
-    from admmkit.problems.obstacle.problem import make_problem, solve_with_cvxpy
+    from admmkit.problems.obstacle import make_problem, solve_with_cvxpy
     from admmkit.problems.obstacle.scene import radial
     problem = make_problem(radial(h=h))
     u_ref, _ = solve_with_cvxpy(problem, tol_gap_abs=1e-12, tol_gap_rel=1e-12, tol_feas=1e-12)

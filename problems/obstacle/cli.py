@@ -9,21 +9,27 @@ from admmkit.policies.paper_methods import PAPER_METHODS
 
 from .estimate import BalancedStop
 from .plot import plot_solution
-from .problem import DEFAULT_BACKEND, make_problem
+from .discrete import make_problem
+from .problem import DEFAULT_BACKEND
 from .xstep import ADAPTIVE_BACKEND
 from .scene import A_STAR, SCENES, scene as named_scene
 
 
 def register(subparsers) -> None:
     """Register ``solve obstacle``."""
-    p = subparsers.add_parser("obstacle", help="-Delta u = f, u >= psi, u = u_D (P1, NGSolve)")
+    p = subparsers.add_parser("obstacle", help="-Delta u = f, u >= psi, u = u_D (P1 or P2, NGSolve)")
     p.add_argument("--scene", default="radial",
                    help=f"named scene: {', '.join(SCENES)} (default radial)")
-    p.add_argument("--h", type=positive_float, default=1 / 16, help="cell size, fractions allowed (default 1/16)")
+    p.add_argument("--h", type=positive_float, default=None,
+                   help="cell size, fractions allowed (default 1/16; with --target-error the first level's, default "
+                        "a fifth of the box's shorter side)")
+    p.add_argument("--fe-order", type=int, choices=(1, 2), default=None,
+                   help="P1 or P2 elements (default P1; with --target-error P2, unless --estimator residual, which "
+                        "is P1 only)")
     p.add_argument("--backend", default=None,
                    help=f"sparse solver of K + rho M, iterative for AMG-preconditioned CG, or jacobi for "
                         f"Jacobi-preconditioned CG with a factorisation where CG is dear (default {DEFAULT_BACKEND}; "
-                        f"{ADAPTIVE_BACKEND} with --target-error)")
+                        f"{ADAPTIVE_BACKEND} with --target-error in P1)")
     add_output_file(p, "--plot", "FILE", "write a plot of u, psi and the contact set (PNG)")
     add_output_file(p, "--vtk", "FILE.vtu", "write u, psi, the contact set and the --estimator's indicator per triangle as VTU "
                     "(with --target-error one file per level, FILE_level<k>.vtu)", suffix=".vtu")
@@ -40,9 +46,11 @@ def run(args) -> int:
     estimator = estimator_name(args)
     if args.target_error is not None:
         return run_adaptive(args)
-    problem = make_problem(named_scene(args.scene, h=args.h), backend=args.backend or DEFAULT_BACKEND)
+    args.h = 1 / 16 if args.h is None else args.h
+    problem = make_problem(named_scene(args.scene, h=args.h), backend=args.backend or DEFAULT_BACKEND,
+                           fe_order=args.fe_order or 1)
     nx, ny = problem.scene.counts
-    print(f"problem      obstacle/{args.scene}: h = {args.h:.6g} ({nx} x {ny} squares), "
+    print(f"problem      obstacle/{args.scene}: h = {args.h:.6g} ({nx} x {ny} squares), P{problem.order}, "
           f"{problem.n} free nodes, side {problem.scene.side}")
     stop = None if gamma is None else BalancedStop(problem, gamma, estimator=estimator)
     result = run_solve(problem, args, stop=stop)
@@ -88,8 +96,18 @@ def run_adaptive(args) -> int:
     from .plot import plot_adapted
     options = adaptive_options(args)
     order, policy, name = resolve_policy(args)
+    chosen = []
+    if args.fe_order is None:           # accuracy in, cheapest model out: P2 (docs/obstacle.md)
+        args.fe_order = 2 if options["estimator"] == "zz" else 1
+        chosen.append(f"P{args.fe_order} ({'--fe-order 1 for P1' if args.fe_order == 2 else 'the residual estimator is P1 only'})")
+    if args.h is None:
+        x0, x1, y0, y1 = named_scene(args.scene).box
+        args.h = min(x1 - x0, y1 - y0) / 5
+        chosen.append(f"first mesh h = {args.h:.6g}, a fifth of the box's shorter side (--h for another)")
+    if chosen:
+        print("model        " + ", ".join(chosen) + ": the defaults of --target-error")
     scene = named_scene(args.scene, h=args.h)
-    print(f"adaptive     obstacle/{args.scene}: from h = {args.h:.6g}, target {options['target']:g}, "
+    print(f"adaptive     obstacle/{args.scene}: from h = {args.h:.6g}, P{args.fe_order}, target {options['target']:g}, "
           f"theta {options['theta']:g}, gamma {options['gamma']:g}, {options['estimator']} estimator, {name} order {order}")
     print("level    cells  unknowns   estimate  rel.estimate  H1-semi error  iterations  seconds  status")
 
@@ -104,7 +122,7 @@ def run_adaptive(args) -> int:
         show.k += 1
     show.k, files = 1, []
     out = solve_adaptive(scene, **options, policy=policy, order=order, rho=args.rho, max_iter=args.max_iter,
-                         backend=args.backend or ADAPTIVE_BACKEND, log=show)
+                         backend=args.backend, fe_order=args.fe_order, log=show)
     print(f"status       {out.status}  ({out.message})")
     if files:
         print(f"vtk          {len(files)} levels: {files[0]} ... {files[-1]}")
@@ -114,7 +132,7 @@ def run_adaptive(args) -> int:
         import json
         from dataclasses import asdict
         from admmkit.io import write_text
-        body = {"command": "solve obstacle --target-error", "scene": args.scene, "h0": args.h,
+        body = {"command": "solve obstacle --target-error", "scene": args.scene, "h0": args.h, "fe_order": args.fe_order,
                 **options, "status": out.status,
                 "message": out.message, "levels": [asdict(level) for level in out.levels]}
         print(f"json         {write_text(args.json, json.dumps(body, indent=1, default=float) + chr(10))}")

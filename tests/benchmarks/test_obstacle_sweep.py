@@ -3,7 +3,7 @@ import math
 
 from admmkit import RelativeChange, solve
 from admmkit.benchmarks.rules.obstacle_rates import sweep
-from admmkit.problems.obstacle.problem import make_problem
+from admmkit.problems.obstacle import make_problem
 from admmkit.problems.obstacle.scene import radial
 
 

@@ -314,7 +314,7 @@ def test_rules_register_and_declare_what_they_need():
 
 
 def test_rules_on_the_obstacle_plug_in():
-    from admmkit.problems.obstacle.problem import make_problem
+    from admmkit.problems.obstacle import make_problem
     from admmkit.problems.obstacle.scene import radial
     problem = make_problem(radial(h=1 / 4))
     for name in NEW:
