@@ -9,6 +9,39 @@ import math
 
 import numpy as np
 
+from .compiled import AVAILABLE as COMPILED, njit
+
+
+@njit(cache=True)
+def _step_kernel(x, r, p, Ap, alpha):
+    for i in range(x.shape[0]):
+        x[i] += alpha * p[i]
+        r[i] -= alpha * Ap[i]
+
+
+@njit(cache=True)
+def _direction_kernel(p, z, beta):
+    for i in range(p.shape[0]):
+        p[i] = p[i] * beta + z[i]
+
+
+def cg_step(x, r, p, Ap, alpha: float) -> None:
+    """x += alpha p and r -= alpha Ap in one pass (numba; numpy's values, no temporaries)."""
+    if COMPILED:
+        _step_kernel(x, r, p, Ap, alpha)
+    else:
+        x += alpha * p
+        r -= alpha * Ap
+
+
+def cg_direction(p, z, beta: float) -> None:
+    """p = beta p + z in place, in one pass (numba; the value of ``p *= beta; p += z``)."""
+    if COMPILED:
+        _direction_kernel(p, z, beta)
+    else:
+        p *= beta
+        p += z
+
 
 # ---------------------------------------------------------------- preconditioned CG
 def pcg(matvec, b: np.ndarray, x0: np.ndarray, precond, *, tol: float, maxiter: int):
@@ -39,12 +72,10 @@ def pcg(matvec, b: np.ndarray, x0: np.ndarray, precond, *, tol: float, maxiter: 
         if not (pAp > 0.0):
             raise np.linalg.LinAlgError(f"CG broke down: p'Ap = {pAp} (matrix or preconditioner not SPD)")
         alpha = rz / pAp
-        x += alpha * p
-        r -= alpha * Ap
+        cg_step(x, r, p, Ap, alpha)
         z = precond(r)
         rz_new = float(r @ z)
-        p *= rz_new / rz
-        p += z
+        cg_direction(p, z, rz_new / rz)
         rz = rz_new
         its += 1
     else:
@@ -59,13 +90,16 @@ class SolutionSpace:
     ``guess(rho, b)`` returns Q y with (Q'KQ + rho Q'DQ) y = Q'b, the best
     approximation of the solution of (K + rho D) x = b from span(Q) in the
     energy norm.  When ``size`` vectors are held the basis restarts from the
-    newest solution (Fischer's restart).
+    newest solution (Fischer's restart).  The basis vectors are stored as rows
+    (``Q[j]``, and K Q likewise), so every product with the basis streams
+    contiguous memory and reads only the vectors held: at 1e6 unknowns the
+    column layout took 63 ms per ``add`` (Example 1's SADMM: 2.3 s of 35).
     """
 
     def __init__(self, K, D, size: int):
         self.K, self.D, self.size = K, D, size
         n = K.shape[0]
-        self.Q = np.empty((n, size)) if size > 0 else np.empty((n, 0))
+        self.Q = np.empty((size, n))
         self.KQ = np.empty_like(self.Q)   # K Q, so that adding a solution whose K x is known needs no product
         self.m = 0
         self.GK = np.zeros((size, size))
@@ -75,13 +109,13 @@ class SolutionSpace:
         """The projected initial guess, or None if the space is empty."""
         if self.m == 0:
             return None
-        Q = self.Q[:, :self.m]
+        Q = self.Q[:self.m]
         G = self.GK[:self.m, :self.m] + rho * self.GD[:self.m, :self.m]
-        c = Q.T @ b
+        c = Q @ b
         w, V = np.linalg.eigh(G)
         keep = w > 1e-12 * w.max()
         y = V[:, keep] @ ((V[:, keep].T @ c) / w[keep])
-        return Q @ y
+        return y @ Q
 
     def add(self, x: np.ndarray, Kx: np.ndarray | None = None) -> None:
         """Add a solution (orthonormalised against the basis; restart when full).
@@ -98,23 +132,23 @@ class SolutionSpace:
             return
         coef = np.zeros(self.m)
         if self.m:
-            Q = self.Q[:, :self.m]
+            Q = self.Q[:self.m]
             for _ in range(2):  # classical Gram-Schmidt twice ("twice is enough")
-                c = Q.T @ q
-                q -= Q @ c
+                c = Q @ q
+                q -= c @ Q
                 coef += c
         norm = np.linalg.norm(q)
         if norm <= 1e-10 * norm0:
             return
         q /= norm
         j = self.m
-        self.Q[:, j] = q
+        self.Q[j] = q
         if Kx is None:
             Kq = self.K @ q
         else:          # K q = (K x - K Q coef) / norm
-            Kq = (Kx - self.KQ[:, :j] @ coef) / norm if j else Kx / norm
-        self.KQ[:, j] = Kq
+            Kq = (Kx - coef @ self.KQ[:j]) / norm if j else Kx / norm
+        self.KQ[j] = Kq
         Dq = self.D @ q
-        self.GK[j, :j + 1] = self.GK[:j + 1, j] = self.Q[:, :j + 1].T @ Kq
-        self.GD[j, :j + 1] = self.GD[:j + 1, j] = self.Q[:, :j + 1].T @ Dq
+        self.GK[j, :j + 1] = self.GK[:j + 1, j] = self.Q[:j + 1] @ Kq
+        self.GD[j, :j + 1] = self.GD[:j + 1, j] = self.Q[:j + 1] @ Dq
         self.m += 1

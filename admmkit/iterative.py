@@ -59,12 +59,21 @@ import scipy.sparse as sp
 
 from .amg import AMGPreconditioner, PencilMatrix, node_blocks  # noqa: F401  (node_blocks: re-exported)
 from .cg import SolutionSpace, pcg  # noqa: F401  (re-exported)
+from .compiled import AVAILABLE as COMPILED
 
 #: the products R A P of a Galerkin refresh without the axpy form, in units of C nnz(A) (a smoothed
 #: aggregation P has a few entries per row, so each product touches a few times the operator's entries)
 GALERKIN_WORK = 4.0
 
 REUSE = ("auto", "keep", "galerkin", "rebuild")
+
+
+def _product(A):
+    """x -> A x: the compiled row-parallel product (:func:`admmkit.vcycle.csr_product`, scipy's values) with numba."""
+    if not COMPILED:
+        return A.__matmul__
+    from .vcycle import csr_product
+    return csr_product(A)
 
 
 # ---------------------------------------------------------------- the x-step solver
@@ -86,6 +95,8 @@ class IterativeXSolver:
         (0: warm start from the last solution only).
     maxiter : CG iteration cap per solve.  Reaching it with the error estimate
         above 0.5 raises LinAlgError; below, the solve counts as ``cg_unconverged``.
+    amg_options : keyword arguments of :class:`admmkit.amg.AMGPreconditioner` for speed
+        (``spectral_steps``, ``cycle_values``); None keeps its defaults.
 
     Counters: ``setups`` (hierarchy builds), ``refreshes`` (Galerkin
     refreshes), ``solves``, ``cg_iterations``, ``unconverged``; times ``setup_time``,
@@ -94,7 +105,7 @@ class IterativeXSolver:
 
     def __init__(self, K, D, *, near_null=None, blocks=None, reuse: str = "auto", tol="adaptive",
                  kappa: float = 0.1, tol0: float = 0.1, tol_min: float = 1e-10, projection: int = 8,
-                 maxiter: int = 1000, max_coarse: int = 500):
+                 maxiter: int = 1000, max_coarse: int = 500, amg_options: dict | None = None):
         K, D = sp.csr_matrix(K, dtype=float), sp.csr_matrix(D, dtype=float)
         K.sum_duplicates()
         D.sum_duplicates()
@@ -123,12 +134,16 @@ class IterativeXSolver:
             K, D = K[self.perm][:, self.perm].tocsr(), D[self.perm][:, self.perm].tocsr()
             if near_null is not None:
                 near_null = np.asarray(near_null)[self.perm]
-        self.K, self.D = K, D
-        self.pencil = PencilMatrix(K, D)      # CSR: its products were faster than BSR's here
+        # CSR: its products were faster than BSR's here.  A permuted K is this solver's own copy: the pencil
+        # takes it over, and K is then the pencil's pattern with K's values (one copy of K, not three)
+        self.pencil = PencilMatrix(K, D, copy=self.perm is None)
+        K = self.K = self.pencil.K_matrix()
+        self.D = D
         self.near_null = None if near_null is None else np.ascontiguousarray(near_null, dtype=float)
         self.reuse, self.tol = reuse, tol
         self.kappa, self.tol0, self.tol_min = float(kappa), float(tol0), float(tol_min)
         self.maxiter, self.max_coarse = maxiter, max_coarse
+        self.amg_options = dict(amg_options or {})
         self.space = SolutionSpace(K, D, projection)
         self._rho_A = None        # rho of the current matrix A
         self._A = None
@@ -153,6 +168,7 @@ class IterativeXSolver:
         action = "none"
         if self._rho_A != rho:
             self._A, self._rho_A = self.matrix(rho), rho
+            self._product = _product(self._A)
         if self._amg is None:
             action = "setup"
         elif self._rho_amg != rho:
@@ -167,7 +183,7 @@ class IterativeXSolver:
         if action == "setup":
             start = time.perf_counter()
             self._amg = AMGPreconditioner(self._A, self.near_null, blocksize=self.blocksize,
-                                          max_coarse=self.max_coarse, D=self.D, rho=rho)
+                                          max_coarse=self.max_coarse, D=self.D, rho=rho, **self.amg_options)
             self.setup_time += time.perf_counter() - start
             self.setups += 1
         elif action == "refresh":
@@ -224,8 +240,7 @@ class IterativeXSolver:
         guess = self.space.guess(rho, b)
         if guess is None:
             guess = np.zeros(self.n) if x0 is None else np.asarray(x0, dtype=float)[self.perm if self.perm is not None else slice(None)]
-        A = self._A
-        x, its, ratio, start_ratio, r = pcg(A.__matmul__, b, guess, self._amg, tol=tol, maxiter=self.maxiter)
+        x, its, ratio, start_ratio, r = pcg(self._product, b, guess, self._amg, tol=tol, maxiter=self.maxiter)
         elapsed = time.perf_counter() - start
         if ratio > tol:
             if ratio > 0.5:

@@ -1,0 +1,66 @@
+"""The compiled V-cycle and CG products (admmkit.vcycle) against pyamg's and scipy's."""
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+pytest.importorskip("numba")
+pyamg = pytest.importorskip("pyamg")
+
+from admmkit.amg import AMGPreconditioner, short_spectral_radius  # noqa: E402
+from admmkit.vcycle import THREADS_VARIABLE, VCycle, csr_product  # noqa: E402
+
+
+def _elasticity():
+    A, B = pyamg.gallery.linear_elasticity((40, 40), format="csr")
+    return sp.csr_matrix(A), B
+
+
+def _pyamg_cycle(ml, r):
+    z = np.zeros_like(r)
+    ml._MultilevelSolver__solve(0, z, r, "V")
+    return z
+
+
+def test_vcycle_matches_pyamg_cycle():
+    A, B = _elasticity()
+    amg = AMGPreconditioner(A, B, blocksize=2, max_coarse=50)
+    assert amg.levels >= 3
+    r = np.random.default_rng(0).standard_normal(A.shape[0])
+    z_ref = _pyamg_cycle(amg.ml, r)
+    z = VCycle(amg.ml)(r)
+    assert np.linalg.norm(z - z_ref) <= 1e-12 * np.linalg.norm(z_ref)
+    assert np.array_equal(amg(r), z)                       # the preconditioner applies the compiled cycle
+
+
+def test_single_precision_cycle_is_close_and_symmetric():
+    A, B = _elasticity()
+    amg = AMGPreconditioner(A, B, blocksize=2, max_coarse=50, cycle_values="float32")
+    rng = np.random.default_rng(1)
+    u, v = rng.standard_normal((2, A.shape[0]))
+    z_ref = _pyamg_cycle(amg.ml, u)
+    assert np.linalg.norm(amg(u) - z_ref) <= 1e-4 * np.linalg.norm(z_ref)
+    assert abs(v @ amg(u) - u @ amg(v)) <= 1e-10 * abs(u @ amg(u))  # still a symmetric operator
+
+
+def test_threads_do_not_change_values(monkeypatch):
+    from numba import config
+    A, B = _elasticity()
+    amg = AMGPreconditioner(A, B, blocksize=2, max_coarse=50)
+    r = np.random.default_rng(2).standard_normal(A.shape[0])
+    monkeypatch.setenv(THREADS_VARIABLE, "1")
+    one, Ar1 = amg(r), csr_product(A)(r)
+    monkeypatch.setenv(THREADS_VARIABLE, str(config.NUMBA_NUM_THREADS))
+    assert np.array_equal(amg(r), one)
+    assert np.array_equal(csr_product(A)(r), Ar1)
+    assert np.array_equal(Ar1, A @ r)                      # scipy's values
+
+
+def test_short_spectral_radius_is_scoped():
+    from pyamg.aggregation import smooth
+    original = smooth.approximate_spectral_radius
+    with short_spectral_radius(10):
+        assert smooth.approximate_spectral_radius is not original
+    assert smooth.approximate_spectral_radius is original
+    A, B = _elasticity()
+    short = AMGPreconditioner(A, B, blocksize=2, max_coarse=50, spectral_steps=10)
+    assert short.levels >= 3
