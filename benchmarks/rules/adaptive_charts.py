@@ -44,7 +44,7 @@ def plot_levels(rows: list[dict], path: Path) -> Path:
     """Left: the effectivity per adaptive level; right: the iterations per level (adaptive, and uniform cold)."""
     plt = pyplot()
     fig, axes = plt.subplots(1, 2, figsize=(11, 4))
-    for (scene, order, title), colour in zip(GROUPS, ("C2", "C1", "C4", "C5", "C6", "C9")):
+    for (scene, order, title), colour in zip(GROUPS, ("C2", "C3", "C1", "C4", "C5", "C6", "C9")):
         ad = series(rows, scene, order, "adaptive")
         if not ad:
             continue

@@ -79,7 +79,8 @@ def markdown(rows: list[dict], refs: list[dict], command: str) -> str:
             "of the comparisons.\n\n"
             + reference + "\n\n## At the same true error\n\n" + summary
             + "\n\nThe obstacle against uniform refinement with today's stop (RelativeChange 1e-5), at the smallest "
-              "error both reach (the adaptive levels' x-step: Jacobi-CG, a factorisation where CG is dear):\n\n"
+              "error both reach (the adaptive levels' x-step: Jacobi-CG, a factorisation where CG is dear, in P1; "
+              "SuperLU in P2). Today's model is P1, so both orders are compared with its uniform meshes:\n\n"
             + today
             + f"\n\nAt the issue's target error {TARGET_ERROR:g}:\n\n" + target
             + ("\n\nHertz against the a priori local refinement of `admmkit bench hertz` (size a_target / k near "

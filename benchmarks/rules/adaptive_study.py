@@ -1,7 +1,7 @@
 """``admmkit bench adaptive``: adaptive against uniform refinement, at the same true error.
 
 Scenes: contact Example 1 in P1 and P2, Example 2 in P2, Hertz in P1 and P2
-and the radial obstacle (P1).  For each:
+and the radial obstacle in P1 and P2.  For each:
 
 - **adaptive**: every level of ``solve_adaptive`` (ZZ estimator, Dörfler
   theta 0.5, balanced stop gamma 0.1, warm start), from the scene's coarse
@@ -14,8 +14,10 @@ and the radial obstacle (P1).  For each:
   (in uniform refinement's favour).  The obstacle also with today's stop
   (``RelativeChange(1e-5)``, as ``admmkit solve obstacle --balance off``), with
   the plug-in's default x-step (SuperLU) and with AMG-preconditioned CG
-  (``--backend iterative``).  The adaptive obstacle's x-step is Jacobi-CG
-  (``problems/obstacle/xstep.py``); the uniform cold solves keep SuperLU;
+  (``--backend iterative``), in P1, the plug-in's model before adaptivity;
+  both orders are compared with it.  The adaptive obstacle's x-step is
+  Jacobi-CG in P1 (``problems/obstacle/xstep.py``) and SuperLU in P2; the
+  uniform cold solves keep SuperLU;
 - **a priori** (Hertz): the Hertz validation's meshes, refined near the
   contact by hand, each solved once, cold, as the uniform ones
   (``adaptive_hertz.py``).
@@ -43,7 +45,7 @@ from admmkit.benchmarks.rules.adaptive_hertz import hertz_reference, hertz_rows
 from admmkit.benchmarks.rules.adaptive_levels import Clock, level_row, uniform_level
 from admmkit.benchmarks.runner.options import print_files
 
-OBSTACLE_UNIFORM_N = (16, 32, 64, 128, 256, 512)          # h = 4/N on (-2, 2)^2
+OBSTACLE_UNIFORM_N = {1: (16, 32, 64, 128, 256, 512), 2: (8, 16, 32, 64, 128)}    # h = 4/N on (-2, 2)^2
 #: the obstacle's uniform meshes with today's stop, by the x-step: the plug-in's default (a SuperLU
 #: factorisation per rho) and AMG-preconditioned CG (backend "iterative"), the faster on fine uniform meshes
 DEFAULT_BACKEND = "superlu"
@@ -51,11 +53,11 @@ TODAY_BACKENDS = {"uniform_today": DEFAULT_BACKEND, "uniform_today_amg": "iterat
 CONTACT_UNIFORM_H = {1: (5, 10, 20, 40, 80, 160, 320), 2: (5, 10, 20, 40, 80, 160)}   # h = 1/value
 # (scene, order): the adaptive target; "reference": each contact scene's reference target.  Hertz's reference
 # stops at 1e-4 (688,410 P2 unknowns, 190 s, 7.9 GB): the next level took 16 GB and more than 20 minutes
-FULL = {"obstacle_target": 5e-3,
+FULL = {"obstacle_target": {1: 5e-3, 2: 3e-4},
         "contact_target": {("ex1", 1): 1e-2, ("ex1", 2): 3e-4, ("ex2", 2): 1e-3, ("hertz", 1): 1e-2,
                            ("hertz", 2): 3e-4},
         "reference_target": {"ex1": 5e-5, "ex2": 1e-4, "hertz": 1e-4}}
-QUICK = {"obstacle_target": 8e-2,
+QUICK = {"obstacle_target": {1: 8e-2, 2: 2e-2},
          "contact_target": {("ex1", 1): 6e-2, ("ex1", 2): 1e-2, ("ex2", 2): 3e-2, ("hertz", 1): 6e-2,
                             ("hertz", 2): 1e-2},
          "reference_target": {"ex1": 2e-3, "ex2": 5e-3, "hertz": 2e-3}}
@@ -64,8 +66,8 @@ QUICK_CUT = 3                                             # the three coarsest u
 
 
 # ---------------------------------------------------------------------------------------------------- obstacle
-def obstacle_rows(target: float, meshes=OBSTACLE_UNIFORM_N) -> list[dict]:
-    """Adaptive and uniform (balanced stop and today's stop) rows of the radial obstacle."""
+def obstacle_rows(target: float, meshes=OBSTACLE_UNIFORM_N[1], order: int = 1) -> list[dict]:
+    """Adaptive and uniform (balanced stop) rows of the radial obstacle in P``order``; in P1 also today's stop."""
     from admmkit.problems.obstacle import ObstacleProblem, radial
     from admmkit.problems.obstacle.adaptive import solve_adaptive
     norm = _radial_norm(ObstacleProblem(radial(h=4 / 128)).mesh)
@@ -76,16 +78,16 @@ def obstacle_rows(target: float, meshes=OBSTACLE_UNIFORM_N) -> list[dict]:
         t0 = time.perf_counter()
         cold, error = _cold_obstacle(out.model), _h1_error(out.model, out.result.z)
         clock.excluded += time.perf_counter() - t0
-        rows.append(level_row("obstacle", 1, "adaptive", len(rows) + 1, math.nan, level.unknowns,
+        rows.append(level_row("obstacle", order, "adaptive", len(rows) + 1, math.nan, level.unknowns,
                          level.relative_estimate, level.estimate, error / norm, error, level.iterations,
                          level.seconds, clock.now(), level.status, cold))
-    solve_adaptive(scene(8), target, max_levels=40, log=log)
+    solve_adaptive(scene(8), target, max_levels=40, log=log, fe_order=order)
     for i, N in enumerate(meshes):       # a cold start from rho 1: the plug-in's default, a factorisation per rho
         level, wall, error = uniform_level(solve_adaptive, scene(N), lambda model, res: _h1_error(model, res.z),
-                                      backend=DEFAULT_BACKEND)
-        rows.append(level_row("obstacle", 1, "uniform", i + 1, 4 / N, level.unknowns, level.relative_estimate,
+                                      backend=DEFAULT_BACKEND, fe_order=order)
+        rows.append(level_row("obstacle", order, "uniform", i + 1, 4 / N, level.unknowns, level.relative_estimate,
                          level.estimate, error / norm, error, level.iterations, level.seconds, wall, level.status))
-    for method, backend in TODAY_BACKENDS.items():
+    for method, backend in TODAY_BACKENDS.items() if order == 1 else ():
         for i, N in enumerate(meshes):
             rows.append(_obstacle_today(scene(N), i + 1, norm, method, backend))
     return rows
@@ -139,7 +141,8 @@ def run(out: Path, command: str, quick: bool = False, scenes=SCENES) -> list[Pat
     print("adaptive against uniform refinement:", flush=True)
     refs = {name: hertz_reference(target) if name == "hertz" else reference(target, name)
             for name, target in setting["reference_target"].items() if name in scenes}
-    rows = obstacle_rows(setting["obstacle_target"], OBSTACLE_UNIFORM_N[:cut]) if "obstacle" in scenes else []
+    rows = [row for order in (1, 2) if "obstacle" in scenes
+            for row in obstacle_rows(setting["obstacle_target"][order], OBSTACLE_UNIFORM_N[order][:cut], order)]
     for (name, order), target in setting["contact_target"].items():
         if name == "hertz" and name in scenes:
             rows += hertz_rows(order, target, refs[name], cut)

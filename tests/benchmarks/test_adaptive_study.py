@@ -40,7 +40,8 @@ def test_the_files_are_written(quick):
         assert (out / name).stat().st_size > 0
     assert {(r["scene"], r["order"], r["method"]) for r in rows} == {
         ("obstacle", 1, "adaptive"), ("obstacle", 1, "uniform"), ("obstacle", 1, "uniform_today"),
-        ("obstacle", 1, "uniform_today_amg"), ("ex1", 1, "adaptive"), ("ex1", 1, "uniform"), ("ex1", 2, "adaptive"),
+        ("obstacle", 1, "uniform_today_amg"), ("obstacle", 2, "adaptive"), ("obstacle", 2, "uniform"),
+        ("ex1", 1, "adaptive"), ("ex1", 1, "uniform"), ("ex1", 2, "adaptive"),
         ("ex1", 2, "uniform"), ("ex2", 2, "adaptive"), ("ex2", 2, "uniform"), ("hertz", 1, "adaptive"),
         ("hertz", 1, "uniform"), ("hertz", 1, "a_priori"), ("hertz", 2, "adaptive"), ("hertz", 2, "uniform"),
         ("hertz", 2, "a_priori")}
