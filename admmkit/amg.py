@@ -42,7 +42,7 @@ def node_blocks(node: np.ndarray, component: np.ndarray, d: int) -> np.ndarray |
     """
     node, component = np.asarray(node), np.asarray(component)
     order = np.lexsort((component, node))
-    n_nodes = np.unique(node).size
+    n_nodes = np.count_nonzero(np.bincount(node)) if node.size and node.min() >= 0 else np.unique(node).size
     if n_nodes * d != node.size:
         return None
     blocks = order.reshape(n_nodes, d)
@@ -140,7 +140,8 @@ class AMGPreconditioner:
         with _seeded():
             change_smoothers(self.ml, self.SMOOTHERS[0], self.SMOOTHERS[1])
         self.ml.coarse_solver = coarse_grid_solver(self.COARSE)  # its cached factors belonged to the old A
-        self._cycle = None
+        if self._cycle is not None:
+            self._cycle = self._cycle.refreshed(self.ml)
         self.refresh_time = time.perf_counter() - start
 
     def __call__(self, r: np.ndarray) -> np.ndarray:
@@ -207,9 +208,13 @@ class PencilMatrix:
             K.sum_duplicates()
             K.sort_indices()
             self.pattern = K
-            if self._contains(sp.csr_matrix(D)):
+            D = sp.csr_matrix(D)
+            D.sum_duplicates()
+            positions = self._positions(D)
+            if positions is not None:
                 self.K_data = K.data          # the pattern's own values: K (never written)
-                self.D_data = self._aligned(D)
+                self.D_data = np.zeros_like(K.data)
+                self.D_data[positions] = D.data
                 return
         ones = lambda M: sp.csr_matrix((np.ones_like(M.data), M.indices, M.indptr), shape=M.shape)  # noqa: E731
         pattern = (ones(K) + ones(D)).tocsr()     # positive values: no entry of the union cancels
@@ -226,15 +231,25 @@ class PencilMatrix:
             return self.pattern
         return self.at(0.0)
 
-    def _contains(self, M: sp.csr_matrix) -> bool:
-        """Whether every stored entry of M lies in the pattern."""
-        M = M.tocsr()
-        M.sum_duplicates()
+    def _positions(self, M: sp.csr_matrix) -> np.ndarray | None:
+        """Where M's stored entries sit in the (CSR) pattern's values, or None if one lies outside it.
+
+        Reads only the pattern rows M touches (D couples the few contact dofs: at 1e6 unknowns this
+        replaced keys for all 14e6 entries of K, twice, about 0.4 s).
+        """
         if M.nnz == 0:
-            return True
-        keys_union, keys = self._keys(self.pattern), self._keys(M)
+            return np.empty(0, dtype=np.int64)
+        rows = np.repeat(np.arange(M.shape[0]), np.diff(M.indptr))
+        touched = np.unique(rows)
+        starts, lengths = self.pattern.indptr[touched], np.diff(self.pattern.indptr)[touched]
+        at = np.repeat(starts - np.concatenate(([0], np.cumsum(lengths)[:-1])), lengths) + np.arange(lengths.sum())
+        width = self.shape_blocks + 1
+        keys_union = np.repeat(touched, lengths).astype(np.int64) * width + self.pattern.indices[at]
+        keys = rows.astype(np.int64) * width + M.indices
         pos = np.minimum(np.searchsorted(keys_union, keys), keys_union.size - 1)
-        return bool(np.array_equal(keys_union[pos], keys))
+        if keys_union.size == 0 or not np.array_equal(keys_union[pos], keys):
+            return None
+        return at[pos]
 
     def _keys(self, M) -> np.ndarray:
         rows = np.repeat(np.arange(M.indptr.size - 1), np.diff(M.indptr))

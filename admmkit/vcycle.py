@@ -208,16 +208,23 @@ class VCycle:
     inner tolerance, not the round-off.
     """
 
-    def __init__(self, ml, values=np.float64):
+    def __init__(self, ml, values=np.float64, P=None):
         levels = ml.levels
         for level in levels[:-1]:
             level.A = _sorted_csr(level.A)
+        self.values = values
         self.A = [_stored(level.A, values) for level in levels[:-1]]
-        self.P = [_stored(_sorted_csr(level.P), values) for level in levels[:-1]]   # R = P': no copy of R
+        # R = P': no copy of R.  ``P``: the prolongators of a cycle on the same hierarchy (a Galerkin refresh
+        # changes the levels' A only)
+        self.P = P if P is not None else [_stored(_sorted_csr(level.P), values) for level in levels[:-1]]
         self.coarse_solver, self.coarse_A = ml.coarse_solver, levels[-1].A
         self.n = levels[0].A.shape[0]
         self._res = [np.empty(A.shape[0]) for A in self.A]
         self._diagonal = [_diagonal_positions(A.indptr, A.indices) for A in self.A]
+
+    def refreshed(self, ml) -> VCycle:
+        """The cycle of the same hierarchy after a Galerkin refresh (new A on every level, the same P)."""
+        return VCycle(ml, self.values, P=self.P)
 
     def __call__(self, r: np.ndarray) -> np.ndarray:
         """The V-cycle applied to r from a zero initial guess (a new array)."""
