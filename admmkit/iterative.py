@@ -68,12 +68,13 @@ GALERKIN_WORK = 4.0
 REUSE = ("auto", "keep", "galerkin", "rebuild")
 
 
-def _product(A):
-    """x -> A x: the compiled row-parallel product (:func:`admmkit.vcycle.csr_product`, scipy's values) with numba."""
+def _products(pattern):
+    """A -> (x -> A x) for the matrices K + rho D on ``pattern``: from the upper triangle with numba
+    (:class:`admmkit.symmetric.SymmetricPattern`, half the entries read), else scipy's product."""
     if not COMPILED:
-        return A.__matmul__
-    from .vcycle import csr_product
-    return csr_product(A)
+        return lambda A: A.__matmul__
+    from .symmetric import SymmetricPattern
+    return SymmetricPattern(pattern).product
 
 
 # ---------------------------------------------------------------- the x-step solver
@@ -137,6 +138,7 @@ class IterativeXSolver:
         # CSR: its products were faster than BSR's here.  A permuted K is this solver's own copy: the pencil
         # takes it over, and K is then the pencil's pattern with K's values (one copy of K, not three)
         self.pencil = PencilMatrix(K, D, copy=self.perm is None)
+        self._products = _products(self.pencil.pattern)
         K = self.K = self.pencil.K_matrix()
         self.D = D
         self.near_null = None if near_null is None else np.ascontiguousarray(near_null, dtype=float)
@@ -168,7 +170,7 @@ class IterativeXSolver:
         action = "none"
         if self._rho_A != rho:
             self._A, self._rho_A = self.matrix(rho), rho
-            self._product = _product(self._A)
+            self._product = self._products(self._A)
         if self._amg is None:
             action = "setup"
         elif self._rho_amg != rho:

@@ -64,3 +64,15 @@ def test_short_spectral_radius_is_scoped():
     A, B = _elasticity()
     short = AMGPreconditioner(A, B, blocksize=2, max_coarse=50, spectral_steps=10)
     assert short.levels >= 3
+
+
+def test_symmetric_product_from_upper_triangle():
+    from admmkit.symmetric import SymmetricPattern
+    A, _ = _elasticity()
+    A = sp.csr_matrix(A + 3 * sp.eye(A.shape[0]))
+    A.sort_indices()
+    x = np.random.default_rng(3).standard_normal(A.shape[0])
+    product = SymmetricPattern(A).product(A)
+    assert np.linalg.norm(product(x) - A @ x) <= 1e-14 * np.linalg.norm(A @ x)
+    B = sp.csr_matrix((2 * A.data, A.indices, A.indptr), shape=A.shape)   # another matrix on the pattern
+    assert np.linalg.norm(SymmetricPattern(A).product(B)(x) - B @ x) <= 1e-14 * np.linalg.norm(B @ x)
