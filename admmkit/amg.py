@@ -275,8 +275,15 @@ class PencilMatrix:
         return data
 
     def at(self, rho: float):
-        """The sparse matrix K + rho D (CSR or BSR)."""
-        data = self.K_data + rho * self.D_data
+        """The sparse matrix K + rho D (CSR or BSR); where D is sparse in the pattern (contact: 4e3 of 14e6
+        entries), K's values are copied and only D's entries updated (the same values, a third of the work)."""
+        if getattr(self, "_D_entries", None) is None:
+            self._D_entries = np.flatnonzero(self.D_data) if self.D_data.ndim == 1 else np.empty(0, dtype=int)
+        if 0 < self._D_entries.size < self.D_data.size // 8:
+            data = self.K_data.copy()
+            data[self._D_entries] += rho * self.D_data[self._D_entries]
+        else:
+            data = self.K_data + rho * self.D_data
         if self.blocksize > 1:
             return sp.bsr_matrix((data, self.pattern.indices, self.pattern.indptr), shape=self.shape)
         return sp.csr_matrix((data, self.pattern.indices, self.pattern.indptr), shape=self.shape)

@@ -133,10 +133,12 @@ class SolutionSpace:
         coef = np.zeros(self.m)
         if self.m:
             Q = self.Q[:self.m]
-            for _ in range(2):  # classical Gram-Schmidt twice ("twice is enough")
-                c = Q @ q
+            for _ in range(2):  # classical Gram-Schmidt, a second time only if the first lost digits (DGKS:
+                c = Q @ q       # the norm fell below 1/sqrt(2) of the vector's; "twice is enough")
                 q -= c @ Q
                 coef += c
+                if np.linalg.norm(q) >= 0.7071 * norm0:
+                    break
         norm = np.linalg.norm(q)
         if norm <= 1e-10 * norm0:
             return
