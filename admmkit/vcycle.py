@@ -7,8 +7,10 @@ backward sweep after the coarse-grid correction (what
 cycle up to round-off (1e-15 relative with double-precision values):
 
 - the forward sweep starts from x = 0, so it reads only the lower triangle
-  and the diagonal of each sorted row: pyamg's sweep adds a_ij * 0 for the
-  upper entries, which changes no sum;
+  of each sorted row: pyamg's sweep adds a_ij * 0 for the upper entries,
+  which changes no sum; both sweeps multiply by 1 / a_ii instead of dividing
+  (0.0129 -> 0.0121 s forward, 0.0168 -> 0.0148 s backward at 1e6 rows: the
+  division sat in the sweep's chain of dependent rows);
 - the residual after that sweep is -sum_{j>i} a_ij x_j (the sweep zeroed the
   rest of b_i - (A x)_i), half a product; it and the correction x += P x_c
   are each one pass over rows, every row summed in its stored order by one
@@ -89,21 +91,15 @@ def _csr_transpose_matvec(indptr, indices, data, x, out):
 
 
 @njit(cache=True)
-def _gauss_seidel_from_zero(indptr, indices, data, b, x):
-    """One forward Gauss-Seidel sweep for A x = b from x = 0 (sorted rows: stops at the diagonal)."""
+def _gauss_seidel_from_zero(indptr, indices, data, diagonal, inverse, b, x):
+    """One forward Gauss-Seidel sweep for A x = b from x = 0: row i reads its entries left of the diagonal
+    (at ``diagonal[i]``) and multiplies by ``inverse[i]`` = 1 / a_ii (no division in the sweep's chain)."""
     n = indptr.shape[0] - 1
     for i in range(n):
         s = 0.0
-        d = 0.0
-        for jj in range(indptr[_u(i)], indptr[_u(i + 1)]):
-            j = indices[_u(jj)]
-            if j < i:
-                s += data[_u(jj)] * x[_u(j)]
-            else:
-                if j == i:
-                    d = data[_u(jj)]
-                break
-        x[_u(i)] = (b[_u(i)] - s) / d if d != 0.0 else 0.0
+        for jj in range(indptr[_u(i)], diagonal[_u(i)]):
+            s += data[_u(jj)] * x[_u(indices[_u(jj)])]
+        x[_u(i)] = (b[_u(i)] - s) * inverse[_u(i)]
 
 
 @njit(cache=True)
@@ -121,21 +117,17 @@ def _diagonal_positions(indptr, indices):
 
 
 @njit(cache=True)
-def _gauss_seidel_backward(indptr, indices, data, x, b):
-    """One backward Gauss-Seidel sweep, as pyamg's ``gauss_seidel(sweep="backward")``."""
+def _gauss_seidel_backward(indptr, indices, data, diagonal, inverse, x, b):
+    """One backward Gauss-Seidel sweep (pyamg's ``gauss_seidel(sweep="backward")``, times 1 / a_ii)."""
     n = indptr.shape[0] - 1
     for k in range(n):
         i = n - 1 - k
         s = 0.0
-        d = 0.0
-        for jj in range(indptr[_u(i)], indptr[_u(i + 1)]):
-            j = indices[_u(jj)]
-            if j == i:
-                d = data[_u(jj)]
-            else:
-                s += data[_u(jj)] * x[_u(j)]
-        if d != 0.0:
-            x[_u(i)] = (b[_u(i)] - s) / d
+        for jj in range(indptr[_u(i)], diagonal[_u(i)]):
+            s += data[_u(jj)] * x[_u(indices[_u(jj)])]
+        for jj in range(diagonal[_u(i)] + 1, indptr[_u(i + 1)]):
+            s += data[_u(jj)] * x[_u(indices[_u(jj)])]
+        x[_u(i)] = (b[_u(i)] - s) * inverse[_u(i)]
 
 
 # ---------------------------------------------------------------- wrappers
@@ -183,6 +175,14 @@ def _stored(M, values) -> _Stored:
     return _Stored(M, np.dtype(values))
 
 
+def _inverse_diagonal(A, at: np.ndarray) -> np.ndarray:
+    """1 / a_ii in double precision from the (stored) values at the diagonal positions ``at``."""
+    rows = np.arange(A.shape[0])
+    if A.shape[0] and not np.array_equal(A.indices[np.clip(at, 0, None)], rows):
+        raise ValueError("every row of an AMG level needs its diagonal entry (the matrix is SPD)")
+    return 1.0 / A.data[at].astype(np.float64)
+
+
 def csr_product(A):
     """x -> A x for a CSR matrix A by :func:`_csr_matvec` (rows among numba's threads; scipy's values)."""
     A = _sorted_csr(A)
@@ -221,6 +221,7 @@ class VCycle:
         self.n = levels[0].A.shape[0]
         self._res = [np.empty(A.shape[0]) for A in self.A]
         self._diagonal = [_diagonal_positions(A.indptr, A.indices) for A in self.A]
+        self._inverse = [_inverse_diagonal(A, at) for A, at in zip(self.A, self._diagonal)]
 
     def refreshed(self, ml) -> VCycle:
         """The cycle of the same hierarchy after a Galerkin refresh (new A on every level, the same P)."""
@@ -236,8 +237,9 @@ class VCycle:
         A, P, res = self.A[lvl], self.P[lvl], self._res[lvl]
         chunks = kernel_threads()
         x = np.empty(res.shape[0])
-        _gauss_seidel_from_zero(A.indptr, A.indices, A.data, b, x)
-        _upper_residual(A.indptr, A.indices, A.data, self._diagonal[lvl], x, res, chunks)
+        diagonal, inverse = self._diagonal[lvl], self._inverse[lvl]
+        _gauss_seidel_from_zero(A.indptr, A.indices, A.data, diagonal, inverse, b, x)
+        _upper_residual(A.indptr, A.indices, A.data, diagonal, x, res, chunks)
         coarse_b = np.empty(P.shape[1])
         _csr_transpose_matvec(P.indptr, P.indices, P.data, res, coarse_b)
         if lvl == len(self.A) - 1:
@@ -245,5 +247,5 @@ class VCycle:
         else:
             coarse_x = self._level(lvl + 1, coarse_b)
         _csr_matvec_add(P.indptr, P.indices, P.data, coarse_x, x, chunks)
-        _gauss_seidel_backward(A.indptr, A.indices, A.data, x, b)
+        _gauss_seidel_backward(A.indptr, A.indices, A.data, diagonal, inverse, x, b)
         return x
