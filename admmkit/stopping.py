@@ -127,6 +127,10 @@ def default_stop() -> "ResidualTolerance":
     return ResidualTolerance(1e-6, 1e-5)
 
 
+#: a balanced stop refreshes an estimate that would not let it fire after this many iterations (near firing)
+REFRESH = 10
+
+
 class BalancedStop(StoppingRule):
     """Stop when the algebraic error is below ``gamma`` x the estimated discretisation error (Ern & Vohralik).
 
@@ -137,7 +141,10 @@ class BalancedStop(StoppingRule):
     iterations; ``algebraic`` and ``discretisation`` hold the last values
     computed.  The estimate, often the dearer of the two, is computed afresh
     only where the bound is within twice gamma x the last estimate (it moves
-    little from one iterate to the next); the rule fires only on a fresh one.
+    little from one iterate to the next), and there only where the last
+    estimate would let the rule fire or is :data:`REFRESH` iterations old (a
+    test every 2 iterations would otherwise pay an estimate at each); the
+    rule fires only on a fresh one.
     ``tolerance`` is None: the rule's own test is the accuracy check, so
     ``converged`` means "the algebraic error is below gamma x the estimated
     discretisation error".
@@ -153,6 +160,7 @@ class BalancedStop(StoppingRule):
             raise ValueError(f"every = {every!r} is outside the accepted range: an integer >= 1")
         self.gamma, self.every = float(gamma), every
         self.algebraic = self.discretisation = math.nan
+        self._estimated_at = -REFRESH                  # the iteration of the last estimate
         self.name = f"balanced(gamma={self.gamma:g}): algebraic error bound <= gamma x ZZ discretisation estimate"
 
     def algebraic_error_bound(self, rec: IterationRecord) -> float:
@@ -170,9 +178,11 @@ class BalancedStop(StoppingRule):
         self.algebraic = self.algebraic_error_bound(rec)
         if not math.isfinite(self.algebraic):
             return None
-        if math.isfinite(self.discretisation) and self.algebraic > 2.0 * self.gamma * self.discretisation:
-            return None            # far from firing by the last estimate (it moves little): the bound alone decides
+        if math.isfinite(self.discretisation) and self.algebraic > self.gamma * self.discretisation and (
+                self.algebraic > 2.0 * self.gamma * self.discretisation or rec.k - self._estimated_at < REFRESH):
+            return None            # not firing by the last estimate (it moves little): the bound alone decides
         self.discretisation = self.discretisation_estimate(rec)     # fresh at every iterate that may fire
+        self._estimated_at = rec.k
         return self.name if self.algebraic <= self.gamma * self.discretisation else None
 
 
