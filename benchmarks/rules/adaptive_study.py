@@ -58,7 +58,7 @@ FULL = {"obstacle_target": {1: 5e-3, 2: 3e-4},
                            ("hertz", 2): 3e-4},
         "reference_target": {"ex1": 5e-5, "ex2": 1e-4, "hertz": 1e-4}}
 QUICK = {"obstacle_target": {1: 8e-2, 2: 2e-2},
-         "contact_target": {("ex1", 1): 6e-2, ("ex1", 2): 1e-2, ("ex2", 2): 3e-2, ("hertz", 1): 6e-2,
+         "contact_target": {("ex1", 1): 6e-2, ("ex1", 2): 1e-2, ("ex2", 2): 2e-2, ("hertz", 1): 6e-2,
                             ("hertz", 2): 1e-2},
          "reference_target": {"ex1": 2e-3, "ex2": 5e-3, "hertz": 2e-3}}
 SCENES = ("obstacle", "ex1", "ex2", "hertz")
