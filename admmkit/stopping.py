@@ -142,7 +142,7 @@ class BalancedStop(StoppingRule):
     computed.  The estimate, often the dearer of the two, is computed afresh
     only where the bound is within twice gamma x the last estimate (it moves
     little from one iterate to the next), and there only where the last
-    estimate would let the rule fire or is :data:`REFRESH` iterations old (a
+    estimate would let the rule fire or is ``REFRESH`` (10) iterations old (a
     test every 2 iterations would otherwise pay an estimate at each); the
     rule fires only on a fresh one.
     ``tolerance`` is None: the rule's own test is the accuracy check, so
