@@ -39,15 +39,16 @@ from .compiled import _u
 
 # ---------------------------------------------------------------- kernels
 @njit(cache=True, parallel=True)
-def _csr_matvec(indptr, indices, data, x, out, chunks):
-    """out = A x, rows split into ``chunks`` contiguous ranges (one per thread)."""
+def _csr_matvec(indptr, indices, data, x, out, chunks, accumulate):
+    """out = A x, or out += A x if ``accumulate`` (A x summed first, then added: the value of
+    ``out += A @ x``); rows split into ``chunks`` contiguous ranges (one per thread)."""
     n = indptr.shape[0] - 1
     for c in prange(chunks):
         for i in range(c * n // chunks, (c + 1) * n // chunks):
             s = 0.0
             for jj in range(indptr[_u(i)], indptr[_u(i + 1)]):
                 s += data[_u(jj)] * x[_u(indices[_u(jj)])]
-            out[_u(i)] = s
+            out[_u(i)] = out[_u(i)] + s if accumulate else s
 
 
 @njit(cache=True, parallel=True)
@@ -64,18 +65,6 @@ def _upper_residual(indptr, indices, data, diagonal, x, out, chunks):
             for jj in range(diagonal[_u(i)] + 1, indptr[_u(i + 1)]):
                 s += data[_u(jj)] * x[_u(indices[_u(jj)])]
             out[_u(i)] = -s
-
-
-@njit(cache=True, parallel=True)
-def _csr_matvec_add(indptr, indices, data, x, out, chunks):
-    """out += A x (A x summed first, then added: the value of ``out += A @ x``)."""
-    n = indptr.shape[0] - 1
-    for c in prange(chunks):
-        for i in range(c * n // chunks, (c + 1) * n // chunks):
-            s = 0.0
-            for jj in range(indptr[_u(i)], indptr[_u(i + 1)]):
-                s += data[_u(jj)] * x[_u(indices[_u(jj)])]
-            out[_u(i)] += s
 
 
 @njit(cache=True)
@@ -189,7 +178,7 @@ def csr_product(A):
 
     def product(x):
         out = np.empty(A.shape[0])
-        _csr_matvec(A.indptr, A.indices, A.data, np.ascontiguousarray(x, dtype=float), out, kernel_threads())
+        _csr_matvec(A.indptr, A.indices, A.data, np.ascontiguousarray(x, dtype=float), out, kernel_threads(), False)
         return out
     return product
 
@@ -246,6 +235,6 @@ class VCycle:
             coarse_x = np.asarray(self.coarse_solver(self.coarse_A, coarse_b), dtype=float)
         else:
             coarse_x = self._level(lvl + 1, coarse_b)
-        _csr_matvec_add(P.indptr, P.indices, P.data, coarse_x, x, chunks)
+        _csr_matvec(P.indptr, P.indices, P.data, coarse_x, x, chunks, True)
         _gauss_seidel_backward(A.indptr, A.indices, A.data, diagonal, inverse, x, b)
         return x
