@@ -34,7 +34,7 @@ import numpy as np
 from admmkit import Result, solve
 from admmkit.adaptive import AdaptiveResult, HeldRho, check_adaptive, dorfler_mark, needed_unknowns
 
-from .discrete import make_problem
+from .discrete import check_fe_order, make_problem
 from .estimate import BalancedStop, estimator_of, zz
 from .estimate_residual import check_estimator
 from .p2 import prolongation
@@ -77,8 +77,7 @@ def solve_adaptive(scene: Scene, target: float, *, theta: float = 0.5, gamma: fl
     check_estimator(estimator)
     if not isinstance(scene, Scene):
         raise ValueError(f"scene must be a admmkit.problems.obstacle.Scene, got {type(scene).__name__}")
-    if fe_order not in (1, 2) or isinstance(fe_order, bool):
-        raise ValueError(f"fe_order = {fe_order!r}; accepted: 1 or 2")
+    check_fe_order(fe_order)
     if fe_order == 2 and estimator != "zz":
         raise ValueError(f"estimator = {estimator!r} is written for P1 elements; with fe_order = 2 use 'zz'")
     backend = backend or (ADAPTIVE_BACKEND if fe_order == 1 else DEFAULT_BACKEND)

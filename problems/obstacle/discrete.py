@@ -9,12 +9,18 @@ from .scene import Scene
 FE_ORDERS = (1, 2)
 
 
+def check_fe_order(fe_order) -> int:
+    """``fe_order`` if it is 1 or 2, else ValueError naming it and the accepted values."""
+    if fe_order not in FE_ORDERS or isinstance(fe_order, bool):
+        raise ValueError(f"fe_order = {fe_order!r}; accepted: 1 or 2")
+    return fe_order
+
+
 def make_problem(scene: Scene, *, backend: str = DEFAULT_BACKEND, fe_order: int = 1, mesh=None) -> ObstacleProblem:
     """Assemble the discrete obstacle problem of the scene in P1 or P2 elements (``fe_order``), on the scene's
     structured mesh or on ``mesh`` (an adapted mesh of its box)."""
-    if fe_order not in FE_ORDERS or isinstance(fe_order, bool):
-        raise ValueError(f"fe_order = {fe_order!r}; accepted: 1 or 2")
+    check_fe_order(fe_order)
     return (ObstacleProblemP2 if fe_order == 2 else ObstacleProblem)(scene, backend=backend, mesh=mesh)
 
 
-__all__ = ["make_problem", "FE_ORDERS"]
+__all__ = ["make_problem", "check_fe_order", "FE_ORDERS"]

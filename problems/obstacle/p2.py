@@ -29,11 +29,7 @@ import ngsolve as ng
 import numpy as np
 import scipy.sparse as sp
 
-from admmkit.prox import Box, UpperBound
-from admmkit.problems.fe import areas, triangles
-
-from .problem import BOUNDARY, DEFAULT_BACKEND, ObstacleProblem, build_mesh, csr_of, x_step_of
-from .scene import Scene, check_boundary
+from .problem import BOUNDARY, ObstacleProblem, csr_of
 
 
 def _mass_ratio() -> float:
@@ -72,7 +68,8 @@ def edge_vertices(mesh: ng.Mesh, fes: ng.comp.FESpace) -> np.ndarray:
 
 
 class ObstacleProblemP2(ObstacleProblem):
-    """The obstacle problem of a :class:`Scene` in P2 elements, unknowns the nodal values (module docstring).
+    """The obstacle problem of a :class:`admmkit.problems.obstacle.Scene` in P2 elements, unknowns the nodal values
+    (module docstring).
 
     The attributes of :class:`ObstacleProblem`, with ``nodes`` the points of all P2 nodes (vertices first,
     then the edge midpoints in NGSolve's dof order), ``m`` the HRZ-lumped mass and ``mass_ratio`` its
@@ -82,41 +79,22 @@ class ObstacleProblemP2(ObstacleProblem):
     order = 2
     mass_ratio = MASS_RATIO
 
-    def __init__(self, scene: Scene, *, backend: str = DEFAULT_BACKEND, mesh: ng.Mesh | None = None):
-        if not isinstance(scene, Scene):
-            raise ValueError(f"scene must be a admmkit.problems.obstacle.Scene, got {type(scene).__name__}")
-        self.scene = scene
-        self.sign = 1.0 if scene.side == "lower" else -1.0
-        self.mesh = mesh = build_mesh(scene) if mesh is None else mesh
-        self.fes = fes = ng.H1(mesh, order=2, dirichlet=BOUNDARY)
-        nv = mesh.nv
+    def _node_points(self) -> np.ndarray:
+        """The vertices, then the midpoints of the edges in dof order; ``T`` and its inverse built on the way."""
+        mesh, nv = self.mesh, self.mesh.nv
         vertices = np.array(mesh.ngmesh.Coordinates())[:, :2]
-        edges = edge_vertices(mesh, fes)
-        self.nodes = np.concatenate([vertices, vertices[edges].mean(axis=1)])
-        self.T, self._T_inverse = _transforms(nv, edges, _bubble_at_midpoint(fes, vertices, edges, nv))
-        is_free = np.array(fes.FreeDofs(), dtype=bool)
-        self.free, bnd = np.flatnonzero(is_free), np.flatnonzero(~is_free)
-        x, y = self.nodes.T
-        check_boundary(scene, x[bnd], y[bnd])
-        u, v = fes.TnT()
+        edges = edge_vertices(mesh, self.fes)
+        self.T, self._T_inverse = _transforms(nv, edges, _bubble_at_midpoint(self.fes, vertices, edges, nv))
+        return np.concatenate([vertices, vertices[edges].mean(axis=1)])
+
+    def _forms(self):
+        """(K_v on all nodes, f -> M_v f with the consistent mass, the HRZ-lumped mass on all nodes)."""
+        u, v = self.fes.TnT()
         Ti = self._T_inverse
-        K_all = (Ti.T @ csr_of(ng.BilinearForm(ng.grad(u) * ng.grad(v) * ng.dx).Assemble().mat) @ Ti).tocsr()
-        M_all = (Ti.T @ csr_of(ng.BilinearForm(u * v * ng.dx).Assemble().mat) @ Ti).tocsr()
-        self.tri = triangles(mesh)
-        self.area = areas(vertices, self.tri)
-        lumped = M_all.diagonal() * (self.area.sum() / M_all.diagonal().sum())
-        self.u_D = np.zeros(fes.ndof)
-        self.u_D[bnd] = scene.evaluate("u_D", x[bnd], y[bnd])
-        F_all = M_all @ scene.evaluate("f", x, y)
-        self.K = K_all[self.free][:, self.free].tocsc()
-        self.F = F_all[self.free] - K_all[self.free] @ self.u_D
-        self.m = lumped[self.free]
-        self.psi = scene.evaluate("psi", x, y)[self.free]
-        self._energy0 = float(0.5 * self.u_D @ (K_all @ self.u_D) - F_all @ self.u_D)
-        self.n = self.free.size
-        self.c = 0.0
-        self._xstep = x_step_of(backend, self.K, self.F, self.m)
-        self._g = Box(lower=self.psi) if self.sign > 0 else UpperBound(self.psi)
+        K = (Ti.T @ csr_of(ng.BilinearForm(ng.grad(u) * ng.grad(v) * ng.dx).Assemble().mat) @ Ti).tocsr()
+        M = (Ti.T @ csr_of(ng.BilinearForm(u * v * ng.dx).Assemble().mat) @ Ti).tocsr()
+        lumped = M.diagonal() * (self.area.sum() / M.diagonal().sum())
+        return K, M.__matmul__, lumped
 
     def gridfunction(self, u: np.ndarray) -> ng.GridFunction:
         """The P2 function with nodal values u on the free nodes and u_D on the boundary nodes."""

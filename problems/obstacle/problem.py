@@ -91,35 +91,42 @@ class ObstacleProblem(Problem):
         self.scene = scene
         self.sign = 1.0 if scene.side == "lower" else -1.0   # u >= psi  <=>  sign*(u - psi) >= 0
         self.mesh = mesh = build_mesh(scene) if mesh is None else mesh     # given: an adapted mesh of the box
-        self.fes = fes = ng.H1(mesh, order=1, dirichlet=BOUNDARY)
-        assert fes.ndof == mesh.nv  # P1: dof i is vertex i
-        self.nodes = np.array(mesh.ngmesh.Coordinates())[:, :2]
+        self.fes = fes = ng.H1(mesh, order=self.order, dirichlet=BOUNDARY)
+        self.nodes = self._node_points()
         x, y = self.nodes.T
         is_free = np.array(fes.FreeDofs(), dtype=bool)
         self.free, bnd = np.flatnonzero(is_free), np.flatnonzero(~is_free)     # not setdiff1d: a sort, 0.1 s at 2e5
         check_boundary(scene, x[bnd], y[bnd])
 
-        u, v = fes.TnT()
-        Kfull = csr_of(ng.BilinearForm(ng.grad(u) * ng.grad(v) * ng.dx).Assemble().mat)
-        # the mass is only applied (to f) and lumped: element by element, not assembled (0.33 s at 4.7e5 cells)
         self.tri = triangles(mesh)                                   # (cells, 3) vertex numbers
-        self.area = areas(self.nodes, self.tri)
-        lumped, mass = p1_mass(self.nodes, self.tri, self.area)
-        f_nodes = scene.evaluate("f", x, y)
+        self.area = areas(self.nodes[:mesh.nv], self.tri)
+        Kfull, mass, lumped = self._forms()
         self.u_D = np.zeros(fes.ndof)
         self.u_D[bnd] = scene.evaluate("u_D", x[bnd], y[bnd])
-        psi_all = scene.evaluate("psi", x, y)
-        Ffull = mass(f_nodes)
+        Ffull = mass(scene.evaluate("f", x, y))
         self.K = Kfull[self.free][:, self.free].tocsc()
         self.F = Ffull[self.free] - Kfull[self.free] @ self.u_D
         self.m = lumped[self.free]                                   # lumped mass, > 0
-        self.psi = psi_all[self.free]
+        self.psi = scene.evaluate("psi", x, y)[self.free]
         # energy of the full field = 1/2 u'Ku - F'u + this constant
         self._energy0 = float(0.5 * self.u_D @ (Kfull @ self.u_D) - Ffull @ self.u_D)
         self.n = self.free.size
         self.c = 0.0
         self._xstep = x_step_of(backend, self.K, self.F, self.m)
         self._g = Box(lower=self.psi) if self.sign > 0 else UpperBound(self.psi)   # g = indicator of the obstacle
+
+    def _node_points(self) -> np.ndarray:
+        """The point of every dof: P1's dof i is vertex i."""
+        assert self.fes.ndof == self.mesh.nv
+        return np.array(self.mesh.ngmesh.Coordinates())[:, :2]
+
+    def _forms(self):
+        """(K on all dofs, f -> M f, the lumped mass on all dofs).  The mass is only applied (to f) and lumped:
+        element by element, not assembled (0.33 s at 4.7e5 cells)."""
+        u, v = self.fes.TnT()
+        K = csr_of(ng.BilinearForm(ng.grad(u) * ng.grad(v) * ng.dx).Assemble().mat)
+        lumped, mass = p1_mass(self.nodes, self.tri, self.area)
+        return K, mass, lumped
 
     # -- the splitting --------------------------------------------------------
     def x_step(self, z, lam, rho, x):
