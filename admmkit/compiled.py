@@ -85,6 +85,17 @@ def csc_matvec(indptr, indices, data, x, y):
 
 
 @njit(cache=True)
+def csc_rmatvec(indptr, indices, data, y, out):
+    """out = A' y for the CSC matrix (indptr, indices, data): column j's dot with y, summed as scipy sums the
+    CSR product of A' (from 0, in the stored order)."""
+    for j in range(out.shape[0]):
+        s = 0.0
+        for p in range(_u(indptr[j]), _u(indptr[j + 1])):
+            s += data[p] * y[_u(indices[p])]
+        out[j] = s
+
+
+@njit(cache=True)
 def all_finite(v, start, stop):
     """Whether v[start:stop] holds only finite numbers."""
     for i in range(start, stop):

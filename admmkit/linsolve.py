@@ -39,12 +39,15 @@ def factorize(matrix, backend: str = "auto") -> Callable[[np.ndarray], np.ndarra
 
 
 def _canonical(matrix) -> sp.csc_matrix:
-    """``matrix`` as a square float64 CSC matrix without duplicates, indices sorted."""
-    A = sp.csc_matrix(matrix, dtype=np.float64)
+    """``matrix`` as a square float64 CSC matrix without duplicates, indices sorted (``matrix`` itself when it is
+    one: a new scipy object costs ~10 us, a visible part of a small QP's whole solve)."""
+    A = matrix if sp.isspmatrix_csc(matrix) and matrix.dtype == np.float64 else sp.csc_matrix(matrix, dtype=np.float64)
     if A.ndim != 2 or A.shape[0] != A.shape[1]:
         raise ValueError(f"matrix must be square, got shape {A.shape}")
-    A.sum_duplicates()
-    A.sort_indices()
+    if not A.has_canonical_format:          # a copy: the caller's matrix is left as it was given
+        A = A.copy()
+        A.sum_duplicates()
+        A.sort_indices()
     return A
 
 

@@ -46,7 +46,7 @@ import numpy as np
 
 from admmkit import Problem
 
-from . import rows
+from . import products, rows
 from .kkt import kkt_residuals
 from .rows import FREE_ROW_PENALTY
 from .validate import _real, _validate, check_options
@@ -236,7 +236,7 @@ class QP(Problem):
 
     def apply_A(self, x):
         """A x (the scaled A when scaling)."""
-        return self.As @ x
+        return products.apply_A(self.As, x)
 
     def inner(self, a, b):
         """(a, b)_M = sum_i w_i a_i b_i."""
@@ -248,7 +248,7 @@ class QP(Problem):
 
     def adjoint_norm(self, y):
         """||A' M y||_2 (Boyd's dual residual for order xz)."""
-        return float(np.linalg.norm(self.Ats @ (y if self.w is None else self.w * y)))
+        return products.adjoint_norm(self.As, y if self.w is None else self.w * y)
 
     def finalize(self, x):
         """The user's x = D xb (xb OSQP's relaxed x under (Q4))."""

@@ -93,9 +93,10 @@ class _Entries:
     """A CSC matrix's entries with the row and column of each, to scale them as diag(a) M diag(b) in place."""
 
     def __init__(self, M: sp.csc_matrix):
-        M = sp.csc_matrix(M, dtype=float)
+        M = _csc(M)
         if M.has_canonical_format and M.data.all():     # a validated QP's matrix: its data copied, its pattern shared
             M = sp.csc_matrix((M.data.copy(), M.indices, M.indptr), shape=M.shape)
+            M.has_canonical_format = True
         else:
             M = M.copy()
             M.sum_duplicates()

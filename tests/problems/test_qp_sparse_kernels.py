@@ -148,3 +148,24 @@ def test_a_small_dense_p_is_judged_by_dense_cholesky_as_by_its_eigenvalues(seed)
     bad = (Q * eigenvalues) @ Q.T
     with pytest.raises(ValueError, match="positive semidefinite.*about -0.001"):
         check_convex(sp.csc_matrix((bad + bad.T) / 2))
+
+
+@pytest.mark.parametrize("seed", range(30))
+@pytest.mark.parametrize("scaling", [0, 10])
+def test_the_loops_products_are_scipys_bit_for_bit(seed, scaling, monkeypatch):
+    from admmkit.problems.qp import products
+    qp = awkward_qp(seed, scaling=scaling, row_weights="osqp")
+    rng = np.random.default_rng(seed)
+    x, y = rng.standard_normal(qp.n), rng.standard_normal(qp.m)
+    Ax, norm = qp.apply_A(x), qp.adjoint_norm(y)
+    assert np.array_equal(Ax, qp.As @ x)
+    monkeypatch.setattr(products, "AVAILABLE", False)
+    assert np.array_equal(Ax, qp.apply_A(x)) and norm == qp.adjoint_norm(y)
+    assert norm == float(np.linalg.norm(qp.As.T.tocsr() @ (qp.w * y)))
+
+
+def test_a_factorised_matrix_is_left_as_the_caller_gave_it():
+    from admmkit.linsolve import factorize
+    M = sp.csc_matrix((np.array([1.0, 1.0, 3.0]), np.array([0, 0, 1]), np.array([0, 2, 3])), shape=(2, 2))
+    x = factorize(M, "superlu")(np.array([2.0, 3.0]))
+    assert np.allclose(x, [1.0, 1.0]) and M.nnz == 3       # the duplicate summed in a copy, not in M
