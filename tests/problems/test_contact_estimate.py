@@ -36,6 +36,22 @@ def test_the_bound_is_above_the_true_algebraic_error_and_sharp(ex1, tol):
     assert true <= bound <= 20 * true + 1e-7
 
 
+@pytest.mark.parametrize("make, order", [(example1, 1), (example2, 2)])
+def test_the_bound_is_the_true_error_once_the_contact_set_is_found(make, order):
+    """The active-set candidate (A) makes (B) exact when the iterate's contact set is the solution's."""
+    ops = assemble(make(h=1 / 10, order=order))
+    problem = contact_problem(ops, mode="condensed")
+    u_h = _tight(ops)
+    stop = BalancedStop(problem, 0.1)
+    res = admmkit.solve(problem, rho=1e3, policy="summable", order="zx", stop=stop, max_iter=5_000)
+    true = energy_norm(ops, res.x - u_h)
+    assert res.converged and true <= stop.algebraic * (1 + 1e-6) <= 1.01 * true + 1e-9
+    gap = stop.gap
+    mask = np.zeros(problem.g.shape[0], dtype=bool)
+    first = gap.active_set_multiplier(mask)
+    assert not first.any() and gap.active_set_multiplier(mask.copy()) is first      # kept while the set holds
+
+
 def test_energy_exceeds_the_minimum_by_half_the_squared_energy_norm_at_a_feasible_point(ex1):
     """J(v) - J(u_h) >= ||v - u_h||_a^2 / 2 for a feasible v (the studies' true error rests on it)."""
     ops, _, u_h = ex1

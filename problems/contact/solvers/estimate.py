@@ -16,8 +16,9 @@ any mu >= 0 the dual function is
 
     D(mu) = min_u J(u) + mu'(B u - g) = -e0/2 + mu'(d0 - g) - mu'C mu/2 <= J(u_h);
 
-two are tried, mu = max(M_c lam, 0) (the ADMM multiplier's nodal force) and
-u''s own contact force max(-w', 0) on the nodes where d' = g.  Since u_h
+the candidates are mu = max(M_c lam, 0) (the ADMM multiplier's nodal force),
+each u''s own contact force max(-w', 0) on the nodes where d' = g, and the
+active-set multiplier below.  Since u_h
 minimises J over the feasible set, J(u') - J(u_h) >= ||u' - u_h||_a^2 / 2, and
 
     ||u - u_h||_a <= ||u - u'||_a + sqrt(2 (J(u') - D(mu)))                   (B)
@@ -25,6 +26,20 @@ minimises J over the feasible set, J(u') - J(u_h) >= ||u' - u_h||_a^2 / 2, and
 with ||u - u'||_a^2 = (w - w')'C(w - w').  Everything lives on Gamma_C: one
 Cholesky factorisation of C (n_c x n_c) per problem, then O(n_c^2) per
 evaluation.
+
+*The active-set candidate* makes (B) exact once ADMM has found the contact
+set.  With A the nodes the iterate touches (p = g or B u >= g), the
+multiplier of the problem restricted to B_A u = g_A solves
+
+    C_AA mu_A = (d0 - g)_A,     mu = 0 off A,                              (A)
+
+(the stationarity of D on A).  max(mu, 0) is a dual candidate and
+d' = min(d0 - C max(mu, 0), g) a primal one.  If A is the solution's active
+set, mu >= 0 and d' = B u_h: J(u') = D(mu) = J(u_h) and (B) is the true
+error ||u - u_h||_a.  Measured at the balanced stop (gamma 0.1) on Examples
+1 and 2, P1 and P2, h = 1/10 and 1/20: (B) / true error went from 2.0-5.2 to
+1.0 (1.6 once), and the stop came 0-8 iterations sooner.  (A) costs one
+Cholesky factorisation of C_AA per new active set (kept while A holds).
 
 **Discretisation error: a gradient-recovery (ZZ) estimate.**  G, the
 displacement gradient recovered into continuous finite elements of the
@@ -81,22 +96,39 @@ class CondensedGap:
                              f"{', with friction' if getattr(problem, 'friction', None) is not None else ''})")
         self.problem = problem
         self._C = sla.cho_factor(problem.C)
+        self._active_key, self._mu_active = None, None
 
     def bound(self, w: np.ndarray, p: np.ndarray, lam: np.ndarray) -> float:
         """(B) for the iterate u = u0 + K^{-1} B'w with z-iterate p and multiplier lam."""
         q = self.problem
         C, d0, g = q.C, q.d0, q.g
-        feasible = []
-        for target in (np.minimum(d0 + C @ w, g), np.minimum(p, g)):
+        tol = 1e-12 * max(1.0, float(np.max(np.abs(g), initial=0.0)))
+        d = d0 + C @ w
+        mu_active = self.active_set_multiplier((p >= g - tol) | (d >= g - tol))            # (A)
+        candidates = []
+        for target in (np.minimum(d, g), np.minimum(p, g), np.minimum(d0 - C @ mu_active, g)):
             w1 = sla.cho_solve(self._C, target - d0)
-            feasible.append((0.5 * w1 @ (C @ w1), w1, target))      # J(u') + e0/2
-        J1, w1, d1 = min(feasible, key=lambda t: t[0])
-        touching = d1 >= g - 1e-12 * max(1.0, float(np.max(np.abs(g), initial=0.0)))
+            candidates.append((0.5 * w1 @ (C @ w1), w1, target))      # J(u') + e0/2
+        J1, w1, d1 = min(candidates, key=lambda t: t[0])
+        touching = d1 >= g - tol
         dual = max(mu @ (d0 - g) - 0.5 * mu @ (C @ mu)                   # D(mu) + e0/2
-                   for mu in (np.maximum(q.mc * lam, 0.0), np.where(touching, np.maximum(-w1, 0.0), 0.0)))
+                   for mu in (np.maximum(q.mc * lam, 0.0), np.where(touching, np.maximum(-w1, 0.0), 0.0),
+                              mu_active))
         rounding = 8 * np.finfo(float).eps * (abs(J1) + abs(dual) + q.e0)
         distance = math.sqrt(max((w - w1) @ (C @ (w - w1)), 0.0))
         return distance + math.sqrt(2.0 * (max(J1 - dual, 0.0) + rounding))
+
+    def active_set_multiplier(self, active: np.ndarray) -> np.ndarray:
+        """max(mu, 0) with mu of (A) on the nodes ``active`` (a boolean mask); kept while the set holds."""
+        key = active.tobytes()
+        if key != self._active_key:
+            q, index = self.problem, np.flatnonzero(active)
+            mu = np.zeros(q.g.shape[0])
+            if index.size:
+                C_AA = q.C[np.ix_(index, index)]              # a principal block of the SPD C: SPD
+                mu[index] = sla.cho_solve(sla.cho_factor(C_AA), (q.d0 - q.g)[index])
+            self._active_key, self._mu_active = key, np.maximum(mu, 0.0)
+        return self._mu_active
 
 
 class BalancedStop(BaseBalancedStop):
