@@ -1,19 +1,24 @@
-"""Adaptive meshes for frictionless 2D and 3D contact: solve -> estimate -> mark -> refine, until a target accuracy.
+"""Adaptive meshes for 2D and 3D contact: solve -> estimate -> mark -> refine, until a target accuracy.
+
+Frictionless, Tresca and Coulomb scenes (the friction models in 2D and 3D
+alike; what each level's bound means with friction:
+:mod:`admmkit.problems.contact.solvers.adaptive_friction`).
 
 One level (:func:`solve_adaptive`):
 
 1. **solve** the scene on the current mesh (mode condensed) with ADMM,
    stopped balanced with the discretisation error
    (:class:`admmkit.problems.contact.solvers.estimate.BalancedStop`), started
-   from the previous level's contact pressure (interpolated along Gamma_C to
+   from the previous level's contact pressure (with friction also the
+   tangential traction, and for Coulomb the slip bound mu p_n; interpolated along Gamma_C to
    the new contact nodes; in 3D on the contact face,
    ``surface_interpolate`` of
    ``admmkit.problems.contact.solvers.adaptive3d``)
    and rho, so later levels cost few iterations (in 2D; in 3D they cost as
    many as a cold start, docs/contact.md);
 2. **estimate**: the indicators eta_T (``estimator="zz"``, the default, or
-   ``"residual"``, Hild & Nicaise's, with the ADMM pressure; the balanced stop
-   uses the same one) and the relative estimate ``eta / ||u_h||_a``;
+   ``"residual"``, Hild & Nicaise's, with the ADMM pressure, frictionless only;
+   the balanced stop uses the same one) and the relative estimate ``eta / ||u_h||_a``;
 3. stop if it is at most ``target``; else **mark** the smallest set of
    elements that carries a share ``theta`` of sum eta_T^2 (Dörfler);
 4. **refine** them with NGSolve's refinement (bisection of the marked
@@ -23,7 +28,7 @@ One level (:func:`solve_adaptive`):
 
 It ends ``target_reached``, or says truthfully that the target was not
 reached (``level_cap``, ``unknowns_cap``) or that a level's ADMM run did not
-converge (``admm_failed``).
+converge (``admm_failed``; for Coulomb also when the fixed point did not).
 """
 from __future__ import annotations
 
@@ -33,13 +38,13 @@ from dataclasses import dataclass
 import ngsolve as ng
 import numpy as np
 
-import admmkit
 from admmkit.adaptive import AdaptiveResult, check_adaptive, dorfler_mark, needed_unknowns
 
 from admmkit.problems.contact.model.assembly import ContactOperators, assemble, build_mesh
 from admmkit.problems.contact.model.scene import Scene
 from admmkit.problems.contact.model.scene3d import Scene3D
 from admmkit.problems.contact.solvers.adaptive3d import assemble3d_on, mesh3d, surface_interpolate, unknowns3d
+from admmkit.problems.contact.solvers.adaptive_friction import check_adaptive_model, solve_level
 from admmkit.problems.contact.solvers.estimate import BalancedStop, estimator_indicators
 from admmkit.problems.contact.solvers.estimate_residual import check_estimator
 from admmkit.problems.contact.solvers.methods import method
@@ -59,12 +64,16 @@ class Level:
     iterations: int
     seconds: float
     status: str
+    tresca_solves: int = 0          # Coulomb: the fixed point's Tresca solves on this level (0 otherwise)
 
 
 def solve_adaptive(scene: Scene, target: float, *, theta: float = 0.5, gamma: float = 0.1, max_levels: int = 20,
                    max_unknowns: int = 2_000_000, method_name: str = "sadmm", rho: float = 1e3,
-                   max_iter: int = 20_000, estimator: str = "zz", log=None) -> AdaptiveResult:
+                   max_iter: int = 20_000, estimator: str = "zz", coulomb_tol: float = 1e-4,
+                   log=None) -> AdaptiveResult:
     """Refine adaptively from the scene's mesh until ``eta / ||u_h||_a <= target`` (module docstring).
+
+    ``coulomb_tol``: a Coulomb scene's fixed point ends on a level when the relative change of s is at most it.
 
     ``log``: called after each level with the :class:`Level` and the result so far (whose ``model``,
     ``result`` and ``indicators`` are that level's), for progress and per-level output.
@@ -73,10 +82,8 @@ def solve_adaptive(scene: Scene, target: float, *, theta: float = 0.5, gamma: fl
     check_estimator(estimator)
     if not isinstance(scene, (Scene, Scene3D)):
         raise ValueError(f"scene must be an admmkit.problems.contact Scene (2D) or Scene3D, got {type(scene).__name__}")
-    if scene.tangential != "frictionless":
-        raise ValueError(f"adaptive contact needs a frictionless scene (its error bound), got tangential = "
-                         f"{scene.tangential!r}")
-    default_order, _ = method(method_name)
+    check_adaptive_model(scene, estimator)
+    method(method_name)                                  # an unknown method is refused before any mesh is built
     three = isinstance(scene, Scene3D)
     mesh, out, warm = (mesh3d if three else build_mesh)(scene), AdaptiveResult("running", ""), None
     for _ in range(max_levels):
@@ -92,20 +99,23 @@ def solve_adaptive(scene: Scene, target: float, *, theta: float = 0.5, gamma: fl
         ops = assemble3d_on(scene, mesh) if three else assemble(scene, mesh=mesh)
         problem = contact_problem(ops, mode="condensed")
         stop = BalancedStop(problem, gamma, estimator=estimator)
-        _, policy = method(method_name)
-        start = {} if warm is None else _warm_start(ops, problem, *warm)
-        res = admmkit.solve(problem, rho=rho if warm is None else warm[2], policy=policy, order=default_order,
-                            stop=stop, max_iter=max_iter, **start)
+        lam0 = None if warm is None else _interpolate(ops, *warm[:2])
+        s0 = None if lam0 is None or scene.tangential != "coulomb" else scene.mu * np.maximum(lam0[:ops.n_c], 0.0)
+        res, report = solve_level(problem, stop, method_name, rho if warm is None else warm[2], max_iter,
+                                  lambda: {} if lam0 is None else _warm_start(problem, lam0), coulomb_tol, s0)
         indicators = estimator_indicators(ops, res.x, res.lam, estimator)
         eta = float(np.sqrt(np.sum(indicators ** 2)))
         relative = eta / max(float(np.sqrt(res.x @ (ops.K @ res.x))), 1e-300)
         level = Level(cells=mesh.ne, unknowns=ops.n_free, contact_nodes=ops.n_c, estimate=eta,
                       relative_estimate=relative, algebraic_bound=stop.algebraic, iterations=res.iterations,
-                      seconds=time.perf_counter() - t0, status=res.status.value)
+                      seconds=time.perf_counter() - t0, status=res.status.value,
+                      tresca_solves=0 if report is None else report.outer_iterations)
         out.record(level, ops, res, indicators)
         if log is not None:
             log(level, out)
         if out.ends(target):
+            if out.status == "admm_failed" and report is not None:
+                out.message += f" ({res.message})"
             return out
         warm = (ops.xc.copy(), res.lam.copy(), res.rho)
         marked = dorfler_mark(indicators, theta)
@@ -115,10 +125,15 @@ def solve_adaptive(scene: Scene, target: float, *, theta: float = 0.5, gamma: fl
     return out.capped(max_levels, target)
 
 
-def _warm_start(ops: ContactOperators, problem, xc_old: np.ndarray, lam_old: np.ndarray, rho: float) -> dict:
-    """x0, lam0 on the new mesh: the pressure interpolated along Gamma_C, w0 = -M_c lam0 (stationarity)."""
+def _interpolate(ops: ContactOperators, xc_old: np.ndarray, lam_old: np.ndarray) -> np.ndarray:
+    """The old level's tractions (the pressure, with friction then each tangential block) at the new contact
+    nodes, block by block along Gamma_C."""
     along = surface_interpolate if ops.mesh.dim == 3 else _along_boundary
-    lam0 = along(xc_old, lam_old, ops.xc)
+    return np.concatenate([along(xc_old, block, ops.xc) for block in lam_old.reshape(-1, len(xc_old))])
+
+
+def _warm_start(problem, lam0: np.ndarray) -> dict:
+    """x0, lam0, z0 on the new mesh from the interpolated tractions lam0: w0 = -M_c lam0 (stationarity)."""
     x0 = np.concatenate(([1.0], -problem.w * lam0))
     return {"x0": x0, "lam0": lam0, "z0": problem.z_step(problem.apply_A(x0), np.zeros_like(lam0), 1.0, None)}
 

@@ -1,6 +1,6 @@
 """The 3D pieces of the adaptive contact loop (:func:`admmkit.problems.contact.solvers.adaptive.solve_adaptive`).
 
-A frictionless :class:`~admmkit.problems.contact.model.scene3d.Scene3D` is
+A :class:`~admmkit.problems.contact.model.scene3d.Scene3D` (frictionless, Tresca or Coulomb) is
 assembled on any tetrahedral mesh of its block (:func:`assemble3d_on`:
 ``assemble3d`` given the mesh): NGSolve's bisection keeps the boundary names of the
 refined faces, and the block's faces are flat, so no curving is needed.  The
@@ -29,10 +29,11 @@ def unknowns3d(mesh: ng.Mesh, order: int) -> int:
 
 
 def assemble3d_on(scene: Scene3D, mesh: ng.Mesh) -> ContactOperators:
-    """K, f, B, mc, g of a frictionless P1 3D scene on ``mesh`` (a refined mesh of its block): ``assemble3d``'s."""
-    if scene.order != 1 or scene.tangential != "frictionless":
-        raise ValueError(f"the 3D adaptive assembly takes frictionless P1 scenes, got P{scene.order}, "
-                         f"tangential {scene.tangential!r}")
+    """K, f, B, mc, g (with friction T and the slip bound) of a P1 3D scene on ``mesh`` (a refined mesh of its
+    block): ``assemble3d``'s."""
+    if scene.order != 1 or scene.tangential not in ("frictionless", "stick", "tresca", "coulomb"):
+        raise ValueError(f"the 3D adaptive assembly takes P1 scenes, got "
+                         f"P{scene.order}, tangential {scene.tangential!r}")
     return assemble3d(scene, mesh=mesh)
 
 

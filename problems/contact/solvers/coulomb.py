@@ -40,6 +40,7 @@ class CoulombReport:
     changes: list[float] = field(default_factory=list)
     converged: bool = False
     last: Any = None
+    settled: bool = False       # ended by the caller's ``settled`` rule (not by the change of s)
 
     @property
     def outer_iterations(self) -> int:
@@ -54,7 +55,8 @@ class CoulombReport:
     def summary(self) -> str:
         """One line: outer steps, ADMM iterations, the last change of s."""
         change = self.changes[-1] if self.changes else float("nan")
-        state = "converged" if self.converged else "NOT converged"
+        state = ("converged" + (" (settled: the displacement's step balanced)" if self.settled else "")
+                 if self.converged else "NOT converged")
         line = (f"Coulomb fixed point {state}: {self.outer_iterations} Tresca solves, "
                 f"{self.total_iterations} ADMM iterations, last change of s {change:.2e} (tol {self.tol:g})")
         if self.last is not None:
@@ -89,12 +91,17 @@ def _ended_by_a_rule(result) -> bool:
     return str(result.status) in ("converged", "converged_inaccurate")
 
 
-def coulomb_fixed_point(problem, run: Callable, mu: float, tol: float = 1e-4, max_outer: int = 30):
+def coulomb_fixed_point(problem, run: Callable, mu: float, tol: float = 1e-4, max_outer: int = 30,
+                        s0: np.ndarray | None = None, settled: Callable | None = None):
     """Iterate s^{j+1} = mu max(p_n^j, 0) on ``problem`` (a contact plug-in with Coulomb friction).
 
     ``run(warm)`` solves the current Tresca problem (``warm`` = the previous
     admmkit Result or None) and returns its Result; ``problem.friction.s`` is
-    the slip bound it reads.  Returns (the whole solve's Result, CoulombReport):
+    the slip bound it reads.  ``s0``: the first slip bound (default 0, the
+    frictionless problem; an adaptive level starts from mu p_n of the level
+    before).  ``settled(previous, last)`` (two Results of consecutive Tresca
+    solves): a second way to end, when it says True (the adaptive loop's
+    balanced outer stop).  Returns (the whole solve's Result, CoulombReport):
     see :func:`whole_solve`; the last Tresca solve's own Result is ``report.last``.
     """
     if not (isinstance(tol, (int, float)) and 0 < tol < 1):
@@ -103,7 +110,7 @@ def coulomb_fixed_point(problem, run: Callable, mu: float, tol: float = 1e-4, ma
         raise ValueError(f"coulomb max_outer = {max_outer!r}; accepted: an integer >= 1")
     n_c, mc = problem.ops.n_c, problem.ops.mc
     report = CoulombReport(tol=tol)
-    problem.friction.s = np.zeros(n_c)
+    problem.friction.s = np.zeros(n_c) if s0 is None else np.maximum(np.asarray(s0, dtype=float), 0.0)
     result, results = None, []
     for _ in range(max_outer):
         result = run(result)
@@ -115,8 +122,9 @@ def coulomb_fixed_point(problem, run: Callable, mu: float, tol: float = 1e-4, ma
         change = float(np.sqrt(mc @ (ds * ds)) / norm) if norm > 0 else float(np.sqrt(mc @ (ds * ds)) > 0)
         report.changes.append(change)
         problem.friction.s = s_new
-        if change <= tol or not _ended_by_a_rule(result):
+        report.settled = bool(settled is not None and len(results) > 1 and settled(results[-2], result))
+        if change <= tol or report.settled or not _ended_by_a_rule(result):
             break
-    report.converged = bool(report.changes[-1] <= tol and _ended_by_a_rule(result))
+    report.converged = bool((report.changes[-1] <= tol or report.settled) and _ended_by_a_rule(result))
     report.last = result
     return whole_solve(results, report), report

@@ -49,6 +49,11 @@ scene's order (NGSolve's ``Set``), e = sym(grad u_h) - sym(G), and
 
 an estimate (not a bound) of ||u_h - u||_a in 2D and 3D, P1 and P2.
 
+**With Tresca friction** (and each Tresca problem of Coulomb's fixed point)
+the same construction, a feasible point and a dual lower bound on Gamma_C,
+gives the bound (B_t) of :mod:`admmkit.problems.contact.solvers.estimate_friction`;
+the ZZ estimate applies unchanged (it reads the displacement only).
+
 **The balanced stop** (:class:`BalancedStop`) fires when (B) <= gamma eta;
 its ``converged`` means that the algebraic error of the returned u is
 certainly below gamma times the estimated discretisation error.
@@ -64,6 +69,7 @@ import scipy.linalg as sla
 from admmkit import BalancedStop as BaseBalancedStop
 
 from admmkit.problems.contact.model.assembly import lame
+from admmkit.problems.contact.solvers.estimate_friction import algebraic_gap
 from admmkit.problems.contact.solvers.estimate_residual import (check_estimator, condensed_pressure, residual_estimate,
                                                                residual_estimator, residual_indicators)
 
@@ -93,7 +99,7 @@ class CondensedGap:
         if getattr(problem, "mode", None) != "condensed" or problem.friction is not None:
             raise ValueError("the algebraic error bound needs a frictionless contact problem in mode 'condensed' "
                              f"(got mode {getattr(problem, 'mode', None)!r}"
-                             f"{', with friction' if getattr(problem, 'friction', None) is not None else ''})")
+                             f"{', with friction: estimate_friction.TrescaGap' if getattr(problem, 'friction', None) is not None else ''})")
         self.problem = problem
         self._C = sla.cho_factor(problem.C)
         self._active_key, self._mu_active = None, None
@@ -145,8 +151,11 @@ class BalancedStop(BaseBalancedStop):
 
     def __init__(self, problem, gamma: float = 0.1, every: int = 2, estimator: str = "zz"):
         check_estimator(estimator)
+        if estimator == "residual" and getattr(problem, "friction", None) is not None:
+            raise ValueError("estimator 'residual' is Hild & Nicaise's for frictionless contact (it counts the "
+                             "tangential stress on Gamma_C as error); with friction use 'zz'")
         super().__init__(gamma, every)
-        self.gap = CondensedGap(problem)
+        self.gap = algebraic_gap(problem)           # CondensedGap (B), or TrescaGap (B_t) with friction
         self.problem = problem
         self.estimator = estimator
         if estimator != "zz":
@@ -154,7 +163,7 @@ class BalancedStop(BaseBalancedStop):
             residual_estimator(problem.ops)           # the estimator's mesh data, built before the run
 
     def algebraic_error_bound(self, rec) -> float:
-        """(B) for the x-iterate (s, w); inf unless s = 1, as after every x-step."""
+        """(B) (with friction (B_t)) for the x-iterate (s, w); inf unless s = 1, as after every x-step."""
         return self.gap.bound(rec.x[1:], rec.z, rec.lam) if rec.x[0] == 1.0 else math.inf
 
     def discretisation_estimate(self, rec) -> float:
