@@ -9,13 +9,13 @@ by the *up-looking* algorithm of QDLDL (Stellato, Banjac, Goulart et al.,
 the solver of OSQP; also Davis, *Direct Methods for Sparse Linear Systems*,
 SIAM 2006, sections 4.1-4.4):
 
-1. *Elimination tree and column counts* (``_etree``): the parent of
+1. *Elimination tree and column counts* (:func:`ldl_analyse`): the parent of
    column i is the first row below i holding a nonzero of L in that column;
    row k of L is the set of nodes on the tree paths from the entries of the
    upper triangle's column k up to k.  One pass over the upper triangle gives
    the tree and the number of nonzeros of every column of L, so L is
    allocated once, exactly.
-2. *Numeric factorisation* (``_factor``), row by row: row k of L solves
+2. *Numeric factorisation* (:func:`ldl_factor`), row by row: row k of L solves
    the sparse triangular system (I + L_{<k}) D y = A_{<k,k}, visiting only
    the nonzeros of y (the tree paths of step 1, in topological order);
    then L_{k,j} = y_j / D_j and D_k = A_kk - sum_j y_j L_{k,j}.
@@ -94,16 +94,44 @@ class LDLFactor:
         return out
 
 
-def ldl_factor(A: sp.spmatrix, order: np.ndarray | None = None) -> LDLFactor:
-    """The LDL' factorisation of the symmetric matrix A in the given order (None: A's own).
+@dataclass
+class LDLAnalysis:
+    """The upper triangle of P A P' (CSC arrays Up, Ui, Ux), its elimination tree and L's column counts.
 
-    A: sparse, CSC or CSR (both triangles stored; only the entries that land
-    in the upper triangle of P A P' are read).  Raises
-    :class:`numpy.linalg.LinAlgError` when a pivot is zero or not finite
-    (A singular, or not factorisable without pivoting in that order).
+    ``mean_column_length`` = sum_j c_j^2 / sum_j c_j (c_j: the nonzeros
+    below the diagonal of column j of L) is the length of the column an
+    average update touches; ``flops`` = sum_j c_j^2 is about the
+    multiply-adds of the factorisation.  Both are known before it.
+    """
+
+    order: np.ndarray
+    Up: np.ndarray
+    Ui: np.ndarray
+    Ux: np.ndarray
+    parent: np.ndarray
+    counts: np.ndarray
+
+    @property
+    def flops(self) -> float:
+        """sum_j c_j^2: about the multiply-adds of the numeric factorisation."""
+        return float(np.dot(self.counts.astype(np.float64), self.counts))
+
+    @property
+    def mean_column_length(self) -> float:
+        """sum_j c_j^2 / sum_j c_j: the mean length of the columns the updates run over."""
+        nnz = float(self.counts.sum())
+        return self.flops / nnz if nnz else 0.0
+
+
+def ldl_analyse(A: sp.spmatrix, order: np.ndarray | None = None) -> LDLAnalysis:
+    """The symbolic phase: P A P' (upper triangle), its elimination tree and L's column counts.
+
+    A: sparse, CSC or CSR, symmetric (both triangles stored; only the entries
+    that land in the upper triangle of P A P' are read); ``order``: the
+    permutation (None: A's own order).
     """
     if not AVAILABLE:   # pragma: no cover - numba is a dependency
-        raise RuntimeError("ldl_factor needs numba")
+        raise RuntimeError("admmkit.ldl needs numba")
     if A.shape[0] != A.shape[1]:
         raise ValueError(f"A must be square, got shape {A.shape}")
     n = A.shape[0]
@@ -116,14 +144,27 @@ def ldl_factor(A: sp.spmatrix, order: np.ndarray | None = None) -> LDLFactor:
     position[order] = np.arange(n)
     Up, Ui, Ux = _permuted_upper(A.indptr, A.indices, np.asarray(A.data, dtype=np.float64), order, position)
     parent, counts = _etree(Up, Ui)
+    return LDLAnalysis(order, Up, Ui, Ux, parent, counts)
+
+
+def ldl_factor(A: sp.spmatrix, order: np.ndarray | None = None, analysis: LDLAnalysis | None = None) -> LDLFactor:
+    """The LDL' factorisation of the symmetric matrix A in the given order (None: A's own).
+
+    ``analysis``: :func:`ldl_analyse`'s result for A and ``order``, if the
+    caller has it (A and order are then not read).  Raises
+    :class:`numpy.linalg.LinAlgError` when a pivot is zero or not finite
+    (A singular, or not factorisable without pivoting in that order).
+    """
+    a = ldl_analyse(A, order) if analysis is None else analysis
+    n = a.order.shape[0]
     Lp = np.zeros(n + 1, np.int64)
-    np.cumsum(counts, out=Lp[1:])
+    np.cumsum(a.counts, out=Lp[1:])
     Li, Lx, d = np.empty(Lp[n], np.int64), np.empty(Lp[n], np.float64), np.empty(n, np.float64)
-    bad = _factor(Up, Ui, Ux, parent, Lp, Li, Lx, d)
+    bad = _factor(a.Up, a.Ui, a.Ux, a.parent, Lp, Li, Lx, d)
     if bad >= 0:
         raise np.linalg.LinAlgError(f"zero or non-finite pivot {d[bad]!r} at step {bad} of {n}: the matrix is "
                                     "singular, or not factorisable without pivoting in this order")
-    return LDLFactor(order, Lp, Li, Lx, d)
+    return LDLFactor(a.order, Lp, Li, Lx, d)
 
 
 @njit(cache=True)

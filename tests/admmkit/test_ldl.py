@@ -4,7 +4,7 @@ import pytest
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from admmkit.ldl import ldl_factor
+from admmkit.ldl import ldl_analyse, ldl_factor
 from admmkit.problems.contact.model.assembly import assemble
 from admmkit.problems.contact.model.scene import example1
 
@@ -74,3 +74,15 @@ def test_bad_order_is_refused(K):
         ldl_factor(K, np.zeros(K.shape[0], dtype=int))
     with pytest.raises(ValueError, match="square"):
         ldl_factor(sp.csc_matrix((2, 3)))
+
+
+def test_analysis_predicts_the_factor_and_can_be_reused(K):
+    order = np.random.default_rng(2).permutation(K.shape[0])
+    analysis = ldl_analyse(K, order)
+    F = ldl_factor(K, order, analysis)
+    counts = np.diff(F.L.indptr)
+    assert np.array_equal(analysis.counts, counts)
+    assert analysis.flops == float((counts.astype(float) ** 2).sum())
+    assert analysis.mean_column_length == analysis.flops / counts.sum()
+    G = ldl_factor(K, order)
+    assert np.array_equal(F.Lx, G.Lx) and np.array_equal(F.d, G.d)

@@ -76,3 +76,52 @@ def test_singular_K_is_reported(ops, backend):
     K[:, 0] = 0.0
     with pytest.raises(np.linalg.LinAlgError, match="singular"):
         BoundarySchur(K.tocsr(), ops.B, backend=backend)
+
+
+def test_ldl_and_superlu_give_the_same_schur_and_solves(ops):
+    X = ops.dof_coordinates()
+    ldl = BoundarySchur(ops.K, ops.B, backend="ldl", coordinates=X)
+    lu = BoundarySchur(ops.K, ops.B, backend="superlu", coordinates=X)
+    assert ldl.backend == "ldl" and np.array_equal(ldl.order, lu.order)
+    assert np.abs(ldl.S - lu.S).max() <= 1e-12 * np.abs(lu.S).max()
+    C = lu.compliance(ops.B)   # C ~ S^{-1}: S's round-off times its condition (5e-12 at Ex. 2)
+    assert np.abs(ldl.compliance(ops.B) - C).max() <= 1e-10 * np.abs(C).max()
+    u_ref = sp.linalg.spsolve(sp.csc_matrix(ops.K), ops.f)
+    assert np.linalg.norm(ldl.solve(ops.f) - u_ref) <= 1e-10 * np.linalg.norm(u_ref)   # cond(K) ~ 1e6
+    assert set(ldl.timings) == {"ordering", "factorisation", "schur"}
+
+
+def test_auto_picks_ldl_or_superlu_by_the_mean_column_length(ops, monkeypatch):
+    from admmkit.problems.contact.solvers import schur as module
+    if available_schur_backends()[0] == "cholmod":
+        pytest.skip("auto takes CHOLMOD here")
+    X = ops.dof_coordinates()
+    assert BoundarySchur(ops.K, ops.B, coordinates=X).backend == "ldl"   # h = 1/10: short columns
+    monkeypatch.setattr(module, "LDL_MAX_COLUMN_LENGTH", 1.0)
+    assert BoundarySchur(ops.K, ops.B, coordinates=X).backend == "superlu"
+    monkeypatch.setattr(module, "LDL_MAX_COLUMN_LENGTH", 1e9)
+    monkeypatch.setattr(module, "LDL_MAX_DOFS", 10)
+    assert BoundarySchur(ops.K, ops.B, coordinates=X).backend == "superlu"
+
+
+def test_indefinite_K_is_reported_by_ldl(ops):
+    K = sp.csr_matrix(ops.K).tolil()
+    K[5, 5] = -K[5, 5]                     # a negative pivot, not a zero one: LDL' exists but K is not SPD
+    with pytest.raises(np.linalg.LinAlgError, match="positive definite"):
+        BoundarySchur(K.tocsr(), ops.B, backend="ldl")
+
+
+def test_contact_solution_is_the_same_with_every_backend(ops):
+    import admmkit
+    from admmkit import RelativeChange, policies
+    from admmkit.problems.contact.solvers.problem import contact_problem
+    order, rule = policies.method("sadmm")
+    u = {}
+    for backend in available_schur_backends():
+        problem = contact_problem(ops, mode="condensed", backend=backend)
+        assert problem.schur.backend == backend
+        result = admmkit.solve(problem, rho=1e3, policy=rule, order=order, stop=RelativeChange(1e-5), max_iter=2000)
+        u[backend] = result.x                   # the displacement (finalize applied)
+    ref = u["superlu"]
+    for backend, x in u.items():
+        assert np.linalg.norm(x - ref) <= 1e-10 * np.linalg.norm(ref), backend

@@ -106,7 +106,7 @@ class CondensedContact(_ContactBase):
     def __init__(self, ops: ContactOperators, backend: str = "auto"):
         super().__init__(ops)
         self.n = self.A.shape[0] + 1
-        # "auto", "cholmod" or "superlu"; SuperLU orders by nested dissection where the dofs have coordinates
+        # "auto", "cholmod", "ldl" or "superlu"; the last two order by nested dissection where the dofs have coordinates
         self.schur = BoundarySchur(ops.K, self.A, backend=backend, coordinates=_coordinates(ops))
         u0 = self.schur.solve(ops.f)
         self.d0 = self.A @ u0                      # A K^{-1} f
@@ -218,7 +218,7 @@ def contact_problem(ops: ContactOperators, mode: str = "auto", backend: str = "a
     """The contact plug-in for assembled operators, in the requested mode.
 
     ``backend`` names the sparse solver: any of :mod:`admmkit.linsolve`'s in
-    the full mode, "cholmod" or "superlu" (or "auto") in the condensed mode.
+    the full mode, "cholmod", "ldl" or "superlu" (or "auto") in the condensed mode.
     ``mode="auto"`` picks the condensed mode when the contact boundary has at
     most CONDENSED_MAX_NC nodes (the dense n_c x n_c compliance then fits and
     its factorisations are cheaper than sparse ones of the whole body), unless

@@ -14,18 +14,34 @@ and (K^{-1})_cc = S^{-1}.  So the compliance on Gamma_C,
 
 costs one factorisation instead of n_c solves.
 
-Two backends, picked like :mod:`admmkit.linsolve` picks its solvers:
+Three backends:
 
 * ``"cholmod"`` (scikit-sparse, when installed): AMD on K_ii, then CHOLMOD's
   L L' in that order; S from the last n_c columns of L.
-* ``"superlu"`` (scipy, always there): a fill-reducing order of the inner
-  dofs, then SuperLU's LU in that order without pivoting; S from the last n_c
-  rows and columns of U.  With the dofs' coordinates the order is geometric
-  nested dissection (:mod:`admmkit.problems.contact.solvers.dissection`),
-  else SuperLU's multiple minimum degree ordering of K_ii (the one ``splu``
-  uses for a plain solve, read off a factorisation that keeps no fill).  At
-  Example 2, h = 1/200, nested dissection took 0.06 s and its order 1.59 s
-  to factorise, minimum degree 0.33 s and 1.99 s.
+* ``"ldl"`` (:mod:`admmkit.ldl`, compiled with numba): P K P' = (I + L) D
+  (I + L)' in our order; the last n_c columns of L hold only their trailing
+  block, so S = L_cc D_c L_cc' and R = D_c^{1/2} L_cc' are read without
+  touching the rest of the factor.  Not supernodal: fastest on small bodies.
+* ``"superlu"`` (scipy): LU in our order without pivoting; S from the last
+  n_c rows and columns of U, which scipy gives only as a copy of all of U.
+
+The order of the inner dofs (``ldl`` and ``superlu``): with the dofs'
+coordinates, geometric nested dissection
+(:mod:`admmkit.problems.contact.solvers.dissection`), else SuperLU's multiple
+minimum degree ordering of K_ii (the one ``splu`` uses for a plain solve,
+read off a factorisation that keeps no fill).  At Example 2, h = 1/200,
+nested dissection took 0.06 s and its order 1.59 s to factorise, minimum
+degree 0.33 s and 1.99 s.
+
+``"auto"`` takes CHOLMOD when installed.  Otherwise, up to ``LDL_MAX_DOFS``
+dofs, it orders, computes the elimination tree and L's column counts c_j
+(:func:`admmkit.ldl.ldl_analyse`, 1-4 % of a factorisation), and takes
+``ldl`` when the mean column length sum c_j^2 / sum c_j is at most
+``LDL_MAX_COLUMN_LENGTH``, else ``superlu``: the longer the columns, the more
+SuperLU's dense supernodal blocks gain over the compiled scalar loop.  On the
+paper's 2D meshes that is ``ldl`` up to about h = 1/90 (3.3e4 unknowns), on
+the 3D block up to about h = 1/5 (2e3 unknowns); larger bodies get
+``superlu`` without the analysis.
 """
 from __future__ import annotations
 
@@ -39,10 +55,20 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from admmkit.blas import limit_blas
+from admmkit.ldl import ldl_analyse, ldl_factor
 
 from admmkit.problems.contact.solvers.dissection import nested_dissection, permute_symmetric
 
-SCHUR_BACKENDS = ("cholmod", "superlu")
+SCHUR_BACKENDS = ("cholmod", "ldl", "superlu")
+#: without CHOLMOD, "auto" takes "ldl" when the mean length of L's columns (sum c_j^2 / sum c_j, known from the
+#: elimination tree before the factorisation) is at most this, else "superlu" (supernodal: dense blocks by BLAS).
+#: Measured (ordering + factorisation + S, one thread, Examples 1-2 and example2_3d): ldl / superlu 0.67-0.78 at
+#: 83-129 (2D h = 1/40-1/70, 3D 1/4), 0.89-1.04 at 142-188 (2D 1/70-1/100), 1.09-1.80 at 214-682 (3D 1/6-1/12)
+LDL_MAX_COLUMN_LENGTH = 170.0
+#: without CHOLMOD, "auto" computes the mean column length up to this many dofs only, and takes "superlu" above
+#: it: the analysis costs 2-4 percent of a factorisation, 58-104 ms at h = 1/200, where the mean column length
+#: was 296-325 (2D: 172-188 at 4e4-6e4 dofs)
+LDL_MAX_DOFS = 50_000
 
 
 @functools.lru_cache(maxsize=1)
@@ -54,7 +80,8 @@ def available_schur_backends() -> tuple[str, ...]:
         out.append("cholmod")
     except ImportError:
         pass
-    return tuple(out + ["superlu"])
+    from admmkit.compiled import AVAILABLE
+    return tuple(out + (["ldl"] if AVAILABLE else []) + ["superlu"])
 
 
 def minimum_degree_ordering(A: sp.spmatrix) -> np.ndarray:
@@ -72,10 +99,18 @@ def minimum_degree_ordering(A: sp.spmatrix) -> np.ndarray:
     return np.argsort(ilu.perm_c)   # perm_c[j] is the new position of column j
 
 
+def _inner_order(K: sp.csc_matrix, inner: np.ndarray, contact: np.ndarray, coordinates) -> np.ndarray:
+    """The inner dofs in nested dissection order (given their coordinates) or minimum degree order, then the
+    contact dofs."""
+    first = (nested_dissection(K, inner, coordinates) if coordinates is not None else
+             inner[minimum_degree_ordering(K[inner][:, inner])])
+    return np.concatenate([first, contact])
+
+
 class _CholmodSchur:
     """K = L L' by CHOLMOD, inner dofs in AMD order, contact dofs last."""
 
-    def __init__(self, K: sp.csc_matrix, inner: np.ndarray, contact: np.ndarray, timings: dict, coordinates=None):
+    def __init__(self, K: sp.csc_matrix, inner: np.ndarray, contact: np.ndarray, timings: dict):
         from sksparse import cholmod
         t0 = time.perf_counter()
         analysis = cholmod.analyze(K[inner][:, inner].tocsc(), ordering_method="amd")
@@ -96,44 +131,77 @@ class _CholmodSchur:
 
 
 class _SuperLUSchur:
-    """K = L U by SuperLU without pivoting, inner dofs in nested dissection (given coordinates) or minimum
-    degree order, contact dofs last."""
+    """K = L U by SuperLU in the given order (contact dofs last), without pivoting."""
 
-    def __init__(self, K: sp.csc_matrix, inner: np.ndarray, contact: np.ndarray, timings: dict, coordinates=None):
-        t0 = time.perf_counter()
-        first = (nested_dissection(K, inner, coordinates) if coordinates is not None else
-                 inner[minimum_degree_ordering(K[inner][:, inner])])
-        self.order = np.concatenate([first, contact])
-        Kp = permute_symmetric(K, self.order)
+    def __init__(self, K: sp.csc_matrix, order: np.ndarray, m: int, timings: dict, analysis=None):
         t1 = time.perf_counter()
+        self.order = order
+        Kp = permute_symmetric(K, order)
         try:
             self._lu = spla.splu(Kp, permc_spec="NATURAL", diag_pivot_thresh=0.0,
                                  options=dict(SymmetricMode=True))
         except RuntimeError as err:
             raise np.linalg.LinAlgError(f"K is singular (is the body clamped?): {err}") from None
         t2 = time.perf_counter()
-        m = contact.size
         # no pivoting and K symmetric: L = U' D^{-1} with D = diag(U), so S = L_cc U_cc = U_cc' D_c^{-1} U_cc
         # (reading U alone halves the copy of the factors, which scipy only gives whole)
         U_cc = sp.csc_matrix(self._lu.U)[:, -m:][-m:, :].toarray()
         d = np.diag(U_cc)[:, None]
         self.S = U_cc.T @ (U_cc / d)
         self.R = U_cc / np.sqrt(d)                      # S = R'R, R upper triangular (D > 0: K is SPD)
-        timings.update(ordering=t1 - t0, factorisation=t2 - t1, schur=time.perf_counter() - t2)
+        timings.update(factorisation=t2 - t1, schur=time.perf_counter() - t2)
 
     def solve_permuted(self, b: np.ndarray) -> np.ndarray:
         return self._lu.solve(b)
 
 
-_IMPLEMENTATIONS = {"cholmod": _CholmodSchur, "superlu": _SuperLUSchur}
+class _LDLSchur:
+    """P K P' = (I + L) D (I + L)' by :func:`admmkit.ldl.ldl_factor` in the given order (contact dofs last)."""
+
+    def __init__(self, K: sp.csc_matrix, order: np.ndarray, m: int, timings: dict, analysis=None):
+        t1 = time.perf_counter()
+        self.order = order
+        try:
+            self._factor = ldl_factor(K, order, analysis)
+        except np.linalg.LinAlgError as err:
+            raise np.linalg.LinAlgError(f"K is singular (is the body clamped?): {err}") from None
+        if self._factor.d.min() <= 0.0:
+            raise np.linalg.LinAlgError(f"K is not positive definite: pivot {self._factor.d.min():.3g} <= 0")
+        t2 = time.perf_counter()
+        # the last m columns of I + L hold only their trailing block: S = L_cc D_c L_cc', read without a copy
+        L_cc, d_c = self._factor.trailing_block(m), self._factor.d[-m:]
+        self.S = (L_cc * d_c) @ L_cc.T
+        self.R = np.sqrt(d_c)[:, None] * L_cc.T          # S = R'R, R upper triangular
+        timings.update(factorisation=t2 - t1, schur=time.perf_counter() - t2)
+
+    def solve_permuted(self, b: np.ndarray) -> np.ndarray:
+        return self._factor.solve_permuted(b)
+
+
+_ORDERED = {"ldl": _LDLSchur, "superlu": _SuperLUSchur}   # the backends that take our order
+
+
+def _ordered_factorisation(K, inner, contact, timings, coordinates, backend):
+    """Order the dofs (inner first, see _inner_order), pick "ldl" or "superlu" for "auto", factorise."""
+    t0 = time.perf_counter()
+    order = _inner_order(K, inner, contact, coordinates)
+    analysis = None
+    if backend == "auto" and K.shape[0] > LDL_MAX_DOFS:
+        backend = "superlu"
+    elif backend == "auto":   # the elimination tree and L's column counts tell how long the updates run
+        analysis = ldl_analyse(K, order)
+        backend = "ldl" if analysis.mean_column_length <= LDL_MAX_COLUMN_LENGTH else "superlu"
+    timings["ordering"] = time.perf_counter() - t0
+    return _ORDERED[backend](K, order, contact.size, timings, analysis), backend
 
 
 class BoundarySchur:
     """One factorisation of K, ordered contact-last, giving S and solves with K.
 
     Attributes: ``contact_dofs`` (the dofs B touches), ``S`` (dense Schur
-    complement on them), ``backend`` ("cholmod" or "superlu"), ``timings``
-    (seconds of ordering, factorisation and Schur extraction).
+    complement on them), ``backend`` (the one used: "cholmod", "ldl" or
+    "superlu"), ``timings`` (seconds of ordering, factorisation and Schur
+    extraction; "auto"'s elimination tree counts as ordering).
 
     BLAS runs with ``blas_threads`` threads during the factorisation (None:
     leave it alone).  One thread is the default, as in :func:`admmkit.solve`:
@@ -141,8 +209,8 @@ class BoundarySchur:
     OpenBLAS threads took 0.45 s instead of 0.02 s at Example 2, h = 1/40.
 
     ``coordinates`` ((n, d), the position of each dof, or None): with them
-    SuperLU's order of the inner dofs is nested dissection, else minimum
-    degree (CHOLMOD always takes AMD).
+    the order of the inner dofs (``ldl``, ``superlu``) is nested dissection,
+    else minimum degree (CHOLMOD always takes AMD).
     """
 
     def __init__(self, K: sp.spmatrix, B: sp.spmatrix, backend: str = "auto", blas_threads: int | None = 1,
@@ -150,11 +218,10 @@ class BoundarySchur:
         if backend not in ("auto",) + SCHUR_BACKENDS:
             raise ValueError(f"schur backend must be 'auto' or one of {', '.join(SCHUR_BACKENDS)}, got {backend!r}")
         installed = available_schur_backends()
-        if backend == "auto":
-            backend = installed[0]
-        elif backend not in installed:
+        if backend == "auto" and installed[0] == "cholmod":
+            backend = "cholmod"
+        elif backend != "auto" and backend not in installed:
             raise ValueError(f"schur backend {backend!r} is not installed here (installed: {', '.join(installed)})")
-        self.backend = backend
         # K is symmetric, so its CSR arrays are those of K' = K in CSC: no copy
         K = sp.csc_matrix((K.data, K.indices, K.indptr), shape=K.shape) if getattr(K, "format", None) == "csr" else sp.csc_matrix(K)
         self.contact_dofs = np.unique(sp.csr_matrix(B).indices)
@@ -164,13 +231,18 @@ class BoundarySchur:
         self.timings: dict[str, float] = {}
         try:
             with limit_blas(blas_threads):
-                self._impl = _IMPLEMENTATIONS[backend](K, inner, self.contact_dofs, self.timings, coordinates)
+                if backend == "cholmod":
+                    self._impl = _CholmodSchur(K, inner, self.contact_dofs, self.timings)
+                else:
+                    self._impl, backend = _ordered_factorisation(K, inner, self.contact_dofs, self.timings,
+                                                                 coordinates, backend)
         except np.linalg.LinAlgError:
             raise
         except Exception as err:  # CHOLMOD reports a non-positive-definite K as CholmodNotPositiveDefiniteError
             if "positive definite" in str(err).lower() or "singular" in str(err).lower():
                 raise np.linalg.LinAlgError(f"K is singular (is the body clamped?): {err}") from None
             raise
+        self.backend = backend
         self.order = self._impl.order
         self.S = 0.5 * (self._impl.S + self._impl.S.T)
 
