@@ -5,10 +5,12 @@ function takes K (CSC), the inner and the contact dof indices and a block size,
 and returns a dict with ``S`` (dense, None when not computed in full), the
 seconds of each step (``steps``) and their sum (``setup``):
 
-* :func:`superlu_contact_last`: what :class:`admmkit.problems.contact.solvers.schur.BoundarySchur`
-  does with SuperLU given the dofs' coordinates
-  (nested dissection of the inner dofs, LU without pivoting in that order with
-  the contact dofs last, S read off the trailing block of U);
+* :func:`ldl_contact_last`: :class:`admmkit.problems.contact.solvers.schur.BoundarySchur`
+  with ``ldl`` given the dofs' coordinates (nested dissection of the inner
+  dofs, :mod:`admmkit.ldl` in that order with the contact dofs last, S read
+  off the last n_c columns of L);
+* :func:`superlu_contact_last`: the same with SuperLU (LU without pivoting,
+  S read off the trailing block of a copy of U);
 * :func:`superlu_minimum_degree`: the same with SuperLU's minimum degree
   ordering of K_ii instead (the path before nested dissection);
 * :func:`superlu_block_solves`: SuperLU LU of K_ii alone, then
@@ -20,6 +22,10 @@ seconds of each step (``steps``) and their sum (``setup``):
   alone, a lower bound;
 * :func:`pardiso_schur` (when pypardiso is importable): MKL PARDISO's own
   Schur complement (iparm[35] = 1, the contact dofs marked in perm).
+
+:data:`REFERENCES` are the pip-only factor + solve of K the study divides by:
+SuperLU's (``admmkit bench contact``'s reference), qdldl's (its own AMD order)
+and :mod:`admmkit.ldl`'s in nested dissection order of all dofs.
 
 Block-solve candidates time the first ``max_blocks`` blocks and extrapolate to
 all n_c columns (``extrapolated`` is then True); S is compared with the
@@ -35,6 +41,10 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from admmkit.ldl import ldl_factor
+from admmkit.linsolve import factorize
+
+from admmkit.problems.contact.solvers.dissection import nested_dissection
 from admmkit.problems.contact.solvers.schur import BoundarySchur
 
 
@@ -49,14 +59,20 @@ def _result(S, steps, extrapolated=False, **extra) -> dict:
     return dict(S=S, steps=steps, setup=sum(steps.values()), extrapolated=extrapolated, **extra)
 
 
-def superlu_contact_last(K, B, inner, contact, block=64, max_blocks=None, coordinates=None) -> dict:
-    """Today's path: :class:`admmkit.problems.contact.solvers.schur.BoundarySchur` with SuperLU, inner dofs in
-    nested dissection order by ``coordinates`` (minimum degree when None)."""
+def superlu_contact_last(K, B, inner, contact, block=64, max_blocks=None, coordinates=None, backend="superlu"):
+    """:class:`admmkit.problems.contact.solvers.schur.BoundarySchur` with SuperLU (or ``backend``), inner dofs in
+    nested dissection order by ``coordinates`` (minimum degree when None); returns the dict described above."""
     t0 = time.perf_counter()
-    schur = BoundarySchur(K, B, backend="superlu", coordinates=coordinates)
+    schur = BoundarySchur(K, B, backend=backend, coordinates=coordinates)
     steps = dict(schur.timings)
     steps["rest"] = time.perf_counter() - t0 - sum(steps.values())
     return _result(schur.S, steps)
+
+
+def ldl_contact_last(K, B, inner, contact, block=64, max_blocks=None, coordinates=None) -> dict:
+    """:class:`admmkit.problems.contact.solvers.schur.BoundarySchur` with ``ldl``, inner dofs in nested
+    dissection order, contact dofs last."""
+    return superlu_contact_last(K, B, inner, contact, block, max_blocks, coordinates, backend="ldl")
 
 
 def superlu_minimum_degree(K, B, inner, contact, block=64, max_blocks=None) -> dict:
@@ -162,8 +178,22 @@ def pardiso_schur(K, B, inner, contact, block=64, max_blocks=None) -> dict:
     return _result(x[:m * m].reshape(m, m).copy(), steps)
 
 
+def _ldl_nested_dissection(K, f, coordinates):
+    """admmkit.ldl's factor + solve of K, all dofs in nested dissection order (no contact dofs last)."""
+    order = nested_dissection(K, np.arange(K.shape[0]), coordinates)
+    return ldl_factor(K, order).solve(f)
+
+
+#: pip-only factor + solve of K: name -> (fn(K, f, coordinates), module it needs)
+REFERENCES = {
+    "superlu": (lambda K, f, X: factorize(K, "superlu")(f), "scipy"),
+    "qdldl (AMD)": (lambda K, f, X: factorize(K, "qdldl")(f), "qdldl"),
+    "admmkit.ldl (nested dissection)": (_ldl_nested_dissection, "numba"),
+}
+
 CANDIDATES = {
-    "superlu, contact last (today)": (superlu_contact_last, "scipy"),
+    "ldl, contact last": (ldl_contact_last, "numba"),
+    "superlu, contact last": (superlu_contact_last, "scipy"),
     "superlu, minimum degree (before)": (superlu_minimum_degree, "scipy"),
     "superlu K_ii + block solves": (superlu_block_solves, "scipy"),
     "ngsolve K_ii + block solves": (ngsolve_block_solves, "ngsolve"),
@@ -172,6 +202,6 @@ CANDIDATES = {
 }
 
 
-def installed_candidates() -> list[str]:
-    """The candidates whose library is importable here."""
-    return [name for name, (_, module) in CANDIDATES.items() if importlib.util.find_spec(module) is not None]
+def installed_candidates(table: dict = CANDIDATES) -> list[str]:
+    """The candidates (or, with ``table=REFERENCES``, references) whose library is importable here."""
+    return [name for name, (_, module) in table.items() if importlib.util.find_spec(module) is not None]

@@ -6,15 +6,21 @@ For Examples 1 and 2 at each h, in one process with BLAS on one thread:
 
 * ``factor+solve``: ``admmkit.linsolve.factorize(K, "superlu")`` and one solve
   (the pip-only reference of ``admmkit bench contact``), after a warm-up;
+* ``fastest``: the fastest pip-only factor + solve of K among
+  :data:`admmkit.benchmarks.contact.schur_candidates.REFERENCES` (SuperLU,
+  qdldl in its AMD order, admmkit.ldl in nested dissection order);
 * ``SADMM``: the condensed contact problem's set-up + ``admmkit.solve`` (SADMM,
-  rho_0 = 1e3, the paper's stop), with today's backend; its set-up split;
+  rho_0 = 1e3, the paper's stop), with the Schur backend ``"auto"`` picks
+  (without CHOLMOD: ``ldl`` or ``superlu``, named in the table); its set-up
+  split;
 * every installed candidate of
   :mod:`admmkit.benchmarks.contact.schur_candidates`: its set-up split and S
-  against today's S (largest difference relative to the largest entry).
+  against SADMM's S (largest difference relative to the largest entry).
 
 Each time is the best of ``repeats`` (the machine is shared; the best is the
-least disturbed); the reference and SADMM alternate repeat by repeat.  ``ratio`` = SADMM / (factor+solve); ``est. ratio`` of a
-candidate = (SADMM - today's Schur set-up + the candidate's) / (factor+solve).
+least disturbed); the references and SADMM alternate repeat by repeat.  ``ratio`` = SADMM / (factor+solve),
+``ratio / fastest`` = SADMM / fastest; ``est. ratio`` of a candidate = (SADMM - its Schur set-up + the
+candidate's) / (factor+solve).
 """
 from __future__ import annotations
 
@@ -29,12 +35,11 @@ import scipy.sparse as sp
 
 import admmkit
 from admmkit import RelativeChange, policies
-from admmkit.benchmarks.contact.schur_candidates import CANDIDATES, installed_candidates
+from admmkit.benchmarks.contact.schur_candidates import CANDIDATES, REFERENCES, installed_candidates
 from admmkit.benchmarks.runner.machine import machine_info
 from admmkit.benchmarks.runner.report import h_label
 from admmkit.blas import limit_blas
 from admmkit.io import write_text
-from admmkit.linsolve import factorize
 from admmkit.problems.contact.model.assembly import assemble
 from admmkit.problems.contact.model.scene import example1, example2
 from admmkit.problems.contact.solvers.problem import contact_problem
@@ -58,14 +63,15 @@ def _sadmm(ops, repeats):
     best = None
     for _ in range(repeats):
         t0 = time.perf_counter()
-        problem = contact_problem(ops, mode="condensed", backend="superlu")
+        problem = contact_problem(ops, mode="condensed", backend="auto")
         t1 = time.perf_counter()
         order, rule = policies.method("sadmm")
         result = admmkit.solve(problem, rho=1e3, policy=rule, order=order, stop=RelativeChange(1e-5), max_iter=20_000)
         total = time.perf_counter() - t0
         if best is None or total < best["total"]:
             best = dict(total=total, setup=t1 - t0, schur=sum(problem.schur.timings.values()),
-                        split=dict(problem.schur.timings), iterations=result.iterations, S=problem.schur.S)
+                        split=dict(problem.schur.timings), iterations=result.iterations, S=problem.schur.S,
+                        backend=problem.schur.backend)
     return best
 
 
@@ -82,16 +88,22 @@ def run_study(out=None, hs=DEFAULT_HS, examples=("ex1", "ex2"), repeats=3, candi
             for h in hs:
                 ops = assemble(EXAMPLES[ex](h))
                 K = sp.csc_matrix(ops.K)
-                factorize(K, "superlu")(ops.f)   # a warm-up: the first factorisations in a process run slower
-                ref, sadmm = float("inf"), None
-                for _ in range(repeats):   # interleaved, so that a burst of load hits both alike
-                    ref = min(ref, _best(lambda: factorize(K, "superlu")(ops.f), 1)[0])
+                X = ops.dof_coordinates()
+                refs = {name: float("inf") for name in installed_candidates(REFERENCES)}
+                for name in refs:   # a warm-up: the first factorisations in a process run slower
+                    REFERENCES[name][0](K, ops.f, X)
+                _sadmm(ops, 1)
+                sadmm = None
+                for _ in range(repeats):   # interleaved, so that a burst of load hits all alike
+                    for name in refs:
+                        refs[name] = min(refs[name], _best(lambda: REFERENCES[name][0](K, ops.f, X), 1)[0])
                     run = _sadmm(ops, 1)
                     sadmm = run if sadmm is None or run["total"] < sadmm["total"] else sadmm
                 contact = np.unique(sp.csr_matrix(ops.B).indices)
                 inner = np.setdiff1d(np.arange(K.shape[0]), contact)
-                X = ops.dof_coordinates()
-                row = dict(example=ex, h=h, n=K.shape[0], m=contact.size, ref=ref, sadmm=sadmm, candidates={})
+                ref, fastest = refs["superlu"], min(refs, key=refs.get)
+                row = dict(example=ex, h=h, n=K.shape[0], m=contact.size, ref=ref, refs=refs, fastest=fastest,
+                           sadmm=sadmm, candidates={})
                 for name in names:
                     fn = CANDIDATES[name][0]
                     extra = {"coordinates": X} if "coordinates" in inspect.signature(fn).parameters else {}
@@ -106,8 +118,9 @@ def run_study(out=None, hs=DEFAULT_HS, examples=("ex1", "ex2"), repeats=3, candi
                         print(f"{ex} h={h_label(h)} {name}: set-up {res['setup']:.3f} s, est. ratio "
                               f"{res['est_ratio']:.2f}", file=sys.stderr, flush=True)
                 if progress:
-                    print(f"{ex} h={h_label(h)}: factor+solve {ref:.3f} s, SADMM {sadmm['total']:.3f} s, ratio "
-                          f"{sadmm['total'] / ref:.2f}", file=sys.stderr, flush=True)
+                    print(f"{ex} h={h_label(h)}: factor+solve {ref:.3f} s, SADMM ({sadmm['backend']}) "
+                          f"{sadmm['total']:.3f} s, ratio {sadmm['total'] / ref:.2f}, over the fastest ({fastest}) "
+                          f"{sadmm['total'] / refs[fastest]:.2f}", file=sys.stderr, flush=True)
                 rows.append(row)
     if out:
         write_markdown(Path(out), rows, repeats, block, time.perf_counter() - start,
@@ -121,18 +134,26 @@ def write_markdown(path: Path, rows, repeats, block, wall, command) -> Path:
              f"Produced by `{command}` on {datetime.date.today().isoformat()} (total {wall:.1f} s). "
              f"Best of {repeats} (wall seconds, BLAS on one thread); see "
              "`benchmarks/contact/schur_study.py` for the definitions.", "",
-             "## SADMM / (factorisation + solve), today's path (SuperLU, contact dofs last, inner dofs in "
-             "nested dissection order)", "",
-             "| example | h | n | n_c dofs | factor+solve (s) | SADMM (s) | of which Schur set-up | ordering | "
-             "factorisation | schur | iterations | ratio |",
-             "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
+             "## SADMM / (factorisation + solve): the Schur backend \"auto\" picks (contact dofs last, inner dofs "
+             "in nested dissection order)", "",
+             "`ratio`: over SuperLU's factor+solve (the reference of `admmkit bench contact`); `ratio / fastest`: "
+             "over the fastest pip-only factor+solve of K (next table).", "",
+             "| example | h | n | n_c dofs | factor+solve (s) | SADMM (s) | backend | of which Schur set-up | "
+             "ordering | factorisation | schur | iterations | ratio | ratio / fastest |",
+             "|---|---|---:|---:|---:|---:|---|---:|---:|---:|---:|---:|---:|---:|"]
     for r in rows:
         s = r["sadmm"]
         lines.append(f"| {r['example']} | {h_label(r['h'])} | {r['n']} | {r['m']} | {r['ref']:.3f} | "
-                     f"{s['total']:.3f} | {s['schur']:.3f} | {s['split']['ordering']:.3f} | "
+                     f"{s['total']:.3f} | {s['backend']} | {s['schur']:.3f} | {s['split']['ordering']:.3f} | "
                      f"{s['split']['factorisation']:.3f} | {s['split']['schur']:.3f} | {s['iterations']} | "
-                     f"**{s['total'] / r['ref']:.2f}** |")
-    lines += ["", "## Candidates: Schur set-up (s), its steps, S against today's, estimated ratio", "",
+                     f"**{s['total'] / r['ref']:.2f}** | **{s['total'] / r['refs'][r['fastest']]:.2f}** |")
+    names = list(rows[0]["refs"]) if rows else []
+    lines += ["", "## Pip-only factorisation + solve of K (s)", "",
+              "| example | h | " + " | ".join(names) + " | fastest |", "|---|---|" + "---:|" * len(names) + "---|"]
+    for r in rows:
+        lines.append(f"| {r['example']} | {h_label(r['h'])} | " + " | ".join(f"{r['refs'][k]:.3f}" for k in names)
+                     + f" | {r['fastest']} |")
+    lines += ["", "## Candidates: Schur set-up (s), its steps, S against SADMM's, estimated ratio", "",
               "| example | h | candidate | set-up (s) | steps (s) | max diff of S (rel.) | est. ratio |",
               "|---|---|---|---:|---|---:|---:|"]
     for r in rows:

@@ -1,11 +1,11 @@
-"""bench contact-schur: every candidate builds today's Schur complement (to round-off), the study writes its table."""
+"""bench contact-schur: every candidate builds SuperLU's Schur complement (to round-off), the study writes its table."""
 import importlib.util
 
 import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from admmkit.benchmarks.contact.schur_candidates import CANDIDATES, installed_candidates
+from admmkit.benchmarks.contact.schur_candidates import CANDIDATES, REFERENCES, installed_candidates
 from admmkit.benchmarks.contact.schur_study import run_study
 from admmkit.problems.contact import assemble, example1, example2
 from admmkit.problems.contact.solvers.schur import BoundarySchur
@@ -36,8 +36,9 @@ def test_each_candidate_gives_todays_S(ops, name):
     assert np.abs(res["S"] - today.S).max() <= 1e-12 * np.abs(today.S).max()
 
 
-def test_todays_candidate_orders_by_nested_dissection_given_coordinates(ops):
-    fn = CANDIDATES["superlu, contact last (today)"][0]
+@pytest.mark.parametrize("name", ["superlu, contact last", "ldl, contact last"])
+def test_contact_last_candidates_order_by_nested_dissection_given_coordinates(ops, name):
+    fn = CANDIDATES[name][0]
     K = sp.csc_matrix(ops.K)
     plain = BoundarySchur(K, ops.B, backend="superlu")
     inner = np.setdiff1d(np.arange(K.shape[0]), plain.contact_dofs)
@@ -57,13 +58,22 @@ def test_block_solves_extrapolate_from_the_first_blocks(ops):
 
 def test_study_writes_the_ratio_and_the_candidates(tmp_path):
     out = tmp_path / "schur.md"
-    names = ["superlu, contact last (today)", "superlu K_ii + block solves", "qdldl factor of K (no S)"]
+    names = ["superlu, contact last", "superlu K_ii + block solves", "qdldl factor of K (no S)"]
     rows = run_study(out=out, hs=(1 / 10,), examples=("ex1",), repeats=1, candidates=names, block=16, progress=False)
     (row,) = rows
     assert row["sadmm"]["total"] / row["ref"] > 0 and set(row["candidates"]) == set(names)
     assert row["candidates"]["superlu K_ii + block solves"]["error"] <= 1e-12
     text = out.read_text()
     assert "SADMM / (factorisation + solve)" in text and "qdldl factor of K (no S)" in text
+    assert row["fastest"] in row["refs"] and row["ref"] == row["refs"]["superlu"]
+    assert "ratio / fastest" in text and "Pip-only factorisation + solve of K" in text
+
+
+@pytest.mark.parametrize("name", installed_candidates(REFERENCES))
+def test_each_reference_solves_K(ops, name):
+    K = sp.csc_matrix(ops.K)
+    u = REFERENCES[name][0](K, ops.f, ops.dof_coordinates())
+    assert np.linalg.norm(K @ u - ops.f) <= 1e-10 * np.linalg.norm(ops.f)
 
 
 def test_unknown_candidate_is_refused():
@@ -72,7 +82,7 @@ def test_unknown_candidate_is_refused():
 
 
 def test_installed_candidates_always_include_scipys():
-    assert "superlu, contact last (today)" in installed_candidates()
+    assert "superlu, contact last" in installed_candidates()
 
 
 def test_cli_writes_over_an_existing_file_and_refuses_a_folder(tmp_path, capsys):
