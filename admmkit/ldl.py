@@ -77,12 +77,21 @@ class LDLFactor:
         ldl_solve(self.Lp, self.Li, self.Lx, 1.0 / self.d, self.order, b, np.empty_like(b), out)
         return out
 
+    def forward(self, b: np.ndarray, start: int = 0) -> np.ndarray:
+        """(I + L)^{-1} b in the permuted order (a new array); ``start``: b is zero before it (skipped)."""
+        y = np.array(b, dtype=np.float64)
+        _forward(self.Lp, self.Li, self.Lx, y, start)
+        return y
+
+    def backward(self, y: np.ndarray) -> np.ndarray:
+        """(I + L)^{-T} y in the permuted order (a new array)."""
+        x = np.array(y, dtype=np.float64)
+        _backward(self.Lp, self.Li, self.Lx, x)
+        return x
+
     def solve_permuted(self, b: np.ndarray) -> np.ndarray:
-        """(P A P')^{-1} b (b and the result in the permuted order)."""
-        b = np.ascontiguousarray(b, dtype=np.float64)
-        out = np.empty_like(b)
-        ldl_solve(self.Lp, self.Li, self.Lx, 1.0 / self.d, np.arange(self.n), b, np.empty_like(b), out)
-        return out
+        """(P A P')^{-1} b = (I + L)^{-T} D^{-1} (I + L)^{-1} b (b and the result in the permuted order)."""
+        return self.backward(self.forward(b) / self.d)
 
     def trailing_block(self, m: int) -> np.ndarray:
         """(I + L) restricted to its last m rows and columns, dense (unit lower triangular, m x m)."""
@@ -165,6 +174,25 @@ def ldl_factor(A: sp.spmatrix, order: np.ndarray | None = None, analysis: LDLAna
         raise np.linalg.LinAlgError(f"zero or non-finite pivot {d[bad]!r} at step {bad} of {n}: the matrix is "
                                     "singular, or not factorisable without pivoting in this order")
     return LDLFactor(a.order, Lp, Li, Lx, d)
+
+
+@njit(cache=True)
+def _forward(Lp, Li, Lx, x, start):
+    """x <- (I + L)^{-1} x in place, column by column from ``start`` (x[:start] is zero)."""
+    for j in range(start, x.shape[0]):
+        xj = x[j]
+        for p in range(_u(Lp[j]), _u(Lp[j + 1])):
+            x[_u(Li[p])] -= Lx[p] * xj
+
+
+@njit(cache=True)
+def _backward(Lp, Li, Lx, x):
+    """x <- (I + L)^{-T} x in place, row by row from the last."""
+    for j in range(x.shape[0] - 1, -1, -1):
+        s = x[j]
+        for p in range(_u(Lp[j]), _u(Lp[j + 1])):
+            s -= Lx[p] * x[_u(Li[p])]
+        x[j] = s
 
 
 @njit(cache=True)

@@ -23,7 +23,7 @@ seconds of each step (``steps``) and their sum (``setup``):
 * :func:`pardiso_schur` (when pypardiso is importable): MKL PARDISO's own
   Schur complement (iparm[35] = 1, the contact dofs marked in perm).
 
-:data:`REFERENCES` are the pip-only factor + solve of K the study divides by:
+``REFERENCES`` are the pip-only factor + solve of K the study divides by:
 SuperLU's (``admmkit bench contact``'s reference), qdldl's (its own AMD order)
 and :mod:`admmkit.ldl`'s in nested dissection order of all dofs.
 
@@ -184,7 +184,7 @@ def _ldl_nested_dissection(K, f, coordinates):
     return ldl_factor(K, order).solve(f)
 
 
-#: pip-only factor + solve of K: name -> (fn(K, f, coordinates), module it needs)
+# the pip-only factor + solve of K: name -> (fn(K, f, coordinates), the module it needs)
 REFERENCES = {
     "superlu": (lambda K, f, X: factorize(K, "superlu")(f), "scipy"),
     "qdldl (AMD)": (lambda K, f, X: factorize(K, "qdldl")(f), "qdldl"),
@@ -202,6 +202,7 @@ CANDIDATES = {
 }
 
 
-def installed_candidates(table: dict = CANDIDATES) -> list[str]:
-    """The candidates (or, with ``table=REFERENCES``, references) whose library is importable here."""
+def installed_candidates(table: dict | None = None) -> list[str]:
+    """The candidates (or, with ``table=REFERENCES``, the references) whose library is importable here."""
+    table = CANDIDATES if table is None else table
     return [name for name, (_, module) in table.items() if importlib.util.find_spec(module) is not None]

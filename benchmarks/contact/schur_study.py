@@ -7,7 +7,7 @@ For Examples 1 and 2 at each h, in one process with BLAS on one thread:
 * ``factor+solve``: ``admmkit.linsolve.factorize(K, "superlu")`` and one solve
   (the pip-only reference of ``admmkit bench contact``), after a warm-up;
 * ``fastest``: the fastest pip-only factor + solve of K among
-  :data:`admmkit.benchmarks.contact.schur_candidates.REFERENCES` (SuperLU,
+  ``REFERENCES`` of :mod:`admmkit.benchmarks.contact.schur_candidates` (SuperLU,
   qdldl in its AMD order, admmkit.ldl in nested dissection order);
 * ``SADMM``: the condensed contact problem's set-up + ``admmkit.solve`` (SADMM,
   rho_0 = 1e3, the paper's stop), with the Schur backend ``"auto"`` picks

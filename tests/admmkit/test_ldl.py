@@ -86,3 +86,14 @@ def test_analysis_predicts_the_factor_and_can_be_reused(K):
     assert analysis.mean_column_length == analysis.flops / counts.sum()
     G = ldl_factor(K, order)
     assert np.array_equal(F.Lx, G.Lx) and np.array_equal(F.d, G.d)
+
+
+def test_forward_and_backward_substitutions(K):
+    F = ldl_factor(K)
+    unit_L = sp.eye(K.shape[0], format="csc") + F.L
+    b = np.random.default_rng(4).standard_normal(K.shape[0])
+    assert np.allclose(unit_L @ F.forward(b), b, rtol=0, atol=1e-12 * abs(b).max())
+    assert np.allclose(unit_L.T @ F.backward(b), b, rtol=0, atol=1e-12 * abs(b).max())
+    tail = np.zeros_like(b)
+    tail[-5:] = b[-5:]
+    assert np.array_equal(F.forward(tail, start=K.shape[0] - 5), F.forward(tail))   # zeros before start skipped

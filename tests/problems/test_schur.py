@@ -125,3 +125,17 @@ def test_contact_solution_is_the_same_with_every_backend(ops):
     ref = u["superlu"]
     for backend, x in u.items():
         assert np.linalg.norm(x - ref) <= 1e-10 * np.linalg.norm(ref), backend
+
+
+@pytest.mark.parametrize("backend", available_schur_backends())
+def test_load_and_solve_load_match_solves_with_K(ops, backend):
+    schur = BoundarySchur(ops.K, ops.B, backend=backend, coordinates=ops.dof_coordinates())
+    u0 = sp.linalg.spsolve(sp.csc_matrix(ops.K), ops.f)
+    e0, u0_c = schur.load(ops.f)
+    assert e0 == pytest.approx(ops.f @ u0, rel=1e-12)
+    assert np.abs(u0_c - u0[schur.contact_dofs]).max() <= 1e-10 * np.abs(u0).max()
+    v = np.random.default_rng(3).standard_normal(schur.contact_dofs.size)
+    rhs = -0.5 * ops.f
+    rhs[schur.contact_dofs] += v
+    u_ref = sp.linalg.spsolve(sp.csc_matrix(ops.K), rhs)
+    assert np.linalg.norm(schur.solve_load(-0.5, v) - u_ref) <= 1e-10 * np.linalg.norm(u_ref)

@@ -108,9 +108,9 @@ class CondensedContact(_ContactBase):
         self.n = self.A.shape[0] + 1
         # "auto", "cholmod", "ldl" or "superlu"; the last two order by nested dissection where the dofs have coordinates
         self.schur = BoundarySchur(ops.K, self.A, backend=backend, coordinates=_coordinates(ops))
-        u0 = self.schur.solve(ops.f)
-        self.d0 = self.A @ u0                      # A K^{-1} f
-        self.e0 = float(ops.f @ u0)                # ||u0||_K^2
+        self.e0, u0_c = self.schur.load(ops.f)     # ||u0||_K^2 = f'K^{-1}f and u0 = K^{-1} f on the contact dofs
+        self._A_c = sp.csr_matrix(self.A)[:, self.schur.contact_dofs]
+        self.d0 = self._A_c @ u0_c                 # A K^{-1} f (A touches the contact dofs only)
         self.C = self.schur.compliance(self.A)     # A K^{-1} A'
         self._cholesky: dict[float, tuple] = {}
         self._recent_Cw: deque = deque(maxlen=2)  # (x, C w) of the last x-steps: one C-matvec per iteration
@@ -155,8 +155,9 @@ class CondensedContact(_ContactBase):
         return float(np.sqrt(max(ds * ds * self.e0 + 2 * ds * (self.d0 @ dw) + dw @ dCw, 0.0)))
 
     def finalize(self, x):
-        """The full displacement u = K^{-1}(s f + B'w): one solve, once."""
-        return self.schur.solve(x[0] * self.ops.f + self.A.T @ x[1:])
+        """The full displacement u = K^{-1}(s f + B'w): one solve, once (with ``ldl`` its forward half was done
+        for f at the set-up, BoundarySchur.load)."""
+        return self.schur.solve_load(x[0], self._A_c.T @ x[1:])
 
     def initial_point(self):
         """u^0 = 0 (s = 0, w = 0), p^0 = 0, lam^0 = 0."""
