@@ -52,9 +52,9 @@ def test_caps_and_refusals():
     assert out.status == "level_cap" and not out.reached and "not reached" in out.message
     out = solve_adaptive(example1(h=1 / 5), 1e-3, max_unknowns=500)
     assert out.status == "unknowns_cap" and not out.reached
-    with pytest.raises(ValueError, match="frictionless"):
+    with pytest.raises(ValueError, match="frictionless residual estimator"):     # friction: ZZ only
         from admmkit.problems.contact.model.scene_file import load_scene
-        solve_adaptive(load_scene("ex1_tresca", h=1 / 5), 0.1)
+        solve_adaptive(load_scene("ex1_tresca", h=1 / 5), 0.1, estimator="residual")
     with pytest.raises(ValueError, match="theta = 0"):
         solve_adaptive(example1(h=1 / 5), 0.1, theta=0)
 
@@ -70,8 +70,8 @@ def test_cli_target_error(tmp_path, capsys, level_vtus):
     level_vtus(tmp_path, "lv", body["levels"], {"contact_pressure"})     # one VTU per level, with its indicators
     assert main(["solve", "contact", "--h", "1/5", "--target-error", "1e-3", "--max-levels", "2"]) == 1
     assert "level_cap" in capsys.readouterr().out
-    assert main(["solve", "contact", "--scene", "ex1_tresca", "--target-error", "0.1"]) == 2
-    assert "needs a frictionless scene" in capsys.readouterr().err
+    assert main(["solve", "contact", "--scene", "ex1_tresca", "--target-error", "0.1", "--estimator", "residual"]) == 2
+    assert "frictionless residual estimator" in capsys.readouterr().err
 
 
 def test_cli_fe_order_picks_p2(capsys):

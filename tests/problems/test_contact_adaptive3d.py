@@ -99,7 +99,7 @@ def test_cli_target_error_3d(tmp_path, capsys):
     assert len(list(tmp_path.glob("lv_level*.vtu"))) == len(body["levels"]) >= 2
     assert main(args + ["--target-error", "0.1", "--max-levels", "1"]) == 1
     assert "level_cap" in capsys.readouterr().out
-    assert main(["solve", "contact", "--scene", "block3d_coulomb", "--h", "1/4", "--target-error", "0.3"]) == 2
-    assert "needs a frictionless scene" in capsys.readouterr().err
+    assert main(["solve", "contact", "--scene", "block3d_coulomb", "--h", "1/4", "--target-error", "0.3"]) == 0
+    assert "coulomb" in (text := capsys.readouterr().out) and "status       target_reached" in text   # 3D Coulomb
     assert main(args + ["--target-error", "0.3", "--plot", str(tmp_path / "m.png")]) == 2
     assert "2D scenes only" in capsys.readouterr().err

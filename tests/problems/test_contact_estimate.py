@@ -109,5 +109,8 @@ def test_cli_balance(capsys):
     assert "balanced(gamma=0.1)" in out and "balance      algebraic error <=" in out
     assert main(["solve", "contact", "--h", "1/10", "--balance", "0.1", "--mode", "full"]) == 2
     assert "--balance needs --mode condensed" in capsys.readouterr().err
-    assert main(["solve", "contact", "--scene", "ex1_tresca", "--h", "1/10", "--balance", "0.1"]) == 2
-    assert "frictionless" in capsys.readouterr().err
+    assert main(["solve", "contact", "--scene", "ex1_tresca", "--h", "1/10", "--balance", "0.1", "-q"]) == 0
+    assert "balance      algebraic error <=" in capsys.readouterr().out    # Tresca: the bound (B_t)
+    assert main(["solve", "contact", "--scene", "ex1_tresca", "--h", "1/10", "--balance", "0.1",
+                 "--estimator", "residual"]) == 2
+    assert "frictionless residual estimator" in capsys.readouterr().err

@@ -32,8 +32,8 @@ def run_adaptive(args, scene, method_name: str) -> int:
           f"theta {options['theta']:g}, gamma {options['gamma']:g}, {options['estimator']} estimator, {method_name}"
           + ("" if scene.tangential == "frictionless" else f", {scene.tangential}"))
     if scene.tangential == "coulomb":
-        print("coulomb      alg.bound: of each level's last Tresca problem (s = mu p_n of the step before); the fixed "
-              "point ends when s changes by <= 1e-4 or u by <= gamma x estimate (energy norm)")
+        print("coulomb      alg.bound: of each level's last Tresca problem (s = mu p_n of the step before); the "
+              "fixed point ends when s changes by <= 1e-4 or u by <= gamma x estimate (energy norm)")
     print("level    cells  unknowns  n_c   estimate  rel.estimate  alg.bound  iterations  seconds  status")
     count, files = iter(range(1, 10 ** 9)), []
 

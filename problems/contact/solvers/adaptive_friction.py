@@ -10,7 +10,7 @@ every level, a guaranteed bound of the algebraic error for its balanced stop:
   (:mod:`admmkit.problems.contact.solvers.estimate_friction`), a convex problem
   like the frictionless one;
 - Coulomb: the fixed point s^{j+1} = mu max(p_n^j, 0)
-  (:mod:`admmkit.problems.contact.solvers.coulomb`) whose every step is a
+  (``admmkit.problems.contact.solvers.coulomb``) whose every step is a
   Tresca problem, stopped balanced by (B_t).  A level's bound is that of its
   **last Tresca problem** (slip bound mu p_n of the step before), not of the
   Coulomb problem, which is not a minimisation: the fixed point's own error is

@@ -69,7 +69,7 @@ import scipy.linalg as sla
 from admmkit import BalancedStop as BaseBalancedStop
 
 from admmkit.problems.contact.model.assembly import lame
-from admmkit.problems.contact.solvers.estimate_friction import algebraic_gap
+from admmkit.problems.contact.solvers.estimate_friction import TrescaGap
 from admmkit.problems.contact.solvers.estimate_residual import (check_estimator, condensed_pressure, residual_estimate,
                                                                residual_estimator, residual_indicators)
 
@@ -99,7 +99,7 @@ class CondensedGap:
         if getattr(problem, "mode", None) != "condensed" or problem.friction is not None:
             raise ValueError("the algebraic error bound needs a frictionless contact problem in mode 'condensed' "
                              f"(got mode {getattr(problem, 'mode', None)!r}"
-                             f"{', with friction: estimate_friction.TrescaGap' if getattr(problem, 'friction', None) is not None else ''})")
+                             f"{', with friction: TrescaGap' if getattr(problem, 'friction', None) else ''})")
         self.problem = problem
         self._C = sla.cho_factor(problem.C)
         self._active_key, self._mu_active = None, None
@@ -137,6 +137,12 @@ class CondensedGap:
         return self._mu_active
 
 
+def algebraic_gap(problem):
+    """The guaranteed algebraic error bound of a condensed contact problem: ``TrescaGap`` (B_t) with friction
+    (Tresca, or a Coulomb fixed point's current Tresca problem), else :class:`CondensedGap` (B)."""
+    return TrescaGap(problem) if getattr(problem, "friction", None) is not None else CondensedGap(problem)
+
+
 class BalancedStop(BaseBalancedStop):
     """:class:`admmkit.BalancedStop` for contact: bound (B) of u against an estimate of u's discretisation error.
 
@@ -152,8 +158,8 @@ class BalancedStop(BaseBalancedStop):
     def __init__(self, problem, gamma: float = 0.1, every: int = 2, estimator: str = "zz"):
         check_estimator(estimator)
         if estimator == "residual" and getattr(problem, "friction", None) is not None:
-            raise ValueError("estimator 'residual' is Hild & Nicaise's for frictionless contact (it counts the "
-                             "tangential stress on Gamma_C as error); with friction use 'zz'")
+            raise ValueError("estimator 'residual' is Hild & Nicaise's frictionless residual estimator (it counts "
+                             "the tangential stress on Gamma_C as error); with friction use 'zz'")
         super().__init__(gamma, every)
         self.gap = algebraic_gap(problem)           # CondensedGap (B), or TrescaGap (B_t) with friction
         self.problem = problem
@@ -195,5 +201,5 @@ def estimator_indicators(ops, u: np.ndarray, lam: np.ndarray, name: str = "zz") 
     return residual_indicators(ops, u, lam)
 
 
-__all__ = ["zz_indicators", "zz_estimate", "CondensedGap", "BalancedStop", "estimator_indicators",
+__all__ = ["zz_indicators", "zz_estimate", "CondensedGap", "algebraic_gap", "BalancedStop", "estimator_indicators",
            "balanced_residual_stop"]

@@ -1,6 +1,6 @@
 """A guaranteed bound of the algebraic error for Tresca friction (condensed mode): a duality gap on Gamma_C.
 
-The discrete Tresca problem (docs/friction.md) is
+The discrete Tresca problem (docs/friction.md) is::
 
     min_u P(u) = J(u) + j(A_t u),   J(u) = 1/2 u'Ku - f'u,   subject to B u <= g,
     j(t) = sum_i mc_i s_i |t_i - w_i|      (w_i: the foundation's slide),
@@ -13,25 +13,25 @@ feasible v,
     P(v) - P(u_h) >= ||v - u_h||_a^2 / 2.                                  (S)
 
 **The iterate.**  In the condensed mode every iterate is u = u0 + K^{-1}A'w
-(u0 = K^{-1}f, d0 = A u0, C = A K^{-1}A', e0 = f'u0), so that
+(u0 = K^{-1}f, d0 = A u0, C = A K^{-1}A', e0 = f'u0), so that::
 
     A u = d0 + C w,      J(u) = -e0/2 + w'Cw/2.
 
-**The dual function.**  With |x| = sup_{|y| <= 1} y.x and I_{<=0}(x) =
-sup_{y >= 0} y x, for nodal forces mu = (mu_n, mu_t) (mu = M lam, lam the
-tractions p_n, q)
+**The dual function.**  With ``|x| = sup_{|y| <= 1} y.x`` and ``I_{<=0}(x) =
+sup_{y >= 0} y x``, for nodal forces mu = (mu_n, mu_t) (mu = M lam, lam the
+tractions p_n, q)::
 
     P(u) + I(B u <= g) = sup_{mu in Lambda} J(u) + mu'(A u - h),
     Lambda = {mu_n,i >= 0, |mu_t,i| <= mc_i s_i},   h = (g, w),
 
 and exchanging sup and min (min_u at u = u0 - K^{-1}A'mu) gives the dual
-function, a lower bound of P(u_h) for every mu in Lambda (weak duality):
+function, a lower bound of P(u_h) for every mu in Lambda (weak duality)::
 
     D(mu) = min_u J(u) + mu'(A u - h) = -e0/2 + mu'(d0 - h) - mu'C mu / 2 <= P(u_h).
 
 **The bound.**  For a feasible u' = u0 + K^{-1}A'w' (its normal part
 (d0 + C w')_n <= g), (S) and weak duality give J(u') + j(u') - D(mu) >=
-||u' - u_h||_a^2 / 2, and by the triangle inequality
+||u' - u_h||_a^2 / 2, and by the triangle inequality::
 
     ||u - u_h||_a <= ||u - u'||_a + sqrt(2 (P(u') - D(mu))),              (B_t)
 
@@ -52,11 +52,11 @@ the nodes it puts on the obstacle only); and the active-set multiplier.
 *The active-set candidate* (as (A) of the frictionless bound, with the stick
 and slip zones).  From the z-iterate: the contact nodes N (z_n = g or
 (A u)_n >= g), the stick nodes S (z_t = w: the shrink put the slip to zero),
-and on the other (slip) nodes the direction sigma_i = (z_t,i - w_i) /
-|z_t,i - w_i|.  Tresca's law fixes the forces mu_n = 0 off N and
+and on the other (slip) nodes the direction ``sigma_i = (z_t,i - w_i) /
+|z_t,i - w_i|``.  Tresca's law fixes the forces mu_n = 0 off N and
 mu_t,i = mc_i s_i sigma_i on the slip nodes (the set F); the unknown ones,
 U = (normal on N, tangential on S), make the displacement meet the
-obstacle and the foundation there, (d0 - C mu)_U = h_U:
+obstacle and the foundation there, (d0 - C mu)_U = h_U::
 
     C_UU mu_U = (d0 - h)_U - C_UF mu_F.                                    (A_t)
 
@@ -94,13 +94,13 @@ class TrescaGap:
         return np.concatenate((q.g, w))
 
     def friction_work(self, d: np.ndarray) -> float:
-        """j = sum_i mc_i s_i |d_t,i - w_i| at the constraint values d = A u'."""
+        """j = sum_i mc_i s_i ``|d_t,i - w_i|`` at the constraint values d = A u'."""
         q, n_c = self.problem, self.n_c
         slip = (d - self.obstacle())[n_c:].reshape(-1, n_c)
         return float(q.mc @ (q.friction.s * np.sqrt(np.sum(slip * slip, axis=0))))
 
     def project(self, mu: np.ndarray) -> np.ndarray:
-        """mu onto Lambda: mu_n >= 0, |mu_t,i| <= mc_i s_i (the tangential force shrunk node by node)."""
+        """mu onto Lambda: mu_n >= 0, ``|mu_t,i| <= mc_i s_i`` (the tangential force shrunk node by node)."""
         q, n_c = self.problem, self.n_c
         mu_t = mu[n_c:].reshape(-1, n_c)
         bound = q.mc * q.friction.s
@@ -153,13 +153,4 @@ class TrescaGap:
         return self.project(mu)
 
 
-def algebraic_gap(problem):
-    """The guaranteed algebraic error bound of a condensed contact problem: :class:`TrescaGap` with friction
-    (Tresca, or a Coulomb fixed point's current Tresca problem), else the frictionless ``CondensedGap``."""
-    if getattr(problem, "friction", None) is not None:
-        return TrescaGap(problem)
-    from admmkit.problems.contact.solvers.estimate import CondensedGap
-    return CondensedGap(problem)
-
-
-__all__ = ["TrescaGap", "algebraic_gap"]
+__all__ = ["TrescaGap"]
