@@ -96,6 +96,8 @@ def comparison(rows: list[dict]) -> list[dict]:
         warm_cold = [r["iterations"] / r["cold_iterations"] for r in ad[1:]]
         c["warm_over_cold"] = (float(np.median(warm_cold)), max(warm_cold)) if warm_cold else None
         c["cold_iterations"] = [r["cold_iterations"] for r in ad]
+        alg = [r["algebraic_over_estimate"] for r in ad if np.isfinite(r.get("algebraic_over_estimate", np.nan))]
+        c["algebraic"] = (min(alg), float(np.median(alg)), max(alg), len(alg), len(ad)) if alg else None
         c["uniform_iterations"] = [r["iterations"] for r in un]
         c["a_priori"] = _a_priori(ad, series(rows, scene, order, "a_priori"))
         c["hertz"] = {m: hertz_errors(series(rows, scene, order, m)) for m in ("adaptive", "uniform", "a_priori")

@@ -22,6 +22,7 @@ import admmkit
 
 from admmkit.problems.contact.validation.reference import energy, energy_norm
 
+from admmkit.benchmarks.rules.adaptive_algebraic import contact_algebraic_error
 from admmkit.benchmarks.rules.adaptive_levels import Clock, level_row, uniform_level
 
 CONTACT_NAMES = {"ex1": "Example 1", "ex2": "Example 2", "hertz": "Hertz"}
@@ -94,10 +95,11 @@ def contact_rows(name: str, order: int, target: float, ref: dict, start, uniform
         t0 = time.perf_counter()
         rel, absolute, more = true_error(out.model, out.result)
         cold = cold_contact(out.model)
+        algebraic = contact_algebraic_error(out.model, out.result.x)
         clock.excluded += time.perf_counter() - t0
         rows.append(level_row(name, order, "adaptive", len(rows) + 1, math.nan, level.unknowns,
                               level.relative_estimate, level.estimate, rel, absolute, level.iterations,
-                              level.seconds, clock.now(), level.status, cold, **more))
+                              level.seconds, clock.now(), level.status, cold, algebraic, **more))
     solve_adaptive(start, target, max_levels=60, log=log)
     for method, meshes in (("uniform", uniform), ("a_priori", a_priori)):
         for i, (h, scene) in enumerate(meshes):

@@ -9,17 +9,20 @@ HERTZ_COLUMNS = ("a_error", "p0_error")
 
 
 def level_row(scene, order, method, level, h, unknowns, relative_estimate, estimate, true_error, absolute_error,
-              iterations, seconds, wall, status, cold_iterations=None, **extra) -> dict:
-    """One row of the study (printed as it is made); ``extra``: the Hertz columns, if any."""
+              iterations, seconds, wall, status, cold_iterations=None, algebraic_error=math.nan, **extra) -> dict:
+    """One row of the study (printed as it is made); ``algebraic_error``: ||u - u_h*||_a at the stop (adaptive levels,
+    :mod:`admmkit.benchmarks.rules.adaptive_algebraic`); ``extra``: the Hertz columns, if any."""
     row = {"scene": scene, "order": order, "method": method, "level": level, "h": h, "unknowns": unknowns,
            "relative_estimate": relative_estimate, "true_error": true_error,
            "effectivity": estimate / absolute_error if not absolute_error <= 0 else math.inf,   # NaN: error NaN
            "iterations": iterations, "cold_iterations": iterations if cold_iterations is None else cold_iterations,
-           "seconds": seconds, "wall_seconds": wall, "status": status}
+           "seconds": seconds, "wall_seconds": wall, "status": status,
+           "algebraic_over_estimate": algebraic_error / estimate if estimate > 0 else math.nan}
     row |= {key: extra.get(key, math.nan) for key in HERTZ_COLUMNS}
     print(f"  {scene:9s} P{order} {method:14s} {level:2d}  n = {unknowns:7d}  est {relative_estimate:.3e}  "
           f"true {true_error:.3e}  eff {row['effectivity']:.2f}  it {iterations:4d} (cold {row['cold_iterations']:4d})"
-          f"  wall {wall:7.2f} s", flush=True)
+          f"  wall {wall:7.2f} s" + (f"  alg/eta {row['algebraic_over_estimate']:.2f}"
+                                     if math.isfinite(row["algebraic_over_estimate"]) else ""), flush=True)
     return row
 
 

@@ -40,6 +40,7 @@ from dataclasses import replace
 from pathlib import Path
 
 import admmkit
+from admmkit.benchmarks.rules.adaptive_algebraic import obstacle_algebraic_error
 from admmkit.benchmarks.rules.adaptive_contact import contact_rows, contact_scene, reference
 from admmkit.benchmarks.rules.adaptive_hertz import hertz_reference, hertz_rows
 from admmkit.benchmarks.rules.adaptive_levels import Clock, level_row, uniform_level
@@ -77,10 +78,11 @@ def obstacle_rows(target: float, meshes=OBSTACLE_UNIFORM_N[1], order: int = 1) -
     def log(level, out):
         t0 = time.perf_counter()
         cold, error = _cold_obstacle(out.model), _h1_error(out.model, out.result.z)
+        algebraic = obstacle_algebraic_error(out.model, out.result)
         clock.excluded += time.perf_counter() - t0
         rows.append(level_row("obstacle", order, "adaptive", len(rows) + 1, math.nan, level.unknowns,
                          level.relative_estimate, level.estimate, error / norm, error, level.iterations,
-                         level.seconds, clock.now(), level.status, cold))
+                         level.seconds, clock.now(), level.status, cold, algebraic))
     solve_adaptive(scene(8), target, max_levels=40, log=log, fe_order=order)
     for i, N in enumerate(meshes):       # a cold start from rho 1: the plug-in's default, a factorisation per rho
         level, wall, error = uniform_level(solve_adaptive, scene(N), lambda model, res: _h1_error(model, res.z),

@@ -53,10 +53,13 @@ def test_errors_fall_with_refinement_and_the_estimates_are_effective(quick):
     _, rows, _ = quick
     for key in {(r["scene"], r["order"], r["method"]) for r in rows if r["scene"] != "hertz"}:   # Hertz: below
         s = sorted((r for r in rows if (r["scene"], r["order"], r["method"]) == key), key=lambda r: r["unknowns"])
-        errors = [r["true_error"] for r in s]
+        # NaN: not measurable by the energy (an x-iterate a little infeasible has J(u_h) below the quick J_ref)
+        errors = [r["true_error"] for r in s if math.isfinite(r["true_error"])]
+        assert len(errors) >= len(s) - 1, (key, [r["true_error"] for r in s])
         assert all(b < a for a, b in zip(errors, errors[1:])), (key, errors)
-        assert all(0 < r["effectivity"] < math.inf for r in s), key
-        assert all(0.3 < r["effectivity"] < 3 for r in s), key     # the issue's factor 3 band, around 1
+        measured = [r for r in s if math.isfinite(r["true_error"])]
+        assert all(0 < r["effectivity"] < math.inf for r in measured), key
+        assert all(0.3 < r["effectivity"] < 3 for r in measured), key     # the issue's factor 3 band, around 1
         # today's stop (RelativeChange) may end converged_inaccurate: its complementarity check (issue #24)
         allowed = {"converged", "converged_inaccurate"} if key[2].startswith("uniform_today") else {"converged"}
         assert all(r["status"] in allowed for r in s), key
@@ -68,6 +71,10 @@ def test_errors_fall_with_refinement_and_the_estimates_are_effective(quick):
             if key[0] not in ("obstacle", "ex2"):
                 assert all(r["iterations"] <= s[0]["iterations"] for r in s[1:]), key     # the warm start
             assert all(r["iterations"] <= r["cold_iterations"] for r in s[1:]), key  # against a cold start there
+            # the balanced stop's guarantee, checked against the exact discrete solution of each level
+            ratios = [r["algebraic_over_estimate"] for r in s]
+            assert all(0 < a <= 0.1 * (1 + 1e-6) for a in ratios if math.isfinite(a)), (key, ratios)
+            assert sum(math.isfinite(a) for a in ratios) >= len(ratios) - 1, (key, ratios)
         else:
             assert all(r["iterations"] == r["cold_iterations"] for r in s), key
 
