@@ -141,6 +141,7 @@ def solve(
     x, z, lam, Ax = run.x, run.z, run.lam, run.Ax
     accel = None if accelerator is None else Acceleration(accelerator, run.order, checks.inner_of(problem))
     fast = FastForward(run, enabled=run.compiled and accel is None)    # unread iterations, compiled (segments)
+    iterate = fast.serve(iterate)                    # ... and a read one the segment ran: its numbers, not a rerun
     rec = final = old = None
     k = 0
     with run.blas_limit():       # the BLAS thread count is restored however the loop ends (an exception, Ctrl-C)

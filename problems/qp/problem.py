@@ -199,10 +199,11 @@ class QP(Problem):
             self._x_rel_prev, self._x_rel, self._x_last = xp, a * x_new + (1.0 - a) * xp, x_new      # (Q4)
         return x_new
 
-    def segment(self, x, z, lam, Ax, rho, alpha, order, count):
-        """``count`` iterations in one compiled call (:mod:`admmkit.segments`), or None where it does not apply."""
+    def segment(self, x, z, lam, Ax, rho, alpha, order, count, read=False):
+        """``count`` iterations in one compiled call (:mod:`admmkit.segments`; ``read``: the last is a read one), or
+        None where it does not apply."""
         from .segment import run_segment
-        return run_segment(self, x, z, lam, Ax, rho, alpha, order, count)
+        return run_segment(self, x, z, lam, Ax, rho, alpha, order, count, read)
 
     def after_segment(self, x, x_prev, x_rel, x_rel_prev, done: int) -> None:
         """The x-step's bookkeeping after a segment of ``done`` iterations ended at x (its x-step's output)."""

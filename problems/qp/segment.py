@@ -27,12 +27,14 @@ from admmkit.compiled import AVAILABLE, all_finite, csc_matvec, ldl_solve, njit
 
 @njit(cache=True)
 def _xz_kkt(count, rho, alpha, a, sigma, Lp, Li, Lx, Dinv, perm, Ap, Ai, Ad, q, lo, up, free, w_free,
-            x, x_prev, x_rel, x_rel_prev, z, lam, Ax, rhs, sol, work):
+            x, x_prev, x_rel, x_rel_prev, z, lam, Ax, rhs, sol, work, keep_last, z_last, lam_last, Ax_last, hat):
     """``count`` iterations on the state arrays (x, x_prev, x_rel, x_rel_prev, z, lam, Ax), in place;
-    returns the number done (fewer if a step would meet a non-finite number)."""
+    returns the number done (fewer if a step would meet a non-finite number).  With ``keep_last``, the
+    last iteration's z, lam, A x in (its x is then x_prev) and its relaxed vector (``hat``) are kept."""
     n, m = x.shape[0], z.shape[0]
     relax_x, relax = a != 1.0, alpha != 1.0
     for it in range(count):
+        last = keep_last and it == count - 1
         for i in range(n):
             rhs[i] = sigma * x_rel[i] - q[i]                                    # (Q1)
         for i in range(m):
@@ -44,6 +46,9 @@ def _xz_kkt(count, rho, alpha, a, sigma, Lp, Li, Lx, Dinv, perm, Ap, Ai, Ad, q, 
         ldl_solve(Lp, Li, Lx, Dinv, perm, rhs, work, sol)
         if not all_finite(sol, 0, n + m):
             return it
+        if last:
+            for i in range(m):
+                z_last[i], lam_last[i], Ax_last[i] = z[i], lam[i], Ax[i]
         for i in range(n):
             x_prev[i] = x[i]
             x[i] = sol[i]
@@ -56,6 +61,8 @@ def _xz_kkt(count, rho, alpha, a, sigma, Lp, Li, Lx, Dinv, perm, Ap, Ai, Ad, q, 
         csc_matvec(Ap, Ai, Ad, x, Ax)
         for i in range(m):
             h = alpha * Ax[i] + (1.0 - alpha) * z[i] if relax else Ax[i]
+            if last:
+                hat[i] = h
             v = h + lam[i] / rho                                                # (Q2)
             if v < lo[i]:
                 v = lo[i]
@@ -102,12 +109,14 @@ def kkt_x_step(qp, xp, z, lam, rho: float):
     return sol[:qp.n]
 
 
-def run_segment(qp, x, z, lam, Ax, rho: float, alpha: float, order: str, count: int):
+def run_segment(qp, x, z, lam, Ax, rho: float, alpha: float, order: str, count: int, read: bool = False):
     """``count`` iterations of ``qp`` from (x, z, lam, Ax) in one compiled call, or None where the kernel does
     not apply (order "zx", the reduced x-step, a backend other than qdldl, numba missing).
 
     Returns (x, z, lam, Ax, done) in new arrays; the QP's relaxed-x bookkeeping (Q4) follows, and its
-    solve counter grows by ``done``.
+    solve counter grows by ``done``.  ``read``: the last iteration is one the loop reads
+    (:mod:`admmkit.segments`); a sixth item, (x, z, lam, A x) it started from and its relaxed vector (None
+    when alpha = 1), is returned, None unless all ``count`` iterations were done.
     """
     if not AVAILABLE or order != "xz" or qp.xstep != "kkt":
         return None
@@ -121,9 +130,14 @@ def run_segment(qp, x, z, lam, Ax, rho: float, alpha: float, order: str, count: 
     size = qp.n + qp.m
     rhs, sol, work = np.empty(size), np.empty(size), np.empty(size)
     As = qp.As
+    m = z.shape[0]
+    kept = (np.empty(m), np.empty(m), np.empty(m), np.empty(m)) if read else (work[:0],) * 4
     done = _xz_kkt(count, float(rho), float(alpha), a, qp.sigma, *factors, As.indptr, As.indices, As.data,
                    qp.qs, qp.ls, qp.us, qp._free, qp._w_free_over_penalty,
-                   x, x_prev, x_rel, x_rel_prev, z, lam, Ax, rhs, sol, work)
+                   x, x_prev, x_rel, x_rel_prev, z, lam, Ax, rhs, sol, work, read, *kept)
     if done:
         qp.after_segment(x, x_prev, x_rel, x_rel_prev, done)
-    return x, z, lam, Ax, done
+    if not read:
+        return x, z, lam, Ax, done
+    last = (x_prev, *kept[:3], kept[3] if alpha != 1.0 else None) if done == count else None
+    return x, z, lam, Ax, done, last

@@ -62,11 +62,31 @@ def test_maros_meszaros_bit_for_bit(name):
     same_run(solve_qp(qp), solve_qp(qp, compiled=False))
 
 
-def test_a_rule_that_reads_every_record_runs_in_python():
+def test_a_rule_that_reads_every_record_gets_every_record():
+    """Each iteration is then a read one: the segment runs it alone and the loop builds its record from the
+    segment's numbers (admmkit.segments, read=True); the run is the Python path's, bit for bit."""
+    qdldl_or_skip()
     qp = random_qp(30, 40, seed=8)
     fast = solve_qp(qp, policy=Summable(), max_iter=200)
-    assert "compiled_iterations" not in fast.counters
+    assert fast.counters["compiled_iterations"] == fast.iterations
     same_run(fast, solve_qp(qp, policy=Summable(), max_iter=200, compiled=False))
+
+
+def test_the_read_iteration_from_the_segment_is_the_python_ones():
+    """The segment's read iteration: its inputs and relaxed vector as the Python steps compute them."""
+    qdldl_or_skip()
+    qp = random_qp(20, 30, seed=21)
+    run, run6 = qp_for(qp, osqp_settings()), qp_for(qp, osqp_settings())     # each keeps its own relaxed x (Q4)
+    run.setup(0.1)
+    run6.setup(0.1)
+    x, z, lam = np.zeros(run.n), np.zeros(run.m), np.zeros(run.m)
+    x1, z1, lam1, Ax1, done, last = run_segment(run, x, z, lam, run.As @ x, 0.1, 1.6, "xz", 7, read=True)
+    x6, z6, lam6, Ax6, done6 = run_segment(run6, x, z, lam, run.As @ x, 0.1, 1.6, "xz", 6)
+    assert done == 7 and done6 == 6
+    x_j, z_j, lam_j, Ax_j, hat = last
+    for a, b in ((x_j, x6), (z_j, z6), (lam_j, lam6), (Ax_j, Ax6)):
+        assert np.array_equal(a, b)
+    assert np.array_equal(hat, 1.6 * Ax1 + (1.0 - 1.6) * z6)
 
 
 def test_a_callback_or_the_full_history_sees_every_iteration():
