@@ -29,7 +29,8 @@ solves with them.
 
 Why compiled code and why numba: the factorisation is a loop over scalars
 that numpy cannot vectorise; numba compiles it at the first call (cached on
-disk: a fresh process loads it in 0.1-0.3 s), is already a dependency and
+disk: a fresh process imports numba and loads the kernels in about 0.5 s,
+measured on the 2-core machine of the benchmarks), is already a dependency and
 needs no compiler on the user's machine, where a C extension (or a Cython
 one) would.  ``fastmath`` stays off: the results are the same bits on every
 run.  Without supernodes every update is a scalar loop, so the cost grows
