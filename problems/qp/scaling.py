@@ -128,7 +128,7 @@ class _Entries:
 
 
 def _csc(M):
-    """``M`` as a float CSC matrix (``M`` itself when it is one)."""
+    """``M`` as a float CSC matrix (``M`` itself when it is one: a new scipy object costs ~10 us)."""
     return M if sp.isspmatrix_csc(M) and M.dtype == np.float64 else sp.csc_matrix(M, dtype=float)
 
 

@@ -10,6 +10,7 @@ import scipy.sparse as sp
 from admmkit.segments import AVAILABLE as NUMBA      # numba installed (asked once, without importing it)
 
 from .convexity import check_convex
+from .scaling import _csc
 
 def _inf(v) -> float:
     return float(np.max(np.abs(v), initial=0.0))
@@ -27,11 +28,6 @@ def _real(name: str, value, sparse_ok: bool = False):
         return np.asarray(value, dtype=float)
     except (TypeError, ValueError):
         raise ValueError(f"{name} must be an array of numbers, got {value!r:.60}") from None
-
-
-def _as_csc(M) -> sp.csc_matrix:
-    """``M`` as a float64 CSC matrix: ``M`` itself when it is one (a new scipy object costs ~10 us)."""
-    return M if sp.isspmatrix_csc(M) and M.dtype == np.float64 else sp.csc_matrix(M, dtype=float)
 
 
 def _canonical(M: sp.csc_matrix) -> sp.csc_matrix:
@@ -63,7 +59,7 @@ def _validate(P, q, A, l, u, allow_nonconvex: bool = False):
     P = _real("P", P, sparse_ok=True)
     if not sp.issparse(P) and P.ndim != 2:
         raise ValueError(f"P must be a square matrix, got an array of shape {P.shape}")
-    P = _as_csc(P)
+    P = _csc(P)
     n = P.shape[0]
     if P.shape != (n, n):
         raise ValueError(f"P must be square (n x n), got shape {P.shape}")
@@ -90,7 +86,7 @@ def _validate(P, q, A, l, u, allow_nonconvex: bool = False):
     A = _real("A", A, sparse_ok=True)
     if not sp.issparse(A):
         A = np.atleast_2d(A)
-    A = _as_csc(A)
+    A = _csc(A)
     if A.shape[1] != n:
         raise ValueError(f"A must have n = {n} columns (from P), got shape {A.shape}")
     if not np.all(np.isfinite(A.data)):
