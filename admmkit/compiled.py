@@ -48,6 +48,25 @@ def _u(i):
     return np.uint64(i)
 
 
+@njit(cache=True, inline="always")
+def ldl_forward(Lp, Li, Lx, x, start):
+    """x <- (I + L)^{-1} x in place, column by column from ``start`` (x[:start] is zero)."""
+    for j in range(start, x.shape[0]):
+        xj = x[j]
+        for p in range(_u(Lp[j]), _u(Lp[j + 1])):
+            x[_u(Li[p])] -= Lx[p] * xj
+
+
+@njit(cache=True, inline="always")
+def ldl_backward(Lp, Li, Lx, x):
+    """x <- (I + L)^{-T} x in place, row by row from the last."""
+    for j in range(x.shape[0] - 1, -1, -1):
+        s = x[j]
+        for p in range(_u(Lp[j]), _u(Lp[j + 1])):
+            s -= Lx[p] * x[_u(Li[p])]
+        x[j] = s
+
+
 @njit(cache=True)
 def ldl_solve(Lp, Li, Lx, Dinv, perm, b, work, out):
     """out = K^-1 b with K = P (I + L) D (I + L)' P' (qdldl's factors); ``work`` is scratch of length n.
@@ -59,17 +78,10 @@ def ldl_solve(Lp, Li, Lx, Dinv, perm, b, work, out):
     n = perm.shape[0]
     for i in range(n):
         work[i] = b[_u(perm[i])]
-    for i in range(n):                                  # (I + L) y = b, column by column
-        xi = work[i]
-        for j in range(_u(Lp[i]), _u(Lp[i + 1])):
-            work[_u(Li[j])] -= Lx[j] * xi
+    ldl_forward(Lp, Li, Lx, work, 0)                    # (I + L) y = b, column by column
     for i in range(n):                                  # y <- D^-1 y
         work[i] *= Dinv[i]
-    for i in range(n - 1, -1, -1):                      # (I + L)' x = y, row by row
-        s = work[i]
-        for j in range(_u(Lp[i]), _u(Lp[i + 1])):
-            s -= Lx[j] * work[_u(Li[j])]
-        work[i] = s
+    ldl_backward(Lp, Li, Lx, work)                      # (I + L)' x = y, row by row
     for i in range(n):
         out[_u(perm[i])] = work[i]
 

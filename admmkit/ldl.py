@@ -45,7 +45,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from admmkit.compiled import AVAILABLE, _u, ldl_solve, njit
+from admmkit.compiled import AVAILABLE, _u, ldl_backward, ldl_forward, ldl_solve, njit
 
 
 @dataclass
@@ -81,13 +81,13 @@ class LDLFactor:
     def forward(self, b: np.ndarray, start: int = 0) -> np.ndarray:
         """(I + L)^{-1} b in the permuted order (a new array); ``start``: b is zero before it (skipped)."""
         y = np.array(b, dtype=np.float64)
-        _forward(self.Lp, self.Li, self.Lx, y, start)
+        ldl_forward(self.Lp, self.Li, self.Lx, y, start)
         return y
 
     def backward(self, y: np.ndarray) -> np.ndarray:
         """(I + L)^{-T} y in the permuted order (a new array)."""
         x = np.array(y, dtype=np.float64)
-        _backward(self.Lp, self.Li, self.Lx, x)
+        ldl_backward(self.Lp, self.Li, self.Lx, x)
         return x
 
     def solve_permuted(self, b: np.ndarray) -> np.ndarray:
@@ -175,25 +175,6 @@ def ldl_factor(A: sp.spmatrix, order: np.ndarray | None = None, analysis: LDLAna
         raise np.linalg.LinAlgError(f"zero or non-finite pivot {d[bad]!r} at step {bad} of {n}: the matrix is "
                                     "singular, or not factorisable without pivoting in this order")
     return LDLFactor(a.order, Lp, Li, Lx, d)
-
-
-@njit(cache=True)
-def _forward(Lp, Li, Lx, x, start):
-    """x <- (I + L)^{-1} x in place, column by column from ``start`` (x[:start] is zero)."""
-    for j in range(start, x.shape[0]):
-        xj = x[j]
-        for p in range(_u(Lp[j]), _u(Lp[j + 1])):
-            x[_u(Li[p])] -= Lx[p] * xj
-
-
-@njit(cache=True)
-def _backward(Lp, Li, Lx, x):
-    """x <- (I + L)^{-T} x in place, row by row from the last."""
-    for j in range(x.shape[0] - 1, -1, -1):
-        s = x[j]
-        for p in range(_u(Lp[j]), _u(Lp[j + 1])):
-            s -= Lx[p] * x[_u(Li[p])]
-        x[j] = s
 
 
 @njit(cache=True)
