@@ -37,7 +37,7 @@ from typing import Callable
 
 import admmkit
 
-from admmkit.problems.contact.solvers.coulomb import CoulombReport, coulomb_fixed_point
+from admmkit.problems.contact.solvers.coulomb import CoulombReport, coulomb_fixed_point, warm_z0
 from admmkit.problems.contact.solvers.methods import method
 
 #: the tangential models of the adaptive loop (each has a guaranteed algebraic error bound)
@@ -75,9 +75,8 @@ def solve_level(problem, stop, method_name: str, rho: float, max_iter: int, star
         order_, rule = method(method_name)
         if warm is None:
             return admmkit.solve(problem, rho=rho, policy=rule, order=order_, stop=stop, max_iter=max_iter, **start())
-        z0 = problem.z_step(problem.apply_A(warm.x_iterate), warm.lam, warm.rho, warm.z)
         return admmkit.solve(problem, rho=None, policy=rule, order=order_, stop=stop, max_iter=max_iter,
-                             warm_start=warm, z0=z0)
+                             warm_start=warm, z0=warm_z0(problem, warm))
 
     def settled(previous, last) -> bool:     # ||u^j - u^{j-1}||_a <= gamma eta: the fixed point's step balanced
         return problem.x_distance(previous.x_iterate, last.x_iterate) <= stop.gamma * stop.discretisation

@@ -12,7 +12,7 @@ from admmkit import RelativeChange
 from admmkit.policies.paper_methods import PAPER_METHODS as METHODS, method  # noqa: F401  (re-exported)
 
 from admmkit.problems.contact.model.assembly import ContactOperators, assemble
-from admmkit.problems.contact.solvers.coulomb import CoulombReport, coulomb_fixed_point
+from admmkit.problems.contact.solvers.coulomb import CoulombReport, coulomb_fixed_point, warm_z0
 from admmkit.problems.contact.model.memory import check_memory
 from admmkit.problems.contact.solvers.problem import contact_problem
 from admmkit.problems.contact.model.scene import Scene
@@ -136,10 +136,7 @@ def solve_scene(scene, method_name: str = "sadmm", rho: float = 1e3, *,
 
     def run(warm):   # one Tresca solve, a fresh rule each time, warm-started from the last one
         order_, rule = method(method_name, order)
-        # z^0 from a z-step with the new slip bound: in order "xz" the first x-step would otherwise not
-        # see the new s, change u little, and let a relative-change stop fire at once (measured: the
-        # fixed point then "converged" after 2 steps with an error of 0.2)
-        z0 = None if warm is None else problem.z_step(problem.apply_A(warm.x_iterate), warm.lam, warm.rho, warm.z)
+        z0 = None if warm is None else warm_z0(problem, warm)           # a z-step with the new slip bound
         return admmkit.solve(problem, rho=None if warm is not None else rho, policy=rule, order=order_ or default_order,
                              stop=stop, max_iter=max_iter, callback=callback, warm_start=warm, z0=z0)
 
