@@ -30,7 +30,7 @@ from ngsolve.meshes import MakeStructured2DMesh
 
 from admmkit import Problem
 from admmkit.prox import Box, UpperBound
-from admmkit.problems.fe import areas, p1_mass, triangles
+from admmkit.problems.fe import ADAPTIVE_TASKS_MIN_ELEMENTS, areas, ngsolve_tasks, p1_mass, triangles
 from admmkit.xstep import QuadraticXStep
 
 from .xstep import JacobiCG
@@ -124,7 +124,8 @@ class ObstacleProblem(Problem):
         """(K on all dofs, f -> M f, the lumped mass on all dofs).  The mass is only applied (to f) and lumped:
         element by element, not assembled (0.33 s at 4.7e5 cells)."""
         u, v = self.fes.TnT()
-        K = csr_of(ng.BilinearForm(ng.grad(u) * ng.grad(v) * ng.dx).Assemble().mat)
+        with ngsolve_tasks(self.mesh.ne, ADAPTIVE_TASKS_MIN_ELEMENTS):
+            K = csr_of(ng.BilinearForm(ng.grad(u) * ng.grad(v) * ng.dx).Assemble().mat)
         lumped, mass = p1_mass(self.nodes, self.tri, self.area)
         return K, mass, lumped
 

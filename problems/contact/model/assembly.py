@@ -15,7 +15,8 @@ import ngsolve as ng
 import numpy as np
 import scipy.sparse as sp
 
-from admmkit.problems.contact.model.fastpaths import component_map, free_dofs, ngsolve_tasks
+from admmkit.problems.contact.model.fastpaths import component_map, free_dofs
+from admmkit.problems.fe import ngsolve_tasks
 from admmkit.problems.contact.solvers.friction import Friction, friction_of, tangent_frames
 from admmkit.problems.contact.model.mesh import geometry_mesh, structured_rectangle, unstructured_rectangle
 from admmkit.problems.contact.model.scene import Scene

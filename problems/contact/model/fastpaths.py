@@ -2,7 +2,7 @@
 
 Measured on Example 1 at h = 1/500 (1,002,000 free unknowns, 1000 contact nodes):
 
-- :func:`ngsolve_tasks`: NGSolve's task manager around the bilinear form's
+- :func:`admmkit.problems.fe.ngsolve_tasks`: NGSolve's task manager around the bilinear form's
   assembly (2.6 -> 1.5 s with the second core free; about the same time when
   another process holds it);
 - :func:`free_dofs`: the free dofs from NGSolve's projector applied to ones,
@@ -13,31 +13,9 @@ Measured on Example 1 at h = 1/500 (1,002,000 free unknowns, 1000 contact nodes)
 """
 from __future__ import annotations
 
-from contextlib import contextmanager
-
 import ngsolve as ng
 import numpy as np
 import scipy.sparse as sp
-
-
-#: meshes with fewer elements assemble without the task manager
-TASKS_MIN_ELEMENTS = 200_000
-
-
-@contextmanager
-def ngsolve_tasks(elements: int):
-    """NGSolve's ``TaskManager`` (its default thread count, one per core) for the block, on a mesh of at least
-    TASKS_MIN_ELEMENTS elements.
-
-    Each of its parallel loops waits for every thread: with the other core busy that cost 0.15 s for a
-    form of 3,200 elements (0.02 s without it), so small meshes go without.  The assembled values do not
-    depend on it (compared entry by entry).
-    """
-    if elements < TASKS_MIN_ELEMENTS:
-        yield
-        return
-    with ng.TaskManager():
-        yield
 
 
 def free_dofs(fes: ng.comp.FESpace) -> np.ndarray:
