@@ -23,7 +23,8 @@ from .record import IterationRecord
 from .result import Result, Status
 from .solver import solve
 from .split import SplitProblem
-from .stopping import AllOf, AnyOf, BalancedStop, RelativeChange, ResidualTolerance, Stop, StoppingRule, default_stop
+from .balanced_stop import BalancedStop
+from .stopping import AllOf, AnyOf, RelativeChange, ResidualTolerance, Stop, StoppingRule, default_stop
 from .xstep import QuadraticXStep
 
 __version__ = "0.1.0"

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import argparse
 
+from .balanced_stop import GAMMA
 from .cli import positive_float
 
 
@@ -15,7 +16,8 @@ def add_adaptive_options(parser: argparse.ArgumentParser, *, max_levels: int = 2
     FE plug-in with error estimates (read by :func:`adaptive_options` and :func:`estimator_name`)."""
     parser.add_argument("--balance", type=positive_float, default=None, metavar="GAMMA",
                         help="stop when a guaranteed bound of the algebraic error is below GAMMA x the estimated "
-                             "discretisation error, 0 < GAMMA <= 1 (instead of --tol / --eps-abs)")
+                             "discretisation error, 0 < GAMMA <= 1 (instead of --tol / --eps-abs; with --target-error, and "
+                             "for solve obstacle, GAMMA is 0.3 unless given)")
     parser.add_argument("--target-error", type=positive_float, default=None, metavar="E",
                         help="refine adaptively from --h until the estimated relative energy error is <= E, "
                              "0 < E < 1 (--estimator, Doerfler marking, each level warm-started, stopped balanced)")
@@ -64,12 +66,12 @@ def balance_line(stop, norm: str) -> str:
 
 
 def adaptive_options(args) -> dict:
-    """The adaptive loop's keywords from :func:`add_adaptive_options` (gamma 0.1 unless --balance, the estimator);
+    """The adaptive loop's keywords from :func:`add_adaptive_options` (gamma GAMMA (0.3, admmkit.balanced_stop) unless --balance, the estimator);
     ValueError naming the option and its range, and refusing --tol / --eps-abs beside them."""
     if args.tol is not None or args.eps_abs is not None:
         raise ValueError("--target-error stops every level balanced (--balance); it cannot be combined with "
                          "--tol or --eps-abs")
-    gamma = balance_gamma(args, 0.1)
+    gamma = balance_gamma(args, GAMMA)
     for flag, value, ok, accepted in [("--target-error", args.target_error, 0 < args.target_error < 1, "(0, 1)"),
                                       ("--theta", args.theta, 0 < args.theta < 1, "(0, 1)"),
                                       ("--max-levels", args.max_levels, args.max_levels >= 1, "an integer >= 1"),

@@ -127,65 +127,6 @@ def default_stop() -> "ResidualTolerance":
     return ResidualTolerance(1e-6, 1e-5)
 
 
-#: a balanced stop refreshes an estimate that would not let it fire after this many iterations (near firing)
-REFRESH = 10
-
-
-class BalancedStop(StoppingRule):
-    """Stop when the algebraic error is below ``gamma`` x the estimated discretisation error (Ern & Vohralik).
-
-    A plug-in with error estimates subclasses it and gives the two measures of
-    an iterate, in the same (energy) norm: :meth:`algebraic_error_bound`
-    (a guaranteed bound; inf where it cannot tell) and
-    :meth:`discretisation_estimate`.  They are compared every ``every``
-    iterations; ``algebraic`` and ``discretisation`` hold the last values
-    computed.  The estimate, often the dearer of the two, is computed afresh
-    only where the bound is within twice gamma x the last estimate (it moves
-    little from one iterate to the next), and there only where the last
-    estimate would let the rule fire or is ``REFRESH`` (10) iterations old (a
-    test every 2 iterations would otherwise pay an estimate at each); the
-    rule fires only on a fresh one.
-    ``tolerance`` is None: the rule's own test is the accuracy check, so
-    ``converged`` means "the algebraic error is below gamma x the estimated
-    discretisation error".
-    """
-
-    requires = ()
-    tolerance = None
-
-    def __init__(self, gamma: float = 0.1, every: int = 10):
-        if isinstance(gamma, bool) or not isinstance(gamma, (int, float)) or not 0 < gamma <= 1:
-            raise ValueError(f"gamma = {gamma!r} is outside the accepted range (0, 1]")
-        if isinstance(every, bool) or not isinstance(every, int) or every < 1:
-            raise ValueError(f"every = {every!r} is outside the accepted range: an integer >= 1")
-        self.gamma, self.every = float(gamma), every
-        self.algebraic = self.discretisation = math.nan
-        self._estimated_at = -REFRESH                  # the iteration of the last estimate
-        self.name = f"balanced(gamma={self.gamma:g}): algebraic error bound <= gamma x ZZ discretisation estimate"
-
-    def algebraic_error_bound(self, rec: IterationRecord) -> float:
-        """A guaranteed bound of the algebraic error of the iterate the run returns (inf: none here)."""
-        raise NotImplementedError
-
-    def discretisation_estimate(self, rec: IterationRecord) -> float:
-        """An estimate of the discretisation error of that iterate."""
-        raise NotImplementedError
-
-    def fired(self, rec: IterationRecord) -> str | None:
-        """The rule's name when the bound is at most gamma x the estimate at this record, else None."""
-        if (rec.k + 1) % self.every:
-            return None
-        self.algebraic = self.algebraic_error_bound(rec)
-        if not math.isfinite(self.algebraic):
-            return None
-        if math.isfinite(self.discretisation) and self.algebraic > self.gamma * self.discretisation and (
-                self.algebraic > 2.0 * self.gamma * self.discretisation or rec.k - self._estimated_at < REFRESH):
-            return None            # not firing by the last estimate (it moves little): the bound alone decides
-        self.discretisation = self.discretisation_estimate(rec)     # fresh at every iterate that may fire
-        self._estimated_at = rec.k
-        return self.name if self.algebraic <= self.gamma * self.discretisation else None
-
-
 class AnyOf(StoppingRule):
     """Fires when any of its rules fires (the first one's name is reported)."""
 

@@ -2,8 +2,9 @@
 
 Issue #24's target: on every adaptive level the algebraic error of the
 returned solution is within [0.05, 0.5] of the discretisation error (the
-balanced stop fires at gamma = 0.1 of the estimate, so a sharp bound puts it
-near 0.1, a loose one lower).  The exact discrete solution u_h* of a level:
+balanced stop fires at gamma = 0.3 of the estimate, so a sharp bound puts it
+near 0.3 or, where one iteration cuts the error several times, lower; a loose
+bound lower still).  The exact discrete solution u_h* of a level:
 
 * contact: the condensed mode's SADMM continued from the level's result to a
   relative change of 1e-13 (the boundary problem is small: O(n_c^2) an

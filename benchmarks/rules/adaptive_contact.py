@@ -119,5 +119,5 @@ def cold_contact(ops) -> int:
     from admmkit.problems.contact.solvers.problem import contact_problem
     problem = contact_problem(ops, mode="condensed")
     order, policy = method("sadmm")
-    return admmkit.solve(problem, rho=1e3, policy=policy, order=order, stop=BalancedStop(problem, 0.1),
+    return admmkit.solve(problem, rho=1e3, policy=policy, order=order, stop=BalancedStop(problem),
                          max_iter=20_000).iterations

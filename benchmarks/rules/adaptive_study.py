@@ -4,7 +4,7 @@ Scenes: contact Example 1 in P1 and P2, Example 2 in P2, Hertz in P1 and P2
 and the radial obstacle in P1 and P2.  For each:
 
 - **adaptive**: every level of ``solve_adaptive`` (ZZ estimator, Dörfler
-  theta 0.5, balanced stop gamma 0.1, warm start), from the scene's coarse
+  theta 0.5, balanced stop gamma 0.3 (``admmkit.balanced_stop.GAMMA``), warm start), from the scene's coarse
   mesh to a target estimate; the wall time is cumulative over the levels
   (meshing, assembly, refinement, solve and estimate; the time spent here
   computing the true error and the cold starts is left out);
@@ -123,7 +123,7 @@ def _h1_error(problem, z) -> float:
 def _cold_obstacle(problem) -> int:
     """Iterations of a cold start on an adaptive level (the same stop, rule and rho_0 as solve_adaptive's)."""
     from admmkit.problems.obstacle.estimate import BalancedStop
-    return admmkit.solve(problem, rho=1.0, policy="summable", order="zx", stop=BalancedStop(problem, 0.1),
+    return admmkit.solve(problem, rho=1.0, policy="summable", order="zx", stop=BalancedStop(problem),
                          max_iter=10_000).iterations
 
 

@@ -34,8 +34,36 @@ def test_fires_when_the_bound_is_below_gamma_times_the_estimate(vector_problem):
     assert res.converged and res.stopped_by == stop.name
     assert stop.algebraic <= 0.1 * 1e-5 == 0.1 * stop.discretisation
     assert np.max(np.abs(res.z - z_star)) <= 1e-6
-    assert all(k % 5 == 0 for k in stop.calls) and stop.calls[-1] == res.iterations
+    assert stop.calls[:2] == [1, 2] and stop.calls == stop.tests and stop.calls[-1] == res.iterations
+    assert all(1 <= b - a <= 5 for a, b in zip(stop.calls, stop.calls[1:]))      # at most `every` apart
     assert stop.calls[:-1] and all(k < res.iterations for k in stop.calls[:-1])   # it did not fire earlier
+
+
+def test_the_schedule_stops_near_the_crossing_with_few_tests(vector_problem):
+    """Tested at every iteration the rule fires at the first iterate whose error is <= gamma eta (k_star);
+    with the predicted schedule it fires at most 2 iterations later, after far fewer tests."""
+    z_star = solve(vector_problem, rho=1.0, order="zx", stop=ResidualTolerance(1e-14, 1e-14), max_iter=5000).z
+    run = lambda every: solve(vector_problem, rho=1.0, policy="fixed", order="zx",      # noqa: E731
+                              stop=Known(1e-6, z_star, gamma=0.3, every=every), max_iter=5000)
+    k_star = run(1).iterations
+    stop = Known(1e-6, z_star, gamma=0.3, every=50)
+    res = solve(vector_problem, rho=1.0, policy="fixed", order="zx", stop=stop, max_iter=5000)
+    assert res.converged and k_star >= 20
+    assert k_star <= res.iterations <= k_star + 2
+    assert len(stop.tests) <= k_star / 3
+
+
+def test_a_plug_in_may_test_later_first():
+    """``first_tests`` moves the first two tests; the defaults are iterations 1 and 2."""
+    from types import SimpleNamespace
+
+    class Late(Known):
+        first_tests = (2, 3)
+    stop = Late(1.0, gamma=0.3, every=10)
+    stop.algebraic_error_bound = lambda rec: 10.0
+    assert [rec_k + 1 for rec_k in range(6) if stop.fired(SimpleNamespace(k=rec_k)) is None and
+            (stop.tests and stop.tests[-1] == rec_k + 1)] == [2, 3]
+    assert Known(1.0).first_tests == (1, 2)
 
 
 def test_an_infinite_bound_never_fires(scalar_problem):

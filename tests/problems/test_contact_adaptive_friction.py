@@ -3,6 +3,7 @@ scenes, the command line and its refusals."""
 import numpy as np
 import pytest
 
+from admmkit.balanced_stop import GAMMA
 import admmkit
 from admmkit import ResidualTolerance
 from admmkit.cli import main
@@ -104,7 +105,7 @@ def tresca_adapted():
 def test_adaptive_tresca_reaches_the_target_with_balanced_warm_levels(tresca_adapted):
     out = tresca_adapted
     assert out.reached and all(lvl.status == "converged" for lvl in out.levels) and len(out.levels) >= 3
-    assert all(lvl.algebraic_bound <= 0.1 * lvl.estimate for lvl in out.levels)
+    assert all(lvl.algebraic_bound <= GAMMA * lvl.estimate for lvl in out.levels)
     assert out.levels[-1].relative_estimate <= 2e-2 < min(lvl.relative_estimate for lvl in out.levels[:-1])
     assert max(lvl.iterations for lvl in out.levels[1:]) <= out.levels[0].iterations + 10
     assert all(lvl.tresca_solves == 0 for lvl in out.levels)
@@ -135,7 +136,7 @@ def test_adaptive_coulomb_levels_end_within_their_balance_of_the_discrete_soluti
                         coulomb_max_outer=60)
     assert tight.converged
     e = out.result.x - tight.u
-    assert np.sqrt(e @ (ops.K @ e)) <= 0.1 * last.estimate
+    assert np.sqrt(e @ (ops.K @ e)) <= GAMMA * last.estimate
 
 
 def test_coulomb_fixed_point_starts_from_s0_and_ends_settled():

@@ -75,7 +75,7 @@ def test_the_documented_default_run_converges_for_a_reason_that_holds(capsys):
     """`admmkit solve obstacle --scene radial` used to end converged_inaccurate (exit 1)."""
     assert main(["solve", "obstacle", "--scene", "radial", "-q"]) == 0
     out = capsys.readouterr().out
-    assert "status       converged  (balanced(gamma=0.1)" in out and "balance      algebraic error <=" in out
+    assert "status       converged  (balanced(gamma=0.3)" in out and "balance      algebraic error <=" in out
 
 
 @pytest.mark.parametrize("argv, message", [(["--balance", "2"], "--balance = 2 is outside the accepted range (0, 1]"),

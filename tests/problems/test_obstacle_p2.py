@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 import scipy.linalg as la
 
+from admmkit.balanced_stop import GAMMA
 import admmkit
 from admmkit.cli import main
 from admmkit.problems.obstacle import ObstacleProblem, ObstacleProblemP2, make_problem, radial, solve_with_cvxpy
@@ -134,11 +135,11 @@ def test_adaptive_p2_beats_adaptive_p1_and_a_warm_level_ends_where_a_cold_one_do
     last = p2.levels[-1]
     assert 0.5 <= last.estimate / last.errors["H1_semi"] <= 3.0
     model, warm = p2.model, p2.result
-    cold = admmkit.solve(model, rho=1.0, policy="summable", order="zx", stop=BalancedStop(model, 0.1),
+    cold = admmkit.solve(model, rho=1.0, policy="summable", order="zx", stop=BalancedStop(model, GAMMA),
                          max_iter=10_000)
     assert cold.status.value == "converged" and warm.status.value == "converged"
     d = warm.z - cold.z       # both within gamma x eta of u_h in the energy norm, so within 2 gamma eta of each other
-    assert math.sqrt(d @ (model.K @ d)) <= 2 * 0.1 * last.estimate * 1.001
+    assert math.sqrt(d @ (model.K @ d)) <= 2 * GAMMA * last.estimate * 1.001
 
 
 def test_cli_reaches_the_issue_target_in_p2(capsys, tmp_path):

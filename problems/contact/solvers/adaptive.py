@@ -35,13 +35,14 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass
 
-import ngsolve as ng
 import numpy as np
 
 from admmkit.adaptive import AdaptiveResult, check_adaptive, dorfler_mark, needed_unknowns
+from admmkit.balanced_stop import GAMMA
 
 from admmkit.problems.contact.model.assembly import ContactOperators, assemble, build_mesh
 from admmkit.problems.contact.model.scene import Scene
+from admmkit.problems.fe import refine_marked
 from admmkit.problems.contact.model.scene3d import Scene3D
 from admmkit.problems.contact.solvers.adaptive3d import assemble3d_on, mesh3d, surface_interpolate, unknowns3d
 from admmkit.problems.contact.solvers.adaptive_friction import check_adaptive_model, solve_level
@@ -67,7 +68,7 @@ class Level:
     tresca_solves: int = 0          # Coulomb: the fixed point's Tresca solves on this level (0 otherwise)
 
 
-def solve_adaptive(scene: Scene, target: float, *, theta: float = 0.5, gamma: float = 0.1, max_levels: int = 20,
+def solve_adaptive(scene: Scene, target: float, *, theta: float = 0.5, gamma: float = GAMMA, max_levels: int = 20,
                    max_unknowns: int = 2_000_000, method_name: str = "sadmm", rho: float = 1e3,
                    max_iter: int = 20_000, estimator: str = "zz", coulomb_tol: float = 1e-4,
                    log=None) -> AdaptiveResult:
@@ -118,10 +119,7 @@ def solve_adaptive(scene: Scene, target: float, *, theta: float = 0.5, gamma: fl
                 out.message += f" ({res.message})"
             return out
         warm = (ops.xc.copy(), res.lam.copy(), res.rho)
-        marked = dorfler_mark(indicators, theta)
-        for el in mesh.Elements(ng.VOL):
-            mesh.SetRefinementFlag(el, bool(marked[el.nr]))
-        mesh.Refine()
+        refine_marked(mesh, dorfler_mark(indicators, theta))
     return out.capped(max_levels, target)
 
 

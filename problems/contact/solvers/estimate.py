@@ -67,6 +67,7 @@ import numpy as np
 import scipy.linalg as sla
 
 from admmkit import BalancedStop as BaseBalancedStop
+from admmkit.balanced_stop import GAMMA
 
 from admmkit.problems.contact.model.assembly import lame
 from admmkit.problems.contact.solvers.estimate_friction import TrescaGap
@@ -148,14 +149,15 @@ class BalancedStop(BaseBalancedStop):
 
     ``estimator``: ``"zz"`` (this module's, the default) or ``"residual"``
     (:mod:`admmkit.problems.contact.solvers.estimate_residual`, with the pressure
-    that balances the iterate, -w / m_c).  Tested every ``every`` iterations: the
-    bound costs O(n_c^2) on the condensed boundary, the estimate (one solve with
-    K's factorisation) is taken only near firing, so every second iteration is
-    cheap, and a warm-started adaptive level can end after 2-6 iterations where
-    a test every 10 held it to 10 (Example 1's warm levels).
+    that balances the iterate, -w / m_c).  Tested at most ``every`` iterations
+    apart, first at iterations 1 and 2 (:mod:`admmkit.balanced_stop`'s
+    schedule): the bound costs O(n_c^2) on the condensed boundary, the estimate
+    (one solve with K's factorisation) is taken only near firing, and a
+    warm-started adaptive level can end after 1-6 iterations where a test every
+    10 held it to 10 (Example 1's warm levels).
     """
 
-    def __init__(self, problem, gamma: float = 0.1, every: int = 2, estimator: str = "zz"):
+    def __init__(self, problem, gamma: float = GAMMA, every: int = 2, estimator: str = "zz"):
         check_estimator(estimator)
         if estimator == "residual" and getattr(problem, "friction", None) is not None:
             raise ValueError("estimator 'residual' is Hild & Nicaise's frictionless residual estimator (it counts "
