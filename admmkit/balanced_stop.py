@@ -75,9 +75,8 @@ class BalancedStop(StoppingRule):
         self.gamma, self.every = float(gamma), every
         self.algebraic = self.discretisation = math.nan
         self.tests: list[int] = []
-        self._estimated_at = -REFRESH                  # the iteration of the last estimate
-        self._next = self.first_tests[0]                  # the iteration (counted from 1) of the next test
-        self._last: tuple[int, float] | None = None    # (iteration, bound) of the last finite test
+        self._seen = 0                                 # the last iteration this rule was asked about
+        self._restart()
         self.name = f"balanced(gamma={self.gamma:g}): algebraic error bound <= gamma x ZZ discretisation estimate"
 
     def algebraic_error_bound(self, rec: IterationRecord) -> float:
@@ -88,9 +87,18 @@ class BalancedStop(StoppingRule):
         """An estimate of the discretisation error of that iterate."""
         raise NotImplementedError
 
+    def _restart(self) -> None:
+        """The schedule of a new run (the last estimate is kept: the next run is on the same mesh)."""
+        self._estimated_at = -REFRESH                  # the iteration of the last estimate
+        self._next = self.first_tests[0]               # the iteration (counted from 1) of the next test
+        self._last: tuple[int, float] | None = None    # (iteration, bound) of the last finite test
+
     def fired(self, rec: IterationRecord) -> str | None:
         """The rule's name when the bound is at most gamma x the estimate at this record, else None."""
         n = rec.k + 1
+        if n <= self._seen:                            # a new run with the same rule (a Coulomb fixed point's)
+            self._restart()
+        self._seen = n
         if n < self._next:
             return None
         self.tests.append(n)

@@ -53,6 +53,19 @@ def test_the_schedule_stops_near_the_crossing_with_few_tests(vector_problem):
     assert len(stop.tests) <= k_star / 3
 
 
+def test_a_rule_used_again_starts_its_schedule_again(vector_problem):
+    """A Coulomb fixed point runs ADMM again with the same rule: the second run is tested from iteration 1,
+    as a fresh rule's would be, and stops where a fresh rule stops."""
+    z_star = solve(vector_problem, rho=1.0, order="zx", stop=ResidualTolerance(1e-14, 1e-14), max_iter=5000).z
+    run = lambda stop: solve(vector_problem, rho=1.0, policy="fixed", order="zx", stop=stop, max_iter=5000)  # noqa
+    stop = Known(1e-6, z_star, gamma=0.3, every=50)
+    first = run(stop)
+    tested = len(stop.tests)
+    again, fresh = run(stop), run(Known(1e-6, z_star, gamma=0.3, every=50))
+    assert stop.tests[tested:tested + 2] == [1, 2]
+    assert again.iterations == fresh.iterations == first.iterations
+
+
 def test_a_plug_in_may_test_later_first():
     """``first_tests`` moves the first two tests; the defaults are iterations 1 and 2."""
     from types import SimpleNamespace
