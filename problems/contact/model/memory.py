@@ -127,34 +127,54 @@ def rectangle_measure(scene) -> tuple[float, float]:
 
 
 # ---------------------------------------------------------------- 3D
-def estimate_memory3d(nx: int, ny: int, nz: int, solver: str = "direct") -> int:
-    """Rough bytes of a 3D P1 contact run on nx x ny x nz cubes.
+#: nonzeros per row of the 3D stiffness in the interior of the Kuhn mesh: P1 (a vertex has 14 neighbours,
+#: 3 x 15) and P2 (measured on the unit cube: 77.4, 81.6, 83.1 at 8, 16, 24 cubes a side, tending to ~85)
+NNZ_ROW_3D = {1: 45, 2: 85}
 
-    n = 3 (nx+1)(ny+1)(nz+1) dofs, ~45 nonzeros per row (a vertex of the Kuhn
-    mesh has 14 neighbours), 12 bytes each, 3 copies; the iterative x-step adds
-    :func:`iterative_solver_bytes`; a sparse Cholesky factor of this 3D problem
-    has ~ 20 n^(4/3) nonzeros (CHOLMOD, nested dissection: 11.8, 13.5 and 14.4
-    n^(4/3) measured at 5.8e3, 1.8e4 and 4.2e4 unknowns; SuperLU's MMD ordering
-    filled 44, 30 and 70 n^(4/3), so without CHOLMOD this is an underestimate).
+
+def dofs3d(nx: int, ny: int, nz: int, order: int = 1) -> float:
+    """Dofs (clamped ones included) of VectorH1 of ``order`` on the Kuhn mesh of nx x ny x nz cubes: 3 per vertex,
+    and with P2 3 per edge (the cubes' edges, one diagonal per square face, one per cube)."""
+    vertices = (nx + 1) * (ny + 1) * (nz + 1)
+    if order == 1:
+        return 3.0 * vertices
+    edges = (nx * (ny + 1) * (nz + 1) + (nx + 1) * ny * (nz + 1) + (nx + 1) * (ny + 1) * nz
+             + nx * ny * (nz + 1) + nx * (ny + 1) * nz + (nx + 1) * ny * nz + nx * ny * nz)
+    return 3.0 * (vertices + edges)
+
+
+def estimate_memory3d(nx: int, ny: int, nz: int, solver: str = "direct", order: int = 1) -> int:
+    """Rough bytes of a 3D contact run on nx x ny x nz cubes, P1 or P2 (``order``).
+
+    n = :func:`dofs3d` dofs, NNZ_ROW_3D nonzeros per row, 12 bytes each, 3
+    copies; the iterative x-step adds :func:`iterative_solver_bytes`; a sparse
+    Cholesky factor of the P1 problem has ~ 20 n^(4/3) nonzeros (CHOLMOD, nested
+    dissection: 11.8, 13.5 and 14.4 n^(4/3) measured at 5.8e3, 1.8e4 and 4.2e4
+    unknowns; SuperLU's MMD ordering filled 44, 30 and 70 n^(4/3), so without
+    CHOLMOD this is an underestimate).  P2's factor is taken denser in
+    proportion to its rows (85/45), not measured.
     """
-    n = 3.0 * (nx + 1) * (ny + 1) * (nz + 1)
-    system = 3 * 12 * 45 * n
+    n = dofs3d(nx, ny, nz, order)
+    nnz_row = NNZ_ROW_3D[order]
+    system = 3 * 12 * nnz_row * n
     if solver == "iterative":
-        return int(system + iterative_solver_bytes(n, 45 * n, blocksize=3))
-    return int(system + 12 * 20.0 * n ** (4 / 3))
+        return int(system + iterative_solver_bytes(n, nnz_row * n, blocksize=3))
+    return int(system + 12 * 20.0 * (nnz_row / NNZ_ROW_3D[1]) * n ** (4 / 3))
 
 
 def memory_need3d(scene, mode: str) -> int:
     """Estimated peak bytes of a run of the scene in a contact mode (as :func:`memory_need` in 2D:
-    the full mode keeps CACHED_FACTORS factorisations, the condensed one an LU and 5 n_c^2 doubles)."""
+    the full mode keeps CACHED_FACTORS factorisations, the condensed one an LU and 5 n_c^2 doubles), P1 or P2."""
     nx, ny, nz = scene.counts
+    order = getattr(scene, "order", 1)
     if mode == "iterative":
-        return PROCESS_BASELINE + estimate_memory3d(nx, ny, nz, "iterative")
+        return PROCESS_BASELINE + estimate_memory3d(nx, ny, nz, "iterative", order)
     if mode not in ("full", "condensed"):
         raise ValueError(f"mode = {mode!r}; accepted: full, condensed, iterative")
-    n = 3.0 * (nx + 1) * (ny + 1) * (nz + 1)
-    system = 3 * 12 * 45 * n
-    factor = estimate_memory3d(nx, ny, nz) - system
+    n = dofs3d(nx, ny, nz, order)
+    system = 3 * 12 * NNZ_ROW_3D[order] * n
+    factor = estimate_memory3d(nx, ny, nz, order=order) - system
     if mode == "full":
         return int(PROCESS_BASELINE + system + CACHED_FACTORS * factor)
-    return int(PROCESS_BASELINE + system + 2 * factor + 5 * 8 * ((nx + 1) * (ny + 1)) ** 2)
+    n_c = (order * nx + 1) * (order * ny + 1)          # the contact face's vertices, with P2 also its midpoints
+    return int(PROCESS_BASELINE + system + 2 * factor + 5 * 8 * n_c ** 2)
