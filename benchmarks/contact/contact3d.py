@@ -48,7 +48,8 @@ def probe(h: float, rho: float = 1e3) -> dict:
     from admmkit.linsolve import available_backends, factorize
 
     from admmkit.problems.contact.solvers.iterative import near_null_space
-    from admmkit.problems.contact.model.scene3d import assemble3d, example2_3d
+    from admmkit.problems.contact.model.assembly3d import assemble3d
+    from admmkit.problems.contact.model.scene3d import example2_3d
 
     ops = assemble3d(example2_3d(h=h))
     D = (ops.B.T @ sp.diags(ops.mc) @ ops.B).tocsr()
@@ -100,7 +101,8 @@ def solve_3d(h: float, rho: float = 1e3) -> dict:
     from threadpoolctl import threadpool_limits
 
     from admmkit.problems.contact.solvers.problem import contact_problem
-    from admmkit.problems.contact.model.scene3d import assemble3d, example2_3d
+    from admmkit.problems.contact.model.assembly3d import assemble3d
+    from admmkit.problems.contact.model.scene3d import example2_3d
 
     t0 = time.perf_counter()
     ops = assemble3d(example2_3d(h=h))

@@ -103,7 +103,8 @@ def run_case(example: str, h: float, mode: str, rho: float = 1e3, max_iter: int 
     t0 = time.perf_counter()
     try:
         if example == "ex2_3d":
-            from admmkit.problems.contact.model.scene3d import assemble3d, example2_3d, memory_need3d
+            from admmkit.problems.contact.model.assembly3d import assemble3d
+            from admmkit.problems.contact.model.scene3d import example2_3d, memory_need3d
             scene = example2_3d(h=h)
             need, have = memory_need3d(scene, mode), available_memory()
         else:

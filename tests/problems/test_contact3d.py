@@ -10,7 +10,8 @@ from admmkit import RelativeChange
 from admmkit.cli import main
 from admmkit.problems.contact import solve_scene
 from admmkit.problems.contact.model.memory import memory_need3d
-from admmkit.problems.contact.model.scene3d import FACES_3D, Scene3D, assemble3d, block_mesh, example2_3d
+from admmkit.problems.contact.model.assembly3d import assemble3d
+from admmkit.problems.contact.model.scene3d import FACES_3D, Scene3D, block_mesh, example2_3d
 
 
 def test_block_mesh_is_makestructured3dmesh_with_outward_faces():

@@ -7,7 +7,8 @@ import pytest
 from admmkit.balanced_stop import GAMMA
 import admmkit
 from admmkit.cli import main
-from admmkit.problems.contact.model.scene3d import assemble3d, example2_3d
+from admmkit.problems.contact.model.assembly3d import assemble3d
+from admmkit.problems.contact.model.scene3d import example2_3d
 from admmkit.problems.contact.solvers.adaptive import solve_adaptive
 from admmkit.problems.contact.solvers.adaptive3d import assemble3d_on, surface_interpolate
 from admmkit.problems.contact.solvers.estimate import BalancedStop, zz_estimate

@@ -8,7 +8,8 @@ import admmkit
 from admmkit import ResidualTolerance
 from admmkit.cli import main
 from admmkit.problems.contact import assemble, solve_scene
-from admmkit.problems.contact.model.scene3d import Scene3D, assemble3d
+from admmkit.problems.contact.model.assembly3d import assemble3d
+from admmkit.problems.contact.model.scene3d import Scene3D
 from admmkit.problems.contact.model.scene_file import load_scene
 from admmkit.problems.contact.solvers.adaptive import solve_adaptive
 from admmkit.problems.contact.solvers.estimate import BalancedStop, CondensedGap, algebraic_gap

@@ -221,7 +221,8 @@ def test_stick_through_the_space():
 # ---------------------------------------------------------------- 3D (P1 tetrahedra)
 def test_user_forms_reproduce_assemble3d():
     """The 3D block with Coulomb friction: the same operators and iterates as assemble3d."""
-    from admmkit.problems.contact.model.scene3d import assemble3d, block_mesh, example2_3d
+    from admmkit.problems.contact.model.assembly3d import assemble3d
+    from admmkit.problems.contact.model.scene3d import block_mesh, example2_3d
     scene = example2_3d(h=1 / 4, tangential="coulomb", mu=0.3)
     ref = assemble3d(scene)
     mesh3 = block_mesh(scene.Lx, scene.Ly, scene.Lz, scene.h)

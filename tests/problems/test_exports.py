@@ -70,7 +70,8 @@ def test_p2_vtu_has_quadratic_triangles():
 
 def test_3d_vtu_is_double_precision_and_meshio_reads_it(tmp_path):
     from admmkit.benchmarks.contact.contact3d import write_vtk
-    from admmkit.problems.contact.model.scene3d import assemble3d, example2_3d
+    from admmkit.problems.contact.model.assembly3d import assemble3d
+    from admmkit.problems.contact.model.scene3d import example2_3d
     ops = assemble3d(example2_3d(h=1 / 4))
     sol = solve_scene(ops, "sadmm", 1e3)
     path = write_vtk(ops, sol.result.x, sol.result.lam, tmp_path / "sub" / "c3d", p=sol.result.z)

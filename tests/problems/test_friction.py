@@ -7,7 +7,8 @@ from admmkit import ResidualTolerance
 from admmkit.problems.contact import Scene, assemble, example1, example2, solve_scene
 from admmkit.problems.contact.solvers.coulomb import coulomb_fixed_point
 from admmkit.problems.contact.solvers.friction import Friction, friction_z_step, shrink, tangent_frames
-from admmkit.problems.contact.model.scene3d import Scene3D, assemble3d, example2_3d
+from admmkit.problems.contact.model.assembly3d import assemble3d
+from admmkit.problems.contact.model.scene3d import Scene3D, example2_3d
 from admmkit.problems.contact.solvers.tresca_qp import tresca_cvxpy
 
 TIGHT = ResidualTolerance(1e-12, 1e-12)

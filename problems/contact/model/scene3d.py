@@ -1,4 +1,4 @@
-"""3D contact: an elastic block on a rigid foundation with a curved gap (P1 tetrahedra, NGSolve).
+"""3D contact: an elastic block on a rigid foundation with a curved gap (P1 or P2 tetrahedra, NGSolve).
 
 The 3D analogue of the paper's Example 2 (:func:`example2_3d`): the block
 (0, 3) x (0, 1) x (0, 1), clamped on the face x = 0 ("back"), loaded by the
@@ -10,9 +10,11 @@ a rigid foundation under its bottom face z = 0 with the curved gap
 E = 5000, nu = 0.49.  The contact model is the 2D one (docs/contact.md) one
 dimension up: u.n <= g at the nodes of the contact face with n = (0, 0, -1),
 lumped boundary mass (a third of the area of every adjacent triangle),
-multiplier lam = pressure.  :func:`assemble3d` returns the same
-:class:`ContactOperators` as the 2D assembly, so every contact mode and
-method works unchanged; at useful sizes only the iterative mode is practical.
+multiplier lam = pressure; P2 adds the edge midpoints of the face as contact
+nodes, with HRZ-lumped weights.  The assembly is
+:func:`admmkit.problems.contact.model.assembly3d.assemble3d`: it returns the same
+``ContactOperators`` as the 2D assembly, so every contact mode and method
+works unchanged; at useful sizes only the iterative mode is practical.
 
 Mesh: ``block_mesh`` cuts nx x ny x nz cubes into 6 tetrahedra each, the
 Kuhn triangulation of ``ngsolve.meshes.MakeStructured3DMesh(hexes=False)``
@@ -28,12 +30,10 @@ from typing import Any, Mapping
 
 import ngsolve as ng
 import numpy as np
-import scipy.sparse as sp
 
-from admmkit.problems.contact.model.assembly import ContactOperators, _csr, lame
 from admmkit.problems.contact.model.expressions import as_function, expression, finite_positive
-from admmkit.problems.contact.model.memory import InsufficientMemory, available_memory, estimate_memory3d, memory_need3d  # noqa: F401  (memory_need3d: this scene's)
-from admmkit.problems.contact.solvers.friction import check_friction_fields, friction_of, tangent_frames
+from admmkit.problems.contact.model.memory import InsufficientMemory, available_memory, dofs3d, estimate_memory3d, memory_need3d  # noqa: F401  (memory_need3d: this scene's)
+from admmkit.problems.contact.solvers.friction import check_friction_fields
 from admmkit.problems.contact.model.scene import MAX_CELLS, FrozenDict, check_slide
 
 FACES_3D = ("back", "front", "left", "right", "bottom", "top")
@@ -150,8 +150,8 @@ class Scene3D:
             finite_positive(getattr(self, name), name, f"{name} > 0")
         if not (isinstance(self.nu, (int, float)) and -1.0 < self.nu < 0.5):
             raise ValueError(f"nu = {self.nu!r} is outside the accepted range -1 < nu < 0.5")
-        if self.order != 1:
-            raise ValueError(f"order = {self.order!r}; accepted: 1 (P1 tetrahedra)")
+        if self.order not in (1, 2) or isinstance(self.order, bool):
+            raise ValueError(f"order = {self.order!r}; accepted: 1 (P1 tetrahedra) or 2 (P2)")
         finite_positive(self.h, "h", "0 < h (finite)")
         if self.h > min(self.Lx, self.Ly, self.Lz):
             raise ValueError(f"h = {self.h} is larger than the block; accepted 0 < h <= {min(self.Lx, self.Ly, self.Lz)}")
@@ -168,12 +168,12 @@ class Scene3D:
             raise ValueError(f"contact: {self.contact!r}; accepted: 'bottom' (the face z = 0 on the foundation)")
         if self.contact in self.dirichlet or self.contact in self.tractions:
             raise ValueError(f"contact: face {self.contact!r} is also clamped or loaded")
-        need, have = estimate_memory3d(*self.counts, solver="iterative"), available_memory()
+        need, have = estimate_memory3d(*self.counts, solver="iterative", order=self.order), available_memory()
         if need > have:
-            raise InsufficientMemory(f"h = {self.h} is too small: {3 * np.prod(np.array(self.counts) + 1):.3g} unknowns need "
+            raise InsufficientMemory(f"h = {self.h} is too small: {dofs3d(*self.counts, self.order):.3g} unknowns need "
                              f"about {need / 2**30:.3g} GiB with the iterative x-step "
-                             f"({estimate_memory3d(*self.counts) / 2**30:.3g} GiB with a sparse factorisation), "
-                             f"only {have / 2**30:.3g} GiB available; choose a larger h")
+                             f"({estimate_memory3d(*self.counts, order=self.order) / 2**30:.3g} GiB with a sparse "
+                             f"factorisation), only {have / 2**30:.3g} GiB available; choose a larger h")
         for x in np.linspace(0, self.Lx, 7):
             for y in np.linspace(0, self.Ly, 7):
                 value = self.gap_at(float(x), float(y))
@@ -204,65 +204,3 @@ def example2_3d(h: float = 1 / 8, **changes) -> Scene3D:
                   tractions={"front": (0.0, 0.0, -2.0)}, contact="bottom",
                   gap=expression("0.003*(x - 1.5)**2 + 0.003*(y - 0.5)**2 + 0.001"), name="example2_3d")
     return Scene3D(**(fields | changes))
-
-
-# ---------------------------------------------------------------- assembly
-def assemble3d(scene: Scene3D, mesh=None) -> ContactOperators:
-    """K, f, B, mc, g on the free dofs of the 3D scene (n = (0, 0, -1) on the contact face).
-
-    ``mesh``: a tetrahedral mesh of the scene's block with its face names (e.g. an adaptively refined
-    one); default the structured mesh of ``scene.h``.
-    """
-    if mesh is None:
-        mesh = block_mesh(scene.Lx, scene.Ly, scene.Lz, scene.h)
-    else:
-        known = set(mesh.GetBoundaries())
-        for label in (*scene.dirichlet, *scene.tractions, scene.contact):
-            if label not in known:
-                raise ValueError(f"unknown boundary label {label!r}; known labels: {', '.join(sorted(known))}")
-    stick = {"dirichletx": scene.contact, "dirichlety": scene.contact} if scene.tangential == "stick" else {}
-    fes = ng.VectorH1(mesh, order=1, dirichlet="|".join(scene.dirichlet), **stick)
-    u, v = fes.TnT()
-    mu, lam = lame(scene.E, scene.nu)
-    eps = lambda w: ng.Sym(ng.Grad(w))  # noqa: E731
-    a = ng.BilinearForm(fes)
-    a += (2 * mu * ng.InnerProduct(eps(u), eps(v)) + lam * ng.Trace(ng.Grad(u)) * ng.Trace(ng.Grad(v))) * ng.dx
-    a.Assemble()
-    lf = ng.LinearForm(fes)
-    for label, t in scene.tractions.items():
-        lf += ng.CF(t) * v * ng.ds(definedon=mesh.Boundaries(label))
-    lf.Assemble()
-    free = np.flatnonzero(np.array(fes.FreeDofs(), dtype=bool))
-    K = _csr(a.mat)[free][:, free].tocsr()
-    f = lf.vec.FV().NumPy()[free].copy()
-
-    # contact nodes: vertices of the contact face not on a clamped face; lumped mass = area/3 per triangle
-    points = np.array(mesh.ngmesh.Coordinates())
-    nv = mesh.nv
-    clamped = {vx.nr for el in mesh.Elements(ng.BND) if el.mat in scene.dirichlet for vx in el.vertices}
-    tris = np.array([[vx.nr for vx in el.vertices] for el in mesh.Elements(ng.BND) if el.mat == scene.contact])
-    P = points[tris]
-    area = 0.5 * np.linalg.norm(np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0]), axis=1)
-    weight = np.bincount(tris.ravel(), weights=np.repeat(area / 3, 3), minlength=nv)
-    nodes = np.array(sorted(set(tris.ravel().tolist()) - clamped))
-    xc = points[nodes]
-    order = np.lexsort((xc[:, 1], xc[:, 0]))
-    nodes, xc = nodes[order], xc[order]
-    mc = weight[nodes]
-    normals = np.tile([0.0, 0.0, -1.0], (len(nodes), 1))
-    g = np.array([scene.gap_at(x, y) for x, y, _ in xc])
-    if not np.all(np.isfinite(g)):
-        raise ValueError(f"gap: not finite at the contact nodes {xc[~np.isfinite(g)].tolist()}")
-    # u.n at node i = -u_z(node i); VectorH1 numbers the z-component dofs 2 nv + vertex
-    Bfull = sp.csr_matrix((-np.ones(len(nodes)), (np.arange(len(nodes)), 2 * nv + nodes)), shape=(len(nodes), fes.ndof))
-    B = Bfull[:, free].tocsr()
-    # u.t1 = u_x, u.t2 = u_y at node i (tangent_frames of n = (0, 0, -1)), stacked by component
-    tangents = tangent_frames(normals)
-    rows = np.arange(2 * len(nodes))
-    Tfull = sp.csr_matrix((np.ones(2 * len(nodes)), (rows, np.concatenate([nodes, nv + nodes]))),
-                          shape=(2 * len(nodes), fes.ndof))
-    T = Tfull[:, free].tocsr()
-    T.eliminate_zeros()
-    return ContactOperators(K=K, f=f, B=B, mc=mc, g=g, xc=xc, normals=normals, free=free,
-                            mesh=mesh, fes=fes, scene=scene, T=T, tangents=tangents,
-                            friction=friction_of(scene, xc))

@@ -186,7 +186,8 @@ def balanced_residual_stop(scene, gamma: float):
     """(operators, stop) for ``solve_scene(operators, stop=stop, mode="condensed")``: the scene assembled and a
     balanced stop comparing with the residual estimate, on a condensed problem of these operators."""
     from admmkit.problems.contact.model.assembly import ContactOperators, assemble
-    from admmkit.problems.contact.model.scene3d import Scene3D, assemble3d
+    from admmkit.problems.contact.model.assembly3d import assemble3d
+    from admmkit.problems.contact.model.scene3d import Scene3D
     from admmkit.problems.contact.solvers.problem import contact_problem
     if isinstance(scene, ContactOperators):
         ops = scene

@@ -112,7 +112,8 @@ def solve_scene(scene, method_name: str = "sadmm", rho: float = 1e3, *,
     """
     import time
 
-    from admmkit.problems.contact.model.scene3d import Scene3D, assemble3d
+    from admmkit.problems.contact.model.assembly3d import assemble3d
+    from admmkit.problems.contact.model.scene3d import Scene3D
     default_order, policy = method(method_name)
     if isinstance(scene, Scene) and mode in ("full", "condensed", "iterative"):
         check_memory(scene, mode)

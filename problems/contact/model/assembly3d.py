@@ -1,0 +1,160 @@
+"""Assembly of the 3D contact scenes (:class:`~admmkit.problems.contact.model.scene3d.Scene3D`), P1 and P2 tetrahedra.
+
+:func:`assemble3d` returns the same :class:`ContactOperators` as the 2D
+assembly, so every contact mode and method works unchanged.  The contact
+face is flat (z = 0, outward normal n = (0, 0, -1)), u.n = -u_z.
+
+Contact nodes (:func:`face_nodes`): the vertices of the contact face's
+triangles (P1), with P2 also the midpoints of their edges, less the nodes on a
+clamped face (a vertex of a clamped boundary triangle; a midpoint of one of its
+edges).  Their weights m_c (the nodal quadrature of (v_n, q) on the face):
+
+* P1: the row sums of the P1 triangle mass, A/3 per vertex of a triangle of area A;
+* P2: the row sums of the P2 triangle mass are 0 at the vertices (the quadratic
+  basis integrates to 0 there), which would leave those nodes without weight, so
+  HRZ lumping: the diagonal of the consistent P2 mass (A/30 at a vertex, 8A/45 at a
+  midpoint) scaled to sum to A, i.e. A/19 per vertex and 16A/57 per midpoint
+  (3/19 + 3 x 16/57 = 1).  Positive weights that integrate constants exactly.
+
+B (u.n) and T (u_x, u_y) come from the point evaluation of the scalar H1 space
+(:func:`point_evaluation`): a vertex's row is the unit row of its dof; NGSolve's
+P2 basis is hierarchical (vertex hats and edge bubbles), so a midpoint's row is
+the element's shape functions there (1/2 at both ends and the bubble's value);
+VectorH1 numbers component c of scalar dof j as c n_scalar + j.
+"""
+from __future__ import annotations
+
+import ngsolve as ng
+import numpy as np
+import scipy.sparse as sp
+
+from admmkit.problems.contact.model.assembly import ContactOperators, _csr, lame
+from admmkit.problems.contact.model.fastpaths import component_map
+from admmkit.problems.contact.model.scene3d import Scene3D, block_mesh
+from admmkit.problems.contact.solvers.friction import friction_of, tangent_frames
+
+#: HRZ-lumped P2 triangle mass: the share of a triangle's area at each vertex and at each edge midpoint
+P2_VERTEX_SHARE, P2_MIDPOINT_SHARE = 1 / 19, 16 / 57
+
+
+def assemble3d(scene: Scene3D, mesh=None) -> ContactOperators:
+    """K, f, B, mc, g on the free dofs of the 3D scene (n = (0, 0, -1) on the contact face), in the scene's order.
+
+    ``mesh``: a tetrahedral mesh of the scene's block with its face names (e.g. an adaptively refined
+    one); default the structured mesh of ``scene.h``.
+    """
+    if mesh is None:
+        mesh = block_mesh(scene.Lx, scene.Ly, scene.Lz, scene.h)
+    else:
+        known = set(mesh.GetBoundaries())
+        for label in (*scene.dirichlet, *scene.tractions, scene.contact):
+            if label not in known:
+                raise ValueError(f"unknown boundary label {label!r}; known labels: {', '.join(sorted(known))}")
+    stick = {"dirichletx": scene.contact, "dirichlety": scene.contact} if scene.tangential == "stick" else {}
+    fes = ng.VectorH1(mesh, order=scene.order, dirichlet="|".join(scene.dirichlet), **stick)
+    u, v = fes.TnT()
+    mu, lam = lame(scene.E, scene.nu)
+    eps = lambda w: ng.Sym(ng.Grad(w))  # noqa: E731
+    a = ng.BilinearForm(fes)
+    a += (2 * mu * ng.InnerProduct(eps(u), eps(v)) + lam * ng.Trace(ng.Grad(u)) * ng.Trace(ng.Grad(v))) * ng.dx
+    a.Assemble()
+    lf = ng.LinearForm(fes)
+    for label, t in scene.tractions.items():
+        lf += ng.CF(t) * v * ng.ds(definedon=mesh.Boundaries(label))
+    lf.Assemble()
+    free = np.flatnonzero(np.array(fes.FreeDofs(), dtype=bool))
+    K = _csr(a.mat)[free][:, free].tocsr()
+    f = lf.vec.FV().NumPy()[free].copy()
+
+    vertex, xc, mc = face_nodes(mesh, scene.contact, scene.dirichlet, scene.order)
+    normals = np.tile([0.0, 0.0, -1.0], (len(xc), 1))
+    g = np.array([scene.gap_at(x, y) for x, y, _ in xc])
+    if not np.all(np.isfinite(g)):
+        raise ValueError(f"gap: not finite at the contact nodes {xc[~np.isfinite(g)].tolist()}")
+    tangents = tangent_frames(normals)           # t1 = (1, 0, 0), t2 = (0, 1, 0) for n = (0, 0, -1)
+    if scene.order == 1:
+        B, T = _vertex_maps(vertex, mesh.nv, fes.ndof, free)
+    else:
+        scalar = ng.H1(mesh, order=scene.order)
+        E = point_evaluation(mesh, scalar, xc, vertex)
+        B = component_map(E, normals, free, fes.ndof)                   # u.n = -u_z
+        T = sp.vstack([component_map(E, tangents[:, k, :], free, fes.ndof) for k in range(2)]).tocsr()
+    return ContactOperators(K=K, f=f, B=B, mc=mc, g=g, xc=xc, normals=normals, free=free,
+                            mesh=mesh, fes=fes, scene=scene, T=T, tangents=tangents,
+                            friction=friction_of(scene, xc))
+
+
+def _vertex_maps(nodes: np.ndarray, nv: int, ndof: int, free: np.ndarray):
+    """(B, T) of P1 (the dofs are the vertices): u.n = -u_z, u.t1 = u_x, u.t2 = u_y at the vertices ``nodes``."""
+    # VectorH1 numbers the z-component dofs 2 nv + vertex
+    Bfull = sp.csr_matrix((-np.ones(len(nodes)), (np.arange(len(nodes)), 2 * nv + nodes)), shape=(len(nodes), ndof))
+    B = Bfull[:, free].tocsr()
+    rows = np.arange(2 * len(nodes))
+    Tfull = sp.csr_matrix((np.ones(2 * len(nodes)), (rows, np.concatenate([nodes, nv + nodes]))),
+                          shape=(2 * len(nodes), ndof))
+    T = Tfull[:, free].tocsr()
+    T.eliminate_zeros()
+    return B, T
+
+
+def face_nodes(mesh: ng.Mesh, contact: str, dirichlet, order: int):
+    """(vertex, xc, mc): the contact nodes of the face ``contact`` not on a ``dirichlet`` face (module docstring),
+    ordered by x then y.
+
+    ``vertex[i]``: the vertex node i is, -1 for an edge midpoint (P2); ``xc`` (n, 3) the points; ``mc`` the
+    lumped weights (P1: A/3 per vertex of a triangle; P2: HRZ, A/19 per vertex and 16A/57 per midpoint).
+    """
+    if order not in (1, 2):
+        raise ValueError(f"order = {order!r}; accepted: 1 (P1 tetrahedra) or 2 (P2)")
+    points = np.array(mesh.ngmesh.Coordinates())
+    bnd = list(mesh.Elements(ng.BND))
+    clamped = {vx.nr for el in bnd if el.mat in dirichlet for vx in el.vertices}
+    face = [el for el in bnd if el.mat == contact]
+    tris = np.array([[vx.nr for vx in el.vertices] for el in face])
+    P = points[tris]
+    area = 0.5 * np.linalg.norm(np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0]), axis=1)
+    share = area / 3 if order == 1 else area * P2_VERTEX_SHARE
+    weight = np.bincount(tris.ravel(), weights=np.repeat(share, 3), minlength=mesh.nv)
+    nodes = np.array(sorted(set(tris.ravel().tolist()) - clamped), dtype=np.int64)
+    vertex, xc, mc = nodes, points[nodes], weight[nodes]
+    if order == 2:
+        edges = np.array([[e.nr for e in el.edges] for el in face])
+        clamped_edges = {e.nr for el in bnd if el.mat in dirichlet for e in el.edges}
+        edge_weight = np.bincount(edges.ravel(), weights=np.repeat(area * P2_MIDPOINT_SHARE, 3), minlength=mesh.nedge)
+        mids = np.array(sorted(set(edges.ravel().tolist()) - clamped_edges), dtype=np.int64)
+        ends = np.array([[vx.nr for vx in mesh[ng.NodeId(ng.EDGE, int(e))].vertices] for e in mids],
+                        dtype=np.int64).reshape(-1, 2)
+        vertex = np.concatenate([nodes, np.full(len(mids), -1)])
+        xc = np.vstack([xc, 0.5 * (points[ends[:, 0]] + points[ends[:, 1]])])
+        mc = np.concatenate([mc, edge_weight[mids]])
+    if len(xc) == 0:
+        raise ValueError(f"contact: face {contact!r} has no unclamped node on this mesh")
+    by_x = np.lexsort((xc[:, 1], xc[:, 0]))
+    return vertex[by_x], xc[by_x], mc[by_x]
+
+
+def point_evaluation(mesh: ng.Mesh, scalar: ng.comp.FESpace, points: np.ndarray,
+                     vertex: np.ndarray | None = None) -> sp.csr_matrix:
+    """E[i, j] = phi_j(points[i]) for the basis of a scalar H1 space on a 3D mesh.
+
+    ``vertex[i]`` >= 0: point i is that vertex, its row the unit row of the vertex's dof (H1 gives vertex v the
+    dof v and every other basis function vanishes there).  Otherwise the point is located (``mesh(x, y, z)``)
+    and its row is the element's shape functions there (the 3D analogue of the 2D ``_point_evaluation``).
+    """
+    rows, cols, vals = [], [], []
+    for i, (x, y, z) in enumerate(np.asarray(points, dtype=float)):
+        if vertex is not None and vertex[i] >= 0:
+            rows.append(i); cols.append(int(vertex[i])); vals.append(1.0)
+            continue
+        mp = mesh(x, y, z)
+        if mp.nr < 0:
+            raise ValueError(f"point ({x:g}, {y:g}, {z:g}) is not in the mesh")
+        el = ng.ElementId(ng.VOL, mp.nr)
+        shape = np.array(scalar.GetFE(el).CalcShape(*mp.pnt))
+        for j, s in zip(scalar.GetDofNrs(el), shape):
+            if abs(s) > 1e-12:
+                rows.append(i); cols.append(j); vals.append(s)
+    return sp.csr_matrix((vals, (rows, cols)), shape=(len(points), scalar.ndof))
+
+
+__all__ = ["assemble3d", "face_nodes", "point_evaluation", "P2_VERTEX_SHARE", "P2_MIDPOINT_SHARE"]
