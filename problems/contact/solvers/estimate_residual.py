@@ -50,6 +50,7 @@ import numpy as np
 import scipy.sparse.linalg as spla
 
 from admmkit.problems.contact.model.assembly import _point_evaluation, _vector_cf, lame
+from admmkit.problems.contact.model.assembly3d import point_evaluation
 from admmkit.problems.fe import facet_sizes
 
 
@@ -148,8 +149,8 @@ def _assemble(space, forms) -> np.ndarray:
 
 def _boundary_interpolation(mesh, scalar, xc: np.ndarray, points: np.ndarray, order: int):
     """values at the contact nodes -> the coefficients of the function of ``scalar`` with these values on Gamma_C
-    (0 at the clamped ends and off Gamma_C).  P1: the contact nodes are vertices; P2 (2D): the vertex and edge
-    coefficients of the hierarchical basis from the values at the vertices and midpoints."""
+    (0 at the clamped ends and off Gamma_C).  P1: the contact nodes are vertices; P2 (2D and 3D): the vertex and
+    edge coefficients of the hierarchical basis from the values at the vertices and midpoints."""
     if order == 1:
         from scipy.spatial import cKDTree
         _, vertex = cKDTree(points[:, :xc.shape[1]]).query(xc)
@@ -159,7 +160,7 @@ def _boundary_interpolation(mesh, scalar, xc: np.ndarray, points: np.ndarray, or
             out[vertex] = values
             return out
         return nodal
-    E = _point_evaluation(mesh, scalar, xc).tocsr()
+    E = (_point_evaluation if xc.shape[1] == 2 else point_evaluation)(mesh, scalar, xc).tocsr()
     single = np.diff(E.indptr) == 1                          # a vertex's row: its own hat function, value 1
     vertices = E.indices[E.indptr[:-1][single]]
     edges = np.unique(E.indices[E.indices >= mesh.nv])       # the bubbles of the contact edges
