@@ -1,6 +1,6 @@
-"""Assembly of the 3D contact scenes (:class:`~admmkit.problems.contact.model.scene3d.Scene3D`), P1 and P2 tetrahedra.
+"""Assembly of the 3D contact scenes (``Scene3D`` of problems/contact/model/scene3d.py), P1 and P2 tetrahedra.
 
-:func:`assemble3d` returns the same :class:`ContactOperators` as the 2D
+:func:`assemble3d` returns the same :class:`~admmkit.problems.contact.ContactOperators` as the 2D
 assembly, so every contact mode and method works unchanged.  The contact
 face is flat (z = 0, outward normal n = (0, 0, -1)), u.n = -u_z.
 
@@ -30,15 +30,18 @@ import scipy.sparse as sp
 
 from admmkit.problems.contact.model.assembly import ContactOperators, _csr, lame
 from admmkit.problems.contact.model.fastpaths import component_map
-from admmkit.problems.contact.model.scene3d import Scene3D, block_mesh
+from admmkit.problems.contact.model.scene3d import block_mesh
 from admmkit.problems.contact.solvers.friction import friction_of, tangent_frames
 
-#: HRZ-lumped P2 triangle mass: the share of a triangle's area at each vertex and at each edge midpoint
-P2_VERTEX_SHARE, P2_MIDPOINT_SHARE = 1 / 19, 16 / 57
+#: the share of a P2 triangle's area at each of its vertices in the HRZ-lumped mass
+P2_VERTEX_SHARE = 1 / 19
+#: and at each of its edge midpoints (3/19 + 3 x 16/57 = 1)
+P2_MIDPOINT_SHARE = 16 / 57
 
 
-def assemble3d(scene: Scene3D, mesh=None) -> ContactOperators:
-    """K, f, B, mc, g on the free dofs of the 3D scene (n = (0, 0, -1) on the contact face), in the scene's order.
+def assemble3d(scene, mesh=None) -> ContactOperators:
+    """K, f, B, mc, g on the free dofs of the 3D scene (a ``Scene3D``; n = (0, 0, -1) on the contact face), in the
+    scene's order.
 
     ``mesh``: a tetrahedral mesh of the scene's block with its face names (e.g. an adaptively refined
     one); default the structured mesh of ``scene.h``.
