@@ -91,7 +91,7 @@ def _adaptive_defaults(args, scene) -> dict:
     * without ``--h``, a rectangle starts from five cells across its thinner side, h = min(L, H) / 5: the
       levels put the unknowns where the error is, not the scene's uniform h.
 
-    3D adaptive contact is P1 from the scene's mesh.
+    3D adaptive contact starts from the scene's mesh and order (P1 unless the scene or ``--fe-order 2`` says P2).
     """
     if args.target_error is None or not hasattr(scene, "L"):
         return {}
