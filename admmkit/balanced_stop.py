@@ -23,8 +23,8 @@ warm-started levels).
 K; contact: O(n_c^2) on the boundary), so it is not taken at every
 iteration.  The first two tests are at iterations 1 and 2 (a warm-started
 level may be done there; a plug-in may set ``first_tests`` later); after
-them the bound's decrease per iteration between the last two tests, q, predicts in how many iterations it crosses
-gamma x the estimate, ``log(bound / (gamma eta)) / log(1 / q)``, and the next
+them the bound's decrease per iteration between the last two tests, q,
+predicts in how many iterations it crosses gamma x the estimate, ``log(bound / (gamma eta)) / log(1 / q)``, and the next
 test is then, rounded down, at least 1 and at most ``every`` iterations later
 (``every`` also where the bound did not fall).  So the stop comes near the
 crossing, not up to ``every`` iterations past it.  The schedule reads

@@ -66,7 +66,8 @@ def balance_line(stop, norm: str) -> str:
 
 
 def adaptive_options(args) -> dict:
-    """The adaptive loop's keywords from :func:`add_adaptive_options` (gamma GAMMA (0.3, admmkit.balanced_stop) unless --balance, the estimator);
+    """The adaptive loop's keywords from :func:`add_adaptive_options` (gamma: admmkit.balanced_stop.GAMMA, 0.3,
+    unless --balance; the estimator);
     ValueError naming the option and its range, and refusing --tol / --eps-abs beside them."""
     if args.tol is not None or args.eps_abs is not None:
         raise ValueError("--target-error stops every level balanced (--balance); it cannot be combined with "

@@ -6,7 +6,7 @@ from contextlib import contextmanager
 import ngsolve as ng
 import numpy as np
 
-#: meshes with fewer elements assemble (and refine) without NGSolve's task manager
+#: meshes with fewer elements assemble without NGSolve's task manager (the contact assembly's threshold)
 TASKS_MIN_ELEMENTS = 200_000
 
 

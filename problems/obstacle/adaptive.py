@@ -7,8 +7,8 @@ One level (:func:`solve_adaptive`):
    (:class:`admmkit.problems.obstacle.estimate.BalancedStop`) and started from
    the previous level's u, lam and rho, prolongated to the new mesh (P1
    interpolation by NGSolve's ``GridFunction.Update``), so later levels cost
-   few iterations; rho is held for the stop's first test interval
-   (:class:`admmkit.adaptive.HeldRho`) and the x-step is Jacobi-CG, factorising
+   few iterations; rho is held for the stop's longest test interval
+   (``every``, 10 iterations; :class:`admmkit.adaptive.HeldRho`) and the x-step is Jacobi-CG, factorising
    only where CG is dear (``problems/obstacle/xstep.py``), in P1, and SuperLU in P2
    (``fe_order=2``: :mod:`admmkit.problems.obstacle.p2`);
 2. **estimate**: the indicators eta_T (``estimator="zz"``, the default, or
@@ -32,8 +32,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from admmkit import Result, solve
-from admmkit.balanced_stop import GAMMA
 from admmkit.adaptive import AdaptiveResult, HeldRho, check_adaptive, dorfler_mark, needed_unknowns
+from admmkit.balanced_stop import GAMMA
 
 from admmkit.problems.fe import refine_marked
 

@@ -42,7 +42,6 @@ from admmkit.balanced_stop import GAMMA
 
 from admmkit.problems.contact.model.assembly import ContactOperators, assemble, build_mesh
 from admmkit.problems.contact.model.scene import Scene
-from admmkit.problems.fe import refine_marked
 from admmkit.problems.contact.model.scene3d import Scene3D
 from admmkit.problems.contact.solvers.adaptive3d import assemble3d_on, mesh3d, surface_interpolate, unknowns3d
 from admmkit.problems.contact.solvers.adaptive_friction import check_adaptive_model, solve_level
@@ -50,6 +49,7 @@ from admmkit.problems.contact.solvers.estimate import BalancedStop, estimator_in
 from admmkit.problems.contact.solvers.estimate_residual import check_estimator
 from admmkit.problems.contact.solvers.methods import method
 from admmkit.problems.contact.solvers.problem import contact_problem
+from admmkit.problems.fe import refine_marked
 
 
 @dataclass
