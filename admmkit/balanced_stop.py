@@ -27,7 +27,9 @@ them the bound's decrease per iteration between the last two tests, q,
 predicts in how many iterations it crosses gamma x the estimate, ``log(bound / (gamma eta)) / log(1 / q)``, and the next
 test is then, rounded down, at least 1 and at most ``every`` iterations later
 (``every`` also where the bound did not fall).  So the stop comes near the
-crossing, not up to ``every`` iterations past it.  The schedule reads
+crossing, not up to ``every`` iterations past it.  ``converging`` says whether
+the last test predicted the crossing within ``every`` iterations: a penalty
+rule may leave rho alone while it does (:class:`admmkit.adaptive.HeldRho`).  The schedule reads
 iteration counts and bounds only, never the clock: the iterates do not depend
 on the machine.
 
@@ -57,7 +59,8 @@ class BalancedStop(StoppingRule):
     ``every``: the most iterations between two tests (the tests are scheduled by
     the bound's observed decrease: module docstring).  ``algebraic`` and
     ``discretisation`` hold the last values computed, ``tests`` the iterations
-    tested.  ``tolerance`` is None: the rule's own test is the accuracy check,
+    tested, ``converging`` whether the last test predicted the crossing within
+    ``every`` iterations.  ``tolerance`` is None: the rule's own test is the accuracy check,
     so ``converged`` means "the algebraic error is below gamma x the estimated
     discretisation error".
     """
@@ -92,6 +95,7 @@ class BalancedStop(StoppingRule):
         self._estimated_at = -REFRESH                  # the iteration of the last estimate
         self._next = self.first_tests[0]               # the iteration (counted from 1) of the next test
         self._last: tuple[int, float] | None = None    # (iteration, bound) of the last finite test
+        self.converging = False                        # the last test predicted the crossing within ``every``
 
     def fired(self, rec: IterationRecord) -> str | None:
         """The rule's name when the bound is at most gamma x the estimate at this record, else None."""
@@ -104,7 +108,7 @@ class BalancedStop(StoppingRule):
         self.tests.append(n)
         self.algebraic = bound = self.algebraic_error_bound(rec)
         if not math.isfinite(bound):
-            self._next = n + self.every
+            self._next, self.converging = n + self.every, False
             return None
         if not self._near_firing(rec.k, bound):
             self._schedule(n, bound)
@@ -132,12 +136,13 @@ class BalancedStop(StoppingRule):
         if later:
             self._next = later[0]
             return
-        steps = self.every
+        steps, self.converging = self.every, False
         if last is not None and 0.0 < bound < last[1]:
             q = (bound / last[1]) ** (1.0 / (n - last[0]))                  # decrease per iteration, < 1
             ratio = bound / (self.gamma * self.discretisation)                  # > 1: it did not fire
             if 1.0 < ratio < math.inf:
-                steps = min(self.every, max(1, int(math.log(ratio) / -math.log(q))))
+                predicted = math.log(ratio) / -math.log(q)
+                steps, self.converging = min(self.every, max(1, int(predicted))), predicted <= self.every
         self._next = n + steps
 
 

@@ -101,7 +101,8 @@ def solve_adaptive(scene: Scene, target: float, *, theta: float = 0.5, gamma: fl
         start = {k: fields[k][problem.free] for k in ("x0", "lam0") if k in fields}
         if "x0" in start:
             start["z0"] = problem.z_step(start["x0"], np.zeros(problem.n), 1.0, None)    # x0 on the obstacle
-        rule = HeldRho(policy, hold=stop.every) if "x0" in start else policy     # warm: rho held a while
+        # warm: rho held for the stop's interval, and on while the stop predicts it fires within one
+        rule = HeldRho(policy, hold=stop.every, keep=lambda: stop.converging) if "x0" in start else policy
         res = solve(problem, rho=warm["rho"], policy=rule, order=order, stop=stop, max_iter=max_iter, **start)
         indicators = estimator_of(problem, estimator)(res.z)
         eta = float(np.sqrt(np.sum(indicators ** 2)))

@@ -148,3 +148,50 @@ def test_a_warm_level_holds_rho_then_hands_over_to_the_rule():
     assert rule.unchanged_until(0) == 3 and isinstance(rule.inner, Summable)
     with pytest.raises(ValueError, match="hold"):
         HeldRho("summable", hold=-1)
+
+
+def test_keep_holds_rho_past_hold_while_it_says_so():
+    """``keep`` (the balanced stop's ``converging``) holds rho after ``hold``; once it turns False the rule acts."""
+    from admmkit.adaptive import HeldRho
+
+    class Record:
+        def __init__(self, k, rho):
+            self.k, self.rho, self.lam_change, self.rho_Ax_change = k, rho, 10.0, 1.0     # w = 10: raise rho
+    state = {"converging": True}
+    rule = HeldRho("summable", hold=2, keep=lambda: state["converging"])
+    rule.reset(5.0)
+    assert [rule.update(Record(k, 5.0)) for k in range(6)] == [5.0] * 6
+    state["converging"] = False
+    assert rule.update(Record(6, 5.0)) == 15.0
+    with pytest.raises(ValueError, match="keep"):
+        HeldRho("summable", keep=3)
+
+
+def test_converging_says_whether_the_crossing_is_predicted_within_every():
+    """A bound falling 2x an iteration towards gamma x 1: predicted within ``every`` once two tests are taken;
+    a bound that does not fall predicts nothing."""
+    from types import SimpleNamespace
+
+    import admmkit
+
+    class Falling(admmkit.BalancedStop):
+        def algebraic_error_bound(self, rec):
+            return self.bounds[rec.k]
+
+        def discretisation_estimate(self, rec):
+            return 1.0
+
+    stop = Falling(gamma=0.1, every=5)
+    stop.bounds = [0.8 * 2.0 ** -k for k in range(10)]                # tests at iterations 1, 2, then predicted
+    assert stop.fired(SimpleNamespace(k=0)) is None and not stop.converging       # one test: no rate yet
+    assert stop.fired(SimpleNamespace(k=1)) is None and stop.converging           # 0.4 -> 0.1 in 2 iterations
+    flat = Falling(gamma=0.1, every=5)
+    flat.bounds = [0.8] * 10
+    flat.fired(SimpleNamespace(k=0))
+    flat.fired(SimpleNamespace(k=1))
+    assert not flat.converging
+    slow = Falling(gamma=0.1, every=5)
+    slow.bounds = [0.8 * 0.99 ** k for k in range(10)]                 # 200 iterations away: not within 5
+    slow.fired(SimpleNamespace(k=0))
+    slow.fired(SimpleNamespace(k=1))
+    assert not slow.converging
