@@ -17,7 +17,7 @@ def add_adaptive_options(parser: argparse.ArgumentParser, *, max_levels: int = 2
     parser.add_argument("--balance", type=positive_float, default=None, metavar="GAMMA",
                         help="stop when a guaranteed bound of the algebraic error is below GAMMA x the estimated "
                              "discretisation error, 0 < GAMMA <= 1 (instead of --tol / --eps-abs; with --target-error, and "
-                             "for solve obstacle, GAMMA is 0.3 unless given)")
+                             f"for solve obstacle, GAMMA is {GAMMA:g} unless given)")
     parser.add_argument("--target-error", type=positive_float, default=None, metavar="E",
                         help="refine adaptively from --h until the estimated relative energy error is <= E, "
                              "0 < E < 1 (--estimator, Doerfler marking, each level warm-started, stopped balanced)")

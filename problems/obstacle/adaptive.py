@@ -149,6 +149,4 @@ def _refine(problem: ObstacleProblem, res: Result, marked: np.ndarray) -> dict:
     return {"x0": u.vec.FV().NumPy().copy(), "lam0": lam.vec.FV().NumPy().copy(), "rho": res.rho}
 
 
-
-
 __all__ = ["Level", "AdaptiveResult", "dorfler_mark", "solve_adaptive"]
