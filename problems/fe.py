@@ -43,6 +43,18 @@ def refine_marked(mesh: ng.Mesh, marked: np.ndarray) -> None:
         mesh.Refine()
 
 
+def refined_copy(mesh: ng.Mesh, marked: np.ndarray) -> ng.Mesh:
+    """A new mesh: a copy of ``mesh`` with the marked elements bisected (:func:`refine_marked`); ``mesh`` stays as
+    it is, so fields on it can be evaluated at the new mesh's points.
+
+    The copy has the same points and elements in the same order (so ``marked`` applies to it), but not the
+    refinement hierarchy: NGSolve's prolongation (``GridFunction.Update``) does not reach the new mesh.
+    """
+    copy = ng.Mesh(mesh.ngmesh.Copy())
+    refine_marked(copy, marked)
+    return copy
+
+
 def facet_sizes(mesh: ng.Mesh) -> ng.GridFunction:
     """h_E on every facet: its length (2D) or the square root of its area (3D), as a FacetFESpace function."""
     facets = ng.FacetFESpace(mesh, order=0)

@@ -38,7 +38,7 @@ from admmkit.acceleration import make_accelerator
 from admmkit.adaptive import AdaptiveResult, HeldRho, check_adaptive, dorfler_mark, needed_unknowns
 from admmkit.balanced_stop import GAMMA
 
-from admmkit.problems.fe import refine_marked
+from admmkit.problems.fe import refine_marked, refined_copy
 
 from .discrete import check_fe_order, make_problem
 from .estimate import BalancedStop, estimator_of, zz
@@ -99,7 +99,7 @@ def solve_adaptive(scene: Scene, target: float, *, theta: float = 0.5, gamma: fl
     out = AdaptiveResult("running", "")
     warm: dict = {"rho": rho}
     for _ in range(max_levels):
-        nodes = mesh.nv + (mesh.nedge if fe_order == 2 else 0)      # P2: at most (the mesh keeps its parents' edges)
+        nodes = mesh.nv + (mesh.nedge if fe_order == 2 else 0)      # P2: at most (P1 levels keep parents' edges)
         if nodes > max_unknowns:
             out.status = "unknowns_cap"
             out.message = (f"the next mesh has about {nodes} nodes, above max_unknowns = {max_unknowns}; "
@@ -129,16 +129,20 @@ def solve_adaptive(scene: Scene, target: float, *, theta: float = 0.5, gamma: fl
         if out.ends(target):
             return out
         warm = _refine(problem, res, dorfler_mark(indicators, theta))
+        mesh = warm.pop("mesh", mesh)
     return out.capped(max_levels, target)
 
 
 def _refine(problem: ObstacleProblem, res: Result, marked: np.ndarray) -> dict:
-    """Refine the marked cells of the problem's mesh; u and lam prolongated to the new nodes, and rho."""
+    """Refine the marked cells of the problem's mesh; u and lam prolongated to the new nodes, and rho.
+
+    P1: in place, NGSolve's prolongation.  P2: NGSolve prolongates the vertex part only, so the fields are
+    evaluated at the new nodes on this level's mesh, left as it is: a refined copy is the new ``mesh``.
+    """
     import ngsolve as ng
-    if problem.order == 2:          # NGSolve prolongates the vertex part only: P2 fields are evaluated anew
-        at = prolongation(problem, res.z, res.lam)
-        refine_marked(problem.mesh, marked)
-        return {"at": at, "rho": res.rho}
+    if problem.order == 2:
+        return {"at": prolongation(problem, res.z, res.lam), "rho": res.rho,
+                "mesh": refined_copy(problem.mesh, marked)}
     u = problem.gridfunction(res.z)
     lam = ng.GridFunction(problem.fes)
     lam.vec.FV().NumPy()[problem.free] = res.lam

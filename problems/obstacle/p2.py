@@ -159,19 +159,21 @@ def _transforms(nv: int, edges: np.ndarray, beta: float) -> tuple[sp.csr_matrix,
 
 
 def prolongation(problem: ObstacleProblemP2, u: np.ndarray, lam: np.ndarray):
-    """Before the mesh is refined in place: a function that gives u and lam (full nodal vectors) at the nodes of
-    the problem built on the refined mesh, by evaluating the P2 fields of this mesh there (exact for u: the
-    meshes are nested)."""
-    old_mesh = ng.Mesh(problem.mesh.ngmesh.Copy())
-    fes = ng.H1(old_mesh, order=2, dirichlet=BOUNDARY)
-    fields = []
-    for values in (problem.full_vector(u), _full_lam(problem, lam)):
-        gf = ng.GridFunction(fes)
+    """A function that gives u and lam (full nodal vectors) at the nodes of a problem built on a refinement of
+    this problem's mesh, by evaluating this level's P2 fields there (exact for u: the meshes are nested).
+
+    The fields are evaluated on ``problem.mesh`` itself, so the caller refines a copy of it
+    (:func:`admmkit.problems.fe.refined_copy`), never the mesh in place.  Evaluating on a copy of the mesh
+    scrambled the edge values: NGSolve numbers a copy's edges anew (a refined mesh keeps its bisected
+    parents' edges, a copy does not), so this level's coefficients were put on other edges.
+    """
+    fields = [ng.GridFunction(problem.fes) for _ in range(2)]
+    for gf, values in zip(fields, (problem.full_vector(u), _full_lam(problem, lam))):
         gf.vec.FV().NumPy()[:] = problem._T_inverse @ values
-        fields.append(gf)
+    mesh = problem.mesh
 
     def at(new_problem: ObstacleProblemP2) -> dict:
-        points = old_mesh(new_problem.nodes[:, 0], new_problem.nodes[:, 1])
+        points = mesh(new_problem.nodes[:, 0], new_problem.nodes[:, 1])
         return {key: np.asarray(gf(points)).ravel() for key, gf in zip(("x0", "lam0"), fields)}
     return at
 

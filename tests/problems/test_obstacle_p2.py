@@ -14,6 +14,7 @@ from admmkit.problems.obstacle import ObstacleProblem, ObstacleProblemP2, make_p
 from admmkit.problems.obstacle.adaptive import solve_adaptive
 from admmkit.problems.obstacle.estimate import BalancedStop, EnergyGap, estimator_of, zz_estimate
 from admmkit.problems.obstacle.p2 import MASS_RATIO, prolongation
+from admmkit.problems.fe import refine_marked, refined_copy
 from admmkit.problems.obstacle.problem import build_mesh
 
 
@@ -113,18 +114,29 @@ def test_the_residual_estimator_is_refused_in_p2():
 
 
 def test_prolongation_is_exact_on_nested_meshes():
+    """Three refinements in a row: from the second on, NGSolve numbers a mesh copy's edges apart from the
+    refined mesh's, which once scrambled the warm start's edge values."""
     scene = radial(h=1)
     mesh = build_mesh(scene)
-    p = ObstacleProblemP2(scene, mesh=mesh)
     q = lambda x, y: x * x - 0.5 * x * y + 0.25       # noqa: E731
-    u = q(*p.nodes[p.free].T)
-    p.u_D[:] = q(*p.nodes.T)                          # the boundary nodes too: the field is q everywhere
-    at = prolongation(p, u, np.zeros(p.n))
-    mesh.SetRefinementFlags([i % 2 == 0 for i in range(mesh.ne)])
-    mesh.Refine()
-    new = ObstacleProblemP2(scene, mesh=mesh)
-    fields = at(new)
-    assert np.abs(fields["x0"] - q(*new.nodes.T)).max() < 1e-12
+    for level in range(3):
+        p = ObstacleProblemP2(scene, mesh=mesh)
+        u = q(*p.nodes[p.free].T)
+        p.u_D[:] = q(*p.nodes.T)                      # the boundary nodes too: the field is q everywhere
+        at = prolongation(p, u, np.zeros(p.n))
+        mesh = refined_copy(mesh, [i % 2 == level % 2 for i in range(mesh.ne)])
+        new = ObstacleProblemP2(scene, mesh=mesh)
+        assert np.abs(at(new)["x0"] - q(*new.nodes.T)).max() < 1e-12, level
+
+
+def test_refined_copy_leaves_the_mesh_and_refines_as_in_place():
+    mesh = build_mesh(radial(h=1))
+    refine_marked(mesh, [i % 3 == 0 for i in range(mesh.ne)])
+    marked = [i % 2 == 0 for i in range(mesh.ne)]
+    ne, copy = mesh.ne, refined_copy(mesh, marked)
+    assert mesh.ne == ne and copy.ne > ne
+    refine_marked(mesh, marked)
+    assert np.array_equal(np.array(mesh.ngmesh.Coordinates()), np.array(copy.ngmesh.Coordinates()))
 
 
 def test_adaptive_p2_beats_adaptive_p1_and_a_warm_level_ends_where_a_cold_one_does():
