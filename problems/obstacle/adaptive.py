@@ -9,7 +9,8 @@ One level (:func:`solve_adaptive`):
    interpolation by NGSolve's ``GridFunction.Update``), so later levels cost
    few iterations; rho is held for the stop's longest test interval
    (``every``, 10 iterations; :class:`admmkit.adaptive.HeldRho`), and on while the stop predicts it fires
-   within that interval (``acceleration`` accelerates the levels' iterations, none by default),
+   within that interval (``acceleration`` accelerates the levels' iterations: restarted fast ADMM in
+   P2, plain ADMM in P1, by default: :data:`ACCELERATION`),
    and the x-step is Jacobi-CG, factorising
    only where CG is dear (``problems/obstacle/xstep.py``), in P1, and SuperLU in P2
    (``fe_order=2``: :mod:`admmkit.problems.obstacle.p2`);
@@ -48,6 +49,11 @@ from .problem import DEFAULT_BACKEND, ObstacleProblem, build_mesh
 from .xstep import ADAPTIVE_BACKEND
 from .scene import Scene
 
+#: ``acceleration="auto"``, by element order.  Radial scene, plain against restarted fast ADMM, one run each:
+#: P2, targets 2e-3 .. 5e-4, 897 warm iterations in 20.4 s against 611 in 14.7 s; 1.5e-3 .. 4e-4, 1,105 in
+#: 29.5 s against 649 in 17.7 s.  P1 (targets 1.2e-2 .. 5e-3): 357 against 309 iterations, no time saved.
+ACCELERATION = {1: None, 2: "fast"}
+
 
 @dataclass
 class Level:
@@ -67,7 +73,7 @@ class Level:
 def solve_adaptive(scene: Scene, target: float, *, theta: float = 0.5, gamma: float = GAMMA, max_levels: int = 30,
                    max_unknowns: int = 2_000_000, policy="summable", order: str = "zx", rho: float = 1.0,
                    max_iter: int = 10_000, backend: str | None = None, estimator: str = "zz",
-                   fe_order: int = 1, acceleration=None, log=None) -> AdaptiveResult:
+                   fe_order: int = 1, acceleration="auto", log=None) -> AdaptiveResult:
     """Refine adaptively from the scene's mesh until ``eta / |u_h|_{H1} <= target`` (see the module docstring).
 
     ``estimator``: ``"zz"`` or ``"residual"`` (P1 only), for the marking and the balanced stop.
@@ -77,11 +83,8 @@ def solve_adaptive(scene: Scene, target: float, *, theta: float = 0.5, gamma: fl
     against 8.4 s for Jacobi-CG and 11.7 s for AMG-CG, one run each, the machine shared).
 
     ``acceleration``: every level's ADMM (:mod:`admmkit.acceleration`: ``"fast"``, ``"anderson"``, an
-    accelerator, or None, the default, for plain ADMM).  Radial scene, P2, four targets (2e-3 .. 5e-4), one run
-    each way: ``"fast"`` took 1,231 warm iterations in 15.7-19.4 s against 2,669 in 21.9-22.4 s plain (to 3e-4,
-    warm / cold median 0.60 against 0.89), but on coarse levels a warm start then took up to twice the
-    iterations of an accelerated cold one (35 against 18 at 1,609 unknowns); in P1 309 against 357 iterations,
-    no time saved.  Not the default until the study (``admmkit bench adaptive``) is rerun with it.
+    accelerator, None for plain ADMM, or ``"auto"``, the default: :data:`ACCELERATION`, restarted fast ADMM in
+    P2 and plain ADMM in P1).
 
     ``log``: called after each level with the :class:`Level` and the result so far (whose ``model``,
     ``result`` and ``indicators`` are that level's), for progress and per-level output.
@@ -91,6 +94,8 @@ def solve_adaptive(scene: Scene, target: float, *, theta: float = 0.5, gamma: fl
     if not isinstance(scene, Scene):
         raise ValueError(f"scene must be a admmkit.problems.obstacle.Scene, got {type(scene).__name__}")
     check_fe_order(fe_order)
+    if isinstance(acceleration, str) and acceleration == "auto":
+        acceleration = ACCELERATION.get(fe_order)
     make_accelerator(acceleration)                          # an unknown name is refused before any mesh is built
     if fe_order == 2 and estimator != "zz":
         raise ValueError(f"estimator = {estimator!r} is written for P1 elements; with fe_order = 2 use 'zz'")

@@ -77,10 +77,12 @@ def test_cli_target_error(tmp_path, capsys, level_vtus):
 
 
 def test_accelerated_levels_reach_the_target_with_fewer_iterations():
-    """acceleration="fast" runs every level with restarted fast ADMM (plain ADMM by default); both reach the
-    target, the accelerated run with fewer warm iterations in P2; an unknown name is refused before any mesh."""
-    fast = solve_adaptive(radial(h=1 / 2), 2e-3, fe_order=2, acceleration="fast")
-    plain = solve_adaptive(radial(h=1 / 2), 2e-3, fe_order=2)
+    """acceleration="fast" runs every level with restarted fast ADMM (the default in P2, "auto"; plain ADMM in
+    P1); both reach the target, the accelerated run with fewer warm iterations in P2; an unknown name is refused
+    before any mesh."""
+    fast = solve_adaptive(radial(h=1 / 2), 2e-3, fe_order=2)
+    plain = solve_adaptive(radial(h=1 / 2), 2e-3, fe_order=2, acceleration=None)
+    assert solve_adaptive(radial(h=1 / 2), 5e-2).result.acceleration is None          # P1: plain by default
     assert fast.result.acceleration is not None and plain.result.acceleration is None
     assert fast.reached and plain.reached
     assert fast.levels[0].relative_estimate == pytest.approx(plain.levels[0].relative_estimate, rel=0.3)
