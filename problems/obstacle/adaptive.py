@@ -10,7 +10,7 @@ One level (:func:`solve_adaptive`):
    few iterations; rho is held for the stop's longest test interval
    (``every``, 10 iterations; :class:`admmkit.adaptive.HeldRho`), and on while the stop predicts it fires
    within that interval (``acceleration`` accelerates the levels' iterations: restarted fast ADMM in
-   P2, plain ADMM in P1, by default: :data:`ACCELERATION`),
+   P2, plain ADMM in P1, by default: ``ACCELERATION``),
    and the x-step is Jacobi-CG, factorising
    only where CG is dear (``problems/obstacle/xstep.py``), in P1, and SuperLU in P2
    (``fe_order=2``: :mod:`admmkit.problems.obstacle.p2`);
@@ -83,7 +83,7 @@ def solve_adaptive(scene: Scene, target: float, *, theta: float = 0.5, gamma: fl
     against 8.4 s for Jacobi-CG and 11.7 s for AMG-CG, one run each, the machine shared).
 
     ``acceleration``: every level's ADMM (:mod:`admmkit.acceleration`: ``"fast"``, ``"anderson"``, an
-    accelerator, None for plain ADMM, or ``"auto"``, the default: :data:`ACCELERATION`, restarted fast ADMM in
+    accelerator, None for plain ADMM, or ``"auto"``, the default: ``ACCELERATION``, restarted fast ADMM in
     P2 and plain ADMM in P1).
 
     ``log``: called after each level with the :class:`Level` and the result so far (whose ``model``,

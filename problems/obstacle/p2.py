@@ -163,7 +163,7 @@ def prolongation(problem: ObstacleProblemP2, u: np.ndarray, lam: np.ndarray):
     this problem's mesh, by evaluating this level's P2 fields there (exact for u: the meshes are nested).
 
     The fields are evaluated on ``problem.mesh`` itself, so the caller refines a copy of it
-    (:func:`admmkit.problems.fe.refined_copy`), never the mesh in place.  Evaluating on a copy of the mesh
+    (``admmkit.problems.fe.refined_copy``), never the mesh in place.  Evaluating on a copy of the mesh
     scrambled the edge values: NGSolve numbers a copy's edges anew (a refined mesh keeps its bisected
     parents' edges, a copy does not), so this level's coefficients were put on other edges.
     """
