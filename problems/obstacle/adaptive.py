@@ -94,7 +94,7 @@ def solve_adaptive(scene: Scene, target: float, *, theta: float = 0.5, gamma: fl
     if not isinstance(scene, Scene):
         raise ValueError(f"scene must be a admmkit.problems.obstacle.Scene, got {type(scene).__name__}")
     check_fe_order(fe_order)
-    if isinstance(acceleration, str) and acceleration == "auto":
+    if isinstance(acceleration, str) and acceleration.strip().lower() == "auto":
         acceleration = ACCELERATION.get(fe_order)
     make_accelerator(acceleration)                          # an unknown name is refused before any mesh is built
     if fe_order == 2 and estimator != "zz":

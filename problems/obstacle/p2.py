@@ -29,7 +29,7 @@ import ngsolve as ng
 import numpy as np
 import scipy.sparse as sp
 
-from .problem import BOUNDARY, ObstacleProblem, csr_of
+from .problem import ObstacleProblem, csr_of
 
 
 def _mass_ratio() -> float:
