@@ -154,6 +154,20 @@ def test_adaptive_p2_beats_adaptive_p1_and_a_warm_level_ends_where_a_cold_one_do
     assert math.sqrt(d @ (model.K @ d)) <= 2 * GAMMA * last.estimate * 1.001
 
 
+def test_every_warm_start_is_within_the_last_levels_error_of_the_new_solution():
+    """The prolongated start of every P2 level is about as far from the level's solution as the last level's
+    discretisation error (the meshes are nested, so the start is the last level's solution itself): below
+    twice the last estimate in the energy norm on every level.  With the scrambled edge values of the
+    mesh-copy bug it was 30 times it from the third level on."""
+    levels = []
+    solve_adaptive(radial(h=1 / 2), 3e-3, fe_order=2,
+                   log=lambda level, out: levels.append((out.model, out.result.z, out.result.lam, level.estimate)))
+    assert len(levels) >= 5
+    for (old, z, lam, eta), (new, z_new, _, _) in zip(levels, levels[1:]):
+        d = prolongation(old, z, lam)(new)["x0"][new.free] - z_new
+        assert math.sqrt(d @ (new.K @ d)) <= 2 * eta, new.n
+
+
 def test_cli_reaches_the_issue_target_in_p2(capsys, tmp_path):
     out = tmp_path / "levels.json"
     assert main(["solve", "obstacle", "--scene", "radial", "--target-error", "5e-3", "--json", str(out)]) == 0
