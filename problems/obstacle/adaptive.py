@@ -38,6 +38,7 @@ from admmkit import Result, solve
 from admmkit.acceleration import make_accelerator
 from admmkit.adaptive import AdaptiveResult, HeldRho, check_adaptive, dorfler_mark, needed_unknowns
 from admmkit.balanced_stop import GAMMA
+from admmkit.policies.summable import Summable
 
 from admmkit.problems.fe import refine_marked, refined_copy
 
@@ -49,9 +50,11 @@ from .problem import DEFAULT_BACKEND, ObstacleProblem, build_mesh
 from .xstep import ADAPTIVE_BACKEND
 from .scene import Scene
 
-#: ``acceleration="auto"``, by element order.  Radial scene, plain against restarted fast ADMM, one run each:
-#: P2, targets 2e-3 .. 5e-4, 897 warm iterations in 20.4 s against 611 in 14.7 s; 1.5e-3 .. 4e-4, 1,105 in
-#: 29.5 s against 649 in 17.7 s.  P1 (targets 1.2e-2 .. 5e-3): 357 against 309 iterations, no time saved.
+#: ``acceleration="auto"`` with the summable rule, by element order.  Radial scene, plain against restarted fast
+#: ADMM, one run each: P2, targets 2e-3 .. 5e-4, 897 warm iterations in 20.4 s against 611 in 14.7 s; 1.5e-3 ..
+#: 4e-4, 1,105 in 29.5 s against 649 in 17.7 s.  P1 (targets 1.2e-2 .. 5e-3): 357 against 309 iterations, no
+#: time saved.  With another rule "auto" is plain ADMM: AADMM under fast ADMM raised rho 600-fold on a P2 level
+#: of 18,147 unknowns and ran into max_iter (to 3e-4; plain, it took 255 iterations over all levels).
 ACCELERATION = {1: None, 2: "fast"}
 
 
@@ -84,7 +87,7 @@ def solve_adaptive(scene: Scene, target: float, *, theta: float = 0.5, gamma: fl
 
     ``acceleration``: every level's ADMM (:mod:`admmkit.acceleration`: ``"fast"``, ``"anderson"``, an
     accelerator, None for plain ADMM, or ``"auto"``, the default: ``ACCELERATION``, restarted fast ADMM in
-    P2 and plain ADMM in P1).
+    P2 and plain ADMM in P1 with the summable rule, plain ADMM with any other ``policy``).
 
     ``log``: called after each level with the :class:`Level` and the result so far (whose ``model``,
     ``result`` and ``indicators`` are that level's), for progress and per-level output.
@@ -95,7 +98,7 @@ def solve_adaptive(scene: Scene, target: float, *, theta: float = 0.5, gamma: fl
         raise ValueError(f"scene must be a admmkit.problems.obstacle.Scene, got {type(scene).__name__}")
     check_fe_order(fe_order)
     if isinstance(acceleration, str) and acceleration.strip().lower() == "auto":
-        acceleration = ACCELERATION.get(fe_order)
+        acceleration = _auto_acceleration(policy, fe_order)
     make_accelerator(acceleration)                          # an unknown name is refused before any mesh is built
     if fe_order == 2 and estimator != "zz":
         raise ValueError(f"estimator = {estimator!r} is written for P1 elements; with fe_order = 2 use 'zz'")
@@ -136,6 +139,12 @@ def solve_adaptive(scene: Scene, target: float, *, theta: float = 0.5, gamma: fl
         warm = _refine(problem, res, dorfler_mark(indicators, theta))
         mesh = warm.pop("mesh", mesh)
     return out.capped(max_levels, target)
+
+
+def _auto_acceleration(policy, fe_order: int):
+    """``acceleration="auto"``: ``ACCELERATION[fe_order]`` with the summable rule (the default), else None."""
+    summable = isinstance(policy, Summable) or (isinstance(policy, str) and policy.strip().lower() == "summable")
+    return ACCELERATION.get(fe_order) if summable else None
 
 
 def _refine(problem: ObstacleProblem, res: Result, marked: np.ndarray) -> dict:

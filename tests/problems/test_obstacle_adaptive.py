@@ -83,6 +83,8 @@ def test_accelerated_levels_reach_the_target_with_fewer_iterations():
     fast = solve_adaptive(radial(h=1 / 2), 2e-3, fe_order=2)
     plain = solve_adaptive(radial(h=1 / 2), 2e-3, fe_order=2, acceleration=None)
     assert solve_adaptive(radial(h=1 / 2), 5e-2).result.acceleration is None          # P1: plain by default
+    aadmm = solve_adaptive(radial(h=1 / 2), 2e-2, fe_order=2, policy="aadmm")      # "auto" with another rule:
+    assert aadmm.reached and aadmm.result.acceleration is None                          # plain
     assert fast.result.acceleration is not None and plain.result.acceleration is None
     assert fast.reached and plain.reached
     assert fast.levels[0].relative_estimate == pytest.approx(plain.levels[0].relative_estimate, rel=0.3)
