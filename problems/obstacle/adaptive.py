@@ -99,7 +99,11 @@ def solve_adaptive(scene: Scene, target: float, *, theta: float = 0.5, gamma: fl
     check_fe_order(fe_order)
     if isinstance(acceleration, str) and acceleration.strip().lower() == "auto":
         acceleration = _auto_acceleration(policy, fe_order)
-    make_accelerator(acceleration)                          # an unknown name is refused before any mesh is built
+    try:                                                    # an unknown name is refused before any mesh is built
+        make_accelerator(acceleration)
+    except ValueError:
+        raise ValueError(f"acceleration must be None, 'anderson', 'fast', 'auto' or an "
+                         f"admmkit.acceleration.Accelerator, got {acceleration!r}") from None
     if fe_order == 2 and estimator != "zz":
         raise ValueError(f"estimator = {estimator!r} is written for P1 elements; with fe_order = 2 use 'zz'")
     backend = backend or (ADAPTIVE_BACKEND if fe_order == 1 else DEFAULT_BACKEND)
@@ -107,7 +111,7 @@ def solve_adaptive(scene: Scene, target: float, *, theta: float = 0.5, gamma: fl
     out = AdaptiveResult("running", "")
     warm: dict = {"rho": rho}
     for _ in range(max_levels):
-        nodes = mesh.nv + (mesh.nedge if fe_order == 2 else 0)      # P2: at most (P1 levels keep parents' edges)
+        nodes = mesh.nv + (mesh.nedge if fe_order == 2 else 0)      # P2: a node at each vertex and each edge
         if nodes > max_unknowns:
             out.status = "unknowns_cap"
             out.message = (f"the next mesh has about {nodes} nodes, above max_unknowns = {max_unknowns}; "

@@ -91,6 +91,8 @@ def test_accelerated_levels_reach_the_target_with_fewer_iterations():
     assert sum(lvl.iterations for lvl in fast.levels[1:]) < sum(lvl.iterations for lvl in plain.levels[1:])
     with pytest.raises(ValueError, match="acceleration must be None, 'anderson', 'fast'"):
         solve_adaptive(radial(h=1 / 4), 5e-2, acceleration="nesterov")
+    with pytest.raises(ValueError, match="'auto'"):                # the error names every accepted value
+        solve_adaptive(radial(h=1 / 4), 5e-2, acceleration=float("nan"))
 
 
 def test_every_p1_warm_start_is_within_the_last_levels_error_of_the_new_solution(monkeypatch):

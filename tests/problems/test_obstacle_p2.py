@@ -137,6 +137,9 @@ def test_refined_copy_leaves_the_mesh_and_refines_as_in_place():
     assert mesh.ne == ne and copy.ne > ne
     refine_marked(mesh, marked)
     assert np.array_equal(np.array(mesh.ngmesh.Coordinates()), np.array(copy.ngmesh.Coordinates()))
+    for bad in ([True] * 3, [float("nan")] * mesh.ne, np.ones((mesh.ne, 2), dtype=bool)):
+        with pytest.raises(ValueError, match="marked must hold one boolean per element"):
+            refined_copy(mesh, bad)
 
 
 def test_adaptive_p2_beats_adaptive_p1_and_a_warm_level_ends_where_a_cold_one_does():
