@@ -53,11 +53,38 @@ def refined_copy(mesh: ng.Mesh, marked: np.ndarray) -> ng.Mesh:
     it is, so fields on it can be evaluated at the new mesh's points.
 
     The copy has the same points and elements in the same order (so ``marked`` applies to it), but not the
-    refinement hierarchy: NGSolve's prolongation (``GridFunction.Update``) does not reach the new mesh.
+    refinement hierarchy: NGSolve's prolongation (``GridFunction.Update``) does not reach the new mesh; P1
+    values are carried over by :func:`p1_prolongation`.
     """
     copy = ng.Mesh(mesh.ngmesh.Copy())
     refine_marked(copy, marked)
     return copy
+
+
+def vertex_parents(mesh: ng.Mesh, coarse_vertices: int) -> np.ndarray:
+    """(new vertices, 2): the two ends of the edge each vertex of a refined mesh numbered from
+    ``coarse_vertices`` on was made at (NGSolve's bisection numbers new vertices after the old ones; in one
+    refinement a parent may itself be new, then it has the lower number)."""
+    parents = [mesh.GetParentVertices(v) for v in range(coarse_vertices, mesh.nv)]
+    return np.array(parents, dtype=np.int64).reshape(-1, 2)
+
+
+def p1_prolongation(parents: np.ndarray, coarse: np.ndarray) -> np.ndarray:
+    """P1 nodal values on a refined mesh from those on its parent: each new vertex the mean of its parent
+    edge's two ends (:func:`vertex_parents`), as NGSolve's ``GridFunction.Update`` prolongates in place.
+
+    With :func:`refined_copy` this takes the place of in-place refinement, whose hierarchy made NGSolve's
+    bisection twice as dear after a dozen levels (1.6e5 -> 2.9e5 triangles: 0.88 s in place, 0.40 s on a copy).
+    """
+    n0 = coarse.shape[0]
+    fine = np.empty(n0 + parents.shape[0])
+    fine[:n0] = coarse
+    if parents.size == 0 or parents.max() < n0:             # every parent old: one gather
+        fine[n0:] = 0.5 * (coarse[parents[:, 0]] + coarse[parents[:, 1]])
+        return fine
+    for i, (a, b) in enumerate(parents):                      # in order: a new parent is set before its children
+        fine[n0 + i] = 0.5 * (fine[a] + fine[b])
+    return fine
 
 
 def facet_sizes(mesh: ng.Mesh) -> ng.GridFunction:

@@ -6,7 +6,7 @@ One level (:func:`solve_adaptive`):
    balanced with the discretisation error
    (:class:`admmkit.problems.obstacle.estimate.BalancedStop`) and started from
    the previous level's u, lam and rho, prolongated to the new mesh (P1
-   interpolation by NGSolve's ``GridFunction.Update``), so later levels cost
+   interpolation, as NGSolve's ``GridFunction.Update``), so later levels cost
    few iterations; rho is held for the stop's longest test interval
    (``every``, 10 iterations; :class:`admmkit.adaptive.HeldRho`), and on while the stop predicts it fires
    within that interval (``acceleration`` accelerates the levels' iterations: restarted fast ADMM in
@@ -21,7 +21,7 @@ One level (:func:`solve_adaptive`):
 3. stop if it is at most ``target``; else **mark** the smallest set of
    triangles that carries a share ``theta`` of sum eta_T^2 (Dörfler 1996);
 4. **refine** the marked triangles with NGSolve's own refinement (bisection,
-   neighbours refined as conformity needs) and go on.
+   neighbours refined as conformity needs), on a copy of the mesh, and go on.
 
 The result says truthfully how it ended: ``target_reached``, or
 ``level_cap`` / ``unknowns_cap`` (the target was not reached; the levels say
@@ -40,7 +40,7 @@ from admmkit.adaptive import AdaptiveResult, HeldRho, check_adaptive, dorfler_ma
 from admmkit.balanced_stop import GAMMA
 from admmkit.policies.summable import Summable
 
-from admmkit.problems.fe import refine_marked, refined_copy
+from admmkit.problems.fe import p1_prolongation, refined_copy, vertex_parents
 
 from .discrete import check_fe_order, make_problem
 from .estimate import BalancedStop, estimator_of, zz
@@ -152,23 +152,22 @@ def _auto_acceleration(policy, fe_order: int):
 
 
 def _refine(problem: ObstacleProblem, res: Result, marked: np.ndarray) -> dict:
-    """Refine the marked cells of the problem's mesh; u and lam prolongated to the new nodes, and rho.
+    """A refined copy of the problem's mesh with its marked cells bisected (the new ``mesh``); u and lam
+    prolongated to the new nodes, and rho.
 
-    P1: in place, NGSolve's prolongation.  P2: NGSolve prolongates the vertex part only, so the fields are
-    evaluated at the new nodes on this level's mesh, left as it is: a refined copy is the new ``mesh``.
+    P1: each new vertex the mean of its parent edge's ends (``problems.fe.p1_prolongation``: NGSolve's
+    in-place prolongation, without the in-place hierarchy that made each refinement twice as dear).  P2: the
+    fields evaluated at the new nodes on this level's mesh, left as it is (:func:`.p2.prolongation`).
     """
-    import ngsolve as ng
+    mesh = refined_copy(problem.mesh, marked)
     if problem.order == 2:
-        return {"at": prolongation(problem, res.z, res.lam), "rho": res.rho,
-                "mesh": refined_copy(problem.mesh, marked)}
-    u = problem.gridfunction(res.z)
-    lam = ng.GridFunction(problem.fes)
-    lam.vec.FV().NumPy()[problem.free] = res.lam
-    refine_marked(problem.mesh, marked)
-    problem.fes.Update()
-    u.Update()
-    lam.Update()
-    return {"x0": u.vec.FV().NumPy().copy(), "lam0": lam.vec.FV().NumPy().copy(), "rho": res.rho}
+        return {"at": prolongation(problem, res.z, res.lam), "rho": res.rho, "mesh": mesh}
+    parents = vertex_parents(mesh, problem.mesh.nv)
+    lam = np.zeros(problem.fes.ndof)
+    lam[problem.free] = res.lam
+    u = problem.gridfunction(res.z).vec.FV().NumPy()
+    return {"x0": p1_prolongation(parents, u), "lam0": p1_prolongation(parents, lam), "rho": res.rho,
+            "mesh": mesh}
 
 
 __all__ = ["Level", "AdaptiveResult", "dorfler_mark", "solve_adaptive"]

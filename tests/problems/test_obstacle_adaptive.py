@@ -113,3 +113,36 @@ def test_every_p1_warm_start_is_within_the_last_levels_error_of_the_new_solution
     solve_adaptive(radial(h=1 / 2), 2e-2, log=lambda level, out: estimates.append(level.estimate))
     assert len(starts) >= 5 and len(starts) == len(estimates) - 1
     assert all(error <= eta for error, eta in zip(starts, estimates))
+
+
+def test_p1_prolongation_on_a_refined_copy_is_ngsolves_in_place_prolongation():
+    """Five refinements with closure (neighbours bisected for conformity): the copy's parent-edge means equal
+    NGSolve's in-place GridFunction.Update to round-off."""
+    import ngsolve as ng
+    from admmkit.problems.fe import p1_prolongation, refine_marked, refined_copy, vertex_parents
+    from admmkit.problems.obstacle.problem import build_mesh
+    in_place = build_mesh(radial(h=1))
+    copy = ng.Mesh(in_place.ngmesh.Copy())
+    gf = ng.GridFunction(ng.H1(in_place, order=1))
+    gf.Set(ng.sin(3 * ng.x) * ng.cos(2 * ng.y) + ng.x * ng.y)
+    values, rng = gf.vec.FV().NumPy().copy(), np.random.default_rng(1)
+    for _ in range(5):
+        marked = rng.random(copy.ne) < 0.2
+        refine_marked(in_place, marked)
+        gf.space.Update()
+        gf.Update()
+        refined = refined_copy(copy, marked)
+        parents = vertex_parents(refined, copy.nv)
+        assert (parents < np.arange(copy.nv, refined.nv)[:, None]).all()      # a parent comes before its child
+        copy, values = refined, p1_prolongation(parents, values)
+        assert np.allclose(np.array(copy.ngmesh.Coordinates()), np.array(in_place.ngmesh.Coordinates()))
+        assert np.abs(values - gf.vec.FV().NumPy()).max() < 1e-14
+
+
+def test_p1_prolongation_sets_a_new_parent_before_its_children():
+    """Where a parent is itself new (not seen in NGSolve's 2D bisection, but allowed), values follow in order."""
+    from admmkit.problems.fe import p1_prolongation
+    coarse = np.array([0.0, 4.0])
+    fine = p1_prolongation(np.array([[0, 1], [0, 2], [2, 1]]), coarse)     # midpoint 2, then the quarter points
+    assert np.array_equal(fine, [0.0, 4.0, 2.0, 1.0, 3.0])
+    assert np.array_equal(p1_prolongation(np.array([[0, 1]]), coarse), [0.0, 4.0, 2.0])
