@@ -16,6 +16,7 @@ from admmkit.io import write_text
 
 from admmkit.benchmarks.rules.adaptive_charts import plot, plot_levels
 from admmkit.benchmarks.rules.adaptive_compare import TARGET_ERROR, TODAY, comparison
+from admmkit.benchmarks.rules.adaptive_contact import RESOLVED
 from admmkit.benchmarks.runner.report import fmt, md_table, write_csv
 
 
@@ -79,8 +80,9 @@ def markdown(rows: list[dict], refs: list[dict], command: str) -> str:
             f"gamma {GAMMA:g}, warm start; its wall time sums all levels. Uniform: each mesh solved cold with the same "
             "stop; its wall time is that one mesh's (the coarser meshes are not counted, in its favour). Hertz: "
             "c_h adds back what the P1 boundary's overlap with the curved obstacle between active nodes takes off "
-            "J(u_h); a true error is NaN (not measurable) where J(u_h) + c_h < J_ref, and such levels are left out "
-            "of the comparisons.\n\n"
+            "J(u_h); a true error is NaN (not measurable) where J(u_h) + c_h < J_ref, or where it is below "
+            f"{RESOLVED:g} times the reference's energy floor (below), and such levels are left out of the "
+            "comparisons.\n\n"
             + reference + "\n\n## At the same true error\n\n" + summary
             + "\n\nThe obstacle against uniform refinement with today's stop (RelativeChange 1e-5), at the smallest "
               "error both reach (the adaptive levels' x-step: Jacobi-CG, a factorisation where CG is dear, in P1; "
@@ -133,6 +135,12 @@ def _reference(ref: dict) -> str:
     head = (f"Contact {ref['scene']}'s reference energy: P2 adaptive from {ref['start']} to an estimated relative "
             f"error {ref['target']:g} ({ref['status']}; gamma 0.01), {ref['unknowns']:,} unknowns on its finest "
             f"level (relative estimate {ref['relative_estimate']:.2e}); ")
+    floor = ref.get("energy_floor", 0.0)
+    if floor > 0:
+        head += (f"its energy rose between two of its five finest levels, where refining a fixed domain could only "
+                 f"lower it (the curved boundary gains vertices on the circle): the energy's resolution, sqrt(2 "
+                 f"rise) / ||u||_a, is {floor:.2e}, and true errors below {RESOLVED:g} times it ({RESOLVED * floor:.2e}) "
+                 f"are left out as not measurable; ")
     if not math.isfinite(ref["own_error"]):
         return head + ("its two finest energies did not fall, so J_ref is the finest level's energy, not "
                        "extrapolated: its own accuracy is its estimate, to compare with the smallest true error "

@@ -145,3 +145,11 @@ def test_interpolation_at_a_common_error():
     assert at_error(b, "unknowns", 1e-1) == 100
     assert common_error(a, b) == 5e-2 and common_error(a, a) == 1e-3
     assert rate(a) == pytest.approx(-1.0)
+
+
+def test_the_energy_floor_is_the_largest_rise_between_levels():
+    """Energies that only fall leave every true error measurable; a rise r sets the floor sqrt(2 r) / ||u||_a."""
+    from admmkit.benchmarks.rules.adaptive_contact import energy_floor
+    assert energy_floor([3.0, 2.0, 1.5, 1.25], 2.0) == 0.0
+    assert energy_floor([3.0, 2.0, 2.5, 1.0, 1.08], 2.0) == pytest.approx(math.sqrt(2 * 0.5) / 2.0)
+    assert energy_floor([1.0], 1.0) == 0.0
