@@ -9,13 +9,14 @@ One level (:func:`solve_adaptive`):
 1. **solve** the scene on the current mesh (mode condensed) with ADMM,
    stopped balanced with the discretisation error
    (:class:`admmkit.problems.contact.solvers.estimate.BalancedStop`), started
-   from the previous level's contact pressure (with friction also the
-   tangential traction, and for Coulomb the slip bound mu p_n; interpolated along Gamma_C to
-   the new contact nodes; in 3D on the contact face,
-   ``surface_interpolate`` of
-   ``admmkit.problems.contact.solvers.adaptive3d``)
-   and rho, so later levels cost few iterations (in 2D; in 3D they cost as
-   many as a cold start, docs/contact.md);
+   from the previous level's rho and, in 2D, its displacement on Gamma_C (normal,
+   and tangential with friction: the field with that trace and its multiplier,
+   :mod:`admmkit.problems.contact.solvers.warm_trace`); in 3D from its contact
+   pressure (with friction also the tangential traction) interpolated on the
+   contact face (``surface_interpolate`` of
+   ``admmkit.problems.contact.solvers.adaptive3d``). For Coulomb the slip
+   bound mu p_n is the interpolated pressure's. Later levels cost few
+   iterations in 2D; in 3D they cost as many as a cold start (docs/contact.md);
 2. **estimate**: the indicators eta_T (``estimator="zz"``, the default, or
    ``"residual"``, Hild & Nicaise's, with the ADMM pressure, frictionless only;
    the balanced stop uses the same one) and the relative estimate ``eta / ||u_h||_a``;
@@ -49,6 +50,7 @@ from admmkit.problems.contact.solvers.estimate import BalancedStop, estimator_in
 from admmkit.problems.contact.solvers.estimate_residual import check_estimator
 from admmkit.problems.contact.solvers.methods import method
 from admmkit.problems.contact.solvers.problem import contact_problem
+from admmkit.problems.contact.solvers.warm_trace import ContactTrace, contact_trace, trace_warm_start
 from admmkit.problems.fe import refine_marked
 
 
@@ -103,7 +105,7 @@ def solve_adaptive(scene: Scene, target: float, *, theta: float = 0.5, gamma: fl
         lam0 = None if warm is None else _interpolate(ops, *warm[:2])
         s0 = None if lam0 is None or scene.tangential != "coulomb" else scene.mu * np.maximum(lam0[:ops.n_c], 0.0)
         res, report = solve_level(problem, stop, method_name, rho if warm is None else warm[2], max_iter,
-                                  lambda: {} if lam0 is None else _warm_start(problem, lam0), coulomb_tol, s0)
+                                  lambda: {} if lam0 is None else _warm_start(problem, lam0, warm[3]), coulomb_tol, s0)
         indicators = estimator_indicators(ops, res.x, res.lam, estimator)
         eta = float(np.sqrt(np.sum(indicators ** 2)))
         relative = eta / max(float(np.sqrt(res.x @ (ops.K @ res.x))), 1e-300)
@@ -118,7 +120,7 @@ def solve_adaptive(scene: Scene, target: float, *, theta: float = 0.5, gamma: fl
             if out.status == "admm_failed" and report is not None:
                 out.message += f" ({res.message})"
             return out
-        warm = (ops.xc.copy(), res.lam.copy(), res.rho)
+        warm = (ops.xc.copy(), res.lam.copy(), res.rho, None if three else contact_trace(ops, res.x))
         refine_marked(mesh, dorfler_mark(indicators, theta))
     return out.capped(max_levels, target)
 
@@ -130,8 +132,12 @@ def _interpolate(ops: ContactOperators, xc_old: np.ndarray, lam_old: np.ndarray)
     return np.concatenate([along(xc_old, block, ops.xc) for block in lam_old.reshape(-1, len(xc_old))])
 
 
-def _warm_start(problem, lam0: np.ndarray) -> dict:
-    """x0, lam0, z0 on the new mesh from the interpolated tractions lam0: w0 = -M_c lam0 (stationarity)."""
+def _warm_start(problem, lam0: np.ndarray, trace: ContactTrace | None = None) -> dict:
+    """x0, lam0, z0 on the new mesh: in 2D the field with the last level's trace on Gamma_C (``warm_trace``), else
+    (3D, or C not positive definite) from the interpolated tractions lam0: w0 = -M_c lam0 (stationarity)."""
+    start = None if trace is None else trace_warm_start(problem, trace)
+    if start is not None:
+        return start
     x0 = np.concatenate(([1.0], -problem.w * lam0))
     return {"x0": x0, "lam0": lam0, "z0": problem.z_step(problem.apply_A(x0), np.zeros_like(lam0), 1.0, None)}
 
