@@ -9,12 +9,12 @@ One level (:func:`solve_adaptive`):
 1. **solve** the scene on the current mesh (mode condensed) with ADMM,
    stopped balanced with the discretisation error
    (:class:`admmkit.problems.contact.solvers.estimate.BalancedStop`), started
-   from the previous level's rho and, in 2D, its displacement on Gamma_C (normal,
-   and tangential with friction: the field with that trace and its multiplier,
-   :mod:`admmkit.problems.contact.solvers.warm_trace`); in 3D from its contact
-   pressure (with friction also the tangential traction) interpolated on the
-   contact face (``surface_interpolate`` of
-   ``admmkit.problems.contact.solvers.adaptive3d``). For Coulomb the slip
+   from the previous level's rho, its contact pressure (with friction also the
+   tangential traction; interpolated along Gamma_C, in 3D on the contact
+   face, ``surface_interpolate`` of ``admmkit.problems.contact.solvers.adaptive3d``)
+   and, in 2D, its displacement on Gamma_C (normal, and tangential with
+   friction: the field with that trace,
+   :mod:`admmkit.problems.contact.solvers.warm_trace`). For Coulomb the slip
    bound mu p_n is the interpolated pressure's. Later levels cost few
    iterations in 2D; in 3D they cost as many as a cold start (docs/contact.md);
 2. **estimate**: the indicators eta_T (``estimator="zz"``, the default, or
@@ -133,9 +133,9 @@ def _interpolate(ops: ContactOperators, xc_old: np.ndarray, lam_old: np.ndarray)
 
 
 def _warm_start(problem, lam0: np.ndarray, trace: ContactTrace | None = None) -> dict:
-    """x0, lam0, z0 on the new mesh: in 2D the field with the last level's trace on Gamma_C (``warm_trace``), else
-    (3D, or C not positive definite) from the interpolated tractions lam0: w0 = -M_c lam0 (stationarity)."""
-    start = None if trace is None else trace_warm_start(problem, trace)
+    """x0, lam0, z0 on the new mesh from the interpolated tractions lam0; x0 in 2D the field with the last level's
+    trace on Gamma_C (``warm_trace``), else (3D, or C not positive definite) w0 = -M_c lam0 (stationarity)."""
+    start = None if trace is None else trace_warm_start(problem, trace, lam0)
     if start is not None:
         return start
     x0 = np.concatenate(([1.0], -problem.w * lam0))

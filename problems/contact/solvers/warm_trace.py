@@ -12,15 +12,20 @@ chord: the nearest chord that spans it), a clamped end of Gamma_C counts 0.
 The condensed mode's x = (s, w) with u = s K^{-1} f + K^{-1} A'w has
 A u = s d0 + C w on Gamma_C (``CondensedContact``), so
 
-    w0 = C^{-1} (d - d0),  s = 1,  lam0 = -w0 / M_c
+    w0 = C^{-1} (d - d0),  s = 1
 
-is the new level's field with that trace, and lam0 the multiplier of
-stationarity (w = -M_c lam, as ``adaptive._warm_start`` reads it).  Against
-the old pressure interpolated along Gamma_C (``adaptive._along_boundary``)
-it cut the warm levels' iterations over four targets each: Example 2 P2
+is the new level's field with that trace.  The multiplier stays the old
+pressure interpolated along Gamma_C (``adaptive._along_boundary``, the
+caller's ``lam0``): the one of stationarity, -w0 / M_c, is a derivative of
+the trace and was off by 17-29 % at Hertz's peak pressure when the
+balanced stop fired (it controls the displacement's algebraic error, not
+the pressure's; P1 to 1e-2, the interpolated one 0.09-1.1 %, as before).
+Against the old start (x0 from the interpolated pressure too, w0 = -M_c
+lam0) it cut the warm levels' iterations on Hertz P1 to 1e-2 from 32 to 23,
+and with -w0 / M_c as the multiplier over four targets each: Example 2 P2
 (5e-3 .. 5e-4) 446 -> 110, Example 1 P2 (2e-3 .. 3e-4) 199 -> 91, Example 1
-P1 (2e-2 .. 7e-3) 84 -> 55; the time the same within the noise (8.3-8.4 s
-against 8.7-9.3 s on Example 2), the levels' set-up dominates it.
+P1 (2e-2 .. 7e-3) 84 -> 55 (docs/contact.md: the study's figures); the
+time the same within the noise, the levels' set-up dominates it.
 """
 from __future__ import annotations
 
@@ -79,17 +84,16 @@ def trace_at(trace: ContactTrace, xc: np.ndarray) -> np.ndarray:
     return np.sum(trace.values[:, e, :] * basis.T[None], axis=2)
 
 
-def trace_warm_start(problem, trace: ContactTrace) -> dict | None:
-    """x0, lam0, z0 of a condensed contact level whose field has the last level's trace on Gamma_C (module
-    docstring); None where a new contact node lies on no old edge or C is not positive definite (then the caller
-    interpolates the pressure instead)."""
+def trace_warm_start(problem, trace: ContactTrace, lam0: np.ndarray) -> dict | None:
+    """x0, lam0, z0 of a condensed contact level: x0 the field with the last level's trace on Gamma_C, ``lam0`` the
+    given multiplier (the interpolated pressure, module docstring), z0 the z-step of x0; None where a new contact
+    node lies on no old edge or C is not positive definite (then the caller starts from the pressure alone)."""
     try:
         d = trace_at(trace, problem.ops.xc).ravel()
         w0 = sla.cho_solve(sla.cho_factor(problem.C), d - problem.d0)
     except (np.linalg.LinAlgError, ValueError):
         return None
     x0 = np.concatenate(([1.0], w0))
-    lam0 = -w0 / problem.w
     return {"x0": x0, "lam0": lam0, "z0": problem.z_step(problem.apply_A(x0), np.zeros_like(lam0), 1.0, None)}
 
 
