@@ -137,8 +137,8 @@ def _reference(ref: dict) -> str:
             f"level (relative estimate {ref['relative_estimate']:.2e}); ")
     floor = ref.get("energy_floor", 0.0)
     if floor > 0:
-        head += (f"its energy rose between two of its five finest levels, where refining a fixed domain could only "
-                 f"lower it (the curved boundary gains vertices on the circle): the energy's resolution, sqrt(2 "
+        head += (f"its energy rose between two of its five finest levels (each new contact node adds a constraint; "
+                 f"Hertz's curved boundary also gains vertices on the circle): the energy's resolution, sqrt(2 "
                  f"rise) / ||u||_a, is {floor:.2e}, and true errors below {RESOLVED:g} times it ({RESOLVED * floor:.2e}) "
                  f"are left out as not measurable; ")
     if not math.isfinite(ref["own_error"]):
