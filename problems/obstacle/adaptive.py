@@ -163,11 +163,8 @@ def _refine(problem: ObstacleProblem, res: Result, marked: np.ndarray) -> dict:
     if problem.order == 2:
         return {"at": prolongation(problem, res.z, res.lam), "rho": res.rho, "mesh": mesh}
     parents = vertex_parents(mesh, problem.mesh.nv)
-    lam = np.zeros(problem.fes.ndof)
-    lam[problem.free] = res.lam
-    u = problem.gridfunction(res.z).vec.FV().NumPy()
-    return {"x0": p1_prolongation(parents, u), "lam0": p1_prolongation(parents, lam), "rho": res.rho,
-            "mesh": mesh}
+    return {"x0": p1_prolongation(parents, problem.full_vector(res.z)),
+            "lam0": p1_prolongation(parents, problem.full_multiplier(res.lam)), "rho": res.rho, "mesh": mesh}
 
 
 __all__ = ["Level", "AdaptiveResult", "dorfler_mark", "solve_adaptive"]

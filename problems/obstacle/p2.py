@@ -168,7 +168,7 @@ def prolongation(problem: ObstacleProblemP2, u: np.ndarray, lam: np.ndarray):
     parents' edges, a copy does not), so this level's coefficients were put on other edges.
     """
     fields = [ng.GridFunction(problem.fes) for _ in range(2)]
-    for gf, values in zip(fields, (problem.full_vector(u), _full_lam(problem, lam))):
+    for gf, values in zip(fields, (problem.full_vector(u), problem.full_multiplier(lam))):
         gf.vec.FV().NumPy()[:] = problem._T_inverse @ values
     mesh = problem.mesh
 
@@ -176,12 +176,6 @@ def prolongation(problem: ObstacleProblemP2, u: np.ndarray, lam: np.ndarray):
         points = mesh(new_problem.nodes[:, 0], new_problem.nodes[:, 1])
         return {key: np.asarray(gf(points)).ravel() for key, gf in zip(("x0", "lam0"), fields)}
     return at
-
-
-def _full_lam(problem: ObstacleProblemP2, lam: np.ndarray) -> np.ndarray:
-    full = np.zeros(problem.fes.ndof)
-    full[problem.free] = lam
-    return full
 
 
 __all__ = ["ObstacleProblemP2", "ZZ2", "MASS_RATIO", "edge_vertices", "prolongation"]

@@ -217,6 +217,12 @@ class ObstacleProblem(Problem):
         full[self.free] = u
         return full
 
+    def full_multiplier(self, lam: np.ndarray) -> np.ndarray:
+        """The multiplier on all nodes: lam on the free nodes, 0 on the boundary (where u = u_D is fixed)."""
+        full = np.zeros(self.fes.ndof)
+        full[self.free] = lam
+        return full
+
     def gridfunction(self, u: np.ndarray) -> ng.GridFunction:
         """The P1 function with free nodal values u and boundary values u_D."""
         gf = ng.GridFunction(self.fes)

@@ -146,3 +146,13 @@ def test_p1_prolongation_sets_a_new_parent_before_its_children():
     fine = p1_prolongation(np.array([[0, 1], [0, 2], [2, 1]]), coarse)     # midpoint 2, then the quarter points
     assert np.array_equal(fine, [0.0, 4.0, 2.0, 1.0, 3.0])
     assert np.array_equal(p1_prolongation(np.array([[0, 1]]), coarse), [0.0, 4.0, 2.0])
+
+
+def test_full_multiplier_puts_lam_on_the_free_nodes_and_zero_on_the_boundary():
+    from admmkit.problems.obstacle.discrete import make_problem
+    for order in (1, 2):
+        p = make_problem(radial(h=1), fe_order=order)
+        lam = np.arange(1.0, p.n + 1)
+        full = p.full_multiplier(lam)
+        assert full.shape == (p.fes.ndof,) and np.array_equal(full[p.free], lam)
+        assert np.count_nonzero(full) == p.n
