@@ -110,7 +110,7 @@ def contact_rows(name: str, order: int, target: float, ref: dict, start, uniform
     def true_error(ops, res):       # NaN where the energy cannot measure it (Hertz's coarsest and finest levels)
         excess = energy(ops, res.x) - ref["J_ref"] + correction(ops, res)
         absolute = math.sqrt(2 * excess) if excess >= 0 else math.nan
-        if absolute / ref["norm"] < RESOLVED * ref.get("energy_floor", 0.0):
+        if absolute / ref["norm"] < RESOLVED * ref["energy_floor"]:
             absolute = math.nan
         return absolute / ref["norm"], absolute, extra(ops, res)
 

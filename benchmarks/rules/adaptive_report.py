@@ -135,7 +135,7 @@ def _reference(ref: dict) -> str:
     head = (f"Contact {ref['scene']}'s reference energy: P2 adaptive from {ref['start']} to an estimated relative "
             f"error {ref['target']:g} ({ref['status']}; gamma 0.01), {ref['unknowns']:,} unknowns on its finest "
             f"level (relative estimate {ref['relative_estimate']:.2e}); ")
-    floor = ref.get("energy_floor", 0.0)
+    floor = ref["energy_floor"]
     if floor > 0:
         head += (f"its energy rose between two of its five finest levels (each new contact node adds a constraint; "
                  f"Hertz's curved boundary also gains vertices on the circle): the energy's resolution, sqrt(2 "

@@ -25,7 +25,7 @@ def test_the_trace_on_a_refined_mesh_is_the_old_fields_trace(order):
     scene = example1(h=1 / 4, order=order)
     ops = assemble(scene)
     u, _ = _field(ops, order)
-    trace = contact_trace(ops, u)
+    trace = contact_trace(contact_problem(ops, mode="condensed"), u)
     mesh = ops.mesh
     refine_marked(mesh, np.arange(mesh.ne) % 3 == 0)
     new = assemble(scene, mesh=mesh)
@@ -39,7 +39,7 @@ def test_the_warm_start_has_the_old_trace_and_the_given_multiplier():
     scene = example2(h=1 / 4, order=2)
     ops = assemble(scene)
     u, _ = _field(ops, 2)
-    trace = contact_trace(ops, u)
+    trace = contact_trace(contact_problem(ops, mode="condensed"), u)
     refine_marked(ops.mesh, np.arange(ops.mesh.ne) % 2 == 0)
     problem = contact_problem(assemble(scene, mesh=ops.mesh), mode="condensed")
     lam0 = np.linspace(0.0, 1.0, problem.ops.n_c)
@@ -69,10 +69,10 @@ def test_a_mesh_that_is_not_nested_falls_back_to_the_pressure():
     """A contact node on no old edge: trace_at refuses it by name, the warm start returns None (the caller then
     interpolates the pressure)."""
     ops = assemble(example1(h=1 / 4))
-    trace = contact_trace(ops, _field(ops, 1)[0])
+    problem = contact_problem(ops, mode="condensed")
+    trace = contact_trace(problem, _field(ops, 1)[0])
     far = ops.xc + np.array([10.0, 0.0])
     with pytest.raises(ValueError, match="trace_at: a point of Gamma_C lies on no old contact edge"):
         trace_at(trace, far)
-    problem = contact_problem(ops, mode="condensed")
     problem.ops = type("Shifted", (), {"xc": far})()
     assert trace_warm_start(problem, trace, np.zeros(ops.n_c)) is None

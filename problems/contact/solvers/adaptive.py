@@ -120,7 +120,7 @@ def solve_adaptive(scene: Scene, target: float, *, theta: float = 0.5, gamma: fl
             if out.status == "admm_failed" and report is not None:
                 out.message += f" ({res.message})"
             return out
-        warm = (ops.xc.copy(), res.lam.copy(), res.rho, None if three else contact_trace(ops, res.x))
+        warm = (ops.xc.copy(), res.lam.copy(), res.rho, None if three else contact_trace(problem, res.x))
         refine_marked(mesh, dorfler_mark(indicators, theta))
     return out.capped(max_levels, target)
 

@@ -34,7 +34,6 @@ from dataclasses import dataclass
 import ngsolve as ng
 import numpy as np
 import scipy.linalg as sla
-import scipy.sparse as sp
 from scipy.spatial import cKDTree
 
 
@@ -53,10 +52,11 @@ def contact_edges(mesh: ng.Mesh, contact: str) -> np.ndarray:
     return np.array(ends, dtype=float).reshape(-1, 2, 2)
 
 
-def contact_trace(ops, u: np.ndarray) -> ContactTrace:
-    """The trace of a level's displacement ``u`` (free dofs) on Gamma_C, by contact edge (``ops``: its operators)."""
-    A = ops.B if ops.friction is None else sp.vstack([ops.B, ops.T], format="csr")      # as _ContactBase.A
-    d = (A @ u).reshape(-1, ops.n_c)                       # blocks: u.n, then u.t with friction
+def contact_trace(problem, u: np.ndarray) -> ContactTrace:
+    """The trace A u of a level's displacement ``u`` (free dofs) on Gamma_C, by contact edge (``problem``: the
+    level's contact problem, whose A is B, or [B; T] with friction)."""
+    ops = problem.ops
+    d = (problem.A @ u).reshape(-1, ops.n_c)               # blocks: u.n, then u.t with friction
     edges = contact_edges(ops.mesh, ops.scene.contact)
     points = [edges[:, 0], edges[:, 1]] + ([edges.mean(axis=1)] if ops.scene.order == 2 else [])
     scale = max(float(np.ptp(ops.xc, axis=0).max()), 1.0)
