@@ -74,5 +74,9 @@ def test_a_mesh_that_is_not_nested_falls_back_to_the_pressure():
     far = ops.xc + np.array([10.0, 0.0])
     with pytest.raises(ValueError, match="trace_at: a point of Gamma_C lies on no old contact edge"):
         trace_at(trace, far)
+    with pytest.raises(ValueError, match="trace_at: a point of Gamma_C lies on no old contact edge"):
+        trace_at(trace, np.full((3, 2), np.nan))                    # NaN points lie on no edge either
+    with pytest.raises(ValueError, match=r"xc must hold one 2D point per row, shape \(points, 2\); got shape \(4,\)"):
+        trace_at(trace, np.zeros(4))
     problem.ops = type("Shifted", (), {"xc": far})()
     assert trace_warm_start(problem, trace, np.zeros(ops.n_c)) is None

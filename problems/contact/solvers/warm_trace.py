@@ -68,6 +68,9 @@ def contact_trace(problem, u: np.ndarray) -> ContactTrace:
 
 def trace_at(trace: ContactTrace, xc: np.ndarray) -> np.ndarray:
     """(blocks, len(xc)): the trace at the points ``xc`` of Gamma_C, each on the old chord that spans it."""
+    xc = np.asarray(xc, dtype=float)
+    if xc.ndim != 2 or xc.shape[1] != 2:
+        raise ValueError(f"trace_at: xc must hold one 2D point per row, shape (points, 2); got shape {xc.shape}")
     pa, pb = trace.edges[:, 0], trace.edges[:, 1]
     chord = pb - pa
     t = np.einsum("nek,ek->ne", xc[:, None, :] - pa[None], chord) / np.einsum("ek,ek->e", chord, chord)
