@@ -35,6 +35,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -102,10 +103,10 @@ def solve_adaptive(scene: Scene, target: float, *, theta: float = 0.5, gamma: fl
         ops = assemble3d_on(scene, mesh) if three else assemble(scene, mesh=mesh)
         problem = contact_problem(ops, mode="condensed")
         stop = BalancedStop(problem, gamma, estimator=estimator)
-        lam0 = None if warm is None else _interpolate(ops, *warm[:2])
+        lam0 = None if warm is None else _interpolate(ops, warm.xc, warm.lam)
         s0 = None if lam0 is None or scene.tangential != "coulomb" else scene.mu * np.maximum(lam0[:ops.n_c], 0.0)
-        res, report = solve_level(problem, stop, method_name, rho if warm is None else warm[2], max_iter,
-                                  lambda: {} if lam0 is None else _warm_start(problem, lam0, warm[3]), coulomb_tol, s0)
+        res, report = solve_level(problem, stop, method_name, rho if warm is None else warm.rho, max_iter,
+                                  lambda: {} if lam0 is None else _warm_start(problem, lam0, warm.trace), coulomb_tol, s0)
         indicators = estimator_indicators(ops, res.x, res.lam, estimator)
         eta = float(np.sqrt(np.sum(indicators ** 2)))
         relative = eta / max(float(np.sqrt(res.x @ (ops.K @ res.x))), 1e-300)
@@ -120,9 +121,18 @@ def solve_adaptive(scene: Scene, target: float, *, theta: float = 0.5, gamma: fl
             if out.status == "admm_failed" and report is not None:
                 out.message += f" ({res.message})"
             return out
-        warm = (ops.xc.copy(), res.lam.copy(), res.rho, None if three else contact_trace(problem, res.x))
+        warm = LastLevel(ops.xc.copy(), res.lam.copy(), res.rho, None if three else contact_trace(problem, res.x))
         refine_marked(mesh, dorfler_mark(indicators, theta))
     return out.capped(max_levels, target)
+
+
+class LastLevel(NamedTuple):
+    """What a level hands the next: its contact nodes, multiplier and rho, and (2D) its displacement's trace."""
+
+    xc: np.ndarray                  # the contact nodes' coordinates
+    lam: np.ndarray                 # the multiplier, by block (pressure, then the tangential tractions)
+    rho: float
+    trace: ContactTrace | None      # A u on Gamma_C by contact edge (warm_trace); None in 3D
 
 
 def _interpolate(ops: ContactOperators, xc_old: np.ndarray, lam_old: np.ndarray) -> np.ndarray:
