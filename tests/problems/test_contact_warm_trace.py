@@ -80,3 +80,17 @@ def test_a_mesh_that_is_not_nested_falls_back_to_the_pressure():
         trace_at(trace, np.zeros(4))
     problem.ops = type("Shifted", (), {"xc": far})()
     assert trace_warm_start(problem, trace, np.zeros(ops.n_c)) is None
+
+
+def test_start_at_makes_z0_the_admissible_part_of_a_x0():
+    """z0 = min(g, A x0) (the z-step with lam 0): admissible, and A x0 itself wherever A x0 <= g."""
+    from admmkit.problems.contact.solvers.warm_trace import start_at
+    problem = contact_problem(assemble(example1(h=1 / 4)), mode="condensed")
+    w = np.linspace(-1.0, 1.0, problem.ops.n_c)
+    x0 = np.concatenate(([0.0], w * 2 * problem.g.max() / np.abs(problem.C @ w).max()))   # A x0 = C w, in +-2 g
+    lam0 = np.ones(problem.ops.n_c)
+    start = start_at(problem, x0, lam0)
+    Ax = problem.apply_A(x0)
+    assert start["x0"] is x0 and start["lam0"] is lam0
+    assert np.all(start["z0"] <= problem.g) and np.array_equal(start["z0"] == Ax, Ax <= problem.g)
+    assert np.any(Ax > problem.g) and np.any(Ax <= problem.g)          # both cases are exercised

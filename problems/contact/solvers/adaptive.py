@@ -51,7 +51,7 @@ from admmkit.problems.contact.solvers.estimate import BalancedStop, estimator_in
 from admmkit.problems.contact.solvers.estimate_residual import check_estimator
 from admmkit.problems.contact.solvers.methods import method
 from admmkit.problems.contact.solvers.problem import contact_problem
-from admmkit.problems.contact.solvers.warm_trace import ContactTrace, contact_trace, trace_warm_start
+from admmkit.problems.contact.solvers.warm_trace import ContactTrace, contact_trace, start_at, trace_warm_start
 from admmkit.problems.fe import refine_marked
 
 
@@ -146,10 +146,7 @@ def _warm_start(problem, lam0: np.ndarray, trace: ContactTrace | None = None) ->
     """x0, lam0, z0 on the new mesh from the interpolated tractions lam0; x0 in 2D the field with the last level's
     trace on Gamma_C (``warm_trace``), else (3D, or C not positive definite) w0 = -M_c lam0 (stationarity)."""
     start = None if trace is None else trace_warm_start(problem, trace, lam0)
-    if start is not None:
-        return start
-    x0 = np.concatenate(([1.0], -problem.w * lam0))
-    return {"x0": x0, "lam0": lam0, "z0": problem.z_step(problem.apply_A(x0), np.zeros_like(lam0), 1.0, None)}
+    return start if start is not None else start_at(problem, np.concatenate(([1.0], -problem.w * lam0)), lam0)
 
 
 def _along_boundary(xc_old: np.ndarray, values: np.ndarray, xc_new: np.ndarray) -> np.ndarray:

@@ -96,8 +96,12 @@ def trace_warm_start(problem, trace: ContactTrace, lam0: np.ndarray) -> dict | N
         w0 = sla.cho_solve(sla.cho_factor(problem.C), d - problem.d0)
     except (np.linalg.LinAlgError, ValueError):
         return None
-    x0 = np.concatenate(([1.0], w0))
+    return start_at(problem, np.concatenate(([1.0], w0)), lam0)
+
+
+def start_at(problem, x0: np.ndarray, lam0: np.ndarray) -> dict:
+    """The start of a condensed contact level from x0 and lam0: with z0 the z-step of A x0 (x0 made feasible)."""
     return {"x0": x0, "lam0": lam0, "z0": problem.z_step(problem.apply_A(x0), np.zeros_like(lam0), 1.0, None)}
 
 
-__all__ = ["ContactTrace", "contact_edges", "contact_trace", "trace_at", "trace_warm_start"]
+__all__ = ["ContactTrace", "contact_edges", "contact_trace", "trace_at", "trace_warm_start", "start_at"]
