@@ -7,7 +7,8 @@ One level (:func:`solve_adaptive`):
    (:class:`admmkit.problems.obstacle.estimate.BalancedStop`) and started from
    the previous level's u, lam and rho, prolongated to the new mesh (P1
    interpolation, as NGSolve's ``GridFunction.Update``), so later levels cost
-   few iterations; rho is held for the stop's longest test interval
+   few iterations; rho kept within ``warm_rho`` x the new mesh's own scale
+   (``WARM_RHO``), then held for the stop's longest test interval
    (``every``, 10 iterations; :class:`admmkit.adaptive.HeldRho`), and on while the stop predicts it fires
    within that interval (``acceleration`` accelerates the levels' iterations: restarted fast ADMM in
    P2, plain ADMM in P1, by default: ``ACCELERATION``),
@@ -29,6 +30,7 @@ what was), or ``admm_failed`` (a level's ADMM run did not converge).
 """
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass
 
@@ -57,6 +59,17 @@ from .scene import Scene
 #: of 18,147 unknowns and ran into max_iter (to 3e-4; plain, it took 255 iterations over all levels).
 ACCELERATION = {1: None, 2: "fast"}
 
+#: ``warm_rho="auto"``, by element order: a warm level starts from the last level's rho clamped to
+#: [lo, hi] x ``problem.rho_scale()`` (the mean K_ii / m_i, about h^-2).  Carried as it is, rho drifted with
+#: the summable rule's moves, which compound from level to level: pyramid P1 to 1.5e-2, rho 729 -> 1.3e8
+#: by 5e5 unknowns, 2,651 warm iterations in 429 s, one level 2,168; clamped to (0.01, 1), 622 in 55 s (radial:
+#: the same 92 iterations, its rho never left the window).  On the radial P1 levels, from that path's starts,
+#: rho = 0.1-1 x the scale took 2-4 iterations on every warm level (0.01: 15-56, 3: 6-23).  P2: rho = 0.3 x the
+#: scale on every warm level; radial to 3e-4, theta 0.4 / 0.5 / 0.6 / 0.7: 245 / 162 / 176 / 121 warm
+#: iterations against 224 / 196 / 213 / 164 carried, and no level's algebraic error below 0.05 of the
+#: estimate, against 1-2 levels in each carried run.
+WARM_RHO = {1: (0.01, 1.0), 2: (0.3, 0.3)}
+
 
 @dataclass
 class Level:
@@ -76,7 +89,7 @@ class Level:
 def solve_adaptive(scene: Scene, target: float, *, theta: float = 0.5, gamma: float = GAMMA, max_levels: int = 30,
                    max_unknowns: int = 2_000_000, policy="summable", order: str = "zx", rho: float = 1.0,
                    max_iter: int = 10_000, backend: str | None = None, estimator: str = "zz",
-                   fe_order: int = 1, acceleration="auto", log=None) -> AdaptiveResult:
+                   fe_order: int = 1, acceleration="auto", warm_rho="auto", log=None) -> AdaptiveResult:
     """Refine adaptively from the scene's mesh until ``eta / |u_h|_{H1} <= target`` (see the module docstring).
 
     ``estimator``: ``"zz"`` or ``"residual"`` (P1 only), for the marking and the balanced stop.
@@ -88,6 +101,10 @@ def solve_adaptive(scene: Scene, target: float, *, theta: float = 0.5, gamma: fl
     ``acceleration``: every level's ADMM (:mod:`admmkit.acceleration`: ``"fast"``, ``"anderson"``, an
     accelerator, None for plain ADMM, or ``"auto"``, the default: ``ACCELERATION``, restarted fast ADMM in
     P2 and plain ADMM in P1 with the summable rule, plain ADMM with any other ``policy``).
+
+    ``warm_rho``: (lo, hi), 0 < lo <= hi: a warm level starts from the last level's rho clamped to
+    [lo, hi] x ``problem.rho_scale()``; None: the last level's rho as it is; ``"auto"`` (the default):
+    ``WARM_RHO[fe_order]``.
 
     ``log``: called after each level with the :class:`Level` and the result so far (whose ``model``,
     ``result`` and ``indicators`` are that level's), for progress and per-level output.
@@ -106,6 +123,7 @@ def solve_adaptive(scene: Scene, target: float, *, theta: float = 0.5, gamma: fl
                          f"admmkit.acceleration.Accelerator, got {acceleration!r}") from None
     if fe_order == 2 and estimator != "zz":
         raise ValueError(f"estimator = {estimator!r} is written for P1 elements; with fe_order = 2 use 'zz'")
+    window = _warm_window(warm_rho, fe_order)
     backend = backend or (ADAPTIVE_BACKEND if fe_order == 1 else DEFAULT_BACKEND)
     mesh = build_mesh(scene)
     out = AdaptiveResult("running", "")
@@ -126,7 +144,8 @@ def solve_adaptive(scene: Scene, target: float, *, theta: float = 0.5, gamma: fl
             start["z0"] = problem.z_step(start["x0"], np.zeros(problem.n), 1.0, None)    # x0 on the obstacle
         # warm: rho held for the stop's interval, and on while the stop predicts it fires within one
         rule = HeldRho(policy, hold=stop.every, keep=lambda: stop.converging) if "x0" in start else policy
-        res = solve(problem, rho=warm["rho"], policy=rule, order=order, stop=stop, max_iter=max_iter,
+        rho0 = _clamped(warm["rho"], window, problem) if "x0" in start else warm["rho"]
+        res = solve(problem, rho=rho0, policy=rule, order=order, stop=stop, max_iter=max_iter,
                     acceleration=acceleration, **start)
         indicators = estimator_of(problem, estimator)(res.z)
         eta = float(np.sqrt(np.sum(indicators ** 2)))
@@ -149,6 +168,32 @@ def _auto_acceleration(policy, fe_order: int):
     """``acceleration="auto"``: ``ACCELERATION[fe_order]`` with the summable rule (the default), else None."""
     summable = isinstance(policy, Summable) or (isinstance(policy, str) and policy.strip().lower() == "summable")
     return ACCELERATION.get(fe_order) if summable else None
+
+
+def _warm_window(warm_rho, fe_order: int) -> tuple[float, float] | None:
+    """``warm_rho`` checked: ``WARM_RHO[fe_order]`` for "auto", None, or (lo, hi) with 0 < lo <= hi finite."""
+    if isinstance(warm_rho, str) and warm_rho.strip().lower() == "auto":
+        return WARM_RHO[fe_order]
+    if warm_rho is None:
+        return None
+    try:
+        if isinstance(warm_rho, str):
+            raise ValueError(warm_rho)
+        lo, hi = (float(v) for v in warm_rho)
+    except (TypeError, ValueError):
+        lo = hi = math.nan
+    if not 0.0 < lo <= hi < math.inf:
+        raise ValueError(f"warm_rho = {warm_rho!r} is outside the accepted range: 'auto', None or (lo, hi) "
+                         f"with 0 < lo <= hi finite")
+    return lo, hi
+
+
+def _clamped(rho: float, window: tuple[float, float] | None, problem: ObstacleProblem) -> float:
+    """rho clamped to window x ``problem.rho_scale()`` (rho itself where the window is None)."""
+    if window is None:
+        return rho
+    scale = problem.rho_scale()
+    return min(max(rho, window[0] * scale), window[1] * scale)
 
 
 def _refine(problem: ObstacleProblem, res: Result, marked: np.ndarray) -> dict:

@@ -205,6 +205,11 @@ class ObstacleProblem(Problem):
         """Factorisations (or AMG setups and CG iterations) and solves of K + rho M in this run."""
         return self._xstep.counters()
 
+    def rho_scale(self) -> float:
+        """The mean over the free nodes of K_ii / m_i: the size of M^{-1}K at the mesh's own scale (about h^-2),
+        the unit in which a warm level's rho is kept (``adaptive.WARM_RHO``)."""
+        return float(np.mean(self.K.diagonal() / self.m))
+
     # -- finite element helpers -------------------------------------------------
     @property
     def h(self) -> float:

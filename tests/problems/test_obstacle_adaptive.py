@@ -54,7 +54,11 @@ def test_caps_say_the_target_was_not_reached():
                                            ({"target": 1.0}, "target = 1.0"),
                                            ({"target": 0.1, "theta": 1.0}, "theta = 1.0"),
                                            ({"target": 0.1, "max_levels": 0}, "max_levels = 0"),
-                                           ({"target": 0.1, "gamma": 2.0}, "gamma = 2.0")])
+                                           ({"target": 0.1, "gamma": 2.0}, "gamma = 2.0"),
+                                           ({"target": 0.1, "warm_rho": (1.0, 0.5)}, "warm_rho = (1.0, 0.5)"),
+                                           ({"target": 0.1, "warm_rho": (0.0, 1.0)}, "0 < lo <= hi finite"),
+                                           ({"target": 0.1, "warm_rho": "carried"}, "warm_rho = 'carried'"),
+                                           ({"target": 0.1, "warm_rho": (1.0,)}, "warm_rho = (1.0,)")])
 def test_bad_input_is_named(kwargs, match):
     with pytest.raises(ValueError, match=re.escape(match)):
         solve_adaptive(radial(h=1 / 4), **kwargs)
@@ -156,3 +160,38 @@ def test_full_multiplier_puts_lam_on_the_free_nodes_and_zero_on_the_boundary():
         full = p.full_multiplier(lam)
         assert full.shape == (p.fes.ndof,) and np.array_equal(full[p.free], lam)
         assert np.count_nonzero(full) == p.n
+
+
+def test_rho_scale_is_the_nodal_stiffness_over_the_nodal_mass():
+    """On the uniform right-triangle mesh every free node has K_ii = 4 and lumped mass h^2: the scale is 4 / h^2."""
+    from admmkit.problems.obstacle import ObstacleProblem
+    for h in (1 / 4, 1 / 8):
+        assert ObstacleProblem(radial(h=h)).rho_scale() == pytest.approx(4 / h ** 2, rel=1e-12)
+
+
+def _warm_rhos(monkeypatch, **kwargs):
+    """(rho a warm level started from, that level's rho_scale, the last level's final rho) for every warm level."""
+    import admmkit.problems.obstacle.adaptive as adaptive
+    plain, seen, last = adaptive.solve, [], []
+
+    def solve(problem, **kw):
+        if "x0" in kw:
+            seen.append((kw["rho"], problem.rho_scale(), last[-1]))
+        res = plain(problem, **kw)
+        last.append(res.rho)
+        return res
+    monkeypatch.setattr(adaptive, "solve", solve)
+    assert solve_adaptive(radial(h=1 / 2), 3e-2, **kwargs).reached
+    assert len(seen) >= 4
+    return seen
+
+
+def test_a_warm_level_starts_from_the_last_rho_clamped_to_the_window_of_its_scale(monkeypatch):
+    """warm_rho=(lo, hi): every warm level starts from the last level's rho clamped to [lo, hi] x rho_scale();
+    None: from the last level's rho as it is; the default in P1 keeps it within (0.01, 1) x the scale."""
+    for start, scale, last in _warm_rhos(monkeypatch, warm_rho=(0.2, 0.2)):
+        assert start == pytest.approx(0.2 * scale, rel=1e-12)
+    assert all(start == last for start, _, last in _warm_rhos(monkeypatch, warm_rho=None))
+    for start, scale, last in _warm_rhos(monkeypatch):
+        assert 0.01 * scale * (1 - 1e-12) <= start <= scale * (1 + 1e-12)
+        assert start == last or not 0.01 * scale <= last <= scale         # moved only where it left the window
