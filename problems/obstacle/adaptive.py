@@ -60,14 +60,13 @@ from .scene import Scene
 ACCELERATION = {1: None, 2: "fast"}
 
 #: ``warm_rho="auto"``, by element order: a warm level starts from the last level's rho clamped to
-#: [lo, hi] x ``problem.rho_scale()`` (the mean K_ii / m_i, about h^-2).  Carried as it is, rho drifted with
-#: the summable rule's moves, which compound from level to level: pyramid P1 to 1.5e-2, rho 729 -> 1.3e8
-#: by 5e5 unknowns, 2,651 warm iterations in 429 s, one level 2,168; clamped to (0.01, 1), 622 in 55 s (radial:
-#: the same 92 iterations, its rho never left the window).  On the radial P1 levels, from that path's starts,
-#: rho = 0.1-1 x the scale took 2-4 iterations on every warm level (0.01: 15-56, 3: 6-23).  P2: rho = 0.3 x the
-#: scale on every warm level; radial to 3e-4, theta 0.4 / 0.5 / 0.6 / 0.7: 245 / 162 / 176 / 121 warm
-#: iterations against 224 / 196 / 213 / 164 carried, and no level's algebraic error below 0.05 of the
-#: estimate, against 1-2 levels in each carried run.
+#: [lo, hi] x ``problem.rho_scale()`` (the mean K_ii / m_i, about h^-2).  The summable rule moves rho 3x at a
+#: time within a level, and a carried rho keeps the move.  On the radial P1 levels, from the default path's
+#: starts, rho = 0.1-1 x the scale took 2-4 iterations on every warm level (0.01: 3-56, 3: 6-23), so P1 keeps
+#: the last rho within (0.01, 1) x it; the radial path never leaves that window (the same 92 iterations to
+#: 5e-3).  P2: 0.3 x the scale on every warm level; radial to 3e-4, theta 0.4 / 0.5 / 0.6 / 0.7: 245 / 162 /
+#: 176 / 121 warm iterations against 224 / 196 / 213 / 164 carried, and no level's algebraic bound below
+#: 0.05 of the estimate, against 1-2 levels in each carried run (docs/obstacle.md).
 WARM_RHO = {1: (0.01, 1.0), 2: (0.3, 0.3)}
 
 
