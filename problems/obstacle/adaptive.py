@@ -171,16 +171,17 @@ def _auto_acceleration(policy, fe_order: int):
 
 def _warm_window(warm_rho, fe_order: int) -> tuple[float, float] | None:
     """``warm_rho`` checked: ``WARM_RHO[fe_order]`` for "auto", None, or (lo, hi) with 0 < lo <= hi finite."""
-    if isinstance(warm_rho, str) and warm_rho.strip().lower() == "auto":
-        return WARM_RHO[fe_order]
     if warm_rho is None:
         return None
-    try:
-        if isinstance(warm_rho, str):
-            raise ValueError(warm_rho)
-        lo, hi = (float(v) for v in warm_rho)
-    except (TypeError, ValueError):
+    if isinstance(warm_rho, str):
+        if warm_rho.strip().lower() == "auto":
+            return WARM_RHO[fe_order]
         lo = hi = math.nan
+    else:
+        try:
+            lo, hi = (float(v) for v in warm_rho)
+        except (TypeError, ValueError):
+            lo = hi = math.nan
     if not 0.0 < lo <= hi < math.inf:
         raise ValueError(f"warm_rho = {warm_rho!r} is outside the accepted range: 'auto', None or (lo, hi) "
                          f"with 0 < lo <= hi finite")

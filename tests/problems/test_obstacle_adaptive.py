@@ -1,5 +1,6 @@
 """Adaptive meshes for the obstacle (#24): Dörfler marking, the loop, its truthful statuses, the command line."""
 import json
+import math
 import re
 
 import numpy as np
@@ -58,7 +59,8 @@ def test_caps_say_the_target_was_not_reached():
                                            ({"target": 0.1, "warm_rho": (1.0, 0.5)}, "warm_rho = (1.0, 0.5)"),
                                            ({"target": 0.1, "warm_rho": (0.0, 1.0)}, "0 < lo <= hi finite"),
                                            ({"target": 0.1, "warm_rho": "carried"}, "warm_rho = 'carried'"),
-                                           ({"target": 0.1, "warm_rho": (1.0,)}, "warm_rho = (1.0,)")])
+                                           ({"target": 0.1, "warm_rho": (1.0,)}, "warm_rho = (1.0,)"),
+                                           ({"target": 0.1, "warm_rho": (math.nan, 1.0)}, "warm_rho = (nan, 1.0)")])
 def test_bad_input_is_named(kwargs, match):
     with pytest.raises(ValueError, match=re.escape(match)):
         solve_adaptive(radial(h=1 / 4), **kwargs)
