@@ -31,7 +31,9 @@ crossing, not up to ``every`` iterations past it.  ``converging`` says whether
 the last test predicted the crossing within ``every`` iterations: a penalty
 rule may leave rho alone while it does (:class:`admmkit.adaptive.HeldRho`).  The schedule reads
 iteration counts and bounds only, never the clock: the iterates do not depend
-on the machine.
+on the machine.  An iterate at which x, z and lam stopped changing (ADMM's
+fixed point, the discrete solution: a warm level can start on it) is tested
+at once, whatever the schedule, rather than left to end ``stalled``.
 
 **The estimate**, often the dearer of the two, is computed afresh only where
 the bound is within twice gamma x the last estimate (it moves little from one
@@ -103,7 +105,7 @@ class BalancedStop(StoppingRule):
         if n <= self._seen:                            # a new run with the same rule (a Coulomb fixed point's)
             self._restart()
         self._seen = n
-        if n < self._next:
+        if n < self._next and not _fixed_point(rec):
             return None
         self.tests.append(n)
         self.algebraic = bound = self.algebraic_error_bound(rec)
@@ -144,6 +146,11 @@ class BalancedStop(StoppingRule):
                 predicted = math.log(ratio) / -math.log(q)
                 steps, self.converging = min(self.every, max(1, int(predicted))), predicted <= self.every
         self._next = n + steps
+
+
+def _fixed_point(rec: IterationRecord) -> bool:
+    """Whether x, z and lam stopped changing at this record (ADMM's fixed point: the discrete solution)."""
+    return rec.primal_residual == 0 and rec.x_change == 0 and rec.z_change == 0
 
 
 __all__ = ["GAMMA", "REFRESH", "FIRST_TESTS", "BalancedStop"]

@@ -74,9 +74,27 @@ def test_a_plug_in_may_test_later_first():
         first_tests = (2, 3)
     stop = Late(1.0, gamma=0.3, every=10)
     stop.algebraic_error_bound = lambda rec: 10.0
-    assert [rec_k + 1 for rec_k in range(6) if stop.fired(SimpleNamespace(k=rec_k)) is None and
+    moving = dict(primal_residual=1.0, x_change=1.0, z_change=1.0)
+    assert [rec_k + 1 for rec_k in range(6) if stop.fired(SimpleNamespace(k=rec_k, **moving)) is None and
             (stop.tests and stop.tests[-1] == rec_k + 1)] == [2, 3]
     assert Known(1.0).first_tests == (1, 2)
+
+
+def test_an_iterate_that_stopped_changing_is_tested_at_once():
+    """ADMM's fixed point (x, z and lam unchanged) is tested whatever the schedule, so a run started on the
+    solution ends converged, not stalled (tests/problems/test_obstacle_warm_start.py runs one)."""
+    from types import SimpleNamespace
+
+    class Late(Known):
+        first_tests = (2, 3)
+    stop = Late(1.0, gamma=0.3, every=10)
+    stop.algebraic_error_bound = lambda rec: 0.0
+    assert stop.fired(SimpleNamespace(k=0, primal_residual=1e-9, x_change=0.0, z_change=0.0)) is None
+    assert stop.tests == []                                           # still moving: left to the schedule
+    again = Late(1.0, gamma=0.3, every=10)
+    again.algebraic_error_bound = lambda rec: 0.0
+    assert again.fired(SimpleNamespace(k=0, primal_residual=0.0, x_change=0.0, z_change=0.0)) == again.name
+    assert again.tests == [1]                                         # before the schedule's first test, 2
 
 
 def test_an_infinite_bound_never_fires(scalar_problem):
