@@ -1,0 +1,101 @@
+"""The warm level's active-set step (problems/obstacle/warm_start.py), checked against the exact discrete solution."""
+import math
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+from admmkit.benchmarks.rules.pdas import pdas
+from admmkit.problems.obstacle import ObstacleProblem, radial
+from admmkit.problems.obstacle.adaptive import solve_adaptive
+from admmkit.problems.obstacle.warm_start import active_set_start
+
+
+def _exact(problem):
+    """The exact discrete solution by the primal-dual active set method (finite termination)."""
+    s = problem.sign
+    out = pdas(problem.K, problem.F, -s * sp.identity(problem.n, format="csr"), -s * problem.psi,
+               method="bounds", max_iter=200)
+    assert out.status == "converged"
+    return out.u
+
+
+def _energy(problem, v):
+    return math.sqrt(float(v @ (problem.K @ v)))
+
+
+@pytest.fixture(scope="module")
+def level():
+    problem = ObstacleProblem(radial(h=1 / 8), backend="jacobi")
+    return problem, _exact(problem)
+
+
+def test_one_step_from_the_right_contact_set_gives_the_exact_discrete_solution(level):
+    """Where the start puts exactly the solution's contact nodes on the obstacle, one active-set step returns the
+    solution (to CG's tolerance), however far off the start is elsewhere, and the multiplier that closes
+    K u - F + M lam = 0."""
+    problem, exact = level
+    slack = problem.sign * (exact - problem.psi)
+    on = slack <= 1e-12
+    assert 10 < on.sum() < problem.n - 10
+    x, y = problem.nodes[problem.free].T
+    smooth = 0.3 * np.cos(x) * np.cos(y)                          # a smooth error, kept off the contact set
+    start = np.where(on, problem.psi, exact + problem.sign * (np.abs(smooth) + 1e-3))
+    out = active_set_start(problem, start)
+    assert _energy(problem, out["x0"] - exact) <= 1e-6 * _energy(problem, exact)
+    assert _energy(problem, start - exact) > 1e-2 * _energy(problem, exact)
+    residual = problem.K @ out["x0"] - problem.F + problem.m * out["lam0"]
+    assert np.max(np.abs(residual)) <= 1e-6 * np.max(np.abs(problem.F))
+    assert np.all(out["lam0"][~on] == 0.0)
+    assert np.all(problem.sign * (out["z0"] - problem.psi) >= 0.0)           # z0 feasible
+
+
+def test_the_step_keeps_the_starts_contact_nodes_on_the_obstacle(level):
+    """A start with the wrong contact set (half the solution's contact nodes lifted off): its contact nodes stay
+    on the obstacle, the other nodes solve K u = F, and lam is zero there."""
+    problem, exact = level
+    x = problem.nodes[problem.free][:, 0]
+    lifted = (problem.sign * (exact - problem.psi) <= 1e-12) & (x > 0)
+    assert lifted.sum() > 5
+    start = np.where(lifted, exact + problem.sign * 0.01, exact)
+    on = problem.sign * (start - problem.psi) <= 0.0
+    out = active_set_start(problem, start)
+    assert np.array_equal(out["x0"][on], problem.psi[on])
+    r = (problem.K @ out["x0"] - problem.F)[~on]
+    assert np.linalg.norm(r) <= 1e-6 * np.linalg.norm(problem.F)
+    assert np.all(out["lam0"][~on] == 0.0)
+
+
+def test_p1_warm_levels_start_closer_with_the_step(monkeypatch):
+    """On the radial P1 levels the step's start is closer to the level's solution than the prolongated one, and
+    both paths end at the target; False keeps the prolongated start."""
+    import admmkit.problems.obstacle.adaptive as adaptive
+    plain, starts = adaptive.solve, {}
+
+    def solve(problem, **kw):
+        res = plain(problem, **kw)
+        if "x0" in kw:
+            starts.setdefault(kw_key, []).append(_energy(problem, kw["x0"] - res.z) / _energy(problem, res.z))
+        return res
+    monkeypatch.setattr(adaptive, "solve", solve)
+    for kw_key in (True, False):
+        assert solve_adaptive(radial(h=1 / 2), 2e-2, active_set_step=kw_key).reached
+    assert len(starts[True]) >= 4
+    assert np.median(starts[True]) < 0.5 * np.median(starts[False])
+
+
+def test_a_run_started_on_the_discrete_solution_is_tested_at_once_not_called_stalled(level):
+    """ADMM from its fixed point: the iterates do not change, and the balanced stop tests that iterate at once
+    (its schedule would first test at iteration 2) and fires: converged at iteration 1."""
+    import admmkit
+    from admmkit.problems.obstacle.estimate import BalancedStop
+    problem, exact = level
+    start = active_set_start(problem, exact)
+    res = admmkit.solve(problem, rho=problem.rho_scale(), policy="summable", stop=BalancedStop(problem), **start)
+    assert res.status.value == "converged" and res.iterations == 1
+
+
+@pytest.mark.parametrize("value", ["yes", 1, None, float("nan")])
+def test_bad_active_set_step_is_named(value):
+    with pytest.raises(ValueError, match="active_set_step"):
+        solve_adaptive(radial(h=1 / 4), 5e-2, active_set_step=value)
