@@ -84,15 +84,16 @@ def test_p1_warm_levels_start_closer_with_the_step(monkeypatch):
     assert np.median(starts[True]) < 0.5 * np.median(starts[False])
 
 
-def test_a_run_started_on_the_discrete_solution_is_tested_at_once_not_called_stalled(level):
-    """ADMM from its fixed point: the iterates do not change, and the balanced stop tests that iterate at once
-    (its schedule would first test at iteration 2) and fires: converged at iteration 1."""
+def test_a_run_started_on_the_discrete_solution_ends_converged_not_stalled(level):
+    """ADMM from its fixed point ends converged at once.  (Where the x-step left x exactly unchanged, as Jacobi-CG
+    written for x itself did, the balanced stop tests that iterate at once, before its schedule's first test at
+    iteration 2: tests/admmkit/test_balanced_stop.py.)"""
     import admmkit
     from admmkit.problems.obstacle.estimate import BalancedStop
     problem, exact = level
     start = active_set_start(problem, exact)
     res = admmkit.solve(problem, rho=problem.rho_scale(), policy="summable", stop=BalancedStop(problem), **start)
-    assert res.status.value == "converged" and res.iterations == 1
+    assert res.status.value == "converged" and res.iterations <= 2
 
 
 @pytest.mark.parametrize("value", ["yes", 1, None, float("nan")])
