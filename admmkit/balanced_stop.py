@@ -46,6 +46,7 @@ import math
 
 from .record import IterationRecord
 from .stopping import StoppingRule
+from .termination import stalled
 
 #: the default gamma; the algebraic error at the stop is at most this times the estimated discretisation error
 GAMMA = 0.3
@@ -105,7 +106,7 @@ class BalancedStop(StoppingRule):
         if n <= self._seen:                            # a new run with the same rule (a Coulomb fixed point's)
             self._restart()
         self._seen = n
-        if n < self._next and not _fixed_point(rec):
+        if n < self._next and not stalled(rec, rec._vals):        # ADMM's fixed point: tested at once
             return None
         self.tests.append(n)
         self.algebraic = bound = self.algebraic_error_bound(rec)
@@ -146,11 +147,6 @@ class BalancedStop(StoppingRule):
                 predicted = math.log(ratio) / -math.log(q)
                 steps, self.converging = min(self.every, max(1, int(predicted))), predicted <= self.every
         self._next = n + steps
-
-
-def _fixed_point(rec: IterationRecord) -> bool:
-    """Whether x, z and lam stopped changing at this record (ADMM's fixed point: the discrete solution)."""
-    return rec.primal_residual == 0 and rec.x_change == 0 and rec.z_change == 0
 
 
 __all__ = ["GAMMA", "REFRESH", "FIRST_TESTS", "BalancedStop"]

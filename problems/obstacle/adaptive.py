@@ -74,9 +74,9 @@ WARM_RHO = {1: (0.01, 1.0), 2: (0.3, 0.3)}
 
 #: ``active_set_step="auto"``, by element order: whether a warm level starts from one active-set step on the
 #: prolongated u (warm_start.py).  Radial scene, with the step against without, one run each: P1 to 5e-3,
-#: 52 warm iterations against 92, levels of more than 5,000 unknowns 2 iterations each; P2 to 3e-4, 183
+#: 53 warm iterations against 92, levels of more than 5,000 unknowns 2-3 iterations each; P2 to 3e-4, 183
 #: against 162, and the algebraic error at the stop below 0.05 of the estimate on 6 of 12 levels against 2
-#: (P2's nodal K is no M-matrix; its levels keep the prolongated start)
+#: (why, not found), so P2 levels keep the prolongated start
 ACTIVE_SET_STEP = {1: True, 2: False}
 
 

@@ -5,7 +5,7 @@ that level's estimate, which the balanced stop allows.  Its smooth part is
 what ADMM removes slowest (the x-step (K + rho M) u = ... damps a component
 of eigenvalue lambda of M^{-1} K by about rho / (lambda + rho) an iteration),
 and it piles up over the levels until one level takes tens of iterations
-(docs/obstacle.md, "A rho that follows the mesh").  So before ADMM the
+(docs/obstacle.md, "Why a fine warm level stalls").  So before ADMM the
 prolongated iterate u_0 is corrected by one step of the primal-dual active
 set method (Hintermüller, Ito & Kunisch 2003), its active set read off u_0:
 
@@ -40,8 +40,9 @@ def active_set_start(problem, x0: np.ndarray, tol: float = TOL) -> dict[str, np.
     free = ~on
     u = np.where(on, psi, x0)
     if np.any(free):
-        K_II = K[free][:, free].tocsr()
-        b = F[free] - K[free][:, on] @ psi[on]
+        rows = K[free]
+        K_II = rows[:, free].tocsr()
+        b = F[free] - rows[:, on] @ psi[on]
         u[free] = _solve_free(problem, K_II, b, u[free], tol)
     lam = np.where(on, (F - K @ u) / problem.m, 0.0)
     return {"x0": u, "z0": problem.z_step(u, np.zeros(problem.n), 1.0, None), "lam0": lam}
