@@ -36,7 +36,11 @@ def active_set_start(problem, x0: np.ndarray, tol: float = TOL) -> dict[str, np.
     """The warm start ``{"x0", "z0", "lam0"}`` of ``problem`` after one active-set step from ``x0`` (values on
     the free nodes; module docstring)."""
     s, psi, K, F = problem.sign, problem.psi, problem.K, problem.F
-    on = s * (np.asarray(x0, dtype=float) - psi) <= 0.0
+    x0 = np.asarray(x0, dtype=float)
+    if x0.shape != (problem.n,) or not np.all(np.isfinite(x0)):
+        raise ValueError(f"x0 must hold {problem.n} finite values (one per free node), got shape {x0.shape}"
+                         + ("" if x0.shape != (problem.n,) else " with a NaN or inf"))
+    on = s * (x0 - psi) <= 0.0
     free = ~on
     u = np.where(on, psi, x0)
     if np.any(free):

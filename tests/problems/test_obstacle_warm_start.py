@@ -100,3 +100,13 @@ def test_a_run_started_on_the_discrete_solution_ends_converged_not_stalled(level
 def test_bad_active_set_step_is_named(value):
     with pytest.raises(ValueError, match="active_set_step"):
         solve_adaptive(radial(h=1 / 4), 5e-2, active_set_step=value)
+
+
+def test_active_set_start_refuses_a_start_of_the_wrong_shape_or_with_a_nan(level):
+    problem, exact = level
+    with pytest.raises(ValueError, match=f"x0 must hold {problem.n} finite values.*shape \\({problem.n - 1},\\)"):
+        active_set_start(problem, exact[:-1])
+    bad = exact.copy()
+    bad[3] = np.nan
+    with pytest.raises(ValueError, match="x0 must hold .* with a NaN or inf"):
+        active_set_start(problem, bad)
