@@ -11,13 +11,15 @@ from .balanced_stop import GAMMA
 from .cli import positive_float
 
 
-def add_adaptive_options(parser: argparse.ArgumentParser, *, max_levels: int = 20) -> None:
+def add_adaptive_options(parser: argparse.ArgumentParser, *, max_levels: int = 20, gamma: float = GAMMA,
+                         default_stop: bool = False) -> None:
     """``--balance``, ``--target-error``, ``--theta``, ``--max-levels``, ``--max-unknowns``, ``--estimator`` of an
-    FE plug-in with error estimates (read by :func:`adaptive_options` and :func:`estimator_name`)."""
+    FE plug-in with error estimates (read by :func:`adaptive_options` and :func:`estimator_name`); ``gamma``: the
+    plug-in's default, ``default_stop``: whether the balanced stop is its default without --tol / --eps-abs."""
     parser.add_argument("--balance", type=positive_float, default=None, metavar="GAMMA",
                         help="stop when a guaranteed bound of the algebraic error is below GAMMA x the estimated "
-                             "discretisation error, 0 < GAMMA <= 1 (instead of --tol / --eps-abs; with --target-error, and "
-                             f"for solve obstacle, GAMMA is {GAMMA:g} unless given)")
+                             "discretisation error, 0 < GAMMA <= 1 (instead of --tol / --eps-abs; with --target-error"
+                             f"{', and without --tol / --eps-abs' if default_stop else ''}, GAMMA is {gamma:g} unless given)")
     parser.add_argument("--target-error", type=positive_float, default=None, metavar="E",
                         help="refine adaptively from --h until the estimated relative energy error is <= E, "
                              "0 < E < 1 (--estimator, Doerfler marking, each level warm-started, stopped balanced)")
@@ -65,14 +67,14 @@ def balance_line(stop, norm: str) -> str:
             f"discretisation error ~ {stop.discretisation:.3e} ({which} estimate)   gamma {stop.gamma:g}")
 
 
-def adaptive_options(args) -> dict:
-    """The adaptive loop's keywords from :func:`add_adaptive_options` (gamma: admmkit.balanced_stop.GAMMA, 0.3,
-    unless --balance; the estimator);
+def adaptive_options(args, gamma: float = GAMMA) -> dict:
+    """The adaptive loop's keywords from :func:`add_adaptive_options` (gamma: the plug-in's default ``gamma``,
+    admmkit.balanced_stop.GAMMA unless given, or --balance; the estimator);
     ValueError naming the option and its range, and refusing --tol / --eps-abs beside them."""
     if args.tol is not None or args.eps_abs is not None:
         raise ValueError("--target-error stops every level balanced (--balance); it cannot be combined with "
                          "--tol or --eps-abs")
-    gamma = balance_gamma(args, GAMMA)
+    gamma = balance_gamma(args, gamma)
     for flag, value, ok, accepted in [("--target-error", args.target_error, 0 < args.target_error < 1, "(0, 1)"),
                                       ("--theta", args.theta, 0 < args.theta < 1, "(0, 1)"),
                                       ("--max-levels", args.max_levels, args.max_levels >= 1, "an integer >= 1"),

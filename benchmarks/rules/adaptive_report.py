@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from admmkit.balanced_stop import GAMMA
+from admmkit.problems.obstacle.estimate import OBSTACLE_GAMMA
 from admmkit.io import write_text
 
 from admmkit.benchmarks.rules.adaptive_charts import plot, plot_levels
@@ -77,7 +78,7 @@ def markdown(rows: list[dict], refs: list[dict], command: str) -> str:
     return ("# Adaptive against uniform refinement\n\n"
             "True relative energy error (obstacle: H1 seminorm against the exact solution; contact: "
             "sqrt(2 (J(u_h) - J_ref + c_h)) / ||u||_a). Adaptive: ZZ estimator, Dörfler theta 0.5, balanced stop "
-            f"gamma {GAMMA:g}, warm start; its wall time sums all levels. Uniform: each mesh solved cold with the same "
+            f"gamma {GAMMA:g} (contact) and {OBSTACLE_GAMMA:g} (obstacle: each plug-in's default), warm start; its wall time sums all levels. Uniform: each mesh solved cold with the same "
             "stop; its wall time is that one mesh's (the coarser meshes are not counted, in its favour). Hertz: "
             "c_h adds back what the P1 boundary's overlap with the curved obstacle between active nodes takes off "
             "J(u_h); a true error is NaN (not measurable) where J(u_h) + c_h < J_ref, or where it is below "

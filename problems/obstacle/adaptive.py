@@ -41,13 +41,12 @@ import numpy as np
 from admmkit import Result, solve
 from admmkit.acceleration import make_accelerator
 from admmkit.adaptive import AdaptiveResult, HeldRho, check_adaptive, dorfler_mark, needed_unknowns
-from admmkit.balanced_stop import GAMMA
 from admmkit.policies.summable import Summable
 
 from admmkit.problems.fe import p1_prolongation, refined_copy, vertex_parents
 
 from .discrete import check_fe_order, make_problem
-from .estimate import BalancedStop, estimator_of, zz
+from .estimate import OBSTACLE_GAMMA, BalancedStop, estimator_of, zz
 from .estimate_residual import check_estimator
 from .p2 import prolongation
 from .problem import DEFAULT_BACKEND, ObstacleProblem, build_mesh
@@ -66,11 +65,11 @@ ACCELERATION = {1: None, 2: "fast"}
 #: [lo, hi] x ``problem.rho_scale()`` (the mean K_ii / m_i, about h^-2).  The summable rule moves rho 3x at a
 #: time within a level, and a carried rho keeps the move.  On the radial P1 levels, from the default path's
 #: starts, rho = 0.1-1 x the scale took 2-4 iterations on every warm level (0.01: 3-56, 3: 6-23), so P1 keeps
-#: the last rho within (0.01, 1) x it; the radial path never leaves that window (the same 92 iterations to
-#: 5e-3).  P2: 0.3 x the scale on every warm level; radial to 3e-4, theta 0.4 / 0.5 / 0.6 / 0.7: 245 / 162 /
+#: the last rho within (0.1, 1) x it: with the active-set start, 0.01 bound on the levels of 421 and 3,198
+#: unknowns to 3.8e-3 (16 and 13 iterations, against 3 and 2 from 0.1 x the scale).  P2: 0.3 x the scale on every warm level; radial to 3e-4, theta 0.4 / 0.5 / 0.6 / 0.7: 245 / 162 /
 #: 176 / 121 warm iterations against 224 / 196 / 213 / 164 carried, and no level's algebraic bound below
 #: 0.05 of the estimate, against 1-2 levels in each carried run (docs/obstacle.md).
-WARM_RHO = {1: (0.01, 1.0), 2: (0.3, 0.3)}
+WARM_RHO = {1: (0.1, 1.0), 2: (0.3, 0.3)}
 
 #: ``active_set_step="auto"``, by element order: whether a warm level starts from one active-set step on the
 #: prolongated u (warm_start.py).  Radial scene, with the step against without, one run each: P1 to 5e-3,
@@ -95,13 +94,15 @@ class Level:
     errors: dict | None = None      # against the exact solution, where the scene has one
 
 
-def solve_adaptive(scene: Scene, target: float, *, theta: float = 0.5, gamma: float = GAMMA, max_levels: int = 30,
+def solve_adaptive(scene: Scene, target: float, *, theta: float = 0.5, gamma: float = OBSTACLE_GAMMA, max_levels: int = 30,
                    max_unknowns: int = 2_000_000, policy="summable", order: str = "zx", rho: float = 1.0,
                    max_iter: int = 10_000, backend: str | None = None, estimator: str = "zz",
                    fe_order: int = 1, acceleration="auto", warm_rho="auto", active_set_step="auto",
                    log=None) -> AdaptiveResult:
     """Refine adaptively from the scene's mesh until ``eta / |u_h|_{H1} <= target`` (see the module docstring).
 
+    ``gamma``: the balanced stop's, ``OBSTACLE_GAMMA`` (0.5, the top of the band its guaranteed bound keeps the
+    algebraic error in; :mod:`admmkit.problems.obstacle.estimate`) unless given.
     ``estimator``: ``"zz"`` or ``"residual"`` (P1 only), for the marking and the balanced stop.
     ``fe_order``: 1 (P1) or 2 (P2 in nodal values, :mod:`admmkit.problems.obstacle.p2`; the warm start
     evaluates the last level's P2 fields at the new nodes).  ``backend``: the x-step's, None for Jacobi-CG in

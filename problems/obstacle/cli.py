@@ -2,13 +2,12 @@
 from __future__ import annotations
 
 from admmkit import policies  # noqa: F401  (registers the rules the --policy option offers)
-from admmkit.balanced_stop import GAMMA
 from admmkit.cli_adaptive import adaptive_options, add_adaptive_options, balance_gamma, balance_line, estimator_name
 from admmkit.cli import (add_common_options, add_output_file, add_result_outputs, exit_code, positive_float,
                          run_solve, write_result_csv, write_result_json)
 from admmkit.policies.paper_methods import PAPER_METHODS
 
-from .estimate import BalancedStop
+from .estimate import OBSTACLE_GAMMA, BalancedStop
 from .plot import plot_solution
 from .discrete import make_problem
 from .problem import DEFAULT_BACKEND
@@ -34,7 +33,7 @@ def register(subparsers) -> None:
     add_output_file(p, "--plot", "FILE", "write a plot of u, psi and the contact set (PNG)")
     add_output_file(p, "--vtk", "FILE.vtu", "write u, psi, the contact set and the --estimator's indicator per triangle as VTU "
                     "(with --target-error one file per level, FILE_level<k>.vtu)", suffix=".vtu")
-    add_adaptive_options(p, max_levels=30)     # --balance (here the default stop, gamma admmkit.balanced_stop.GAMMA), --target-error
+    add_adaptive_options(p, max_levels=30, gamma=OBSTACLE_GAMMA, default_stop=True)    # --balance, --target-error
     add_common_options(p, policy="summable", order="zx", methods=PAPER_METHODS)
     add_result_outputs(p, json_help="write the run (provenance, scene, summary, errors, u on the free nodes) as JSON",
                        csv_help="write one row per free node: x, y, u, psi, in_contact")
@@ -43,7 +42,7 @@ def register(subparsers) -> None:
 
 def run(args) -> int:
     """Build the scene, solve it, print the summary and the errors against the exact solution; 0 only if converged."""
-    gamma = balance_gamma(args, GAMMA)      # the balanced stop is the default here
+    gamma = balance_gamma(args, OBSTACLE_GAMMA)      # the balanced stop is the default here
     estimator = estimator_name(args)
     if args.target_error is not None:
         return run_adaptive(args)
@@ -95,7 +94,7 @@ def run_adaptive(args) -> int:
     from admmkit.cli import resolve_policy
     from .adaptive import solve_adaptive
     from .plot import plot_adapted
-    options = adaptive_options(args)
+    options = adaptive_options(args, OBSTACLE_GAMMA)
     order, policy, name = resolve_policy(args)
     chosen = []
     if args.fe_order is None:           # accuracy in, cheapest model out: P2 (docs/obstacle.md)

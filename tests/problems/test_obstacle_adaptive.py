@@ -9,7 +9,7 @@ import pytest
 from admmkit.cli import main
 from admmkit.problems.obstacle import radial
 from admmkit.adaptive import dorfler_mark
-from admmkit.problems.obstacle.adaptive import solve_adaptive
+from admmkit.problems.obstacle.adaptive import WARM_RHO, solve_adaptive
 
 
 def test_dorfler_marks_the_smallest_set_carrying_theta():
@@ -190,10 +190,12 @@ def _warm_rhos(monkeypatch, **kwargs):
 
 def test_a_warm_level_starts_from_the_last_rho_clamped_to_the_window_of_its_scale(monkeypatch):
     """warm_rho=(lo, hi): every warm level starts from the last level's rho clamped to [lo, hi] x rho_scale();
-    None: from the last level's rho as it is; the default in P1 keeps it within (0.01, 1) x the scale."""
+    None: from the last level's rho as it is; the default in P1 keeps it within WARM_RHO[1] = (0.1, 1) x the scale."""
     for start, scale, last in _warm_rhos(monkeypatch, warm_rho=(0.2, 0.2)):
         assert start == pytest.approx(0.2 * scale, rel=1e-12)
     assert all(start == last for start, _, last in _warm_rhos(monkeypatch, warm_rho=None))
+    lo, hi = WARM_RHO[1]
+    assert (lo, hi) == (0.1, 1.0)
     for start, scale, last in _warm_rhos(monkeypatch):
-        assert 0.01 * scale * (1 - 1e-12) <= start <= scale * (1 + 1e-12)
-        assert start == last or not 0.01 * scale <= last <= scale         # moved only where it left the window
+        assert lo * scale * (1 - 1e-12) <= start <= hi * scale * (1 + 1e-12)
+        assert start == last or not lo * scale <= last <= hi * scale      # moved only where it left the window

@@ -10,7 +10,7 @@ import pytest
 from admmkit import RelativeChange, solve
 from admmkit.cli import main
 from admmkit.problems.obstacle import make_problem, radial, solve_with_cvxpy
-from admmkit.problems.obstacle.estimate import BalancedStop, EnergyGap, zz_estimate, zz_indicators
+from admmkit.problems.obstacle.estimate import OBSTACLE_GAMMA, BalancedStop, EnergyGap, zz_estimate, zz_indicators
 
 TIGHT = dict(tol_gap_abs=1e-12, tol_gap_rel=1e-12, tol_feas=1e-12)
 
@@ -63,6 +63,19 @@ def test_the_balanced_stop_means_what_it_says(radial8):
     assert stop.discretisation == pytest.approx(problem.errors(u_h)["H1_semi"], rel=0.3)
 
 
+def test_the_obstacle_stops_at_the_top_of_the_band_by_default(radial8, capsys):
+    """OBSTACLE_GAMMA = 0.5, tested from iteration 1: the guaranteed bound still holds the true algebraic error below
+    half the estimate, and the command line's adaptive path takes the same default."""
+    problem, u_h = radial8
+    stop = BalancedStop(problem)
+    assert stop.gamma == OBSTACLE_GAMMA == 0.5 and stop.first_tests == (1, 2)
+    res = solve(problem, rho=1.0, policy="summable", order="zx", stop=stop, max_iter=5000)
+    assert res.converged and res.stopped_by == stop.name
+    assert energy(problem, res.z - u_h) <= stop.algebraic <= 0.5 * stop.discretisation
+    assert main(["solve", "obstacle", "--scene", "radial", "--target-error", "0.1", "--fe-order", "1", "-q"]) == 0
+    assert "theta 0.5, gamma 0.5," in capsys.readouterr().out
+
+
 @pytest.mark.parametrize("kwargs, match", [({"gamma": 0.0}, "gamma = 0.0 is outside the accepted range"),
                                            ({"gamma": 1.5}, "gamma = 1.5 is outside"),
                                            ({"every": 0}, "every = 0 is outside")])
@@ -75,7 +88,7 @@ def test_the_documented_default_run_converges_for_a_reason_that_holds(capsys):
     """`admmkit solve obstacle --scene radial` used to end converged_inaccurate (exit 1)."""
     assert main(["solve", "obstacle", "--scene", "radial", "-q"]) == 0
     out = capsys.readouterr().out
-    assert "status       converged  (balanced(gamma=0.3)" in out and "balance      algebraic error <=" in out
+    assert "status       converged  (balanced(gamma=0.5)" in out and "balance      algebraic error <=" in out
 
 
 @pytest.mark.parametrize("argv, message", [(["--balance", "2"], "--balance = 2 is outside the accepted range (0, 1]"),
