@@ -56,10 +56,10 @@ from admmkit.linsolve import factorize
 
 from .estimate_residual import check_estimator, residual_estimator
 
-#: the obstacle's default gamma: the top of issue #24's band [0.05, 0.5] of the estimate, which bound (B)
+#: The obstacle's default gamma, the top of issue #24's band [0.05, 0.5] of the estimate, which bound (B)
 #: guarantees.  (B) is tight at a warm level's first iterate and 2-7x loose from the second on, where the
 #: ADMM iterate's error had already fallen below 0.05 of the estimate on the fine radial levels: at
-#: admmkit's 0.3 those levels stopped at iteration 2 with 0.02-0.04 (docs/obstacle.md, "The stop's gamma")
+#: admmkit's 0.3 the three finest stopped at iteration 2 with 0.03-0.04 (docs/obstacle.md, "The stop's gamma")
 OBSTACLE_GAMMA = 0.5
 
 
