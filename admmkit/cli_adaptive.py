@@ -19,7 +19,8 @@ def add_adaptive_options(parser: argparse.ArgumentParser, *, max_levels: int = 2
     parser.add_argument("--balance", type=positive_float, default=None, metavar="GAMMA",
                         help="stop when a guaranteed bound of the algebraic error is below GAMMA x the estimated "
                              "discretisation error, 0 < GAMMA <= 1 (instead of --tol / --eps-abs; with --target-error"
-                             f"{', and without --tol / --eps-abs' if default_stop else ''}, GAMMA is {gamma:g} unless given)")
+                             f"{', and without --tol / --eps-abs' if default_stop else ''}, "
+                             f"GAMMA is {gamma:g} unless given)")
     parser.add_argument("--target-error", type=positive_float, default=None, metavar="E",
                         help="refine adaptively from --h until the estimated relative energy error is <= E, "
                              "0 < E < 1 (--estimator, Doerfler marking, each level warm-started, stopped balanced)")

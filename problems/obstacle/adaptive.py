@@ -66,9 +66,10 @@ ACCELERATION = {1: None, 2: "fast"}
 #: time within a level, and a carried rho keeps the move.  On the radial P1 levels, from the default path's
 #: starts, rho = 0.1-1 x the scale took 2-4 iterations on every warm level (0.01: 3-56, 3: 6-23), so P1 keeps
 #: the last rho within (0.1, 1) x it: with the active-set start, 0.01 bound on the levels of 421 and 3,198
-#: unknowns to 3.8e-3 (16 and 13 iterations, against 3 and 2 from 0.1 x the scale).  P2: 0.3 x the scale on every warm level; radial to 3e-4, theta 0.4 / 0.5 / 0.6 / 0.7: 245 / 162 /
-#: 176 / 121 warm iterations against 224 / 196 / 213 / 164 carried, and no level's algebraic bound below
-#: 0.05 of the estimate, against 1-2 levels in each carried run (docs/obstacle.md).
+#: unknowns to 3.8e-3 (16 and 13 iterations, against 3 and 2 from 0.1 x the scale).  P2: 0.3 x the scale on
+#: every warm level; radial to 3e-4, theta 0.4 / 0.5 / 0.6 / 0.7: 245 / 162 / 176 / 121 warm iterations
+#: against 224 / 196 / 213 / 164 carried, and no level's algebraic bound below 0.05 of the estimate, against
+#: 1-2 levels in each carried run (docs/obstacle.md).
 WARM_RHO = {1: (0.1, 1.0), 2: (0.3, 0.3)}
 
 #: ``active_set_step="auto"``, by element order: whether a warm level starts from one active-set step on the
@@ -94,9 +95,9 @@ class Level:
     errors: dict | None = None      # against the exact solution, where the scene has one
 
 
-def solve_adaptive(scene: Scene, target: float, *, theta: float = 0.5, gamma: float = OBSTACLE_GAMMA, max_levels: int = 30,
-                   max_unknowns: int = 2_000_000, policy="summable", order: str = "zx", rho: float = 1.0,
-                   max_iter: int = 10_000, backend: str | None = None, estimator: str = "zz",
+def solve_adaptive(scene: Scene, target: float, *, theta: float = 0.5, gamma: float = OBSTACLE_GAMMA,
+                   max_levels: int = 30, max_unknowns: int = 2_000_000, policy="summable", order: str = "zx",
+                   rho: float = 1.0, max_iter: int = 10_000, backend: str | None = None, estimator: str = "zz",
                    fe_order: int = 1, acceleration="auto", warm_rho="auto", active_set_step="auto",
                    log=None) -> AdaptiveResult:
     """Refine adaptively from the scene's mesh until ``eta / |u_h|_{H1} <= target`` (see the module docstring).
