@@ -106,7 +106,7 @@ class BalancedStop(StoppingRule):
         if n <= self._seen:                            # a new run with the same rule (a Coulomb fixed point's)
             self._restart()
         self._seen = n
-        if n < self._next and not stalled(rec, rec._vals):        # ADMM's fixed point: tested at once
+        if n < self._next and not stalled(rec, rec.computed()):   # ADMM's fixed point: tested at once
             return None
         self.tests.append(n)
         self.algebraic = bound = self.algebraic_error_bound(rec)

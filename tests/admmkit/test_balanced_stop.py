@@ -12,7 +12,7 @@ import pytest
 from admmkit import BalancedStop, ResidualTolerance, solve
 from admmkit.norms import LAZY_FIELDS
 
-_NONE = (None,) * len(LAZY_FIELDS)          # a stub record's lazy norms, none computed yet
+_NONE = (None,) * len(LAZY_FIELDS)          # a stub record's lazy norms, none computed yet (rec.computed())
 
 
 class Known(BalancedStop):
@@ -77,7 +77,7 @@ def test_a_plug_in_may_test_later_first():
         first_tests = (2, 3)
     stop = Late(1.0, gamma=0.3, every=10)
     stop.algebraic_error_bound = lambda rec: 10.0
-    moving = dict(primal_residual=1.0, x_change=1.0, z_change=1.0, _vals=_NONE)
+    moving = dict(primal_residual=1.0, x_change=1.0, z_change=1.0, computed=lambda: _NONE)
     assert [rec_k + 1 for rec_k in range(6) if stop.fired(SimpleNamespace(k=rec_k, **moving)) is None and
             (stop.tests and stop.tests[-1] == rec_k + 1)] == [2, 3]
     assert Known(1.0).first_tests == (1, 2)
@@ -92,11 +92,11 @@ def test_an_iterate_that_stopped_changing_is_tested_at_once():
         first_tests = (2, 3)
     stop = Late(1.0, gamma=0.3, every=10)
     stop.algebraic_error_bound = lambda rec: 0.0
-    assert stop.fired(SimpleNamespace(k=0, primal_residual=1e-9, x_change=0.0, z_change=0.0, _vals=_NONE)) is None
+    assert stop.fired(SimpleNamespace(k=0, primal_residual=1e-9, x_change=0.0, z_change=0.0, computed=lambda: _NONE)) is None
     assert stop.tests == []                                           # still moving: left to the schedule
     again = Late(1.0, gamma=0.3, every=10)
     again.algebraic_error_bound = lambda rec: 0.0
-    assert again.fired(SimpleNamespace(k=0, primal_residual=0.0, x_change=0.0, z_change=0.0, _vals=_NONE)) == again.name
+    assert again.fired(SimpleNamespace(k=0, primal_residual=0.0, x_change=0.0, z_change=0.0, computed=lambda: _NONE)) == again.name
     assert again.tests == [1]                                         # before the schedule's first test, 2
 
 
