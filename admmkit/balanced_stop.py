@@ -25,8 +25,13 @@ iteration.  The first two tests are at iterations 1 and 2 (a warm-started
 level may be done there; a plug-in may set ``first_tests`` later); after
 them the bound's decrease per iteration between the last two tests, q,
 predicts in how many iterations it crosses gamma x the estimate, ``log(bound / (gamma eta)) / log(1 / q)``, and the next
-test is then, rounded down, at least 1 and at most ``every`` iterations later
-(``every`` also where the bound did not fall).  So the stop comes near the
+test is then, rounded down, at least 1 and at most ``every`` iterations later.
+Where the bound did not fall (it may rise for a few iterations while the
+iterate's contact set moves, as on the obstacle's warm P2 levels) there is
+nothing to predict from, and the interval doubles: 1, 2, 4, ... up to
+``every``, rather than jumping to ``every`` at once (an obstacle level of
+4,165 unknowns ran to its next test at iteration 18 whose bound had fallen
+below gamma x the estimate at iteration 9).  So the stop comes near the
 crossing, not up to ``every`` iterations past it.  ``converging`` says whether
 the last test predicted the crossing within ``every`` iterations: a penalty
 rule may leave rho alone while it does (:class:`admmkit.adaptive.HeldRho`).  The schedule reads
@@ -133,13 +138,16 @@ class BalancedStop(StoppingRule):
 
     def _schedule(self, n: int, bound: float) -> None:
         """The next test: ``first_tests``, then where the bound's decrease per iteration since the last test
-        predicts it crosses gamma x the estimate (at least 1, at most ``every`` iterations on)."""
+        predicts it crosses gamma x the estimate (at least 1, at most ``every`` iterations on); where it predicts
+        nothing (the bound did not fall), twice the last interval, at most ``every``."""
         last, self._last = self._last, (n, bound)
         later = [t for t in self.first_tests if t > n]
         if later:
             self._next = later[0]
             return
         steps, self.converging = self.every, False
+        if last is not None:                           # no prediction: the interval doubles, up to ``every``
+            steps = min(self.every, 2 * (n - last[0]))
         if last is not None and 0.0 < bound < last[1]:
             q = (bound / last[1]) ** (1.0 / (n - last[0]))                  # decrease per iteration, < 1
             ratio = bound / (self.gamma * self.discretisation)                  # > 1: it did not fire

@@ -78,9 +78,24 @@ def test_a_plug_in_may_test_later_first():
     stop = Late(1.0, gamma=0.3, every=10)
     stop.algebraic_error_bound = lambda rec: 10.0
     moving = dict(primal_residual=1.0, x_change=1.0, z_change=1.0, computed=lambda: _NONE)
-    assert [rec_k + 1 for rec_k in range(6) if stop.fired(SimpleNamespace(k=rec_k, **moving)) is None and
+    assert [rec_k + 1 for rec_k in range(4) if stop.fired(SimpleNamespace(k=rec_k, **moving)) is None and
             (stop.tests and stop.tests[-1] == rec_k + 1)] == [2, 3]
     assert Known(1.0).first_tests == (1, 2)
+
+
+def test_a_bound_that_does_not_fall_is_tested_at_doubling_intervals():
+    """With nothing to predict from (the bound flat or rising), the interval after the first tests doubles up to
+    ``every`` (1, 2, 4, 8, then 10): a bound that rises for a few iterations and then falls is caught within twice
+    the iterations it took, not left for ``every``."""
+    from types import SimpleNamespace
+
+    stop = Known(1.0, gamma=0.3, every=10)
+    stop.algebraic_error_bound = lambda rec: 10.0
+    moving = dict(primal_residual=1.0, x_change=1.0, z_change=1.0, computed=lambda: _NONE)
+    for k in range(40):
+        assert stop.fired(SimpleNamespace(k=k, **moving)) is None
+    assert stop.tests == [1, 2, 4, 8, 16, 26, 36]
+    assert not stop.converging
 
 
 def test_an_iterate_that_stopped_changing_is_tested_at_once():
