@@ -47,9 +47,33 @@ def test_the_bound_is_the_true_error_once_the_contact_set_is_found(make, order):
     true = energy_norm(ops, res.x - u_h)
     assert res.converged and true <= stop.algebraic * (1 + 1e-6) <= 1.01 * true + 1e-9
     gap = stop.gap
-    mask = np.zeros(problem.g.shape[0], dtype=bool)
-    first = gap.active_set_multiplier(mask)
-    assert not first.any() and gap.active_set_multiplier(mask.copy()) is first      # kept while the set holds
+    touching = ops.B @ u_h >= problem.g - 1e-9 * max(1.0, np.abs(problem.g).max())
+    exact = gap.active_set_multiplier(touching)
+    assert exact.any() and gap.active_set_multiplier(touching.copy()) is exact      # kept while the set holds
+
+
+@pytest.mark.parametrize("make, order", [(example1, 1), (example2, 2)])
+def test_the_active_set_steps_correct_a_wrong_touched_set(make, order):
+    """(A') drops the nodes whose multiplier (A) gives a negative force and adds those d0 - C mu puts through
+    the obstacle: from the solution's contact set with the two nearest free nodes added, or with its weakest
+    node taken away (an iterate's touched set near the end of a run), the steps end on the solution's set,
+    with its multiplier."""
+    ops = assemble(make(h=1 / 10, order=order))
+    problem = contact_problem(ops, mode="condensed")
+    u_h = _tight(ops)
+    gap = CondensedGap(problem)
+    touching = ops.B @ u_h >= problem.g - 1e-9 * max(1.0, np.abs(problem.g).max())
+    assert 0 < touching.sum() < touching.size
+    exact = gap._restricted_multiplier(touching)
+    assert np.all(exact[touching] > 0)
+    free = np.flatnonzero(~touching)
+    added = touching.copy()
+    added[free[np.argsort((problem.g - ops.B @ u_h)[free])[:2]]] = True
+    removed = touching.copy()
+    removed[np.flatnonzero(touching)[np.argmin(exact[touching])]] = False
+    for start in (added, removed):
+        assert not np.array_equal(start, touching)
+        assert np.allclose(CondensedGap(problem).active_set_multiplier(start), exact, rtol=1e-9, atol=0)
 
 
 def test_energy_exceeds_the_minimum_by_half_the_squared_energy_norm_at_a_feasible_point(ex1):

@@ -41,6 +41,24 @@ error ||u - u_h||_a.  Measured at the balanced stop (gamma 0.1) on Examples
 1.0 (1.6 once), and the stop came 0-8 iterations sooner.  (A) costs one
 Cholesky factorisation of C_AA per new active set (kept while A holds).
 
+*Corrected by the primal-dual active set method.*  Early in a run the
+touched set A is not the solution's: it holds nodes that the iterate
+pushes into the obstacle but the solution lifts off (mu_A < 0 there), and
+misses some that d0 - C mu puts through it.  (A) is the stationarity of
+the boundary dual, max D(mu) over mu >= 0, a small dense QP, on A; up to
+``PDAS_STEPS`` steps of the primal-dual active set method (Hintermüller,
+Ito & Kunisch 2003) correct A,
+
+    A <- {i in A : mu_i > 0} + {i not in A : (d0 - C mu)_i > g_i},             (A')
+
+and (A) is solved on the new set, until A holds.  Every set gives valid
+candidates (max(mu, 0) >= 0, d' <= g), so (B) stays guaranteed; a better
+set only sharpens it.  On Example 1 P1's adaptive path (to 1e-2) the true
+algebraic error at the stop was 0.032-0.048 of the estimate on two early
+levels, the bound 4-10 times the error a few iterations before; with (A')
+every level ended at 0.19-0.29 (gamma 0.3), and warm levels took 14
+iterations in all against 19.
+
 **Discretisation error: a gradient-recovery (ZZ) estimate.**  G, the
 displacement gradient recovered into continuous finite elements of the
 scene's order (NGSolve's ``Set``), e = sym(grad u_h) - sym(G), and
@@ -73,6 +91,9 @@ from admmkit.problems.contact.model.assembly import lame
 from admmkit.problems.contact.solvers.estimate_friction import TrescaGap
 from admmkit.problems.contact.solvers.estimate_residual import (check_estimator, condensed_pressure, residual_estimate,
                                                                residual_estimator, residual_indicators)
+
+#: the most primal-dual active set steps (A') that correct the touched set of the active-set candidate
+PDAS_STEPS = 3
 
 
 def zz_indicators(ops, u: np.ndarray) -> np.ndarray:
@@ -111,7 +132,7 @@ class CondensedGap:
         C, d0, g = q.C, q.d0, q.g
         tol = 1e-12 * max(1.0, float(np.max(np.abs(g), initial=0.0)))
         d = d0 + C @ w
-        mu_active = self.active_set_multiplier((p >= g - tol) | (d >= g - tol))            # (A)
+        mu_active = self.active_set_multiplier((p >= g - tol) | (d >= g - tol), tol)       # (A), (A')
         candidates = []
         for target in (np.minimum(d, g), np.minimum(p, g), np.minimum(d0 - C @ mu_active, g)):
             w1 = sla.cho_solve(self._C, target - d0)
@@ -125,17 +146,30 @@ class CondensedGap:
         distance = math.sqrt(max((w - w1) @ (C @ (w - w1)), 0.0))
         return distance + math.sqrt(2.0 * (max(J1 - dual, 0.0) + rounding))
 
-    def active_set_multiplier(self, active: np.ndarray) -> np.ndarray:
-        """max(mu, 0) with mu of (A) on the nodes ``active`` (a boolean mask); kept while the set holds."""
+    def active_set_multiplier(self, active: np.ndarray, tol: float = 0.0) -> np.ndarray:
+        """max(mu, 0) with mu of (A) on the nodes ``active`` (a boolean mask), the set corrected by up to
+        ``PDAS_STEPS`` steps (A') (``tol``: the slack a node may pass g by and stay off it); kept while the
+        given set holds."""
         key = active.tobytes()
         if key != self._active_key:
-            q, index = self.problem, np.flatnonzero(active)
-            mu = np.zeros(q.g.shape[0])
-            if index.size:
-                C_AA = q.C[np.ix_(index, index)]              # a principal block of the SPD C: SPD
-                mu[index] = sla.cho_solve(sla.cho_factor(C_AA), (q.d0 - q.g)[index])
+            mu = self._restricted_multiplier(active)
+            for _ in range(PDAS_STEPS):
+                through = self.problem.d0 - self.problem.C @ mu > self.problem.g + tol
+                corrected = (mu > 0.0) | (~active & through)                                              # (A')
+                if np.array_equal(corrected, active) or not corrected.any():
+                    break
+                active, mu = corrected, self._restricted_multiplier(corrected)
             self._active_key, self._mu_active = key, np.maximum(mu, 0.0)
         return self._mu_active
+
+    def _restricted_multiplier(self, active: np.ndarray) -> np.ndarray:
+        """mu of (A): C_AA mu_A = (d0 - g)_A on the nodes ``active``, 0 elsewhere."""
+        q, index = self.problem, np.flatnonzero(active)
+        mu = np.zeros(q.g.shape[0])
+        if index.size:
+            C_AA = q.C[np.ix_(index, index)]                  # a principal block of the SPD C: SPD
+            mu[index] = sla.cho_solve(sla.cho_factor(C_AA), (q.d0 - q.g)[index])
+        return mu
 
 
 def algebraic_gap(problem):
