@@ -7,11 +7,12 @@ One level (:func:`solve_adaptive`):
    (:class:`admmkit.problems.obstacle.estimate.BalancedStop`) and started from
    the previous level's u, lam and rho, prolongated to the new mesh (P1
    interpolation, as NGSolve's ``GridFunction.Update``), so later levels cost
-   few iterations; in P1 the prolongated u then takes one active-set step, which
-   removes the smooth algebraic error it inherits (``active_set_step``,
-   :mod:`admmkit.problems.obstacle.warm_start`); rho kept within ``warm_rho`` x the new mesh's own scale
-   (``WARM_RHO``), then held for the stop's longest test interval
-   (``every``, 10 iterations; :class:`admmkit.adaptive.HeldRho`), and on while the stop predicts it fires
+   few iterations; the prolongated u then takes one active-set step, which
+   removes the smooth algebraic error it inherits, where that lowers its energy
+   (``active_set_step``, :mod:`admmkit.problems.obstacle.warm_start`); rho
+   kept within ``warm_rho`` x the new mesh's own scale (``WARM_RHO``), then
+   held for the stop's longest test interval (``every``, 10 iterations;
+   :class:`admmkit.adaptive.HeldRho`), and on while the stop predicts it fires
    within that interval (``acceleration`` accelerates the levels' iterations: restarted fast ADMM in
    P2, plain ADMM in P1, by default: ``ACCELERATION``),
    and the x-step is Jacobi-CG, factorising
@@ -50,7 +51,7 @@ from .estimate import OBSTACLE_GAMMA, BalancedStop, estimator_of, zz
 from .estimate_residual import check_estimator
 from .p2 import prolongation
 from .problem import DEFAULT_BACKEND, ObstacleProblem, build_mesh
-from .warm_start import active_set_start
+from .warm_start import warm_start
 from .xstep import ADAPTIVE_BACKEND
 from .scene import Scene
 
@@ -73,11 +74,13 @@ ACCELERATION = {1: None, 2: "fast"}
 WARM_RHO = {1: (0.1, 1.0), 2: (0.3, 0.3)}
 
 #: ``active_set_step="auto"``, by element order: whether a warm level starts from one active-set step on the
-#: prolongated u (warm_start.py).  Radial scene, with the step against without, one run each: P1 to 5e-3,
-#: 53 warm iterations against 92, levels of more than 5,000 unknowns 2-3 iterations each; P2 to 3e-4, 183
-#: against 162, and the algebraic error at the stop below 0.05 of the estimate on 6 of 12 levels against 2
-#: (why, not found), so P2 levels keep the prolongated start
-ACTIVE_SET_STEP = {1: True, 2: False}
+#: prolongated u where it lowers the start's energy (warm_start.py).  Radial scene, with the step against
+#: without, one run each: P1 to 5e-3, 53 warm iterations against 92, levels of more than 5,000 unknowns 2-3
+#: iterations each.  P2 to 3e-4, the step taken whatever the energy: 183 warm iterations against 162 (one level
+#: started 10x the estimate from its solution); with the energy test and the stop's doubling intervals
+#: (admmkit.balanced_stop), to 2.5e-4: 85 against 131, every level's algebraic error in [0.05, 0.5] of the
+#: estimate (docs/obstacle.md)
+ACTIVE_SET_STEP = {1: True, 2: True}
 
 
 @dataclass
@@ -119,8 +122,9 @@ def solve_adaptive(scene: Scene, target: float, *, theta: float = 0.5, gamma: fl
     ``WARM_RHO[fe_order]``.
 
     ``active_set_step``: True: a warm level starts from one active-set step on the prolongated u, with the
-    multiplier that step gives (:mod:`admmkit.problems.obstacle.warm_start`); False: from the prolongated u
-    and lam as they are; ``"auto"`` (the default): ``ACTIVE_SET_STEP[fe_order]``.
+    multiplier that step gives, where the step lowers the start's energy
+    (:func:`admmkit.problems.obstacle.warm_start.warm_start`); False: from the prolongated u and lam as they
+    are; ``"auto"`` (the default): ``ACTIVE_SET_STEP[fe_order]``.
 
     ``log``: called after each level with the :class:`Level` and the result so far (whose ``model``,
     ``result`` and ``indicators`` are that level's), for progress and per-level output.
@@ -157,10 +161,8 @@ def solve_adaptive(scene: Scene, target: float, *, theta: float = 0.5, gamma: fl
         stop = BalancedStop(problem, gamma, estimator=estimator)
         fields = warm["at"](problem) if "at" in warm else warm           # P2: the last level's fields at the nodes
         start = {k: fields[k][problem.free] for k in ("x0", "lam0") if k in fields}
-        if "x0" in start and active_set_step:       # the smooth inherited error removed (warm_start.py)
-            start = active_set_start(problem, start["x0"])
-        elif "x0" in start:
-            start["z0"] = problem.z_step(start["x0"], np.zeros(problem.n), 1.0, None)    # x0 on the obstacle
+        if "x0" in start:                   # on the obstacle; the smooth inherited error removed (warm_start.py)
+            start = warm_start(problem, start["x0"], start.get("lam0"), active_set_step)
         # warm: rho held for the stop's interval, and on while the stop predicts it fires within one
         rule = HeldRho(policy, hold=stop.every, keep=lambda: stop.converging) if "x0" in start else policy
         rho0 = _clamped(warm["rho"], window, problem) if "x0" in start else warm["rho"]

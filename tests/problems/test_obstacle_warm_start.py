@@ -8,7 +8,7 @@ import scipy.sparse as sp
 from admmkit.benchmarks.rules.pdas import pdas
 from admmkit.problems.obstacle import ObstacleProblem, radial
 from admmkit.problems.obstacle.adaptive import solve_adaptive
-from admmkit.problems.obstacle.warm_start import active_set_start
+from admmkit.problems.obstacle.warm_start import active_set_start, warm_start
 
 
 def _exact(problem):
@@ -64,6 +64,28 @@ def test_the_step_keeps_the_starts_contact_nodes_on_the_obstacle(level):
     r = (problem.K @ out["x0"] - problem.F)[~on]
     assert np.linalg.norm(r) <= 1e-6 * np.linalg.norm(problem.F)
     assert np.all(out["lam0"][~on] == 0.0)
+
+
+def test_warm_start_keeps_the_start_of_lower_energy(level):
+    """For a feasible z, J(z) - J(u_h) >= ||z - u_h||_K^2 / 2: warm_start keeps the step where its projected start
+    has the lower energy (the solution's contact set, a smooth error elsewhere: the step returns the solution)
+    and the prolongated start with its lam where the step's is higher (a start just off the obstacle everywhere:
+    the step solves K u = F without a contact node and goes through the obstacle)."""
+    problem, exact = level
+    J = lambda v: 0.5 * v @ (problem.K @ v) - problem.F @ v          # noqa: E731
+    lam = np.full(problem.n, 0.25)
+    on = problem.sign * (exact - problem.psi) <= 1e-12
+    x, y = problem.nodes[problem.free].T
+    smooth = np.where(on, problem.psi, exact + problem.sign * (0.3 * np.abs(np.cos(x) * np.cos(y)) + 1e-3))
+    off = exact + problem.sign * 1e-3
+    for start, stepped in ((smooth, True), (off, False)):
+        out, step = warm_start(problem, start, lam), active_set_start(problem, start)
+        plain_z0 = problem.z_step(start, np.zeros(problem.n), 1.0, None)
+        assert (J(step["z0"]) <= J(plain_z0)) == stepped
+        kept = step if stepped else {"x0": start, "z0": plain_z0, "lam0": lam}
+        assert all(np.array_equal(out[k], kept[k]) for k in ("x0", "z0", "lam0"))
+    plain = warm_start(problem, smooth, lam, step=False)
+    assert plain["x0"] is smooth and plain["lam0"] is lam and "z0" in plain
 
 
 def test_p1_warm_levels_start_closer_with_the_step(monkeypatch):
