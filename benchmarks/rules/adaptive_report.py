@@ -77,7 +77,8 @@ def markdown(rows: list[dict], refs: list[dict], command: str) -> str:
     reference = "\n\n".join(_reference(ref) for ref in refs)
     return ("# Adaptive against uniform refinement\n\n"
             "True relative energy error (obstacle: H1 seminorm against the exact solution; contact: "
-            "sqrt(2 (J(u_h) - J_ref + c_h)) / ||u||_a). Adaptive: ZZ estimator, Dörfler theta 0.5, balanced stop "
+            "sqrt(2 (J(u_h) - J_ref + c_h)) / ||u||_a, u_h the exact discrete solution of each level and mesh: "
+            "the balanced stop's iterate may penetrate a little, and its energy then falls below J(u_h)). Adaptive: ZZ estimator, Dörfler theta 0.5, balanced stop "
             f"gamma {GAMMA:g} (contact) and {OBSTACLE_GAMMA:g} (obstacle: each plug-in's default), warm start; its "
             "wall time sums all levels. Uniform: each mesh solved cold with the same stop; its wall time is that "
             "one mesh's (the coarser meshes are not counted, in its favour). Hertz: "
