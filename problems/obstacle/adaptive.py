@@ -77,9 +77,9 @@ WARM_RHO = {1: (0.1, 1.0), 2: (0.3, 0.3)}
 #: prolongated u where it lowers the start's energy (warm_start.py).  Radial scene, with the step against
 #: without, one run each: P1 to 5e-3, 53 warm iterations against 92, levels of more than 5,000 unknowns 2-3
 #: iterations each.  P2 to 3e-4, the step taken whatever the energy: 183 warm iterations against 162 (one level
-#: started 10x the estimate from its solution); with the energy test and the stop's doubling intervals
-#: (admmkit.balanced_stop), to 2.5e-4: 85 against 131, every level's algebraic error in [0.05, 0.5] of the
-#: estimate (docs/obstacle.md)
+#: started 2.5x the estimate from its solution, against 1.3x without); with the energy test and the stop's
+#: doubling intervals (admmkit.balanced_stop): 75 against 131 (bench adaptive, 543e53c against dcb01b7), every
+#: level's algebraic error in [0.05, 0.5] of the estimate (docs/obstacle.md)
 ACTIVE_SET_STEP = {1: True, 2: True}
 
 

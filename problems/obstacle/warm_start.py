@@ -23,9 +23,9 @@ nodal K AMG-CG solves slowly, as in :class:`.estimate.EnergyGap`).
 **The step is kept only where it helps** (:func:`warm_start`).  Where u_0
 puts nodes on the obstacle that the solution lifts off (P2 nodal values
 at a refined free boundary), pinning them can make the start worse: on a
-radial P2 level of 1,653 unknowns the stepped start was 10 times the
-estimate from the level's solution, the prolongated one 1.2 times, and
-ADMM took 30 iterations against 6.  Both starts z_0 are feasible, and for
+radial P2 level of 1,653 unknowns the step's u was 10 times the estimate
+from the level's solution, its projection 2.5 times, the prolongated
+start's projection 1.3 times, and ADMM took 30 iterations against 6.  Both starts z_0 are feasible, and for
 a feasible z
 
     1/2 ||z - u_h||_K^2 <= J(z) - J(u_h),       J(v) = 1/2 v'Kv - F'v,
