@@ -29,9 +29,9 @@ test is then, rounded down, at least 1 and at most ``every`` iterations later.
 Where the bound did not fall (it may rise for a few iterations while the
 iterate's contact set moves, as on the obstacle's warm P2 levels) there is
 nothing to predict from, and the interval doubles: 1, 2, 4, ... up to
-``every``, rather than jumping to ``every`` at once (an obstacle level of
-4,165 unknowns ran to its next test at iteration 18 whose bound had fallen
-below gamma x the estimate at iteration 9).  So the stop comes near the
+``every``, rather than jumping to ``every`` at once (on an obstacle level
+of 4,165 unknowns the next test came at iteration 18, though the bound had
+been below gamma x the estimate from iteration 9).  So the stop comes near the
 crossing, not up to ``every`` iterations past it.  ``converging`` says whether
 the last test predicted the crossing within ``every`` iterations: a penalty
 rule may leave rho alone while it does (:class:`admmkit.adaptive.HeldRho`).  The schedule reads

@@ -25,8 +25,8 @@ puts nodes on the obstacle that the solution lifts off (P2 nodal values
 at a refined free boundary), pinning them can make the start worse: on a
 radial P2 level of 1,653 unknowns the step's u was 10 times the estimate
 from the level's solution, its projection 2.5 times, the prolongated
-start's projection 1.3 times, and ADMM took 30 iterations against 6.  Both starts z_0 are feasible, and for
-a feasible z
+start's projection 1.3 times, and ADMM took 30 iterations against 6.  Both
+starts z_0 are feasible, and for a feasible z
 
     1/2 ||z - u_h||_K^2 <= J(z) - J(u_h),       J(v) = 1/2 v'Kv - F'v,
 
