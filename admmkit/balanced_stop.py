@@ -145,9 +145,9 @@ class BalancedStop(StoppingRule):
         if later:
             self._next = later[0]
             return
-        steps, self.converging = self.every, False
-        if last is not None:                           # no prediction: the interval doubles, up to ``every``
-            steps = min(self.every, 2 * (n - last[0]))
+        # without a prediction below: twice the last interval, up to ``every``
+        steps = self.every if last is None else min(self.every, 2 * (n - last[0]))
+        self.converging = False
         if last is not None and 0.0 < bound < last[1]:
             q = (bound / last[1]) ** (1.0 / (n - last[0]))                  # decrease per iteration, < 1
             ratio = bound / (self.gamma * self.discretisation)                  # > 1: it did not fire

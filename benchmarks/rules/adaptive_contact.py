@@ -112,27 +112,26 @@ def contact_rows(name: str, order: int, target: float, ref: dict, start, uniform
         absolute = math.sqrt(2 * excess) if excess >= 0 else math.nan
         if absolute / ref["norm"] < RESOLVED * ref["energy_floor"]:
             absolute = math.nan
-        return absolute / ref["norm"], absolute, extra(ops, res)
+        return absolute / ref["norm"], absolute
+
+    def measured(ops, res):          # u_h*: a level's or mesh's discretisation error is its error (a balanced
+        exact = contact_exact(ops, res)  # stop's u may penetrate); a and p0 of what it returned
+        rel, absolute = (math.nan, math.nan) if exact is None else true_error(ops, exact)
+        return exact, rel, absolute, extra(ops, res)
 
     def log(level, out):
         t0 = time.perf_counter()
-        exact = contact_exact(out.model, out.result)        # u_h*: the level's discretisation error is its error
-        rel, absolute, _ = (math.nan, math.nan, None) if exact is None else true_error(out.model, exact)
-        more = extra(out.model, out.result)                 # a and p0 of what the level returned
+        exact, rel, absolute, more = measured(out.model, out.result)
         cold = cold_contact(out.model)
         algebraic = contact_algebraic_error(out.model, out.result.x, exact)
         clock.excluded += time.perf_counter() - t0
         rows.append(level_row(name, order, "adaptive", len(rows) + 1, math.nan, level.unknowns,
                               level.relative_estimate, level.estimate, rel, absolute, level.iterations,
                               level.seconds, clock.now(), level.status, cold, algebraic, **more))
-    def discretisation_error(ops, res):     # of u_h*, as an adaptive level's: a balanced stop's u may penetrate
-        exact = contact_exact(ops, res)
-        rel, absolute, _ = (math.nan, math.nan, None) if exact is None else true_error(ops, exact)
-        return rel, absolute, extra(ops, res)
     solve_adaptive(start, target, max_levels=60, log=log)
     for method, meshes in (("uniform", uniform), ("a_priori", a_priori)):
         for i, (h, scene) in enumerate(meshes):
-            level, wall, (rel, absolute, more) = uniform_level(solve_adaptive, scene, discretisation_error)
+            level, wall, (_, rel, absolute, more) = uniform_level(solve_adaptive, scene, measured)
             rows.append(level_row(name, order, method, i + 1, h, level.unknowns, level.relative_estimate,
                                   level.estimate, rel, absolute, level.iterations, level.seconds, wall,
                                   level.status, **more))

@@ -78,12 +78,8 @@ def warm_start(problem, x0: np.ndarray, lam0: np.ndarray | None = None, step: bo
     if not step:
         return plain
     stepped = active_set_start(problem, x0, tol)
-    return stepped if _energy(problem, stepped["z0"]) <= _energy(problem, plain["z0"]) else plain
-
-
-def _energy(problem, v: np.ndarray) -> float:
-    """J(v) = 1/2 v'Kv - F'v on the free nodes (the constant of the boundary data left out)."""
-    return 0.5 * float(v @ (problem.K @ v)) - float(problem.F @ v)
+    J = problem.objective                                  # J(z) = 1/2 z'Kz - F'z (+ the boundary data's part)
+    return stepped if J(stepped["z0"], stepped["z0"]) <= J(plain["z0"], plain["z0"]) else plain
 
 
 def _solve_free(problem, K_II, b: np.ndarray, x: np.ndarray, tol: float) -> np.ndarray:
