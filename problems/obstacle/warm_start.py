@@ -49,10 +49,7 @@ def active_set_start(problem, x0: np.ndarray, tol: float = TOL) -> dict[str, np.
     """The warm start ``{"x0", "z0", "lam0"}`` of ``problem`` after one active-set step from ``x0`` (values on
     the free nodes; module docstring)."""
     s, psi, K, F = problem.sign, problem.psi, problem.K, problem.F
-    x0 = np.asarray(x0, dtype=float)
-    if x0.shape != (problem.n,) or not np.all(np.isfinite(x0)):
-        raise ValueError(f"x0 must hold {problem.n} finite values (one per free node), got shape {x0.shape}"
-                         + ("" if x0.shape != (problem.n,) else " with a NaN or inf"))
+    x0 = _checked(problem, x0, "x0")
     on = s * (x0 - psi) <= 0.0
     free = ~on
     u = np.where(on, psi, x0)
@@ -72,14 +69,24 @@ def warm_start(problem, x0: np.ndarray, lam0: np.ndarray | None = None, step: bo
     Without ``step``: x0 and lam0 as they are, z0 = x0 projected onto the obstacle.  With ``step``: the
     :func:`active_set_start` where its z0 has the lower energy J (module docstring), else the plain start.
     """
+    x0 = _checked(problem, x0, "x0")
     plain = {"x0": x0, "z0": problem.z_step(x0, np.zeros(problem.n), 1.0, None)}
     if lam0 is not None:
-        plain["lam0"] = lam0
+        plain["lam0"] = _checked(problem, lam0, "lam0")
     if not step:
         return plain
     stepped = active_set_start(problem, x0, tol)
     J = problem.objective                                  # J(z) = 1/2 z'Kz - F'z (+ the boundary data's part)
     return stepped if J(stepped["z0"], stepped["z0"]) <= J(plain["z0"], plain["z0"]) else plain
+
+
+def _checked(problem, v, name: str) -> np.ndarray:
+    """``v`` as a float array of one finite value per free node, else a ValueError naming ``name``."""
+    v = np.asarray(v, dtype=float)
+    if v.shape != (problem.n,) or not np.all(np.isfinite(v)):
+        raise ValueError(f"{name} must hold {problem.n} finite values (one per free node), got shape {v.shape}"
+                         + ("" if v.shape != (problem.n,) else " with a NaN or inf"))
+    return v
 
 
 def _solve_free(problem, K_II, b: np.ndarray, x: np.ndarray, tol: float) -> np.ndarray:

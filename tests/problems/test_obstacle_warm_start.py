@@ -132,3 +132,16 @@ def test_active_set_start_refuses_a_start_of_the_wrong_shape_or_with_a_nan(level
     bad[3] = np.nan
     with pytest.raises(ValueError, match="x0 must hold .* with a NaN or inf"):
         active_set_start(problem, bad)
+
+
+@pytest.mark.parametrize("step", [True, False])
+def test_warm_start_refuses_a_start_of_the_wrong_shape_or_with_a_nan(level, step):
+    problem, exact = level
+    with pytest.raises(ValueError, match=f"x0 must hold {problem.n} finite values.*shape \\({problem.n - 1},\\)"):
+        warm_start(problem, exact[:-1], step=step)
+    bad = exact.copy()
+    bad[3] = np.nan
+    with pytest.raises(ValueError, match="x0 must hold .* with a NaN or inf"):
+        warm_start(problem, bad, step=step)
+    with pytest.raises(ValueError, match="lam0 must hold .* with a NaN or inf"):
+        warm_start(problem, exact, bad, step=step)
