@@ -23,20 +23,17 @@ for any mu >= 0.  Two are tried and the larger D(mu) kept: the nodal
 contact force of the ADMM multiplier, max(-s M lam, 0) (K u - F + M lam = 0
 at a solution), and z's own contact force, max(s (K z - F), 0) on the nodes
 where z touches the obstacle (the sharper one once the contact set has
-settled).  The bound needs K^{-1} applied to the residual K z - F - s mu
-(the gap in residual form, :class:`EnergyGap`): by AMG-preconditioned CG,
-with a guaranteed correction for CG's own residual, so it holds whatever
-CG's accuracy, and it tends to 0 as ADMM converges.
+settled); in P2 a third near a test's threshold, the multiplier of the
+problem whose contact set is z's touched set (:class:`EnergyGap`).  The
+bound needs K^{-1} applied to the residual K z - F - s mu (the gap in
+residual form, :class:`EnergyGap`): by AMG-preconditioned CG, with a
+guaranteed correction for CG's own residual, so it holds whatever CG's
+accuracy, and it tends to 0 as ADMM converges.
 
-**Discretisation error: a gradient-recovery (ZZ) estimate.**  Zienkiewicz &
-Zhu: G u_h, the recovered gradient (grad u_h averaged to a continuous P1
-vector field, at each vertex the area-weighted mean of the gradients of the
-triangles around it), and eta_T = ||grad u_h - G u_h||_{L2(T)};
-eta = (sum eta_T^2)^{1/2} estimates ``|u_h - u|_{H1}``.  It is the simple
-baseline; it is not a guaranteed bound (the residual estimators of the
-literature are), and ``tests/problems/test_obstacle_estimate.py`` measures
-its effectivity ``eta / |u_h - u|_{H1}`` on the radial obstacle, whose exact
-solution is known.
+**Discretisation error: a gradient-recovery (ZZ) estimate** (:mod:`admmkit.problems.obstacle.estimate_zz`),
+eta = (sum eta_T^2)^{1/2} of ||grad u_h - G u_h||_{L2(T)}, G u_h the
+recovered gradient; or the residual estimator
+(:mod:`admmkit.problems.obstacle.estimate_residual`).
 
 **The balanced stop** (:class:`BalancedStop`) fires when (B) <= gamma eta:
 the algebraic error of z is then certainly below gamma times the estimated
@@ -55,80 +52,14 @@ from admmkit.cg import pcg
 from admmkit.linsolve import factorize
 
 from .estimate_residual import check_estimator, residual_estimator
+from .estimate_zz import ZZ, _zz, zz, zz_estimate, zz_indicators
+from .warm_start import active_set_multiplier
 
 #: The obstacle's default gamma, the top of issue #24's band [0.05, 0.5] of the estimate, which bound (B)
 #: guarantees.  (B) is tight at a warm level's first iterate and 2-7x loose from the second on, where the
 #: ADMM iterate's error had already fallen below 0.05 of the estimate on the fine radial levels: at
 #: admmkit's 0.3 the three finest stopped at iteration 2 with 0.03-0.04 (docs/obstacle.md, "The stop's gamma")
 OBSTACLE_GAMMA = 0.5
-
-
-class ZZ:
-    """The ZZ estimator of one mesh: the P1 gradient per triangle, recovered by area-weighted vertex averages.
-
-    Built once per problem (the triangles, their areas and the gradient of each
-    hat function); :meth:`indicators` is then a few array operations.
-    ``eta_T^2 = int_T |g_T - G|^2`` with G linear on T is integrated exactly:
-    ``|T|/12 (sum_i |w_i|^2 + |sum_i w_i|^2)``, ``w_i = g_T - G(vertex i)``.
-    """
-
-    def __init__(self, problem):
-        self.problem = problem
-        tri, area = problem.tri, problem.area                            # (elements, 3 vertices), areas
-        p = problem.nodes[tri]
-        e1, e2 = p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]                     # the two edges
-        det = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]
-        # g_T = inv @ (u1 - u0, u2 - u0), inv = (e1; e2)^{-1} in closed form
-        self._inv = np.stack([np.stack([e2[:, 1], -e1[:, 1]], axis=1),
-                              np.stack([-e2[:, 0], e1[:, 0]], axis=1)], axis=1) / det[:, None, None]
-        self.tri, self.area = tri, area
-        self._last: tuple[np.ndarray, np.ndarray] | None = None
-        self._weights = np.bincount(tri.ravel(), weights=np.repeat(area, 3), minlength=problem.nodes.shape[0])
-
-    def gradients(self, u: np.ndarray) -> np.ndarray:
-        """The P1 gradient on every triangle, (elements, 2) (u: values on the free nodes)."""
-        full = self.problem.full_vector(u)[self.tri]                      # (elements, 3)
-        return np.einsum("eij,ej->ei", self._inv, full[:, 1:] - full[:, :1])
-
-    def energy(self, u: np.ndarray) -> float:
-        """``|u_h|_{H1}``, the energy norm of the full field (boundary data included)."""
-        return float(np.sqrt(np.sum(self.area * np.sum(self.gradients(u) ** 2, axis=1))))
-
-    def indicators(self, u: np.ndarray) -> np.ndarray:
-        """eta_T for every triangle (u: values on the free nodes); the last u's kept (the balanced stop's final
-        estimate is the adaptive loop's marking)."""
-        if self._last is not None and np.array_equal(self._last[0], u):
-            return self._last[1].copy()
-        g = self.gradients(u)
-        G = np.stack([np.bincount(self.tri.ravel(), weights=np.repeat(self.area * g[:, k], 3),
-                                  minlength=self._weights.size) for k in range(2)], axis=1)
-        G /= self._weights[:, None]                                       # area-weighted vertex averages
-        w = g[:, None, :] - G[self.tri]                                   # (elements, 3, 2)
-        eta2 = self.area / 12 * (np.sum(w ** 2, axis=(1, 2)) + np.sum(w.sum(axis=1) ** 2, axis=1))
-        self._last = (np.array(u, dtype=float), np.sqrt(eta2))
-        return self._last[1].copy()
-
-
-def zz(problem) -> ZZ:
-    """The problem's ZZ estimator (built on first use, then kept on the problem)."""
-    return _zz(problem)
-
-
-def _zz(problem) -> ZZ:
-    if getattr(problem, "_zz", None) is None:       # P2 problems bring their own (admmkit.problems.obstacle.p2)
-        own = getattr(problem, "zz_estimator", None)
-        problem._zz = own() if callable(own) else ZZ(problem)
-    return problem._zz
-
-
-def zz_indicators(problem, u: np.ndarray) -> np.ndarray:
-    """eta_T = ||grad u_h - G u_h||_{L2(T)} for every element T (u: values on the free nodes)."""
-    return _zz(problem).indicators(u)
-
-
-def zz_estimate(problem, u: np.ndarray) -> float:
-    """eta = (sum_T eta_T^2)^{1/2}: the ZZ estimate of the discretisation error ``|u_h - u|_{H1}``."""
-    return float(np.sqrt(np.sum(zz_indicators(problem, u) ** 2)))
 
 
 def estimator_of(problem, name: str = "zz"):
@@ -140,6 +71,10 @@ def estimator_of(problem, name: str = "zz"):
         raise ValueError(f"estimator 'residual' is written for P1 elements; with P{problem.order} use 'zz'")
     return residual_estimator(problem).indicators
 
+
+#: the active-set multiplier (a solve with K_II) is tried only where the bound with the other two lies in
+#: (enough, DECIDE x enough], where it may decide the test
+DECIDE = 4.0
 
 #: EnergyGap's CG goes on until the Friedrichs correction is at most this share of r'y + e'y (bound sharp to 1 %)
 SHARP = 0.01
@@ -180,9 +115,17 @@ class EnergyGap:
     factorises K instead (exact y, e = 0); ``"auto"`` (the default) does so for P2, whose nodal K took
     AMG-CG 20 ms a bound at 1.8e4 unknowns against 1 ms for a solve with the factor.  The AMG setup of K
     cost 0.3 s at 2.2e5 unknowns where the factorisation cost 1.5 s.
+
+    ``active_set``: whether :meth:`bound` also tries the active-set multiplier of z's touched set (a
+    factorisation of K_II in P2, an AMG setup and CG in P1) where it may decide a test; ``"auto"`` (the
+    default): with ``solver="direct"``.  Radial P2 path to 3e-4 (bench adaptive's): 45 warm iterations
+    against 75, every level's algebraic error at the stop in [0.12, 0.42] of the estimate and at most a
+    third of a cold start's iterations (one level at 0.35 without); P1 gained nothing (its warm starts
+    come from the active-set step already: 21 warm iterations against 20).
     """
 
-    def __init__(self, problem, solver: str = "auto", tol: float = 1e-3, sharp: float = SHARP):
+    def __init__(self, problem, solver: str = "auto", tol: float = 1e-3, sharp: float = SHARP,
+                 active_set="auto"):
         if solver not in ("auto", "amg", "direct"):
             raise ValueError(f"solver must be 'auto', 'amg' or 'direct', got {solver!r}")
         if not sharp > 0:
@@ -190,6 +133,11 @@ class EnergyGap:
         if solver == "auto":        # P2's nodal K: AMG-CG took 20 ms a bound at 1.8e4 unknowns, a factor 1 ms
             solver = "direct" if getattr(problem, "order", 1) == 2 else "amg"
         self.problem, self.solver, self.tol, self.sharp = problem, solver, float(tol), float(sharp)
+        if active_set == "auto":    # P2: K_II factorised as K is; P1: an AMG setup a call, and no gain measured
+            active_set = self.solver == "direct"
+        if not isinstance(active_set, bool):
+            raise ValueError(f"active_set = {active_set!r} is outside the accepted range: True, False or 'auto'")
+        self.active_set = active_set
         x0, x1, y0, y1 = problem.scene.box
         # K >= c M: lambda_1 times the consistent mass's bound against the lumped one (P1 1/4, P2: p2.py)
         self.c = math.pi ** 2 * (1.0 / (x1 - x0) ** 2 + 1.0 / (y1 - y0) ** 2) * getattr(problem, "mass_ratio", 0.25)
@@ -209,8 +157,12 @@ class EnergyGap:
         the larger D at 64 of 64 tests) and mu_lam = max(-s M lam, 0) (the ADMM multiplier); any mu >= 0 gives
         a bound.  mu_z is tried first; mu_lam, a second solve with K, only where it may decide a test: with
         ``enough`` > 0 (the balanced stop's gamma x estimate) only where mu_z's bound lies in (enough,
-        2 enough].  The rounding of J(z) is added, so the bound never claims less than the floating point
-        can tell.
+        2 enough].  With ``active_set``, where the bound so far lies in (enough, DECIDE x enough], also
+        mu_A, the multiplier of the discrete problem whose contact set is z's touched set
+        (:func:`.warm_start.active_set_multiplier`): D's maximiser once that set is the solution's, so
+        the bound is then sqrt(2 (J(z) - J(u_h))), exact to the first order (a radial P2 level of 685
+        unknowns: the bound with mu_z and mu_lam was 3 times the error for five iterations).  The rounding
+        of J(z) is added, so the bound never claims less than the floating point can tell.
         """
         p = self.problem
         slack = p.sign * (z - p.psi)
@@ -222,6 +174,8 @@ class EnergyGap:
         gap = self._gap(Kz, z, mu_z)                                           # >= J(z) - D(mu_z) >= 0
         if not enough > 0.0 or enough < math.sqrt(2.0 * (gap + rounding)) <= 2.0 * enough:
             gap = min(gap, self._gap(Kz, z, np.maximum(-p.sign * p.m * lam, 0.0)))
+        if self.active_set and enough > 0.0 and enough < math.sqrt(2.0 * (gap + rounding)) <= DECIDE * enough:
+            gap = min(gap, self._gap(Kz, z, active_set_multiplier(p, z)))
         return math.sqrt(2.0 * (gap + rounding))
 
     def _gap(self, Kz: np.ndarray, z: np.ndarray, mu: np.ndarray) -> float:

@@ -62,6 +62,14 @@ def active_set_start(problem, x0: np.ndarray, tol: float = TOL) -> dict[str, np.
     return {"x0": u, "z0": problem.z_step(u, np.zeros(problem.n), 1.0, None), "lam0": lam}
 
 
+def active_set_multiplier(problem, z: np.ndarray, tol: float = TOL) -> np.ndarray:
+    """mu >= 0, the nodal contact force of the active-set step from ``z`` (free nodes): the multiplier of the
+    discrete problem with z's touched set as its contact set, negative values cut to 0 (any mu >= 0 gives
+    a lower bound D(mu) of J(u_h); this one is D's maximiser once the touched set is the solution's)."""
+    lam = active_set_start(problem, z, tol)["lam0"]
+    return np.maximum(-problem.sign * problem.m * lam, 0.0)
+
+
 def warm_start(problem, x0: np.ndarray, lam0: np.ndarray | None = None, step: bool = True,
                tol: float = TOL) -> dict[str, np.ndarray]:
     """The start ``{"x0", "z0", "lam0"}`` of a warm level from the prolongated ``x0`` and ``lam0`` (free nodes).
@@ -98,4 +106,4 @@ def _solve_free(problem, K_II, b: np.ndarray, x: np.ndarray, tol: float) -> np.n
     return u
 
 
-__all__ = ["TOL", "active_set_start", "warm_start"]
+__all__ = ["TOL", "active_set_start", "active_set_multiplier", "warm_start"]

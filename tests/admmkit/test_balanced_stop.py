@@ -98,6 +98,23 @@ def test_a_bound_that_does_not_fall_is_tested_at_doubling_intervals():
     assert not stop.converging
 
 
+def test_a_bound_near_its_threshold_is_tested_at_every_iteration():
+    """Within NEAR x gamma x the estimate one iteration may cross the threshold (a cold radial P2 level's bound
+    fell from 3.3 to 0.6 of the estimate in one iteration after a plateau), so the bound is tested at every
+    iteration there, flat or not; above it the doubling intervals stay."""
+    from types import SimpleNamespace
+
+    from admmkit.balanced_stop import NEAR
+
+    moving = dict(primal_residual=1.0, x_change=1.0, z_change=1.0, computed=lambda: _NONE)
+    for bound, tests in ((0.9 * NEAR * 0.3, list(range(1, 21))), (1.1 * NEAR * 0.3, [1, 2, 4, 8, 16])):
+        stop = Known(1.0, gamma=0.3, every=10)                    # estimate 1: the threshold is 0.3
+        stop.algebraic_error_bound = lambda rec, b=bound: b
+        for k in range(20):
+            assert stop.fired(SimpleNamespace(k=k, **moving)) is None
+        assert stop.tests == tests
+
+
 def test_an_iterate_that_stopped_changing_is_tested_at_once():
     """ADMM's fixed point (x, z and lam unchanged) is tested whatever the schedule, so a run started on the
     solution ends converged, not stalled (tests/problems/test_obstacle_warm_start.py runs one)."""

@@ -85,6 +85,38 @@ def test_the_algebraic_bound_is_guaranteed_in_p2():
         assert gap.bound(r.z, r.lam) >= math.sqrt(d @ (p.K @ d)) * (1 - 1e-9)
 
 
+def test_the_active_set_multiplier_makes_the_p2_bound_exact_once_the_touched_set_is_right():
+    """With z's touched set the solution's contact set, the active-set candidate is D's maximiser, and the bound
+    is sqrt(2 (J(z) - J(u_h))) to round-off; on ADMM iterates it stays guaranteed and never looser than
+    without it (``enough`` set so the candidate is tried)."""
+    import scipy.sparse as sp
+
+    from admmkit.benchmarks.rules.pdas import pdas
+
+    p = make_problem(radial(h=1 / 2), fe_order=2)
+    exact = pdas(p.K, p.F, -p.sign * sp.identity(p.n, format="csr"), -p.sign * p.psi, method="bounds")
+    assert exact.status == "converged"
+    u = exact.u
+    with_a, without = EnergyGap(p), EnergyGap(p, active_set=False)
+    assert with_a.active_set and not without.active_set
+    z = u + 0.2 * (u - p.psi)                     # feasible, on the obstacle exactly where u is
+    J = lambda v: 0.5 * v @ (p.K @ v) - p.F @ v   # noqa: E731
+    d = z - u
+    b0 = without.bound(z, np.zeros(p.n), enough=0.0)
+    b = with_a.bound(z, np.zeros(p.n), enough=0.5 * b0)
+    assert b == pytest.approx(math.sqrt(2 * (J(z) - J(u))), rel=1e-6)
+    assert math.sqrt(d @ (p.K @ d)) <= b <= b0
+    for its in (3, 10, 30):
+        r = admmkit.solve(p, rho=10.0, policy="summable", order="zx", stop=admmkit.RelativeChange(1e-14),
+                          max_iter=its)
+        d = r.z - u
+        enough = 0.5 * without.bound(r.z, r.lam, enough=0.0)
+        b = with_a.bound(r.z, r.lam, enough=enough)
+        assert math.sqrt(d @ (p.K @ d)) * (1 - 1e-9) <= b <= without.bound(r.z, r.lam, enough=enough)
+    with pytest.raises(ValueError, match="active_set = 'yes' is outside the accepted range"):
+        EnergyGap(p, active_set="yes")
+
+
 def test_p2_converges_faster_than_p1_and_zz_follows_it():
     """Uniform meshes of the radial scene: the H1 error falls like h^1.4 or faster in P2 (h^1 in P1; the exact
     solution is C^1,1), with as many unknowns (P2 on N x N squares, P1 on 2N x 2N) P2's error is below P1's
