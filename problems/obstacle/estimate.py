@@ -23,8 +23,9 @@ for any mu >= 0.  Two are tried and the larger D(mu) kept: the nodal
 contact force of the ADMM multiplier, max(-s M lam, 0) (K u - F + M lam = 0
 at a solution), and z's own contact force, max(s (K z - F), 0) on the nodes
 where z touches the obstacle (the sharper one once the contact set has
-settled); in P2 a third near a test's threshold, the multiplier of the
-problem whose contact set is z's touched set (:class:`EnergyGap`).  The
+settled); on a warm P2 level a third near a test's threshold, the
+multiplier of the problem whose contact set is z's touched set
+(:class:`EnergyGap`).  The
 bound needs K^{-1} applied to the residual K z - F - s mu (the gap in
 residual form, :class:`EnergyGap`): by AMG-preconditioned CG, with a
 guaranteed correction for CG's own residual, so it holds whatever CG's
@@ -53,7 +54,7 @@ from admmkit.linsolve import factorize
 
 from .estimate_residual import check_estimator, residual_estimator
 from .estimate_zz import ZZ, _zz, zz, zz_estimate, zz_indicators
-from .warm_start import active_set_multiplier
+from .warm_start import FreeProblem, active_set_multiplier
 
 #: The obstacle's default gamma, the top of issue #24's band [0.05, 0.5] of the estimate, which bound (B)
 #: guarantees.  (B) is tight at a warm level's first iterate and 2-7x loose from the second on, where the
@@ -116,16 +117,16 @@ class EnergyGap:
     AMG-CG 20 ms a bound at 1.8e4 unknowns against 1 ms for a solve with the factor.  The AMG setup of K
     cost 0.3 s at 2.2e5 unknowns where the factorisation cost 1.5 s.
 
-    ``active_set``: whether :meth:`bound` also tries the active-set multiplier of z's touched set (a
-    factorisation of K_II in P2, an AMG setup and CG in P1) where it may decide a test; ``"auto"`` (the
-    default): with ``solver="direct"``.  Radial P2 path to 3e-4 (bench adaptive's): 45 warm iterations
-    against 75, every level's algebraic error at the stop in [0.12, 0.42] of the estimate and at most a
-    third of a cold start's iterations (one level at 0.35 without); P1 gained nothing (its warm starts
-    come from the active-set step already: 21 warm iterations against 20).
+    ``active_set``: whether :meth:`bound` also tries the active-set multiplier of z's touched set where it
+    may decide a test (a factorisation of K_II in P2, an AMG setup in P1, kept while the touched set stays:
+    :class:`.warm_start.FreeProblem`).  It pays where the touched set starts near the solution's, on a warm
+    adaptive level (``solve_adaptive`` turns it on there: ``ACTIVE_SET_BOUND``); a cold run's touched set
+    moves for tens of iterations, and each new set costs a factorisation (a cold uniform radial P2 run of
+    65,025 unknowns: 17 of them, 8.7 s against 3.9 s without, for 40 iterations against 44).
     """
 
     def __init__(self, problem, solver: str = "auto", tol: float = 1e-3, sharp: float = SHARP,
-                 active_set="auto"):
+                 active_set: bool = False):
         if solver not in ("auto", "amg", "direct"):
             raise ValueError(f"solver must be 'auto', 'amg' or 'direct', got {solver!r}")
         if not sharp > 0:
@@ -133,11 +134,10 @@ class EnergyGap:
         if solver == "auto":        # P2's nodal K: AMG-CG took 20 ms a bound at 1.8e4 unknowns, a factor 1 ms
             solver = "direct" if getattr(problem, "order", 1) == 2 else "amg"
         self.problem, self.solver, self.tol, self.sharp = problem, solver, float(tol), float(sharp)
-        if active_set == "auto":    # P2: K_II factorised as K is; P1: an AMG setup a call, and no gain measured
-            active_set = self.solver == "direct"
         if not isinstance(active_set, bool):
-            raise ValueError(f"active_set = {active_set!r} is outside the accepted range: True, False or 'auto'")
+            raise ValueError(f"active_set = {active_set!r} is outside the accepted range: True or False")
         self.active_set = active_set
+        self._free = FreeProblem(problem)        # its factor kept while z's touched set stays
         x0, x1, y0, y1 = problem.scene.box
         # K >= c M: lambda_1 times the consistent mass's bound against the lumped one (P1 1/4, P2: p2.py)
         self.c = math.pi ** 2 * (1.0 / (x1 - x0) ** 2 + 1.0 / (y1 - y0) ** 2) * getattr(problem, "mass_ratio", 0.25)
@@ -175,7 +175,7 @@ class EnergyGap:
         if not enough > 0.0 or enough < math.sqrt(2.0 * (gap + rounding)) <= 2.0 * enough:
             gap = min(gap, self._gap(Kz, z, np.maximum(-p.sign * p.m * lam, 0.0)))
         if self.active_set and enough > 0.0 and enough < math.sqrt(2.0 * (gap + rounding)) <= DECIDE * enough:
-            gap = min(gap, self._gap(Kz, z, active_set_multiplier(p, z)))
+            gap = min(gap, self._gap(Kz, z, active_set_multiplier(p, z, free=self._free)))
         return math.sqrt(2.0 * (gap + rounding))
 
     def _gap(self, Kz: np.ndarray, z: np.ndarray, mu: np.ndarray) -> float:
@@ -206,17 +206,19 @@ class BalancedStop(BaseBalancedStop):
     schedule), first at iterations 1 and 2: a warm level that starts from the
     active-set step (P1) is often done at its first iterate, where (B) is tight
     (9 of 14 warm radial P1 levels to 3.8e-3 stopped there; the true error
-    0.02-0.46 of the estimate, the bound 0.02-0.48).
+    0.02-0.46 of the estimate, the bound 0.02-0.48).  ``active_set``: (B) also tries the active-set
+    multiplier where it may decide a test (:class:`EnergyGap`; for warm levels).
     """
 
-    def __init__(self, problem, gamma: float = OBSTACLE_GAMMA, every: int = 10, estimator: str = "zz"):
+    def __init__(self, problem, gamma: float = OBSTACLE_GAMMA, every: int = 10, estimator: str = "zz",
+                 active_set: bool = False):
         self._estimate = estimator_of(problem, estimator)      # refuses an unknown name before anything is built
         super().__init__(gamma, every)
         if estimator != "zz":
             self.name = self.name.replace("ZZ", estimator)
         self.problem = problem
         self.estimator = estimator
-        self.gap = EnergyGap(problem)
+        self.gap = EnergyGap(problem, active_set=active_set)
 
     def algebraic_error_bound(self, rec) -> float:
         """(B) for the z-iterate (inf if z is not feasible); the second multiplier only where it may decide."""

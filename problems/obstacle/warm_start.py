@@ -45,28 +45,59 @@ from admmkit.linsolve import factorize
 TOL = 1e-8
 
 
-def active_set_start(problem, x0: np.ndarray, tol: float = TOL) -> dict[str, np.ndarray]:
+class FreeProblem:
+    """The free problem of an active set A, K_II u_I = F_I - K_IA psi_A (I the rest), its solver kept for the
+    next call with the same A: a factorisation in P2, AMG-preconditioned CG in P1 (the AMG set up once per A).
+
+    The balanced stop's bound (:class:`.estimate.EnergyGap`) asks for it at consecutive iterations whose
+    touched set has mostly settled; ``setups`` counts the factorisations (P2) or AMG setups (P1).
+    """
+
+    def __init__(self, problem, tol: float = TOL):
+        self.problem, self.tol, self.setups = problem, float(tol), 0
+        self._on: np.ndarray | None = None
+        self._solve = None
+
+    def solution(self, on: np.ndarray, x: np.ndarray) -> np.ndarray:
+        """u with u_A = psi_A on the nodes ``on`` (A) and the free problem solved on the rest, from ``x``."""
+        p = self.problem
+        free = ~on
+        u = np.where(on, p.psi, x)
+        if not np.any(free):
+            return u
+        rows = p.K[free]
+        if self._on is None or not np.array_equal(on, self._on):
+            self._on, self._solve, self.setups = on.copy(), self._solver(rows[:, free].tocsr()), self.setups + 1
+        u[free] = self._solve(p.F[free] - rows[:, on] @ p.psi[on], u[free])
+        return u
+
+    def _solver(self, K_II):
+        """(b, x) -> the solution of K_II u = b: a factorisation in P2, AMG-preconditioned CG from x in P1."""
+        if getattr(self.problem, "order", 1) == 2:
+            solve = factorize(K_II)
+            return lambda b, x: solve(b)
+        amg = AMGPreconditioner(K_II, np.ones((K_II.shape[0], 1)))
+        return lambda b, x: pcg(lambda v: K_II @ v, b, x, amg, tol=self.tol, maxiter=500)[0]
+
+
+def active_set_start(problem, x0: np.ndarray, tol: float = TOL, free: FreeProblem | None = None
+                     ) -> dict[str, np.ndarray]:
     """The warm start ``{"x0", "z0", "lam0"}`` of ``problem`` after one active-set step from ``x0`` (values on
-    the free nodes; module docstring)."""
-    s, psi, K, F = problem.sign, problem.psi, problem.K, problem.F
+    the free nodes; module docstring); ``free``: a :class:`FreeProblem` to reuse (a new one by default)."""
     x0 = _checked(problem, x0, "x0")
-    on = s * (x0 - psi) <= 0.0
-    free = ~on
-    u = np.where(on, psi, x0)
-    if np.any(free):
-        rows = K[free]
-        K_II = rows[:, free].tocsr()
-        b = F[free] - rows[:, on] @ psi[on]
-        u[free] = _solve_free(problem, K_II, b, u[free], tol)
-    lam = np.where(on, (F - K @ u) / problem.m, 0.0)
+    on = problem.sign * (x0 - problem.psi) <= 0.0
+    u = (free or FreeProblem(problem, tol)).solution(on, x0)
+    lam = np.where(on, (problem.F - problem.K @ u) / problem.m, 0.0)
     return {"x0": u, "z0": problem.z_step(u, np.zeros(problem.n), 1.0, None), "lam0": lam}
 
 
-def active_set_multiplier(problem, z: np.ndarray, tol: float = TOL) -> np.ndarray:
+def active_set_multiplier(problem, z: np.ndarray, tol: float = TOL, free: FreeProblem | None = None
+                          ) -> np.ndarray:
     """mu >= 0, the nodal contact force of the active-set step from ``z`` (free nodes): the multiplier of the
     discrete problem with z's touched set as its contact set, negative values cut to 0 (any mu >= 0 gives
-    a lower bound D(mu) of J(u_h); this one is D's maximiser once the touched set is the solution's)."""
-    lam = active_set_start(problem, z, tol)["lam0"]
+    a lower bound D(mu) of J(u_h); this one is D's maximiser once the touched set is the solution's).
+    ``free``: a :class:`FreeProblem` to reuse, whose solver is kept while the touched set stays."""
+    lam = active_set_start(problem, z, tol, free)["lam0"]
     return np.maximum(-problem.sign * problem.m * lam, 0.0)
 
 
@@ -97,13 +128,4 @@ def _checked(problem, v, name: str) -> np.ndarray:
     return v
 
 
-def _solve_free(problem, K_II, b: np.ndarray, x: np.ndarray, tol: float) -> np.ndarray:
-    """K_II u = b: a factorisation in P2, AMG-preconditioned CG from x in P1."""
-    if getattr(problem, "order", 1) == 2:
-        return factorize(K_II)(b)
-    amg = AMGPreconditioner(K_II, np.ones((K_II.shape[0], 1)))
-    u, *_ = pcg(lambda v: K_II @ v, b, x, amg, tol=tol, maxiter=500)
-    return u
-
-
-__all__ = ["TOL", "active_set_start", "active_set_multiplier", "warm_start"]
+__all__ = ["TOL", "FreeProblem", "active_set_start", "active_set_multiplier", "warm_start"]

@@ -97,7 +97,7 @@ def test_the_active_set_multiplier_makes_the_p2_bound_exact_once_the_touched_set
     exact = pdas(p.K, p.F, -p.sign * sp.identity(p.n, format="csr"), -p.sign * p.psi, method="bounds")
     assert exact.status == "converged"
     u = exact.u
-    with_a, without = EnergyGap(p), EnergyGap(p, active_set=False)
+    with_a, without = EnergyGap(p, active_set=True), EnergyGap(p)
     assert with_a.active_set and not without.active_set
     z = u + 0.2 * (u - p.psi)                     # feasible, on the obstacle exactly where u is
     J = lambda v: 0.5 * v @ (p.K @ v) - p.F @ v   # noqa: E731
@@ -113,7 +113,7 @@ def test_the_active_set_multiplier_makes_the_p2_bound_exact_once_the_touched_set
         enough = 0.5 * without.bound(r.z, r.lam, enough=0.0)
         b = with_a.bound(r.z, r.lam, enough=enough)
         assert math.sqrt(d @ (p.K @ d)) * (1 - 1e-9) <= b <= without.bound(r.z, r.lam, enough=enough)
-    with pytest.raises(ValueError, match="active_set = 'yes' is outside the accepted range"):
+    with pytest.raises(ValueError, match="active_set = 'yes' is outside the accepted range: True or False"):
         EnergyGap(p, active_set="yes")
 
 

@@ -8,7 +8,7 @@ import scipy.sparse as sp
 from admmkit.benchmarks.rules.pdas import pdas
 from admmkit.problems.obstacle import ObstacleProblem, radial
 from admmkit.problems.obstacle.adaptive import solve_adaptive
-from admmkit.problems.obstacle.warm_start import active_set_start, warm_start
+from admmkit.problems.obstacle.warm_start import FreeProblem, active_set_multiplier, active_set_start, warm_start
 
 
 def _exact(problem):
@@ -104,6 +104,42 @@ def test_p1_warm_levels_start_closer_with_the_step(monkeypatch):
         assert solve_adaptive(radial(h=1 / 2), 2e-2, active_set_step=kw_key).reached
     assert len(starts[True]) >= 4
     assert np.median(starts[True]) < 0.5 * np.median(starts[False])
+
+
+def test_the_free_problem_keeps_its_solver_while_the_set_stays(level):
+    """FreeProblem sets up K_II once per active set: the same set again reuses it (the same u), a new set sets up
+    anew; the multiplier from the solution's own contact set is the solution's contact force."""
+    problem, u = level
+    free = FreeProblem(problem)
+    mu = active_set_multiplier(problem, u, free=free)
+    on = problem.sign * (u - problem.psi) <= 0.0
+    force = np.where(on, np.maximum(problem.sign * (problem.K @ u - problem.F), 0.0), 0.0)
+    assert np.max(np.abs(mu - force)) <= 1e-6 * np.max(np.abs(force))
+    assert np.array_equal(active_set_multiplier(problem, u, free=free), mu) and free.setups == 1
+    shifted = np.where(on, u, u + 0.5 * (u - problem.psi))     # the same touched set
+    active_set_multiplier(problem, shifted, free=free)
+    assert free.setups == 1
+    assert np.all(active_set_multiplier(problem, u + 1.0, free=free) == 0.0)     # no node on the obstacle
+    assert free.setups == 2                                                     # a new set, set up anew
+    assert np.array_equal(active_set_multiplier(problem, u, free=free), mu) and free.setups == 3
+
+
+def test_warm_p2_levels_and_only_they_try_the_active_set_multiplier(monkeypatch):
+    """solve_adaptive's balanced stop tries the active-set multiplier on warm levels by ACTIVE_SET_BOUND: P2 yes,
+    P1 no, never on the cold first level."""
+    import admmkit.problems.obstacle.adaptive as adaptive
+    made = []
+
+    class Spy(adaptive.BalancedStop):
+        def __init__(self, *args, **kwargs):
+            super().__init__(*args, **kwargs)
+            made.append((getattr(self.problem, "order", 1), self.gap.active_set))
+    monkeypatch.setattr(adaptive, "BalancedStop", Spy)
+    for order in (1, 2):
+        solve_adaptive(radial(h=1 / 2), 0.1, fe_order=order, max_levels=3)
+    assert [a for o, a in made if o == 1] == [False, False, False]
+    p2 = [a for o, a in made if o == 2]
+    assert len(p2) >= 2 and p2[0] is False and all(p2[1:])
 
 
 def test_a_run_started_on_the_discrete_solution_ends_converged_not_stalled(level):
