@@ -17,3 +17,18 @@ def level_vtus():
             assert len(vtu.cells[0].data) == level["cells"] == len(vtu.cell_data["zz_indicator"][0])
             assert set(point_fields) <= set(vtu.point_data)
     return check
+
+
+@pytest.fixture(scope="session")
+def contact_tight():
+    """``tight(ops)``: the contact operators' exact discrete solution to round-off, a converged Result (SADMM in
+    the condensed mode to Boyd residuals 1e-10; 1e-12 meets the round-off floor of some sparse backends)."""
+    import admmkit
+    from admmkit.problems.contact import solve_scene
+
+    def tight(ops):
+        sol = solve_scene(ops, "sadmm", 1e3, mode="condensed", stop=admmkit.ResidualTolerance(1e-10, 1e-10),
+                          max_iter=50_000)
+        assert sol.result.converged
+        return sol.result
+    return tight

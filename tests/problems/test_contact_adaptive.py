@@ -5,19 +5,15 @@ import numpy as np
 import pytest
 
 from admmkit.balanced_stop import GAMMA
-import admmkit
 from admmkit.cli import main
-from admmkit.problems.contact import assemble, example1, solve_scene
+from admmkit.problems.contact import assemble, example1
 from admmkit.problems.contact.solvers.adaptive import solve_adaptive
+from admmkit.problems.contact.validation.reference import energy
 
 
 @pytest.fixture(scope="module")
 def adapted():
     return solve_adaptive(example1(h=1 / 5), 5e-2)
-
-
-def _energy(ops, u) -> float:
-    return float(0.5 * u @ (ops.K @ u) - ops.f @ u)
 
 
 def test_the_loop_reaches_the_target_with_warm_started_levels(adapted):
@@ -29,26 +25,20 @@ def test_the_loop_reaches_the_target_with_warm_started_levels(adapted):
     assert all(lvl.algebraic_bound <= GAMMA * lvl.estimate for lvl in out.levels)
 
 
-def test_the_estimate_tracks_the_error_and_beats_uniform_meshes(adapted):
+def test_the_estimate_tracks_the_error_and_beats_uniform_meshes(adapted, contact_tight):
     """The true discretisation error of the last level's exact discrete solution u_h from the energy of a much
     finer adapted mesh's (J(u_h) - J(u) >= ||u_h - u||_a^2 / 2 for a conforming mesh; the fine one's own error,
     1e-2 relative, is small beside the 5e-2 compared).  Both solved tightly: a balanced stop's iterate may
     penetrate a little, and its energy then falls below the solution's.  A uniform mesh of h = 1/40 (6560
     unknowns) is worse than the adapted mesh with less than half its unknowns (Example 1's clamped corners and
     the contact onset are where the error is)."""
-    J_ref = _energy(*_tight(solve_adaptive(example1(h=1 / 5), 1e-2).model))
-    ops, u = _tight(adapted.model)
-    error = np.sqrt(2 * max(_energy(ops, u) - J_ref, 0.0))
+    fine = solve_adaptive(example1(h=1 / 5), 1e-2).model
+    J_ref = energy(fine, contact_tight(fine).x)
+    error = np.sqrt(2 * max(energy(adapted.model, contact_tight(adapted.model).x) - J_ref, 0.0))
     assert 0.7 <= adapted.levels[-1].estimate / error <= 1.3
     uniform = assemble(example1(h=1 / 40))
-    uniform_error = np.sqrt(2 * max(_energy(*_tight(uniform)) - J_ref, 0.0))
+    uniform_error = np.sqrt(2 * max(energy(uniform, contact_tight(uniform).x) - J_ref, 0.0))
     assert error < uniform_error and adapted.levels[-1].unknowns < uniform.n_free / 2
-
-
-def _tight(ops):
-    """(ops, u) with u the operators' discrete solution to round-off (SADMM, condensed, residuals 1e-10)."""
-    sol = solve_scene(ops, "sadmm", 1e3, mode="condensed", stop=admmkit.ResidualTolerance(1e-10, 1e-10))
-    return ops, sol.result.x
 
 
 def _last(out):

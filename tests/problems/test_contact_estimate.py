@@ -37,11 +37,11 @@ def test_the_bound_is_above_the_true_algebraic_error_and_sharp(ex1, tol):
 
 
 @pytest.mark.parametrize("make, order", [(example1, 1), (example2, 2)])
-def test_the_bound_is_the_true_error_once_the_contact_set_is_found(make, order):
+def test_the_bound_is_the_true_error_once_the_contact_set_is_found(make, order, contact_tight):
     """The active-set candidate (A) makes (B) exact when the iterate's contact set is the solution's."""
     ops = assemble(make(h=1 / 10, order=order))
     problem = contact_problem(ops, mode="condensed")
-    u_h = _tight(ops)
+    u_h = contact_tight(ops).x
     stop = BalancedStop(problem, 0.1)
     res = admmkit.solve(problem, rho=1e3, policy="summable", order="zx", stop=stop, max_iter=5_000)
     true = energy_norm(ops, res.x - u_h)
@@ -53,14 +53,14 @@ def test_the_bound_is_the_true_error_once_the_contact_set_is_found(make, order):
 
 
 @pytest.mark.parametrize("make, order", [(example1, 1), (example2, 2)])
-def test_the_active_set_steps_correct_a_wrong_touched_set(make, order):
+def test_the_active_set_steps_correct_a_wrong_touched_set(make, order, contact_tight):
     """(A') drops the nodes whose multiplier (A) gives a negative force and adds those d0 - C mu puts through
     the obstacle: from the solution's contact set with the two nearest free nodes added, or with its weakest
     node taken away (an iterate's touched set near the end of a run), the steps end on the solution's set,
     with its multiplier."""
     ops = assemble(make(h=1 / 10, order=order))
     problem = contact_problem(ops, mode="condensed")
-    u_h = _tight(ops)
+    u_h = contact_tight(ops).x
     gap = CondensedGap(problem)
     touching = ops.B @ u_h >= problem.g - 1e-9 * max(1.0, np.abs(problem.g).max())
     assert 0 < touching.sum() < touching.size
@@ -85,25 +85,13 @@ def test_energy_exceeds_the_minimum_by_half_the_squared_energy_norm_at_a_feasibl
     assert energy(ops, v) - energy(ops, u_h) >= 0.5 * energy_norm(ops, v - u_h) ** 2 * (1 - 1e-8)
 
 
-def _tight(ops) -> np.ndarray:
-    """The discrete solution to residuals 1e-10 (1e-12 meets the round-off floor of some sparse backends)."""
-    sol = solve_scene(ops, "sadmm", 1e3, mode="condensed", stop=admmkit.ResidualTolerance(1e-10, 1e-10),
-                      max_iter=50_000)
-    assert sol.result.converged
-    return sol.result.x
-
-
-def _energy(ops, u) -> float:
-    return float(0.5 * u @ (ops.K @ u) - ops.f @ u)
-
-
 @pytest.mark.parametrize("make, order", [(example1, 1), (example1, 2), (example2, 1), (example2, 2)])
-def test_zz_tracks_the_discretisation_error(make, order):
+def test_zz_tracks_the_discretisation_error(make, order, contact_tight):
     fine = assemble(make(h=1 / 80, order=order))
-    J_fine = _energy(fine, _tight(fine))
+    J_fine = energy(fine, contact_tight(fine).x)
     ops = assemble(make(h=1 / 10, order=order))
-    u = _tight(ops)
-    error = np.sqrt(2 * max(_energy(ops, u) - J_fine, 0.0))
+    u = contact_tight(ops).x
+    error = np.sqrt(2 * max(energy(ops, u) - J_fine, 0.0))
     indicators = zz_indicators(ops, u)
     assert indicators.shape == (ops.mesh.ne,) and np.all(indicators >= 0)
     assert 0.5 <= zz_estimate(ops, u) / error <= 1.3

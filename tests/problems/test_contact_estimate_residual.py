@@ -16,30 +16,20 @@ from admmkit.problems.contact.solvers.adaptive import solve_adaptive
 from admmkit.problems.contact.solvers.estimate import BalancedStop, zz_estimate
 from admmkit.problems.contact.solvers.estimate_residual import (ResidualEstimator, residual_estimate,
                                                                residual_estimator, residual_indicators)
-from admmkit.problems.contact.validation.reference import energy_norm, reference_solution
-
-
-def _tight(ops):
-    sol = solve_scene(ops, "sadmm", 1e3, mode="condensed", stop=admmkit.ResidualTolerance(1e-10, 1e-10),
-                      max_iter=50_000)
-    assert sol.result.converged
-    return sol.result.x, sol.result.lam
-
-
-def _energy(ops, u) -> float:
-    return float(0.5 * u @ (ops.K @ u) - ops.f @ u)
+from admmkit.problems.contact.validation.reference import energy, energy_norm, reference_solution
 
 
 @pytest.fixture(scope="module")
-def ladder():
+def ladder(contact_tight):
     """(h, true error, residual estimate, ZZ estimate) on Example 1, P1, h = 1/5, 1/10, 1/20 (reference h = 1/80)."""
     fine = assemble(example1(h=1 / 80))
-    J_fine = _energy(fine, _tight(fine)[0])
+    J_fine = energy(fine, contact_tight(fine).x)
     rows = []
     for h in (1 / 5, 1 / 10, 1 / 20):
         ops = assemble(example1(h=h))
-        u, lam = _tight(ops)
-        rows.append((h, math.sqrt(2 * max(_energy(ops, u) - J_fine, 0.0)), residual_estimate(ops, u, lam),
+        tight = contact_tight(ops)
+        u, lam = tight.x, tight.lam
+        rows.append((h, math.sqrt(2 * max(energy(ops, u) - J_fine, 0.0)), residual_estimate(ops, u, lam),
                      zz_estimate(ops, u)))
     return rows
 
