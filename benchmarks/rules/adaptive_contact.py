@@ -114,8 +114,10 @@ def contact_rows(name: str, order: int, target: float, ref: dict, start, uniform
             absolute = math.nan
         return absolute / ref["norm"], absolute
 
-    def measured(ops, res):          # u_h*: a level's or mesh's discretisation error is its error (a balanced
-        exact = contact_exact(ops, res)  # stop's u may penetrate); a and p0 of what it returned
+    def measured(ops, res):
+        """(u_h*, relative and absolute true error of u_h*, a and p0 of what ``res`` returned): a level's or a
+        mesh's discretisation error is that of its exact discrete solution (a balanced stop's u may penetrate)."""
+        exact = contact_exact(ops, res)
         rel, absolute = (math.nan, math.nan) if exact is None else true_error(ops, exact)
         return exact, rel, absolute, extra(ops, res)
 

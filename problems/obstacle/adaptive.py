@@ -166,13 +166,13 @@ def solve_adaptive(scene: Scene, target: float, *, theta: float = 0.5, gamma: fl
         problem = make_problem(scene, backend=backend, fe_order=fe_order, mesh=mesh)
         fields = warm["at"](problem) if "at" in warm else warm           # P2: the last level's fields at the nodes
         start = {k: fields[k][problem.free] for k in ("x0", "lam0") if k in fields}
-        if "x0" in start:                   # on the obstacle; the smooth inherited error removed (warm_start.py)
+        warm_level = "x0" in start
+        if warm_level:                      # on the obstacle; the smooth inherited error removed (warm_start.py)
             start = warm_start(problem, start["x0"], start.get("lam0"), active_set_step)
-        stop = BalancedStop(problem, gamma, estimator=estimator,
-                            active_set="x0" in start and ACTIVE_SET_BOUND[fe_order])
+        stop = BalancedStop(problem, gamma, estimator=estimator, active_set=warm_level and ACTIVE_SET_BOUND[fe_order])
         # warm: rho held for the stop's interval, and on while the stop predicts it fires within one
-        rule = HeldRho(policy, hold=stop.every, keep=lambda: stop.converging) if "x0" in start else policy
-        rho0 = _clamped(warm["rho"], window, problem) if "x0" in start else warm["rho"]
+        rule = HeldRho(policy, hold=stop.every, keep=lambda: stop.converging) if warm_level else policy
+        rho0 = _clamped(warm["rho"], window, problem) if warm_level else warm["rho"]
         res = solve(problem, rho=rho0, policy=rule, order=order, stop=stop, max_iter=max_iter,
                     acceleration=acceleration, **start)
         indicators = estimator_of(problem, estimator)(res.z)

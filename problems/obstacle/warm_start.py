@@ -56,19 +56,25 @@ class FreeProblem:
     def __init__(self, problem, tol: float = TOL):
         self.problem, self.tol, self.setups = problem, float(tol), 0
         self._on: np.ndarray | None = None
-        self._solve = None
+        self._solve = self._b = None
 
     def solution(self, on: np.ndarray, x: np.ndarray) -> np.ndarray:
-        """u with u_A = psi_A on the nodes ``on`` (A) and the free problem solved on the rest, from ``x``."""
+        """u with u_A = psi_A on the nodes ``on`` (A, a boolean mask) and the free problem solved on the rest,
+        from ``x``; a ValueError names a mask or start of the wrong shape, or a start with a NaN."""
         p = self.problem
+        on, x = np.asarray(on), _checked(p, x, "x")
+        if on.dtype != bool or on.shape != (p.n,):
+            raise ValueError(f"on must be a boolean mask of {p.n} values (one per free node), got {on.dtype} "
+                             f"of shape {on.shape}")
         free = ~on
         u = np.where(on, p.psi, x)
         if not np.any(free):
             return u
-        rows = p.K[free]
-        if self._on is None or not np.array_equal(on, self._on):
-            self._on, self._solve, self.setups = on.copy(), self._solver(rows[:, free].tocsr()), self.setups + 1
-        u[free] = self._solve(p.F[free] - rows[:, on] @ p.psi[on], u[free])
+        if self._on is None or not np.array_equal(on, self._on):      # a new A: K_II, its solver and b
+            rows = p.K[free]
+            self._on, self.setups = on.copy(), self.setups + 1
+            self._solve, self._b = self._solver(rows[:, free].tocsr()), p.F[free] - rows[:, on] @ p.psi[on]
+        u[free] = self._solve(self._b, u[free])
         return u
 
     def _solver(self, K_II):
@@ -97,8 +103,10 @@ def active_set_multiplier(problem, z: np.ndarray, tol: float = TOL, free: FreePr
     discrete problem with z's touched set as its contact set, negative values cut to 0 (any mu >= 0 gives
     a lower bound D(mu) of J(u_h); this one is D's maximiser once the touched set is the solution's).
     ``free``: a :class:`FreeProblem` to reuse, whose solver is kept while the touched set stays."""
-    lam = active_set_start(problem, z, tol, free)["lam0"]
-    return np.maximum(-problem.sign * problem.m * lam, 0.0)
+    z = _checked(problem, z, "z")
+    on = problem.sign * (z - problem.psi) <= 0.0
+    u = (free or FreeProblem(problem, tol)).solution(on, z)
+    return np.where(on, np.maximum(problem.sign * (problem.K @ u - problem.F), 0.0), 0.0)    # s (K u - F) on A
 
 
 def warm_start(problem, x0: np.ndarray, lam0: np.ndarray | None = None, step: bool = True,

@@ -122,6 +122,20 @@ def test_the_free_problem_keeps_its_solver_while_the_set_stays(level):
     assert np.all(active_set_multiplier(problem, u + 1.0, free=free) == 0.0)     # no node on the obstacle
     assert free.setups == 2                                                     # a new set, set up anew
     assert np.array_equal(active_set_multiplier(problem, u, free=free), mu) and free.setups == 3
+    with pytest.raises(ValueError, match=f"on must be a boolean mask of {problem.n} values"):
+        free.solution(on.astype(float), u)
+    with pytest.raises(ValueError, match=f"on must be a boolean mask of {problem.n} values"):
+        free.solution(on[:-1], u)
+    with pytest.raises(ValueError, match="x must hold .* with a NaN or inf"):
+        free.solution(on, np.full(problem.n, np.nan))
+
+
+def test_active_set_multiplier_refuses_an_iterate_of_the_wrong_shape_or_with_a_nan(level):
+    problem, u = level
+    with pytest.raises(ValueError, match=f"z must hold {problem.n} finite values"):
+        active_set_multiplier(problem, u[:-1])
+    with pytest.raises(ValueError, match="with a NaN or inf"):
+        active_set_multiplier(problem, np.where(np.arange(problem.n) == 0, np.nan, u))
 
 
 def test_warm_p2_levels_and_only_they_try_the_active_set_multiplier(monkeypatch):
