@@ -60,6 +60,7 @@ import scipy.sparse as sp
 from .amg import AMGPreconditioner, PencilMatrix, node_blocks  # noqa: F401  (node_blocks: re-exported)
 from .cg import SolutionSpace, pcg  # noqa: F401  (re-exported)
 from .compiled import AVAILABLE as COMPILED
+from .submatrix import principal_submatrix
 
 #: the products R A P of a Galerkin refresh without the axpy form, in units of C nnz(A) (a smoothed
 #: aggregation P has a few entries per row, so each product touches a few times the operator's entries)
@@ -132,7 +133,7 @@ class IterativeXSolver:
             if blocks.ndim != 2 or blocks.size != n or not np.array_equal(np.sort(blocks.ravel()), np.arange(n)):
                 raise ValueError("blocks must be an (n_nodes, d) array holding every dof index once")
             self.perm, self.blocksize = blocks.ravel(), blocks.shape[1]
-            K, D = K[self.perm][:, self.perm].tocsr(), D[self.perm][:, self.perm].tocsr()
+            K, D = principal_submatrix(K, self.perm), principal_submatrix(D, self.perm)
             if near_null is not None:
                 near_null = np.asarray(near_null)[self.perm]
         # CSR: its products were faster than BSR's here.  A permuted K is this solver's own copy: the pencil

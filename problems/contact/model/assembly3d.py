@@ -28,7 +28,7 @@ import ngsolve as ng
 import numpy as np
 import scipy.sparse as sp
 
-from admmkit.problems.contact.model.assembly import ContactOperators, _csr, lame
+from admmkit.problems.contact.model.assembly import ContactOperators, free_matrix, lame
 from admmkit.problems.contact.model.fastpaths import component_map
 from admmkit.problems.contact.model.scene3d import block_mesh
 from admmkit.problems.contact.solvers.friction import friction_of, tangent_frames
@@ -66,7 +66,7 @@ def assemble3d(scene, mesh=None) -> ContactOperators:
         lf += ng.CF(t) * v * ng.ds(definedon=mesh.Boundaries(label))
     lf.Assemble()
     free = np.flatnonzero(np.array(fes.FreeDofs(), dtype=bool))
-    K = _csr(a.mat)[free][:, free].tocsr()
+    K = free_matrix(a.mat, free)
     f = lf.vec.FV().NumPy()[free].copy()
 
     vertex, xc, mc = face_nodes(mesh, scene.contact, scene.dirichlet, scene.order)
