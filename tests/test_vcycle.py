@@ -76,3 +76,30 @@ def test_symmetric_product_from_upper_triangle():
     assert np.linalg.norm(product(x) - A @ x) <= 1e-14 * np.linalg.norm(A @ x)
     B = sp.csr_matrix((2 * A.data, A.indices, A.indptr), shape=A.shape)   # another matrix on the pattern
     assert np.linalg.norm(SymmetricPattern(A).product(B)(x) - B @ x) <= 1e-14 * np.linalg.norm(B @ x)
+
+
+@pytest.mark.parametrize("lag_shift", [0, 7])
+def test_forward_restrict_is_sweep_residual_and_restriction(lag_shift):
+    """The fused descent equals its three passes: a forward sweep from zero, r = b - A x, P' r."""
+    from pyamg.relaxation.relaxation import gauss_seidel
+    from admmkit.vcycle import _bandwidth, _diagonal_positions, _forward_restrict
+    A, B = _elasticity()
+    A = sp.csr_matrix(A)
+    A.sort_indices()
+    amg = AMGPreconditioner(A, B, blocksize=2, max_coarse=50)
+    P = sp.csr_matrix(amg.ml.levels[0].P)
+    P.sort_indices()
+    b = np.random.default_rng(4).standard_normal(A.shape[0])
+    diagonal = _diagonal_positions(A.indptr, A.indices)
+    width = _bandwidth(A.indptr, A.indices)
+    rows, cols = A.nonzero()
+    assert width == np.abs(rows - cols).max()
+    x, coarse_b = np.empty_like(b), np.empty(P.shape[1])
+    # a lag beyond the bandwidth is still right (only later); the bandwidth itself is the earliest
+    _forward_restrict(A.indptr, A.indices, A.data, diagonal, 1.0 / A.data[diagonal], b, x,
+                      P.indptr, P.indices, P.data, coarse_b, width + lag_shift)
+    x_ref = np.zeros_like(b)
+    gauss_seidel(A, x_ref, b, iterations=1, sweep="forward")
+    assert np.linalg.norm(x - x_ref) <= 1e-13 * np.linalg.norm(x_ref)
+    r_ref = P.T @ (b - A @ x_ref)
+    assert np.linalg.norm(coarse_b - r_ref) <= 1e-11 * np.linalg.norm(P.T @ b)
