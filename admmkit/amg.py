@@ -168,16 +168,18 @@ def short_spectral_radius(steps: int | None):
 
     pyamg's default (15 steps, up to 5 restarts: two passes here) took 3.2 s of a 5.3 s set-up
     at 1e6 unknowns (Example 1); 10 steps gave rho 1.2 % lower on the finest level (3.067 against
-    3.105) and 82 CG iterations instead of 83 in the whole SADMM run, with a 2.8 s set-up.  ``None``
-    keeps pyamg's default.  Scoped: pyamg's module attribute is restored on exit.
+    3.105) and 82 CG iterations instead of 83 in the whole SADMM run, with a 2.8 s set-up.  The
+    steps run in :func:`admmkit.arnoldi.arnoldi_spectral_radius` (pyamg's values, fewer temporaries).
+    ``None`` keeps pyamg's default.  Scoped: pyamg's module attribute is restored on exit.
     """
     if steps is None:
         yield
         return
     import functools
     from pyamg.aggregation import smooth
+    from .arnoldi import arnoldi_spectral_radius
     original = smooth.approximate_spectral_radius
-    smooth.approximate_spectral_radius = functools.partial(original, maxiter=int(steps), restart=0)
+    smooth.approximate_spectral_radius = functools.partial(arnoldi_spectral_radius, steps=int(steps))
     try:
         yield
     finally:

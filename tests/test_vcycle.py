@@ -103,3 +103,20 @@ def test_forward_restrict_is_sweep_residual_and_restriction(lag_shift):
     assert np.linalg.norm(x - x_ref) <= 1e-13 * np.linalg.norm(x_ref)
     r_ref = P.T @ (b - A @ x_ref)
     assert np.linalg.norm(coarse_b - r_ref) <= 1e-11 * np.linalg.norm(P.T @ b)
+
+
+@pytest.mark.parametrize("fmt", ["bsr", "csr"])
+def test_arnoldi_spectral_radius_is_pyamgs_number(fmt):
+    from pyamg.util.linalg import approximate_spectral_radius
+    from admmkit.arnoldi import arnoldi_spectral_radius
+    A, _ = pyamg.gallery.linear_elasticity((30, 30), format=fmt)
+    A1, A2 = A.copy(), A.copy()
+    np.random.seed(5)
+    ours = arnoldi_spectral_radius(A1, 10)
+    np.random.seed(5)
+    theirs = approximate_spectral_radius(A2, maxiter=10, restart=0)
+    assert ours == theirs and A1.rho == ours                  # bit for bit, cached where pyamg looks
+    dense = np.linalg.eigvalsh(A.toarray())
+    assert 0.5 * dense.max() < ours <= dense.max() * (1 + 1e-12)
+    with pytest.raises(ValueError, match="steps"):
+        arnoldi_spectral_radius(A.copy(), 0)
