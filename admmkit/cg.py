@@ -8,6 +8,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import scipy.sparse as sp
 
 from .compiled import AVAILABLE as COMPILED, njit
 
@@ -104,6 +105,10 @@ class SolutionSpace:
         self.m = 0
         self.GK = np.zeros((size, size))
         self.GD = np.zeros((size, size))
+        # D's rows that hold entries (contact: 2e3 of 1e6): Q'Dq reads the basis there only
+        D = sp.csr_matrix(D)
+        self._D_rows = np.flatnonzero(np.diff(D.indptr))
+        self._D_block = D[self._D_rows]
 
     def guess(self, rho: float, b: np.ndarray) -> np.ndarray | None:
         """The projected initial guess, or None if the space is empty."""
@@ -120,37 +125,42 @@ class SolutionSpace:
     def add(self, x: np.ndarray, Kx: np.ndarray | None = None) -> None:
         """Add a solution (orthonormalised against the basis; restart when full).
 
-        ``Kx`` = K x, if known, saves the product with K.
+        ``Kx`` = K x, if known, saves the product with K.  The new basis vector and its K q are
+        formed in their rows of Q and K Q (no copies), and q'Dq' only on D's rows.
         """
         if self.size == 0:
             return
         if self.m == self.size:
             self.m = 0
-        q = np.array(x, dtype=float)
+        j = self.m
+        q = self.Q[j]
+        q[:] = x
         norm0 = np.linalg.norm(q)
         if norm0 == 0:
             return
-        coef = np.zeros(self.m)
-        if self.m:
-            Q = self.Q[:self.m]
+        coef = np.zeros(j)
+        norm = norm0
+        if j:
+            Q = self.Q[:j]
             for _ in range(2):  # classical Gram-Schmidt, a second time only if the first lost digits (DGKS:
                 c = Q @ q       # the norm fell below 1/sqrt(2) of the vector's; "twice is enough")
                 q -= c @ Q
                 coef += c
-                if np.linalg.norm(q) >= 0.7071 * norm0:
+                norm = np.linalg.norm(q)
+                if norm >= 0.7071 * norm0:
                     break
-        norm = np.linalg.norm(q)
         if norm <= 1e-10 * norm0:
             return
         q /= norm
-        j = self.m
-        self.Q[j] = q
+        Kq = self.KQ[j]
         if Kx is None:
-            Kq = self.K @ q
-        else:          # K q = (K x - K Q coef) / norm
-            Kq = (Kx - coef @ self.KQ[:j]) / norm if j else Kx / norm
-        self.KQ[j] = Kq
-        Dq = self.D @ q
+            Kq[:] = self.K @ q
+        elif j:        # K q = (K x - K Q coef) / norm
+            np.subtract(Kx, coef @ self.KQ[:j], out=Kq)
+            Kq /= norm
+        else:
+            np.divide(Kx, norm, out=Kq)
+        Dq = self._D_block @ q                    # (D q) on D's rows; zero elsewhere
         self.GK[j, :j + 1] = self.GK[:j + 1, j] = self.Q[:j + 1] @ Kq
-        self.GD[j, :j + 1] = self.GD[:j + 1, j] = self.Q[:j + 1] @ Dq
+        self.GD[j, :j + 1] = self.GD[:j + 1, j] = self.Q[:j + 1, self._D_rows] @ Dq
         self.m += 1

@@ -69,13 +69,14 @@ GALERKIN_WORK = 4.0
 REUSE = ("auto", "keep", "galerkin", "rebuild")
 
 
-def _products(pattern):
-    """A -> (x -> A x) for the matrices K + rho D on ``pattern``: from the upper triangle with numba
-    (:class:`admmkit.symmetric.SymmetricPattern`, half the entries read), else scipy's product."""
+def _products(pencil):
+    """rho -> (x -> (K + rho D) x) for the pencil's matrices: from the upper triangle with numba
+    (:class:`admmkit.symmetric.SymmetricPattern`, half the entries read; a new rho updates D's entries only),
+    else scipy's product with ``pencil.at(rho)``."""
     if not COMPILED:
-        return lambda A: A.__matmul__
+        return lambda rho: pencil.at(rho).__matmul__
     from .symmetric import SymmetricPattern
-    return SymmetricPattern(pattern).product
+    return SymmetricPattern(pencil.pattern).pencil_products(pencil.K_data, pencil.D_data)
 
 
 # ---------------------------------------------------------------- the x-step solver
@@ -139,7 +140,7 @@ class IterativeXSolver:
         # CSR: its products were faster than BSR's here.  A permuted K is this solver's own copy: the pencil
         # takes it over, and K is then the pencil's pattern with K's values (one copy of K, not three)
         self.pencil = PencilMatrix(K, D, copy=self.perm is None)
-        self._products = _products(self.pencil.pattern)
+        self._products = _products(self.pencil)
         K = self.K = self.pencil.K_matrix()
         self.D = D
         self.near_null = None if near_null is None else np.ascontiguousarray(near_null, dtype=float)
@@ -171,7 +172,7 @@ class IterativeXSolver:
         action = "none"
         if self._rho_A != rho:
             self._A, self._rho_A = self.matrix(rho), rho
-            self._product = self._products(self._A)
+            self._product = self._products(rho)
         if self._amg is None:
             action = "setup"
         elif self._rho_amg != rho:

@@ -120,3 +120,22 @@ def test_arnoldi_spectral_radius_is_pyamgs_number(fmt):
     assert 0.5 * dense.max() < ours <= dense.max() * (1 + 1e-12)
     with pytest.raises(ValueError, match="steps"):
         arnoldi_spectral_radius(A.copy(), 0)
+
+
+def test_pencil_products_are_the_products_of_the_pencil_matrices():
+    from admmkit.amg import PencilMatrix
+    from admmkit.symmetric import SymmetricPattern
+    A, _ = _elasticity()
+    K = sp.csr_matrix(A + sp.eye(A.shape[0]))
+    K.sort_indices()
+    rows = np.arange(0, K.shape[0], 37)
+    D = sp.csr_matrix((np.linspace(1, 2, rows.size), (rows, rows)), shape=K.shape)
+    D = sp.csr_matrix(D + sp.csr_matrix((np.full(rows.size - 1, 0.25), (rows[:-1], rows[:-1] + 1)), shape=K.shape)
+                      + sp.csr_matrix((np.full(rows.size - 1, 0.25), (rows[:-1] + 1, rows[:-1])), shape=K.shape))
+    pencil = PencilMatrix(K, D)
+    at = SymmetricPattern(pencil.pattern).pencil_products(pencil.K_data, pencil.D_data)
+    x = np.random.default_rng(6).standard_normal(K.shape[0])
+    for rho in (0.5, 3e4):
+        gathered = SymmetricPattern(pencil.pattern).product(pencil.at(rho))(x)
+        assert np.array_equal(at(rho)(x), gathered)               # the same values, bit for bit
+        assert np.linalg.norm(gathered - (K + rho * D) @ x) <= 1e-13 * np.linalg.norm((K + rho * D) @ x)
