@@ -8,7 +8,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import scipy.sparse as sp
 
 from .compiled import AVAILABLE as COMPILED, njit
 
@@ -105,10 +104,6 @@ class SolutionSpace:
         self.m = 0
         self.GK = np.zeros((size, size))
         self.GD = np.zeros((size, size))
-        # D's rows that hold entries (contact: 2e3 of 1e6): Q'Dq reads the basis there only
-        D = sp.csr_matrix(D)
-        self._D_rows = np.flatnonzero(np.diff(D.indptr))
-        self._D_block = D[self._D_rows]
 
     def guess(self, rho: float, b: np.ndarray) -> np.ndarray | None:
         """The projected initial guess, or None if the space is empty."""
@@ -126,7 +121,7 @@ class SolutionSpace:
         """Add a solution (orthonormalised against the basis; restart when full).
 
         ``Kx`` = K x, if known, saves the product with K.  The new basis vector and its K q are
-        formed in their rows of Q and K Q (no copies), and q'Dq' only on D's rows.
+        formed in their rows of Q and K Q (no copies).
         """
         if self.size == 0:
             return
@@ -160,7 +155,6 @@ class SolutionSpace:
             Kq /= norm
         else:
             np.divide(Kx, norm, out=Kq)
-        Dq = self._D_block @ q                    # (D q) on D's rows; zero elsewhere
         self.GK[j, :j + 1] = self.GK[:j + 1, j] = self.Q[:j + 1] @ Kq
-        self.GD[j, :j + 1] = self.GD[:j + 1, j] = self.Q[:j + 1, self._D_rows] @ Dq
+        self.GD[j, :j + 1] = self.GD[:j + 1, j] = self.Q[:j + 1] @ (self.D @ q)
         self.m += 1

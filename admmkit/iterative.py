@@ -134,6 +134,8 @@ class IterativeXSolver:
             if blocks.ndim != 2 or blocks.size != n or not np.array_equal(np.sort(blocks.ravel()), np.arange(n)):
                 raise ValueError("blocks must be an (n_nodes, d) array holding every dof index once")
             self.perm, self.blocksize = blocks.ravel(), blocks.shape[1]
+            self._inverse_perm = np.empty_like(self.perm)
+            self._inverse_perm[self.perm] = np.arange(n)
             K, D = principal_submatrix(K, self.perm), principal_submatrix(D, self.perm)
             if near_null is not None:
                 near_null = np.asarray(near_null)[self.perm]
@@ -143,6 +145,8 @@ class IterativeXSolver:
         self._products = _products(self.pencil)
         K = self.K = self.pencil.K_matrix()
         self.D = D
+        self._D_rows = np.flatnonzero(np.diff(D.indptr))
+        self._D_block = D[self._D_rows]
         self.near_null = None if near_null is None else np.ascontiguousarray(near_null, dtype=float)
         self.reuse, self.tol = reuse, tol
         self.kappa, self.tol0, self.tol_min = float(kappa), float(tol0), float(tol_min)
@@ -237,7 +241,7 @@ class IterativeXSolver:
         if not np.isfinite(b).all():
             raise ValueError("rhs must be finite (it contains nan or inf)")
         if self.perm is not None:
-            b = b[self.perm]
+            b = np.take(b, self.perm)
         action = self._prepare(rho)
         tol = self.inner_tolerance()
         start = time.perf_counter()
@@ -252,7 +256,8 @@ class IterativeXSolver:
                                             f"(error ratio {ratio:.2e}, tolerance {tol:.2e})")
             self.unconverged += 1
         self._account(its, ratio, start_ratio)
-        Kx = (b - r) - rho * (self.D @ x)          # K x = A x - rho D x with A x = b - r: no product with K
+        Kx = b - r                                   # K x = A x - rho D x with A x = b - r: no product with K;
+        Kx[self._D_rows] -= rho * (self._D_block @ x)  # D x is zero off D's rows (the value of Kx - rho (D @ x))
         self.space.add(x, Kx)
         self.solves += 1
         self.cg_iterations += its
@@ -266,9 +271,8 @@ class IterativeXSolver:
         return x
 
     def _unpermute(self, v: np.ndarray) -> np.ndarray:
-        out = np.empty_like(v)
-        out[self.perm] = v
-        return out
+        """v (in the solver's node order) in the original dof order."""
+        return np.take(v, self._inverse_perm)
 
     def known_Kx(self, x: np.ndarray) -> np.ndarray | None:
         """K x for one of the last two returned solutions (the very array objects), else None.
