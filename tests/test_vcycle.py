@@ -139,3 +139,30 @@ def test_pencil_products_are_the_products_of_the_pencil_matrices():
         gathered = SymmetricPattern(pencil.pattern).product(pencil.at(rho))(x)
         assert np.array_equal(at(rho)(x), gathered)               # the same values, bit for bit
         assert np.linalg.norm(gathered - (K + rho * D) @ x) <= 1e-13 * np.linalg.norm((K + rho * D) @ x)
+
+
+@pytest.mark.parametrize("values", [np.float64, np.float32])
+def test_block_finest_level_gives_the_csr_cycle_bit_for_bit(values, monkeypatch):
+    from admmkit.vcycle_blocks import BlockLevel
+    A, B = _elasticity()
+    amg = AMGPreconditioner(A, B, blocksize=2, max_coarse=50)
+    r = np.random.default_rng(7).standard_normal(A.shape[0])
+    blocks = VCycle(amg.ml, values=values)
+    assert blocks.first is not None                        # 2 x 2 blocks of A, 2 x 3 of P: the block path
+    monkeypatch.setattr(BlockLevel, "eligible", staticmethod(lambda A, P: False))
+    rows = VCycle(amg.ml, values=values)
+    assert rows.first is None
+    assert np.array_equal(blocks(r), rows(r))
+    amg.refresh(sp.csr_matrix(A + 0.5 * sp.eye(A.shape[0])))   # new values on the same pattern
+    assert np.array_equal(blocks.refreshed(amg.ml)(r), rows.refreshed(amg.ml)(r))
+
+
+def test_block_level_is_used_only_where_it_applies():
+    from admmkit.vcycle_blocks import BlockLevel
+    A, B = _elasticity()
+    P3 = sp.bsr_matrix(sp.random(A.shape[0], 30, density=0.1, random_state=0), blocksize=(2, 3))
+    assert BlockLevel.eligible(A, P3)
+    assert not BlockLevel.eligible(A, sp.csr_matrix(P3))                     # P not in blocks
+    assert not BlockLevel.eligible(A, sp.bsr_matrix(sp.csr_matrix(P3)[:, :20], blocksize=(2, 2)))
+    scalar = AMGPreconditioner(sp.csr_matrix(pyamg.gallery.poisson((30, 30))), None, max_coarse=50)
+    assert VCycle(scalar.ml).first is None                                     # a scalar problem: CSR levels
