@@ -104,6 +104,9 @@ class AMGPreconditioner:
             for fine, coarse in zip(self.ml.levels[:-1], self.ml.levels[1:]):
                 Dl = sp.csr_matrix(fine.R @ Dl @ fine.P)
                 pencils.append(PencilMatrix(coarse.A, Dl))
+                # the same values on the pencil's pattern, which every refresh keeps (the V-cycle then reuses
+                # what it found on it)
+                coarse.A = _symmetric_csr(pencils[-1].K_matrix())
             self._pencils = pencils
         self._cycle = None        # the compiled V-cycle (admmkit.vcycle), built at the first application
         self.cycle_values = np.dtype(cycle_values)
@@ -288,4 +291,6 @@ class PencilMatrix:
             data = self.K_data + rho * self.D_data
         if self.blocksize > 1:
             return sp.bsr_matrix((data, self.pattern.indices, self.pattern.indptr), shape=self.shape)
-        return sp.csr_matrix((data, self.pattern.indices, self.pattern.indptr), shape=self.shape)
+        A = sp.csr_matrix((data, self.pattern.indices, self.pattern.indptr), shape=self.shape)
+        A.has_sorted_indices = True          # the pattern's rows are sorted (__init__): no scan of its indices
+        return A

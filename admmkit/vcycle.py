@@ -185,12 +185,20 @@ def _stored(M, values) -> _Stored:
     return _Stored(M, np.dtype(values))
 
 
-def _inverse_diagonal(indices: np.ndarray, data: np.ndarray, at: np.ndarray, values) -> np.ndarray:
-    """1 / a_ii in double precision from the values at the diagonal positions ``at``, as stored in ``values``."""
+def _inverse_diagonal(indices: np.ndarray, data: np.ndarray, at: np.ndarray, values, checked=False) -> np.ndarray:
+    """1 / a_ii in double precision from the values at the diagonal positions ``at``, as stored in ``values``
+    (``checked``: ``at`` is known to hold every row's diagonal, as for a pattern checked before)."""
     rows = np.arange(at.shape[0])
-    if at.shape[0] and not np.array_equal(indices[np.clip(at, 0, None)], rows):
+    if not checked and at.shape[0] and not np.array_equal(indices[np.clip(at, 0, None)], rows):
         raise ValueError("every row of an AMG level needs its diagonal entry (the matrix is SPD)")
     return 1.0 / data[at].astype(values).astype(np.float64)
+
+
+def _same_array(a: np.ndarray, b: np.ndarray) -> bool:
+    """a and b are the same memory (one array, or views of it as scipy's constructors make: they slice the
+    index arrays they are given), with the same shape and type."""
+    return (a is b or (a.__array_interface__["data"][0] == b.__array_interface__["data"][0]
+                       and a.shape == b.shape and a.dtype == b.dtype and a.strides == b.strides))
 
 
 def csr_product(A):
@@ -219,7 +227,8 @@ class VCycle:
     inner tolerance, not the round-off.
     """
 
-    def __init__(self, ml, values=np.float64, P=None, first: BlockLevel | None = None):
+    def __init__(self, ml, values=np.float64, P=None, first: BlockLevel | None = None,
+                 pattern_of: VCycle | None = None):
         levels = ml.levels
         for level in levels[:-1]:
             level.A = _sorted_csr(level.A)
@@ -242,15 +251,22 @@ class VCycle:
         # changes the levels' A only)
         self.P = P if P is not None else [None] * start + [_stored(_sorted_csr(level.P), values)
                                                            for level in levels[start:-1]]
-        self._bandwidth = [_bandwidth(level.A.indptr, level.A.indices) for level in levels[:-1]]
-        self._diagonal = [_diagonal_positions(level.A.indptr, level.A.indices) for level in levels[:-1]]
+        # per pattern: a refresh keeps every level's pattern (the very arrays), and with it these
+        self._patterns = [(level.A.indptr, level.A.indices) for level in levels[:-1]]
+        old = pattern_of._patterns if pattern_of is not None else [(None, None)] * len(self._patterns)
+        kept = [b is not None and _same_array(a, b) and _same_array(c, d)
+                for (a, c), (b, d) in zip(self._patterns, old)]
+        self._bandwidth = [pattern_of._bandwidth[lvl] if kept[lvl] else _bandwidth(*pattern)
+                           for lvl, pattern in enumerate(self._patterns)]
+        self._diagonal = [pattern_of._diagonal[lvl] if kept[lvl] else _diagonal_positions(*pattern)
+                          for lvl, pattern in enumerate(self._patterns)]
         self._inverse = [_inverse_diagonal(level.A.indices, (level.A if lvl < start else self.A[lvl]).data, at,
-                                           values)
+                                           values, checked=kept[lvl])
                          for lvl, (level, at) in enumerate(zip(levels[:-1], self._diagonal))]
 
     def refreshed(self, ml) -> VCycle:
         """The cycle of the same hierarchy after a Galerkin refresh (new A on every level, the same P)."""
-        return VCycle(ml, self.values, P=self.P, first=self.first)
+        return VCycle(ml, self.values, P=self.P, first=self.first, pattern_of=self)
 
     def __call__(self, r: np.ndarray) -> np.ndarray:
         """The V-cycle applied to r from a zero initial guess (a new array)."""

@@ -166,3 +166,21 @@ def test_block_level_is_used_only_where_it_applies():
     assert not BlockLevel.eligible(A, sp.bsr_matrix(sp.csr_matrix(P3)[:, :20], blocksize=(2, 2)))
     scalar = AMGPreconditioner(sp.csr_matrix(pyamg.gallery.poisson((30, 30))), None, max_coarse=50)
     assert VCycle(scalar.ml).first is None                                     # a scalar problem: CSR levels
+
+
+def test_refreshed_cycle_reuses_kept_patterns_and_equals_a_new_one():
+    A, B = _elasticity()
+    A = sp.csr_matrix(A)
+    rows = np.arange(0, A.shape[0], 11)
+    D = sp.csr_matrix((np.ones(rows.size), (rows, rows)), shape=A.shape)
+    from admmkit.amg import PencilMatrix
+    pencil = PencilMatrix(A, D)
+    amg = AMGPreconditioner(pencil.at(1.0), B, blocksize=2, max_coarse=50, D=D, rho=1.0)
+    r = np.random.default_rng(8).standard_normal(A.shape[0])
+    cycle = VCycle(amg.ml, values=np.float32)
+    for rho in (3.0, 9.0):
+        amg.refresh(pencil.at(rho), rho)
+        again = cycle.refreshed(amg.ml)
+        assert again._diagonal[0] is cycle._diagonal[0]           # the finest pattern kept: not searched again
+        assert np.array_equal(again(r), VCycle(amg.ml, values=np.float32)(r))
+        cycle = again
