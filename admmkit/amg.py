@@ -220,6 +220,7 @@ class PencilMatrix:
                 self.K_data = K.data          # the pattern's own values: K (never written)
                 self.D_data = np.zeros_like(K.data)
                 self.D_data[positions] = D.data
+                self._D_entries = np.sort(positions[D.data != 0])   # where D_data is nonzero, from D's own entries
                 return
         ones = lambda M: sp.csr_matrix((np.ones_like(M.data), M.indices, M.indptr), shape=M.shape)  # noqa: E731
         pattern = (ones(K) + ones(D)).tocsr()     # positive values: no entry of the union cancels
