@@ -302,6 +302,11 @@ class VCycle:
         blocks.forward_restrict(L.indptr, L.indices, L.data, L.block_diagonal, inverse, b, x,
                                 L.P_indptr, L.P_indices, L.P_data, coarse_b, (self._bandwidth[0] + 1) // 2)
         coarse_x = self._correction(0, coarse_b)
-        blocks.prolong(L.P_indptr, L.P_indices, L.P_data, coarse_x, x, kernel_threads())
-        blocks.gauss_seidel_backward(L.indptr, L.indices, L.data, L.block_diagonal, inverse, x, b)
+        threads = kernel_threads()
+        if threads == 1:          # the correction a bandwidth ahead of the sweep, in one pass
+            blocks.prolong_backward(L.indptr, L.indices, L.data, L.block_diagonal, inverse, x, b,
+                                    L.P_indptr, L.P_indices, L.P_data, coarse_x, (self._bandwidth[0] + 1) // 2)
+        else:                     # the correction's rows among the threads, then the sweep
+            blocks.prolong(L.P_indptr, L.P_indices, L.P_data, coarse_x, x, threads)
+            blocks.gauss_seidel_backward(L.indptr, L.indices, L.data, L.block_diagonal, inverse, x, b)
         return x

@@ -104,6 +104,57 @@ def gauss_seidel_backward(indptr, indices, data, block_diagonal, inverse, x, b):
         x[_u(i)] = (b[_u(i)] - s) * inverse[_u(i)]
 
 
+@njit(cache=True, inline="always")
+def _prolong_block_row(P_indptr, P_indices, P_data, coarse_x, x, I):
+    """x[2I], x[2I + 1] += (P coarse_x) on the block row's two rows (each summed in its stored order)."""
+    s0 = 0.0
+    s1 = 0.0
+    for k in range(P_indptr[_u(I)], P_indptr[_u(I + 1)]):
+        j = 3 * P_indices[_u(k)]
+        a, b, d = coarse_x[_u(j)], coarse_x[_u(j + 1)], coarse_x[_u(j + 2)]
+        s0 += P_data[_u(6 * k)] * a
+        s0 += P_data[_u(6 * k + 1)] * b
+        s0 += P_data[_u(6 * k + 2)] * d
+        s1 += P_data[_u(6 * k + 3)] * a
+        s1 += P_data[_u(6 * k + 4)] * b
+        s1 += P_data[_u(6 * k + 5)] * d
+    x[_u(2 * I)] = x[_u(2 * I)] + s0
+    x[_u(2 * I + 1)] = x[_u(2 * I + 1)] + s1
+
+
+@njit(cache=True, inline="always")
+def _backward_block_row(indptr, indices, data, block_diagonal, inverse, x, b, I):
+    """Rows 2I + 1, then 2I, of a backward Gauss-Seidel sweep."""
+    kd = block_diagonal[_u(I)]
+    k0, k1 = indptr[_u(I)], indptr[_u(I + 1)]
+    i = 2 * I + 1
+    s = _row_sum(indices, data, x, k0, kd, 1, 0.0)
+    s += data[_u(4 * kd + 2)] * x[_u(i - 1)]
+    s = _row_sum(indices, data, x, kd + 1, k1, 1, s)
+    x[_u(i)] = (b[_u(i)] - s) * inverse[_u(i)]
+    i = 2 * I
+    s = _row_sum(indices, data, x, k0, kd, 0, 0.0)
+    s += data[_u(4 * kd + 1)] * x[_u(i + 1)]
+    s = _row_sum(indices, data, x, kd + 1, k1, 0, s)
+    x[_u(i)] = (b[_u(i)] - s) * inverse[_u(i)]
+
+
+@njit(cache=True)
+def prolong_backward(indptr, indices, data, block_diagonal, inverse, x, b, P_indptr, P_indices, P_data, coarse_x,
+                     lag):
+    """x += P coarse_x, then a backward sweep, in one pass: block row I - lag is corrected just before the
+    sweep reaches block row I (row i's sweep reads x_j for j >= i - bandwidth), while it is in cache."""
+    nb = indptr.shape[0] - 1
+    lag = min(lag, nb)
+    for step in range(lag):
+        _prolong_block_row(P_indptr, P_indices, P_data, coarse_x, x, nb - 1 - step)
+    for step in range(lag, nb):
+        _prolong_block_row(P_indptr, P_indices, P_data, coarse_x, x, nb - 1 - step)
+        _backward_block_row(indptr, indices, data, block_diagonal, inverse, x, b, nb - 1 - step + lag)
+    for step in range(nb, nb + lag):
+        _backward_block_row(indptr, indices, data, block_diagonal, inverse, x, b, nb - 1 - step + lag)
+
+
 @njit(cache=True, parallel=True)
 def prolong(P_indptr, P_indices, P_data, coarse_x, x, chunks):
     """x += P coarse_x for P in 2 x 3 blocks, each row summed in its stored order (block rows among threads)."""
