@@ -59,25 +59,14 @@ import scipy.sparse as sp
 
 from .amg import AMGPreconditioner, PencilMatrix, node_blocks  # noqa: F401  (node_blocks: re-exported)
 from .cg import SolutionSpace, pcg  # noqa: F401  (re-exported)
-from .compiled import AVAILABLE as COMPILED
 from .submatrix import principal_submatrix
+from .symmetric import pencil_products
 
 #: the products R A P of a Galerkin refresh without the axpy form, in units of C nnz(A) (a smoothed
 #: aggregation P has a few entries per row, so each product touches a few times the operator's entries)
 GALERKIN_WORK = 4.0
 
 REUSE = ("auto", "keep", "galerkin", "rebuild")
-
-
-def _products(pencil, blocksize: int = 1):
-    """rho -> (x -> (K + rho D) x) for the pencil's matrices: from the upper triangle with numba
-    (:class:`admmkit.symmetric.SymmetricPattern`, half the entries read, in node pairs for a 2-D vector problem
-    numbered node by node; a new rho updates D's entries only), else scipy's product with ``pencil.at(rho)``."""
-    if not COMPILED:
-        return lambda rho: pencil.at(rho).__matmul__
-    from .symmetric import NodePairPattern, SymmetricPattern
-    pattern = (NodePairPattern if blocksize == 2 else SymmetricPattern)(pencil.pattern)
-    return pattern.pencil_products(pencil.K_data, pencil.D_data)
 
 
 # ---------------------------------------------------------------- the x-step solver
@@ -143,7 +132,7 @@ class IterativeXSolver:
         # CSR: its products were faster than BSR's here.  A permuted K is this solver's own copy: the pencil
         # takes it over, and K is then the pencil's pattern with K's values (one copy of K, not three)
         self.pencil = PencilMatrix(K, D, copy=self.perm is None)
-        self._products = _products(self.pencil, self.blocksize)
+        self._products = pencil_products(self.pencil, self.blocksize)
         K = self.K = self.pencil.K_matrix()
         self.D = D
         self._D_rows = np.flatnonzero(np.diff(D.indptr))

@@ -261,3 +261,14 @@ class NodePairPattern(SymmetricPattern):
                          np.ascontiguousarray(x, dtype=float), out)
             return out
         return apply
+
+
+def pencil_products(pencil, blocksize: int = 1):
+    """rho -> (x -> (K + rho D) x) for a :class:`admmkit.amg.PencilMatrix` in CSR: from the upper triangle
+    (:class:`SymmetricPattern`, in node pairs for ``blocksize`` 2: a 2-D vector problem numbered node by node;
+    a new rho updates D's entries only), or scipy's product with ``pencil.at(rho)`` without numba."""
+    from .compiled import AVAILABLE
+    if not AVAILABLE:
+        return lambda rho: pencil.at(rho).__matmul__
+    pattern = (NodePairPattern if blocksize == 2 else SymmetricPattern)(pencil.pattern)
+    return pattern.pencil_products(pencil.K_data, pencil.D_data)

@@ -34,13 +34,12 @@ After editing a kernel here, delete the ``*.nbi``/``*.nbc`` caches (see
 """
 from __future__ import annotations
 
-import os
-
 import numpy as np
 import scipy.sparse as sp
-from numba import get_num_threads, njit, prange, set_num_threads
+from numba import njit, prange
 
 from . import vcycle_blocks as blocks
+from .kernel_threads import THREADS_VARIABLE, kernel_threads  # noqa: F401  (THREADS_VARIABLE: re-exported)
 from .compiled import _u
 from .vcycle_blocks import BlockLevel
 
@@ -141,28 +140,6 @@ def _gauss_seidel_backward(indptr, indices, data, diagonal, inverse, x, b):
 
 
 # ---------------------------------------------------------------- wrappers
-#: environment variable naming the threads of the row-parallel kernels (default 1)
-THREADS_VARIABLE = "ADMMKIT_KERNEL_THREADS"
-
-
-def kernel_threads() -> int:
-    """Threads for the row-parallel kernels: ``$ADMMKIT_KERNEL_THREADS`` (default 1), at most numba's pool.
-
-    One by default: on this project's shared 2-core machine, with the other core busy, a product of
-    1e6 rows took 0.0093 s on one thread and 0.012-0.016 s on two (the second thread waits for a core);
-    on an idle core two took 0.0126 s against scipy's 0.0183 s.  The values do not depend on it.
-    Sets numba's count for the calling thread and returns it.
-    """
-    try:
-        wanted = int(os.environ.get(THREADS_VARIABLE, "1"))
-    except ValueError:
-        wanted = 1
-    from numba import config
-    threads = max(1, min(wanted, config.NUMBA_NUM_THREADS))
-    if get_num_threads() != threads:
-        set_num_threads(threads)
-    return threads
-
 def _sorted_csr(M):
     """M itself if it is CSR (else converted), with its indices sorted in place."""
     if not (sp.issparse(M) and M.format == "csr"):
