@@ -207,6 +207,14 @@ def _pair_matvec(block_indptr, block_indices, data, pair_offset, diagonal, x, ou
 
 
 @njit(cache=True)
+def _gather_or_zero(values, positions, out):
+    """out[k] = values[positions[k]], or 0 where positions[k] is -1."""
+    for k in range(positions.shape[0]):
+        p = positions[_u(k)]
+        out[_u(k)] = values[_u(p)] if p >= 0 else 0.0
+
+
+@njit(cache=True)
 def _diagonal_of(indptr, indices, diagonal):
     """diagonal[i]: the position of a_ii (the last one stored), or -1."""
     for i in range(indptr.shape[0] - 1):
@@ -248,7 +256,8 @@ class NodePairPattern(SymmetricPattern):
 
     def _gather(self, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The layout's values (zeros where the pattern stores nothing) and the diagonal."""
-        data = np.where(self.positions >= 0, values[np.maximum(self.positions, 0)], 0.0)
+        data = np.empty(self.positions.size, dtype=values.dtype)
+        _gather_or_zero(values, self.positions, data)
         return data, np.where(self.diagonal >= 0, values[np.maximum(self.diagonal, 0)], 0.0)
 
     def _apply(self, data: np.ndarray, diagonal: np.ndarray):

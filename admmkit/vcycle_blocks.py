@@ -177,18 +177,20 @@ def prolong(P_indptr, P_indices, P_data, coarse_x, x, chunks):
 
 
 @njit(cache=True)
-def _block_values(indptr, indices, data, block_indptr, block_indices, out):
-    """out (BSR values, 2 x 2 blocks, zeros included) from a sorted CSR matrix whose entries the pattern holds."""
-    out[:] = 0.0
+def _block_values(indptr, indices, data, block_indptr, block_indices, out, full):
+    """out (BSR values, 2 x 2 blocks, zeros included) from a sorted CSR matrix whose entries the pattern holds
+    (``full``: every block entry is stored, so every value of out is written and none needs zeroing first)."""
+    if not full:
+        out[:] = 0.0
     for I in range(block_indptr.shape[0] - 1):
         for r in range(2):
             i = 2 * I + r
             k = block_indptr[_u(I)]
             for jj in range(indptr[_u(i)], indptr[_u(i + 1)]):
                 j = indices[_u(jj)]
-                while block_indices[_u(k)] < j // 2:
+                while block_indices[_u(k)] < j >> 1:
                     k += 1
-                out[_u(4 * k + 2 * r + j % 2)] = data[_u(jj)]
+                out[_u(4 * k + 2 * r + (j & 1))] = data[_u(jj)]
 
 
 @njit(cache=True)
@@ -230,7 +232,7 @@ class BlockLevel:
                                                                    "P_indices", "P_data", "P_shape")})
         self.shape = (n, n)
         self.data = np.empty(4 * self.indices.size, dtype=values)
-        _block_values(A.indptr, A.indices, A.data, self.indptr, self.indices, self.data)
+        _block_values(A.indptr, A.indices, A.data, self.indptr, self.indices, self.data, A.nnz == self.data.size)
 
     @staticmethod
     def eligible(A, P) -> bool:
