@@ -43,6 +43,13 @@ REFERENCE_MAX_N = 200_000
 #: above it, the run is continued (warm start, same method and mode) to this relative change: at 1.0e5 unknowns
 #: its algebraic error of the paper's stop, 7.4286e-05, agreed with the reference's 7.4240e-05
 TIGHT_CHANGE = 1e-8
+#: the child's environment: BLAS on one thread (small vector work dominates), and numpy's advice to back arrays
+#: of 4 MB and more by transparent huge pages off (numpy's documented switch): on this project's machine (a VM,
+#: THP in madvise mode) that advice made the 1e6-unknown case's set-up phases 2.5-3 s slower (assembly +0.4 s,
+#: x-step set-up +1.1 s, AMG set-up +0.9 s; 18.0-18.5 s against 15.4-15.5 s, two runs each, 2bf734d) for
+#: 0.2-0.4 s less in CG.  Users of large runs can set it the same way.
+CHILD_ENVIRONMENT = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1",
+                     "NUMPY_MADVISE_HUGEPAGE": "0"}
 
 
 def peak_rss_bytes() -> int:
@@ -161,8 +168,9 @@ def print_run(r: dict) -> None:
 
 def run_in_subprocess(example: str, h: float, mode: str, timeout: float = 900.0, rho: float = 1e3,
                       accuracy: bool = False) -> dict:
-    """run_case in a fresh Python process with BLAS pinned to one thread; timeouts are reported."""
-    env = dict(os.environ, OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1", MKL_NUM_THREADS="1")
+    """run_case in a fresh Python process with BLAS pinned to one thread and without numpy's huge-page
+    advice (:data:`CHILD_ENVIRONMENT`); timeouts are reported."""
+    env = dict(os.environ, **CHILD_ENVIRONMENT)
     root = str(Path(__file__).resolve().parents[2])
     env["PYTHONPATH"] = root + os.pathsep + env.get("PYTHONPATH", "")
     cmd = [sys.executable, "-m", "admmkit.benchmarks.contact.scale_runs", "--example", example, "--h", repr(h), "--mode", mode,

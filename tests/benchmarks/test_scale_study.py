@@ -47,3 +47,25 @@ def test_the_child_process_measures_accuracy_only_when_asked_and_a_continued_run
     assert row["zz_rel"] == pytest.approx(measured["zz_rel"], rel=1e-6) and row["accuracy_s"] > 0
     assert row["reference"].startswith("the run continued") and "converged" in row["reference"]
     assert row["alg_error"] == pytest.approx(measured["alg_error"], rel=1e-2)
+
+
+def test_the_child_process_runs_in_the_stated_environment(monkeypatch, tmp_path):
+    """run_in_subprocess hands the child CHILD_ENVIRONMENT (BLAS on one thread, no huge-page advice), and the
+    report says so."""
+    import json
+    import subprocess
+    from admmkit.benchmarks.contact import scale, scale_runs
+    seen, real_run = {}, subprocess.run
+
+    def fake_run(cmd, **kwargs):
+        if "admmkit.benchmarks.contact.scale_runs" not in cmd:        # git, for the report's machine line
+            return real_run(cmd, **kwargs)
+        seen.update(kwargs["env"])
+        row = {"example": "ex1", "h": 0.5, "mode": "iterative", "status": "refused", "message": "x"}
+        return subprocess.CompletedProcess(cmd, 0, stdout=json.dumps(row) + "\n", stderr="")
+    monkeypatch.setattr(scale_runs.subprocess, "run", fake_run)
+    scale_runs.run_in_subprocess("ex1", 0.5, "iterative")
+    assert {k: seen[k] for k in scale_runs.CHILD_ENVIRONMENT} == scale_runs.CHILD_ENVIRONMENT
+    assert seen["NUMPY_MADVISE_HUGEPAGE"] == "0" and seen["OMP_NUM_THREADS"] == "1"
+    scale.run_scale_bench(out=tmp_path, hs=(0.5,))
+    assert "`NUMPY_MADVISE_HUGEPAGE=0`" in (tmp_path / "scale.md").read_text()
