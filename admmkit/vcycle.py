@@ -23,7 +23,10 @@ cycle up to round-off (1e-15 relative with double-precision values):
 - the finest level of a 2-D vector problem (2 x 2 node blocks, a 2 x 3 block
   prolongator: elasticity with its three rigid modes) runs on BSR storage
   (:mod:`admmkit.vcycle_blocks`), one column index per block: the same sums
-  in the same order; at 1e6 rows its three passes 0.043 -> 0.031 s;
+  in the same order; at 1e6 rows its three passes 0.043 -> 0.031 s; the
+  coarse levels of three near-null vectors likewise in 3 x 3 blocks
+  (:mod:`admmkit.vcycle_blocks3`); with one kernel thread the correction
+  x += P x_c runs inside the backward sweep, a bandwidth ahead of it;
 - the coarsest level is pyamg's own coarse solver.
 
 :func:`csr_product` gives y = A x for CG in the same way.  The Gauss-Seidel
@@ -38,10 +41,10 @@ import numpy as np
 import scipy.sparse as sp
 from numba import njit, prange
 
-from . import vcycle_blocks as blocks
 from .kernel_threads import THREADS_VARIABLE, kernel_threads  # noqa: F401  (THREADS_VARIABLE: re-exported)
 from .compiled import _u
 from .vcycle_blocks import BlockLevel
+from .vcycle_blocks3 import BlockLevel3
 
 
 # ---------------------------------------------------------------- kernels
@@ -204,8 +207,7 @@ class VCycle:
     inner tolerance, not the round-off.
     """
 
-    def __init__(self, ml, values=np.float64, P=None, first: BlockLevel | None = None,
-                 pattern_of: VCycle | None = None):
+    def __init__(self, ml, values=np.float64, P=None, pattern_of: VCycle | None = None):
         levels = ml.levels
         for level in levels[:-1]:
             level.A = _sorted_csr(level.A)
@@ -213,37 +215,35 @@ class VCycle:
         self.coarse_solver, self.coarse_A = ml.coarse_solver, levels[-1].A
         self.n = levels[0].A.shape[0]
         self.levels = len(levels) - 1          # the levels with smoothers
-        # the finest level in node blocks (admmkit.vcycle_blocks) where it has them; ``first``: that level of a
-        # cycle on the same hierarchy (its pattern and P kept, as ``P`` keeps the other levels' prolongators)
-        self.first = None
-        if first is not None:
-            self.first = first.refreshed(levels[0].A)
-        elif self.levels and BlockLevel.eligible(levels[0].A, levels[0].P):
-            self.first = BlockLevel(levels[0].A, levels[0].P, values)
-            if not self.first.valid():
-                self.first = None
-        start = 1 if self.first is not None else 0
-        self.A = [None] * start + [_stored(level.A, values) for level in levels[start:-1]]
-        # R = P': no copy of R.  ``P``: the prolongators of a cycle on the same hierarchy (a Galerkin refresh
-        # changes the levels' A only)
-        self.P = P if P is not None else [None] * start + [_stored(_sorted_csr(level.P), values)
-                                                           for level in levels[start:-1]]
         # per pattern: a refresh keeps every level's pattern (the very arrays), and with it these
         self._patterns = [(level.A.indptr, level.A.indices) for level in levels[:-1]]
         old = pattern_of._patterns if pattern_of is not None else [(None, None)] * len(self._patterns)
         kept = [b is not None and _same_array(a, b) and _same_array(c, d)
                 for (a, c), (b, d) in zip(self._patterns, old)]
+        self.block = [_block_level(lvl, level, values, pattern_of.block[lvl] if kept[lvl] else None)
+                      for lvl, level in enumerate(levels[:-1])]
+        self.A = [None if block else _stored(level.A, values) for level, block in zip(levels, self.block)]
+        # R = P': no copy of R.  ``P``: the prolongators of a cycle on the same hierarchy (a Galerkin refresh
+        # changes the levels' A only)
+        self.P = [None if block else P[lvl] if P is not None and P[lvl] is not None
+                  else _stored(_sorted_csr(level.P), values)
+                  for lvl, (level, block) in enumerate(zip(levels, self.block))]
         self._bandwidth = [pattern_of._bandwidth[lvl] if kept[lvl] else _bandwidth(*pattern)
                            for lvl, pattern in enumerate(self._patterns)]
         self._diagonal = [pattern_of._diagonal[lvl] if kept[lvl] else _diagonal_positions(*pattern)
                           for lvl, pattern in enumerate(self._patterns)]
-        self._inverse = [_inverse_diagonal(level.A.indices, (level.A if lvl < start else self.A[lvl]).data, at,
+        self._inverse = [_inverse_diagonal(level.A.indices, (level.A if self.block[lvl] else self.A[lvl]).data, at,
                                            values, checked=kept[lvl])
                          for lvl, (level, at) in enumerate(zip(levels[:-1], self._diagonal))]
 
+    @property
+    def first(self) -> BlockLevel | None:
+        """The finest level in 2 x 2 node blocks, if it is stored so."""
+        return self.block[0] if self.block and isinstance(self.block[0], BlockLevel) else None
+
     def refreshed(self, ml) -> VCycle:
         """The cycle of the same hierarchy after a Galerkin refresh (new A on every level, the same P)."""
-        return VCycle(ml, self.values, P=self.P, first=self.first, pattern_of=self)
+        return VCycle(ml, self.values, P=self.P, pattern_of=self)
 
     def __call__(self, r: np.ndarray) -> np.ndarray:
         """The V-cycle applied to r from a zero initial guess (a new array)."""
@@ -258,8 +258,9 @@ class VCycle:
         return self._level(lvl + 1, coarse_b)
 
     def _level(self, lvl: int, b: np.ndarray) -> np.ndarray:
-        if lvl == 0 and self.first is not None:
-            return self._block_level(b)
+        block = self.block[lvl]
+        if block is not None:      # the level's passes in blocks (the CSR kernels' values)
+            return block.cycle(b, self._inverse[lvl], self._bandwidth[lvl], lambda c: self._correction(lvl, c))
         A, P = self.A[lvl], self.P[lvl]
         x = np.empty(A.shape[0])
         coarse_b = np.empty(P.shape[1])
@@ -271,19 +272,14 @@ class VCycle:
         _gauss_seidel_backward(A.indptr, A.indices, A.data, diagonal, inverse, x, b)
         return x
 
-    def _block_level(self, b: np.ndarray) -> np.ndarray:
-        """The finest level in node blocks: :mod:`admmkit.vcycle_blocks`' passes, the CSR ones' values."""
-        L, inverse = self.first, self._inverse[0]
-        x = np.empty(self.n)
-        coarse_b = np.empty(L.P_shape[1])
-        blocks.forward_restrict(L.indptr, L.indices, L.data, L.block_diagonal, inverse, b, x,
-                                L.P_indptr, L.P_indices, L.P_data, coarse_b, (self._bandwidth[0] + 1) // 2)
-        coarse_x = self._correction(0, coarse_b)
-        threads = kernel_threads()
-        if threads == 1:          # the correction a bandwidth ahead of the sweep, in one pass
-            blocks.prolong_backward(L.indptr, L.indices, L.data, L.block_diagonal, inverse, x, b,
-                                    L.P_indptr, L.P_indices, L.P_data, coarse_x, (self._bandwidth[0] + 1) // 2)
-        else:                     # the correction's rows among the threads, then the sweep
-            blocks.prolong(L.P_indptr, L.P_indices, L.P_data, coarse_x, x, threads)
-            blocks.gauss_seidel_backward(L.indptr, L.indices, L.data, L.block_diagonal, inverse, x, b)
-        return x
+
+def _block_level(lvl: int, level, values, old):
+    """A level's storage in blocks where its kernels have them: 2 x 2 node blocks with a 2 x 3 prolongator on
+    the finest level (:class:`BlockLevel`), 3 x 3 blocks in A and P below (:class:`BlockLevel3`); else None
+    (CSR).  ``old``: the level of a cycle on the same pattern, refreshed with the new values."""
+    if old is not None:
+        return old.refreshed(level.A)
+    kind = (BlockLevel if lvl == 0 and BlockLevel.eligible(level.A, level.P)
+            else BlockLevel3 if BlockLevel3.eligible(level.A, level.P) else None)
+    block = kind(level.A, level.P, values) if kind is not None else None
+    return block if block is not None and block.valid() else None

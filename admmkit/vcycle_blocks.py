@@ -23,6 +23,7 @@ import scipy.sparse as sp
 from numba import njit, prange
 
 from .compiled import _u
+from .kernel_threads import kernel_threads
 
 
 # ---------------------------------------------------------------- rows of a 2 x 2 block row
@@ -247,3 +248,20 @@ class BlockLevel:
     def valid(self) -> bool:
         """Every block row holds its diagonal block (the sweeps divide by a_ii)."""
         return bool(np.all(self.block_diagonal >= 0))
+
+    def cycle(self, b: np.ndarray, inverse: np.ndarray, bandwidth: int, correction) -> np.ndarray:
+        """The level's part of a V-cycle from zero: descent, ``correction(coarse_b)``, ascent (a new x)."""
+        lag = (bandwidth + 1) // 2                 # in block rows
+        x = np.empty(self.shape[0])
+        coarse_b = np.empty(self.P_shape[1])
+        forward_restrict(self.indptr, self.indices, self.data, self.block_diagonal, inverse, b, x,
+                         self.P_indptr, self.P_indices, self.P_data, coarse_b, lag)
+        coarse_x = correction(coarse_b)
+        threads = kernel_threads()
+        if threads == 1:          # the correction a bandwidth ahead of the sweep, in one pass
+            prolong_backward(self.indptr, self.indices, self.data, self.block_diagonal, inverse, x, b,
+                             self.P_indptr, self.P_indices, self.P_data, coarse_x, lag)
+        else:                     # the correction's rows among the threads, then the sweep
+            prolong(self.P_indptr, self.P_indices, self.P_data, coarse_x, x, threads)
+            gauss_seidel_backward(self.indptr, self.indices, self.data, self.block_diagonal, inverse, x, b)
+        return x

@@ -147,11 +147,14 @@ def test_block_finest_level_gives_the_csr_cycle_bit_for_bit(values, monkeypatch)
     A, B = _elasticity()
     amg = AMGPreconditioner(A, B, blocksize=2, max_coarse=50)
     r = np.random.default_rng(7).standard_normal(A.shape[0])
+    from admmkit.vcycle_blocks3 import BlockLevel3
     blocks = VCycle(amg.ml, values=values)
     assert blocks.first is not None                        # 2 x 2 blocks of A, 2 x 3 of P: the block path
+    assert isinstance(blocks.block[1], BlockLevel3)         # below it 3 x 3 blocks (three rigid modes)
     monkeypatch.setattr(BlockLevel, "eligible", staticmethod(lambda A, P: False))
+    monkeypatch.setattr(BlockLevel3, "eligible", staticmethod(lambda A, P: False))
     rows = VCycle(amg.ml, values=values)
-    assert rows.first is None
+    assert rows.first is None and not any(rows.block)
     assert np.array_equal(blocks(r), rows(r))
     amg.refresh(sp.csr_matrix(A + 0.5 * sp.eye(A.shape[0])))   # new values on the same pattern
     assert np.array_equal(blocks.refreshed(amg.ml)(r), rows.refreshed(amg.ml)(r))
