@@ -85,26 +85,6 @@ def forward_restrict(indptr, indices, data, block_diagonal, inverse, b, x, P_ind
         _restrict_block_row(indptr, indices, data, block_diagonal, x, P_indptr, P_indices, P_data, coarse_b, M)
 
 
-@njit(cache=True)
-def gauss_seidel_backward(indptr, indices, data, block_diagonal, inverse, x, b):
-    """:func:`admmkit.vcycle._gauss_seidel_backward` on 2 x 2 blocks (rows 2I + 1, then 2I, from the last)."""
-    nb = indptr.shape[0] - 1
-    for step in range(nb):
-        I = nb - 1 - step
-        kd = block_diagonal[_u(I)]
-        k0, k1 = indptr[_u(I)], indptr[_u(I + 1)]
-        i = 2 * I + 1
-        s = _row_sum(indices, data, x, k0, kd, 1, 0.0)
-        s += data[_u(4 * kd + 2)] * x[_u(i - 1)]
-        s = _row_sum(indices, data, x, kd + 1, k1, 1, s)
-        x[_u(i)] = (b[_u(i)] - s) * inverse[_u(i)]
-        i = 2 * I
-        s = _row_sum(indices, data, x, k0, kd, 0, 0.0)
-        s += data[_u(4 * kd + 1)] * x[_u(i + 1)]
-        s = _row_sum(indices, data, x, kd + 1, k1, 0, s)
-        x[_u(i)] = (b[_u(i)] - s) * inverse[_u(i)]
-
-
 @njit(cache=True, inline="always")
 def _prolong_block_row(P_indptr, P_indices, P_data, coarse_x, x, I):
     """x[2I], x[2I + 1] += (P coarse_x) on the block row's two rows (each summed in its stored order)."""
@@ -141,6 +121,14 @@ def _backward_block_row(indptr, indices, data, block_diagonal, inverse, x, b, I)
 
 
 @njit(cache=True)
+def gauss_seidel_backward(indptr, indices, data, block_diagonal, inverse, x, b):
+    """:func:`admmkit.vcycle._gauss_seidel_backward` on 2 x 2 blocks (rows 2I + 1, then 2I, from the last)."""
+    nb = indptr.shape[0] - 1
+    for step in range(nb):
+        _backward_block_row(indptr, indices, data, block_diagonal, inverse, x, b, nb - 1 - step)
+
+
+@njit(cache=True)
 def prolong_backward(indptr, indices, data, block_diagonal, inverse, x, b, P_indptr, P_indices, P_data, coarse_x,
                      lag):
     """x += P coarse_x, then a backward sweep, in one pass: block row I - lag is corrected just before the
@@ -162,19 +150,7 @@ def prolong(P_indptr, P_indices, P_data, coarse_x, x, chunks):
     nb = P_indptr.shape[0] - 1
     for c in prange(chunks):
         for I in range(c * nb // chunks, (c + 1) * nb // chunks):
-            s0 = 0.0
-            s1 = 0.0
-            for k in range(P_indptr[_u(I)], P_indptr[_u(I + 1)]):
-                j = 3 * P_indices[_u(k)]
-                a, b, d = coarse_x[_u(j)], coarse_x[_u(j + 1)], coarse_x[_u(j + 2)]
-                s0 += P_data[_u(6 * k)] * a
-                s0 += P_data[_u(6 * k + 1)] * b
-                s0 += P_data[_u(6 * k + 2)] * d
-                s1 += P_data[_u(6 * k + 3)] * a
-                s1 += P_data[_u(6 * k + 4)] * b
-                s1 += P_data[_u(6 * k + 5)] * d
-            x[_u(2 * I)] = x[_u(2 * I)] + s0
-            x[_u(2 * I + 1)] = x[_u(2 * I + 1)] + s1
+            _prolong_block_row(P_indptr, P_indices, P_data, coarse_x, x, I)
 
 
 @njit(cache=True)
@@ -215,10 +191,12 @@ class BlockLevel:
     ``refreshed(A)``: the same storage with the values of a new A on A's pattern.
     """
 
+    #: the block sizes of A (R x R) and P (R x C)
+    R, C = 2, 3
+
     def __init__(self, A: sp.csr_matrix, P, values, pattern: BlockLevel | None = None):
-        n = A.shape[0]
         if pattern is None:
-            blocks = A.tobsr(blocksize=(2, 2))
+            blocks = A.tobsr(blocksize=(self.R, self.R))
             blocks.sort_indices()
             self.indptr = np.asarray(blocks.indptr, dtype=np.int64)
             self.indices = blocks.indices
@@ -231,19 +209,25 @@ class BlockLevel:
         else:
             self.__dict__.update({k: getattr(pattern, k) for k in ("indptr", "indices", "block_diagonal", "P_indptr",
                                                                    "P_indices", "P_data", "P_shape")})
-        self.shape = (n, n)
-        self.data = np.empty(4 * self.indices.size, dtype=values)
-        _block_values(A.indptr, A.indices, A.data, self.indptr, self.indices, self.data, A.nnz == self.data.size)
+        self.shape = A.shape
+        self.data = np.empty(self.R * self.R * self.indices.size, dtype=values)
+        self._values(A.indptr, A.indices, A.data, self.indptr, self.indices, self.data, A.nnz == self.data.size)
 
     @staticmethod
-    def eligible(A, P) -> bool:
-        """A of even order with P in BSR of 2 x 3 blocks (a 2-D vector problem, three near-null vectors)."""
-        return (A.shape[0] % 2 == 0 and A.shape[0] > 0 and sp.issparse(P) and P.format == "bsr"
-                and P.blocksize == (2, 3))
+    def _values(indptr, indices, data, block_indptr, block_indices, out, full):
+        """The kernel that writes a CSR matrix's values into the block layout."""
+        _block_values(indptr, indices, data, block_indptr, block_indices, out, full)
+
+    @classmethod
+    def eligible(cls, A, P) -> bool:
+        """A of an order divisible by R with P in BSR of R x C blocks (2 x 3 here: a 2-D vector problem with
+        three near-null vectors)."""
+        return (A.shape[0] % cls.R == 0 and A.shape[0] > 0 and sp.issparse(P) and P.format == "bsr"
+                and P.blocksize == (cls.R, cls.C))
 
     def refreshed(self, A: sp.csr_matrix) -> BlockLevel:
         """The level of a new A on the same pattern (same blocks, same P)."""
-        return BlockLevel(A, None, self.data.dtype, pattern=self)
+        return type(self)(A, None, self.data.dtype, pattern=self)
 
     def valid(self) -> bool:
         """Every block row holds its diagonal block (the sweeps divide by a_ii)."""

@@ -18,7 +18,7 @@ import scipy.sparse as sp
 from numba import njit
 
 from .compiled import _u
-from .vcycle_blocks import _block_diagonal
+from .vcycle_blocks import BlockLevel
 
 
 @njit(cache=True, inline="always")
@@ -136,41 +136,15 @@ def _block_values(indptr, indices, data, block_indptr, block_indices, out, full)
                 out[_u(9 * k + 3 * r + j - 3 * J)] = data[_u(jj)]
 
 
-class BlockLevel3:
+class BlockLevel3(BlockLevel):
     """A coarse level's A and P in 3 x 3 blocks, values in ``values`` precision (the patterns kept on refresh)."""
 
-    def __init__(self, A: sp.csr_matrix, P, values, pattern: BlockLevel3 | None = None):
-        if pattern is None:
-            blocks = A.tobsr(blocksize=(3, 3))
-            blocks.sort_indices()
-            self.indptr = np.asarray(blocks.indptr, dtype=np.int64)
-            self.indices = blocks.indices
-            self.block_diagonal = _block_diagonal(self.indptr, self.indices)
-            Pb = sp.bsr_matrix(P)
-            Pb.sort_indices()
-            self.P_indptr, self.P_indices = np.asarray(Pb.indptr, dtype=np.int64), Pb.indices
-            self.P_data = Pb.data.astype(values).ravel()
-            self.P_shape = Pb.shape
-        else:
-            self.__dict__.update({k: getattr(pattern, k) for k in ("indptr", "indices", "block_diagonal", "P_indptr",
-                                                                   "P_indices", "P_data", "P_shape")})
-        self.shape = A.shape
-        self.data = np.empty(9 * self.indices.size, dtype=values)
-        _block_values(A.indptr, A.indices, A.data, self.indptr, self.indices, self.data, A.nnz == self.data.size)
+    R, C = 3, 3
 
     @staticmethod
-    def eligible(A, P) -> bool:
-        """A of an order divisible by 3 with P in BSR of 3 x 3 blocks."""
-        return (A.shape[0] % 3 == 0 and A.shape[0] > 0 and sp.issparse(P) and P.format == "bsr"
-                and P.blocksize == (3, 3))
-
-    def refreshed(self, A: sp.csr_matrix) -> BlockLevel3:
-        """The level of a new A on the same pattern (same blocks, same P)."""
-        return BlockLevel3(A, None, self.data.dtype, pattern=self)
-
-    def valid(self) -> bool:
-        """Every block row holds its diagonal block (the sweeps divide by a_ii)."""
-        return bool(np.all(self.block_diagonal >= 0))
+    def _values(indptr, indices, data, block_indptr, block_indices, out, full):
+        """The kernel that writes a CSR matrix's values into the 3 x 3 block layout."""
+        _block_values(indptr, indices, data, block_indptr, block_indices, out, full)
 
     def cycle(self, b: np.ndarray, inverse: np.ndarray, bandwidth: int, correction) -> np.ndarray:
         """The level's part of a V-cycle from zero: descent, ``correction(coarse_b)``, ascent (a new x)."""
