@@ -193,6 +193,9 @@ class BlockLevel:
 
     #: the block sizes of A (R x R) and P (R x C)
     R, C = 2, 3
+    #: the level's kernels: one pass down, one pass up, and the ascent's two passes for several threads
+    descent, ascent = staticmethod(forward_restrict), staticmethod(prolong_backward)
+    threaded = (prolong, gauss_seidel_backward)
 
     def __init__(self, A: sp.csr_matrix, P, values, pattern: BlockLevel | None = None):
         if pattern is None:
@@ -235,17 +238,18 @@ class BlockLevel:
 
     def cycle(self, b: np.ndarray, inverse: np.ndarray, bandwidth: int, correction) -> np.ndarray:
         """The level's part of a V-cycle from zero: descent, ``correction(coarse_b)``, ascent (a new x)."""
-        lag = (bandwidth + 1) // 2                 # in block rows
+        lag = (bandwidth + self.R - 1) // self.R             # in block rows
         x = np.empty(self.shape[0])
         coarse_b = np.empty(self.P_shape[1])
-        forward_restrict(self.indptr, self.indices, self.data, self.block_diagonal, inverse, b, x,
-                         self.P_indptr, self.P_indices, self.P_data, coarse_b, lag)
+        self.descent(self.indptr, self.indices, self.data, self.block_diagonal, inverse, b, x,
+                     self.P_indptr, self.P_indices, self.P_data, coarse_b, lag)
         coarse_x = correction(coarse_b)
         threads = kernel_threads()
-        if threads == 1:          # the correction a bandwidth ahead of the sweep, in one pass
-            prolong_backward(self.indptr, self.indices, self.data, self.block_diagonal, inverse, x, b,
-                             self.P_indptr, self.P_indices, self.P_data, coarse_x, lag)
-        else:                     # the correction's rows among the threads, then the sweep
-            prolong(self.P_indptr, self.P_indices, self.P_data, coarse_x, x, threads)
-            gauss_seidel_backward(self.indptr, self.indices, self.data, self.block_diagonal, inverse, x, b)
+        if threads == 1 or self.threaded is None:   # the correction a bandwidth ahead of the sweep, one pass
+            self.ascent(self.indptr, self.indices, self.data, self.block_diagonal, inverse, x, b,
+                        self.P_indptr, self.P_indices, self.P_data, coarse_x, lag)
+        else:                                        # the correction's rows among the threads, then the sweep
+            correct, sweep = self.threaded
+            correct(self.P_indptr, self.P_indices, self.P_data, coarse_x, x, threads)
+            sweep(self.indptr, self.indices, self.data, self.block_diagonal, inverse, x, b)
         return x

@@ -146,13 +146,5 @@ class BlockLevel3(BlockLevel):
         """The kernel that writes a CSR matrix's values into the 3 x 3 block layout."""
         _block_values(indptr, indices, data, block_indptr, block_indices, out, full)
 
-    def cycle(self, b: np.ndarray, inverse: np.ndarray, bandwidth: int, correction) -> np.ndarray:
-        """The level's part of a V-cycle from zero: descent, ``correction(coarse_b)``, ascent (a new x)."""
-        lag = (bandwidth + 2) // 3                 # in block rows
-        x = np.empty(self.shape[0])
-        coarse_b = np.empty(self.P_shape[1])
-        forward_restrict(self.indptr, self.indices, self.data, self.block_diagonal, inverse, b, x,
-                         self.P_indptr, self.P_indices, self.P_data, coarse_b, lag)
-        prolong_backward(self.indptr, self.indices, self.data, self.block_diagonal, inverse, x, b,
-                         self.P_indptr, self.P_indices, self.P_data, correction(coarse_b), lag)
-        return x
+    #: the level's kernels (one pass down, one pass up; no threaded ascent)
+    descent, ascent, threaded = staticmethod(forward_restrict), staticmethod(prolong_backward), None
