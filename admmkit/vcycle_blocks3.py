@@ -13,8 +13,6 @@ level has 1.7e5 rows and 5.5e6 entries.
 """
 from __future__ import annotations
 
-import numpy as np
-import scipy.sparse as sp
 from numba import njit
 
 from .compiled import _u
