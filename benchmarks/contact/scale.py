@@ -33,6 +33,8 @@ QUICK_HS = (1 / 10, 1 / 20)
 TARGET_SECONDS, TARGET_BYTES, TARGET_N = 60.0, 8e9, 1_000_000
 #: the energy error against the finest run is given for sizes whose h is at least this many times the finest h
 FINEST_RATIO = 3.0
+#: the size of the untimed warm-up process that compiles (or loads) the kernels before the measured sizes
+WARM_UP_H = 1 / 10
 #: the runs that the stopping rule ended: charted and checked against the target (the table gives each status)
 FINISHED = ("converged", "converged_inaccurate")
 
@@ -61,6 +63,10 @@ def run_scale_bench(out="out/scale", hs=DEFAULT_HS, example="ex1", mode="iterati
     out.mkdir(parents=True, exist_ok=True)
     rows = []
     start = time.perf_counter()
+    # one untimed process first: it compiles numba's kernels (or loads them from its cache), so that no
+    # measured size pays for that (a fresh install would otherwise put it on the first size)
+    print(f"warm-up: {example} h = {h_label(WARM_UP_H)} (untimed; compiles or loads the kernels) ...", flush=True)
+    run_in_subprocess(example, WARM_UP_H, mode, timeout=timeout)
     for i, h in enumerate(hs, 1):
         print(f"[{i}/{len(hs)}] {example} h = {h_label(h)} mode {mode} ...", flush=True)
         row = run_in_subprocess(example, h, mode, timeout=timeout)
@@ -134,7 +140,8 @@ def _write_markdown(path: Path, rows, example, mode, command, wall) -> None:
     lines = [f"# Scale: Example {example[-1]} with the {mode} x-step, 1e3 to 1e6 unknowns", "",
              f"Produced by `{command}` ({wall:.0f} s in all). SADMM (tau = 2, c_max = 100), rho_0 = 1e3, the paper's "
              "stopping rule (relative change 1e-5 in the energy norm), P1 on the paper's structured mesh. Each size "
-             f"ran in its own process ({_environment()}); `peak` is that process's ru_maxrss (Python, NGSolve and "
+             f"ran in its own process ({_environment()}), after an untimed one at h = {h_label(WARM_UP_H)} that "
+             "compiled or loaded the compiled kernels; `peak` is that process's ru_maxrss (Python, NGSolve and "
              "the solvers included); `estimate` is what the memory check (`admmkit.problems.contact.model.memory.memory_need`) "
              "predicted before anything was assembled. `total` = assembly + setup + SADMM inside the process; "
              "`process` adds the interpreter start and imports (not the accuracy measurements made after the "

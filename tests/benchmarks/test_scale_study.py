@@ -67,5 +67,10 @@ def test_the_child_process_runs_in_the_stated_environment(monkeypatch, tmp_path)
     scale_runs.run_in_subprocess("ex1", 0.5, "iterative")
     assert {k: seen[k] for k in scale_runs.CHILD_ENVIRONMENT} == scale_runs.CHILD_ENVIRONMENT
     assert seen["NUMPY_MADVISE_HUGEPAGE"] == "0" and seen["OMP_NUM_THREADS"] == "1"
-    scale.run_scale_bench(out=tmp_path, hs=(0.5,))
-    assert "`NUMPY_MADVISE_HUGEPAGE=0`" in (tmp_path / "scale.md").read_text()
+    calls = []
+    monkeypatch.setattr(scale, "run_in_subprocess", lambda example, h, mode, timeout=0: calls.append(h) or
+                        scale_runs.run_in_subprocess(example, h, mode, timeout=timeout))
+    rows = scale.run_scale_bench(out=tmp_path, hs=(0.5,))
+    assert calls == [scale.WARM_UP_H, 0.5] and len(rows) == 1     # an untimed warm-up first, not in the table
+    text = (tmp_path / "scale.md").read_text()
+    assert "`NUMPY_MADVISE_HUGEPAGE=0`" in text and "untimed one at h = 1/10" in text
