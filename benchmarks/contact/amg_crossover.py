@@ -29,7 +29,7 @@ from admmkit.figures import pyplot, save_figure
 from admmkit.io import atomic_open, write_text
 
 from admmkit.benchmarks.runner.machine import machine_info
-from admmkit.benchmarks.contact.scale_runs import print_run, run_in_subprocess
+from admmkit.benchmarks.contact.scale_runs import environment_text, print_run, run_in_subprocess
 from admmkit.benchmarks.contact.scale import h_label
 
 DEFAULT_HS = (1 / 20, 1 / 40, 1 / 80, 1 / 160, 1 / 320, 1 / 500)
@@ -131,7 +131,7 @@ def _write(out: Path, rows, reuse, summary, command) -> None:
             w.writerow([r.get(c, "") for c in cols])
     lines = ["# When the iterative x-step wins, and when to reuse the AMG hierarchy", "",
              f"Produced by `{command}`. Example 1 (P1, the paper's mesh), SADMM with rho_0 = 1e3 and the paper's "
-             "stopping rule, every run in its own process with BLAS on one thread. Time = setup + SADMM (the "
+             f"stopping rule, every run in its own process ({environment_text()}). Time = setup + SADMM (the "
              "assembly is common to all modes); peak = the process's ru_maxrss.", "",
              "| h | unknowns | n_c | full (s) | condensed (s) | iterative (s) | fastest | peak full / condensed / "
              "iterative (GB) |", "|---|---:|---:|---:|---:|---:|---|---|"]

@@ -130,18 +130,14 @@ def _slope(rows, key) -> float:
     return sum((x - mx) * (y - my) for x, y in pts) / sum((x - mx) ** 2 for x, _ in pts)
 
 
-def _environment() -> str:
-    """The child processes' environment settings, as the report states them."""
-    return ", ".join(f"`{k}={v}`" for k, v in scale_runs.CHILD_ENVIRONMENT.items())
-
-
 def _write_markdown(path: Path, rows, example, mode, command, wall) -> None:
     info = machine_info()
     lines = [f"# Scale: Example {example[-1]} with the {mode} x-step, 1e3 to 1e6 unknowns", "",
              f"Produced by `{command}` ({wall:.0f} s in all). SADMM (tau = 2, c_max = 100), rho_0 = 1e3, the paper's "
              "stopping rule (relative change 1e-5 in the energy norm), P1 on the paper's structured mesh. Each size "
-             f"ran in its own process ({_environment()}), after an untimed one at h = {h_label(WARM_UP_H)} that "
-             "compiled or loaded the compiled kernels; `peak` is that process's ru_maxrss (Python, NGSolve and "
+             f"ran in its own process ({scale_runs.environment_text()}), after an untimed one at "
+             f"h = {h_label(WARM_UP_H)} that compiled or loaded the compiled kernels; `peak` is that process's ru_maxrss "
+             "(Python, NGSolve and "
              "the solvers included); `estimate` is what the memory check (`admmkit.problems.contact.model.memory.memory_need`) "
              "predicted before anything was assembled. `total` = assembly + setup + SADMM inside the process; "
              "`process` adds the interpreter start and imports (not the accuracy measurements made after the "

@@ -52,6 +52,11 @@ CHILD_ENVIRONMENT = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_N
                      "NUMPY_MADVISE_HUGEPAGE": "0"}
 
 
+def environment_text() -> str:
+    """The child processes' environment settings, as the reports state them."""
+    return ", ".join(f"`{k}={v}`" for k, v in CHILD_ENVIRONMENT.items())
+
+
 def peak_rss_bytes() -> int:
     """Peak resident set size of this process so far (Linux reports ru_maxrss in KiB)."""
     return int(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss) * 1024

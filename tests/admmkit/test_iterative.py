@@ -289,6 +289,7 @@ def test_bench_amg_crossover_writes_modes_and_reuse_tables(tmp_path, in_process,
     from admmkit.cli import main
     assert main(["bench", "amg-crossover", "--quick", "--out", str(tmp_path)]) == 0
     text = (tmp_path / "amg_crossover.md").read_text()
+    assert "`NUMPY_MADVISE_HUGEPAGE=0`" in text          # the child processes' environment, as run_in_subprocess sets it
     assert "| 1/10 | 440 |" in text and "Reusing the hierarchy" in text
     assert (tmp_path / "amg_crossover.png").exists() and (tmp_path / "amg_crossover.csv").exists()
 
