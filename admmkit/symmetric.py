@@ -90,7 +90,11 @@ class SymmetricPattern:
 
     def _gather(self, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The upper triangle's values and the diagonal (0 where none is stored) of values on this pattern."""
-        return values[self.upper], np.where(self.diagonal >= 0, values[np.maximum(self.diagonal, 0)], 0.0)
+        return values[self.upper], self._diagonal_values(values)
+
+    def _diagonal_values(self, values: np.ndarray) -> np.ndarray:
+        """The diagonal of values on this pattern (0 where none is stored)."""
+        return np.where(self.diagonal >= 0, values[np.maximum(self.diagonal, 0)], 0.0)
 
     def pencil_products(self, K_data: np.ndarray, D_data: np.ndarray):
         """rho -> (x -> (K + rho D) x) for K and D given by their values on this pattern.
@@ -215,8 +219,9 @@ def _gather_or_zero(values, positions, out):
 
 
 @njit(cache=True)
-def _diagonal_of(indptr, indices, diagonal):
-    """diagonal[i]: the position of a_ii (the last one stored), or -1."""
+def diagonal_positions(indptr, indices, diagonal):
+    """diagonal[i]: the position of a_ii (the last one stored), or -1, in a CSR pattern (or of the diagonal
+    block in a BSR one)."""
     for i in range(indptr.shape[0] - 1):
         diagonal[_u(i)] = -1
         for k in range(indptr[_u(i)], indptr[_u(i + 1)]):
@@ -251,14 +256,14 @@ class NodePairPattern(SymmetricPattern):
                         self.positions[:4 * self.block_indices.size], pair)
         self.positions[4 * self.block_indices.size:] = pair
         self.diagonal = np.empty(n, dtype=np.int64)
-        _diagonal_of(indptr, pattern.indices, self.diagonal)
+        diagonal_positions(indptr, pattern.indices, self.diagonal)
         self.shape = pattern.shape
 
     def _gather(self, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The layout's values (zeros where the pattern stores nothing) and the diagonal."""
         data = np.empty(self.positions.size, dtype=values.dtype)
         _gather_or_zero(values, self.positions, data)
-        return data, np.where(self.diagonal >= 0, values[np.maximum(self.diagonal, 0)], 0.0)
+        return data, self._diagonal_values(values)
 
     def _apply(self, data: np.ndarray, diagonal: np.ndarray):
         """x -> A x from the layout's values ``data`` and the ``diagonal``."""

@@ -168,8 +168,7 @@ def _stored(M, values) -> _Stored:
 def _inverse_diagonal(indices: np.ndarray, data: np.ndarray, at: np.ndarray, values, checked=False) -> np.ndarray:
     """1 / a_ii in double precision from the values at the diagonal positions ``at``, as stored in ``values``
     (``checked``: ``at`` is known to hold every row's diagonal, as for a pattern checked before)."""
-    rows = np.arange(at.shape[0])
-    if not checked and at.shape[0] and not np.array_equal(indices[np.clip(at, 0, None)], rows):
+    if not checked and at.shape[0] and not np.array_equal(indices[np.clip(at, 0, None)], np.arange(at.shape[0])):
         raise ValueError("every row of an AMG level needs its diagonal entry (the matrix is SPD)")
     return 1.0 / data[at].astype(values).astype(np.float64)
 
@@ -197,8 +196,9 @@ class VCycle:
 
     Built once per hierarchy (rebuild it when the levels' matrices change).
     The levels' A are sorted in place; P is kept in sorted CSR and the
-    restriction R = P' is applied from it (no copy of R); a finest level in
-    node blocks keeps A and P in BSR (``first``, :class:`admmkit.vcycle_blocks.BlockLevel`).  ``values=np.float32``
+    restriction R = P' is applied from it (no copy of R); a level in node
+    blocks keeps A and P in BSR instead (``block[lvl]``: :class:`admmkit.vcycle_blocks.BlockLevel` on the
+    finest level, :class:`admmkit.vcycle_blocks3.BlockLevel3` below; ``first``: the former).  ``values=np.float32``
     keeps a single-precision copy of their values for the cycle (the indices
     shared): a third less memory traffic per stored entry, the arithmetic
     still in double precision.  The cycle is then exactly the V-cycle of the

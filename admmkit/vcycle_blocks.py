@@ -24,6 +24,7 @@ from numba import njit, prange
 
 from .compiled import _u
 from .kernel_threads import kernel_threads
+from .symmetric import diagonal_positions
 
 
 # ---------------------------------------------------------------- rows of a 2 x 2 block row
@@ -170,18 +171,6 @@ def _block_values(indptr, indices, data, block_indptr, block_indices, out, full)
                 out[_u(4 * k + 2 * r + (j & 1))] = data[_u(jj)]
 
 
-@njit(cache=True)
-def _block_diagonal(indptr, indices):
-    """The position of the diagonal block in each block row (-1 if none)."""
-    nb = indptr.shape[0] - 1
-    out = np.full(nb, -1, dtype=np.int64)
-    for I in range(nb):
-        for k in range(indptr[_u(I)], indptr[_u(I + 1)]):
-            if indices[_u(k)] == I:
-                out[_u(I)] = k
-    return out
-
-
 # ---------------------------------------------------------------- the level
 class BlockLevel:
     """The finest level's A in 2 x 2 blocks and P in 2 x 3 blocks, values in ``values`` precision.
@@ -203,7 +192,8 @@ class BlockLevel:
             blocks.sort_indices()
             self.indptr = np.asarray(blocks.indptr, dtype=np.int64)
             self.indices = blocks.indices
-            self.block_diagonal = _block_diagonal(self.indptr, self.indices)
+            self.block_diagonal = np.empty(self.indptr.size - 1, dtype=np.int64)
+            diagonal_positions(self.indptr, self.indices, self.block_diagonal)   # of the blocks (I, I)
             Pb = sp.bsr_matrix(P)
             Pb.sort_indices()
             self.P_indptr, self.P_indices = np.asarray(Pb.indptr, dtype=np.int64), Pb.indices
