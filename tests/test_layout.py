@@ -1,4 +1,4 @@
-"""The layout: one import name, imports that point one way, no import circle, small modules.
+"""The layout: one import name, imports that point one way, no import circle.
 
 The repository keeps four folders side by side (``admmkit/``, ``policies/``,
 ``problems/``, ``benchmarks/``); the last three are the subpackages
@@ -17,9 +17,6 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1]
 LAYERS = ["admmkit", "policies", "problems", "benchmarks"]   # each may import only those before it
 SUBPACKAGES = LAYERS[1:]
-#: modules allowed over MAX_LINES, each with the one job that needs the length
-LONG_MODULES: dict[str, str] = {}
-MAX_LINES = 300
 
 
 def layer_files(layer: str) -> list[Path]:
@@ -191,42 +188,3 @@ def test_studies_with_their_own_options_answer_help_and_bad_options(study, capsy
     assert main(["bench", study, "--help"]) == 0
     assert "--out" in capsys.readouterr().out
     assert main(["bench", study, "--no-such-option"]) == 2
-
-
-@pytest.mark.parametrize("layer", LAYERS)
-def test_no_module_over_300_lines(layer):
-    long = {str(p.relative_to(ROOT)): n for p in layer_files(layer)
-            if (n := len(p.read_text().splitlines())) > MAX_LINES and str(p.relative_to(ROOT)) not in LONG_MODULES}
-    assert long == {}
-
-
-def unit_of(module: str) -> str:
-    """The unit an arrow is drawn between: the core, or a subpackage one level below a layer."""
-    parts = module.split(".")
-    if len(parts) < 2 or parts[1] not in SUBPACKAGES:
-        return "admmkit (core)"
-    return ".".join(parts[1:3]) if len(parts) > 2 and (ROOT / parts[1] / parts[2]).is_dir() else parts[1]
-
-
-def arrows() -> str:
-    """The import arrows between units, drawn from the code: one line per unit, the units it imports."""
-    edges: dict[str, set[str]] = {}
-    for name, deps in import_graph().items():
-        src = unit_of(name)
-        edges.setdefault(src, set())
-        edges[src] |= {unit_of(d) for d in deps} - {src}
-    order = ["admmkit (core)", "policies", "problems", "benchmarks"]
-    key = lambda u: (next(i for i, o in enumerate(order) if u.startswith(o.split()[0])), u)  # noqa: E731
-    return "\n".join(f"{u:<24} -> {', '.join(sorted(edges[u], key=key)) or '(nothing of admmkit)'}"
-                     for u in sorted(edges, key=key))
-
-
-def test_the_arrows_in_docs_layout_are_those_of_the_code():
-    """docs/layout.md shows :func:`arrows` between its markers (regenerate: ``python tests/test_layout.py``)."""
-    text = (ROOT / "docs" / "layout.md").read_text()
-    block = text.split("<!-- arrows: begin -->")[1].split("<!-- arrows: end -->")[0]
-    assert block.strip().strip("`").strip() == arrows().strip()
-
-
-if __name__ == "__main__":
-    print(arrows())
