@@ -14,18 +14,37 @@ string is found through the entry-point group ``admmkit.policies``).
 from ._layout import map_source_tree
 
 map_source_tree(__path__[0])   # a source checkout resolves admmkit.policies etc. as the installed package does
-from . import prox
 from .history import History
-from .operators import LinearMap
 from .policy import Policy, make_policy, policy_names, register_policy
 from .problem import Problem
 from .record import IterationRecord
 from .result import Result, Status
 from .solver import solve
-from .split import SplitProblem
 from .balanced_stop import BalancedStop
 from .stopping import AllOf, AnyOf, RelativeChange, ResidualTolerance, Stop, StoppingRule, default_stop
-from .xstep import QuadraticXStep
+
+#: the building blocks, imported on first use: they bring scipy.sparse, which the loop does not need
+#: (``import admmkit`` then costs numpy and the loop only; issue #49)
+_ON_DEMAND = {"LinearMap": ("operators", "LinearMap"), "QuadraticXStep": ("xstep", "QuadraticXStep"),
+              "SplitProblem": ("split", "SplitProblem"), "prox": ("prox", None)}
+
+
+def __getattr__(name: str):
+    """``admmkit.LinearMap``, ``admmkit.QuadraticXStep``, ``admmkit.SplitProblem``, ``admmkit.prox``: loaded on first use."""
+    if name not in _ON_DEMAND:
+        raise AttributeError(f"module 'admmkit' has no attribute {name!r}")
+    import importlib
+    module_name, attr = _ON_DEMAND[name]
+    module = importlib.import_module(f"{__name__}.{module_name}")
+    value = module if attr is None else getattr(module, attr)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    """The module's names, the on-demand building blocks included."""
+    return sorted({*globals(), *_ON_DEMAND})
+
 
 __version__ = "0.1.0"
 
