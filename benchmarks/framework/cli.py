@@ -42,3 +42,8 @@ four_problems = own_parser("four-problems", "admmkit.benchmarks.framework.four_p
 
 split_speed = own_parser("split-speed", "admmkit.benchmarks.framework.split_segment_speed",
                          "time per iteration of the building blocks, compiled segment against the Python loop")
+
+
+first_call = own_parser("first-call", "admmkit.benchmarks.framework.first_call",
+                        "fresh processes side by side with OSQP: import, first solve (cached and empty kernel "
+                        "cache), the cvxpy route, --help, a whole solve contact")
