@@ -29,7 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from admmkit.cli_output import jsonable, provenance, result_record
-from admmkit.io import atomic_path, write_text
+from admmkit.io import atomic_path, is_stream, write_text
 
 #: VTU cell types by (dimension, polynomial order); order 2 uses the points at the edge midpoints
 CELL_TYPES = {(2, 1): "triangle", (2, 2): "triangle6", (3, 1): "tetra", (3, 2): "tetra10"}
@@ -181,8 +181,8 @@ def write_vtu(path: str | Path, ops, u_free: np.ndarray, boundary: dict[str, np.
     """
     import meshio
     path = Path(path)
-    if path.suffix != ".vtu":
-        path = path.with_name(path.name + ".vtu")
+    if path.suffix.lower() != ".vtu" and not is_stream(path):
+        path = path.with_name(path.name + ".vtu")       # the Python API's stem (the CLI refuses other names)
     points, cell_type, elements = mesh_points(ops)
     data = {"displacement": point_displacement(ops, u_free)}
     if boundary:
