@@ -160,12 +160,14 @@ def check_outputs(args) -> None:
     seen = {}
     for flag, value, extensions in output_options(args):
         check_writable(value, flag)
+        if flag == "--vtk" and writes_levels(args):
+            check_level_base(value)                  # a base name: FILE_level<k>.vtu are written, not FILE itself
+            continue
         check_extension(flag, value, extensions)
         key = str(resolved(value))
         if key in seen:
             raise ValueError(same_file_message(*seen[key], flag, value, key))
         seen[key] = (flag, value)
-    check_level_files(args)
     if isinstance(getattr(args, "out", None), str):
         check_output_folder(args.out, "--out")
 
@@ -197,19 +199,24 @@ def same_file_message(flag_a: str, value_a: str, flag_b: str, value_b: str, targ
             f"give each output its own file")
 
 
-def check_level_files(args) -> None:
-    """With ``--target-error``, ``--vtk FILE.vtu`` names one file per level (:func:`level_file`): not a stream."""
+def writes_levels(args) -> bool:
+    """True if ``--vtk`` names one file per level: ``--target-error`` was given (docs/obstacle.md, docs/contact.md)."""
+    return bool(getattr(args, "vtk", None)) and getattr(args, "target_error", None) is not None
+
+
+def check_level_base(value: str) -> None:
+    """Refuse a ``--vtk`` base name that cannot take ``_level<k>.vtu``: a stream, or another extension than .vtu."""
     from .io import is_stream
-    vtk = getattr(args, "vtk", None)
-    if vtk and getattr(args, "target_error", None) is not None and is_stream(vtk):
-        raise ValueError(f"--vtk {vtk!r}: with --target-error, --vtk writes one file per level (FILE_level<k>.vtu); "
-                         f"give a file name ending in .vtu, not a stream")
+    if is_stream(value) or Path(value).suffix.lower() not in ("", ".vtu"):
+        raise ValueError(f"--vtk {value!r}: with --target-error, --vtk writes one file per level, FILE_level<k>.vtu; "
+                         f"give FILE or FILE.vtu")
 
 
-def level_file(path: str | Path, k: int) -> Path:
-    """The VTU file of level ``k`` beside ``path`` (``out/u.vtu`` -> ``out/u_level3.vtu``)."""
-    path = Path(path)
-    return path.with_name(f"{path.stem}_level{k}{path.suffix or '.vtu'}")
+def level_file(base: str | Path, k: int) -> Path:
+    """The VTU file of level ``k`` for the ``--vtk`` name ``base``: ``out/u`` or ``out/u.vtu`` -> ``out/u_level3.vtu``."""
+    base = Path(base)
+    stem = base.name[:-4] if base.name.lower().endswith(".vtu") else base.name
+    return base.with_name(f"{stem}_level{k}.vtu")
 
 
 def resolve_policy(args) -> tuple[str, object, str]:
