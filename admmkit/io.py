@@ -123,8 +123,11 @@ def atomic_path(path: str | Path) -> Iterator[Path]:
     path = Path(path)
     stream = kind in ("stdout", "stream")
     target = path if stream else resolved(path)
-    fd, tmp = tempfile.mkstemp(prefix=f".{target.stem}.", suffix=target.suffix or ".tmp",
-                               dir=None if stream else target.parent)
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{target.stem}.", suffix=target.suffix or ".tmp",
+                                   dir=None if stream else target.parent)
+    except OSError as err:          # a folder gone since the check, or full
+        raise named_os_error(err, path) from err
     os.close(fd)
     tmp = Path(tmp)
     try:

@@ -208,3 +208,10 @@ def test_target_error_vtk_is_a_base_name(name, needle, tmp_path, capsys, monkeyp
     monkeypatch.chdir(tmp_path)
     refused([*ADAPTIVE, "--vtk", name], capsys, f"--vtk '{name}'", needle)
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_folder_gone_before_the_write_is_named(tmp_path):
+    """The temporary file cannot be made: the error names the file asked for, not the temporary one."""
+    target = tmp_path / "gone" / "r.json"
+    with pytest.raises(OSError, match=f"could not write {target}"):
+        aio.write_text(target, "{}")
