@@ -177,7 +177,8 @@ def write_vtu(path: str | Path, ops, u_free: np.ndarray, boundary: dict[str, np.
     per element, e.g. error indicators) as a VTU file.
 
     Written with meshio in double precision, whole or not at all (a temporary
-    file renamed into place).  Returns the path (``.vtu`` appended if missing).
+    file renamed into place).  Returns the path (``.vtu`` appended to a file name without it; a stream, see
+    :mod:`admmkit.io`, keeps its name).
     """
     import meshio
     path = Path(path)
