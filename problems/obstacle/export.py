@@ -12,7 +12,8 @@ from .estimate import zz
 
 def write_vtu(path, problem, u: np.ndarray, indicators: np.ndarray) -> Path:
     """Write the P1 solution (u on the free nodes, u_D on the boundary) and one indicator per triangle, whole or
-    not at all; returns the path (``.vtu`` appended to a file name without it; a stream, see admmkit.io, keeps its name)."""
+    not at all; returns the path (``.vtu`` appended to a file name without it; a stream, see admmkit.io, keeps
+    its name)."""
     import meshio
     path = Path(path)
     if path.suffix.lower() != ".vtu" and not is_stream(path):
