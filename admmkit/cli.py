@@ -118,15 +118,18 @@ def add_stop_options(parser: argparse.ArgumentParser, *, max_iter: int = 10_000)
     parser.add_argument("-q", "--quiet", action="store_true", help="no progress bar or lines (the summary stays)")
 
 
-def add_output_file(parser: argparse.ArgumentParser, flag: str, metavar: str, help: str, suffix: str = "") -> None:
-    """Add an output-file option that :func:`main` checks before any work (folder exists and is writable).
+def add_output_file(parser: argparse.ArgumentParser, flag: str, metavar: str, help: str,
+                    extensions: tuple[str, ...] = ()) -> None:
+    """Add an output-file option that :func:`check_outputs` checks before any work (docs/cli.md, "Output files").
 
-    ``suffix`` is appended when the name lacks it (``--vtk out/u`` writes ``out/u.vtu``).
+    ``extensions``: the endings a file name must have (``(".vtu",)`` for
+    ``--vtk``), checked and never appended: the file is written under the
+    name given.  Empty: any name.
     """
     parser.add_argument(flag, metavar=metavar, default=None, help=help)
     dest = flag.lstrip("-").replace("-", "_")
     files = dict(parser.get_default("output_files") or {})
-    files[dest] = (flag, suffix)
+    files[dest] = (flag, tuple(extensions))
     parser.set_defaults(output_files=files)
 
 
@@ -134,12 +137,6 @@ def add_result_outputs(parser: argparse.ArgumentParser, json_help: str, csv_help
     """``--json FILE`` and ``--csv FILE``, the same two names in every ``solve``."""
     add_output_file(parser, "--json", "FILE", json_help)
     add_output_file(parser, "--csv", "FILE", csv_help)
-
-
-def output_path(value: str, suffix: str = "") -> Path:
-    """The file an output option writes (``suffix`` appended when missing)."""
-    path = Path(value)
-    return path if not suffix or path.suffix == suffix else path.with_name(path.name + suffix)
 
 
 def check_options(args) -> None:
@@ -151,13 +148,75 @@ def check_options(args) -> None:
 
 
 def check_outputs(args) -> None:
-    """Refuse output files whose folder is missing or read-only, or that are folders, and a ``--out`` that is a file."""
-    for dest, (flag, suffix) in (getattr(args, "output_files", None) or {}).items():
-        value = getattr(args, dest, None)
-        if value:
-            check_writable(output_path(value, suffix), flag)
+    """Refuse, before any work, every output file that cannot be written as asked (docs/cli.md, "Output files").
+
+    Each path must pass :func:`admmkit.io.check_writable` (not empty, not a
+    folder, its folder existing and writable), a file name must end in one of
+    its option's extensions, and no two options may name the same file
+    (compared after following symbolic links; ``-`` is standard output).
+    A ``--out`` folder must not be a file.
+    """
+    from .io import resolved
+    seen = {}
+    for flag, value, extensions in output_options(args):
+        check_writable(value, flag)
+        if flag == "--vtk" and writes_levels(args):
+            check_level_base(value)                  # a base name: FILE_level<k>.vtu are written, not FILE itself
+            continue
+        check_extension(flag, value, extensions)
+        key = str(resolved(value))
+        if key in seen:
+            raise ValueError(same_file_message(*seen[key], flag, value, key))
+        seen[key] = (flag, value)
     if isinstance(getattr(args, "out", None), str):
         check_output_folder(args.out, "--out")
+
+
+def output_options(args) -> list[tuple[str, str, tuple[str, ...]]]:
+    """(flag, path, accepted extensions) of every output-file option given (:func:`add_output_file`)."""
+    given = []
+    for dest, (flag, extensions) in (getattr(args, "output_files", None) or {}).items():
+        value = getattr(args, dest, None)
+        if value is not None:
+            given.append((flag, str(value), (extensions,) if isinstance(extensions, str) and extensions
+                          else tuple(extensions or ())))
+    return given
+
+
+def check_extension(flag: str, value: str, extensions: tuple[str, ...]) -> None:
+    """Refuse a file name without one of ``extensions`` (a stream, ``-`` or a FIFO, takes any name)."""
+    from .io import is_stream
+    if extensions and value and not is_stream(value) and Path(value).suffix.lower() not in extensions:
+        raise ValueError(f"{flag} {value!r}: give a file name ending in {' or '.join(extensions)} "
+                         f"(the file is written under the name given, never renamed)")
+
+
+def same_file_message(flag_a: str, value_a: str, flag_b: str, value_b: str, target: str) -> str:
+    """One line naming both options that name one file."""
+    if value_a == value_b:
+        return f"{flag_a} and {flag_b} name the same file {value_a!r}; give each output its own file"
+    return (f"{flag_a} {value_a!r} and {flag_b} {value_b!r} name the same file {target!r}; "
+            f"give each output its own file")
+
+
+def writes_levels(args) -> bool:
+    """True if ``--vtk`` names one file per level: ``--target-error`` was given (docs/obstacle.md, docs/contact.md)."""
+    return bool(getattr(args, "vtk", None)) and getattr(args, "target_error", None) is not None
+
+
+def check_level_base(value: str) -> None:
+    """Refuse a ``--vtk`` base name that cannot take ``_level<k>.vtu``: a stream, or another extension than .vtu."""
+    from .io import is_stream
+    if is_stream(value) or Path(value).suffix.lower() not in ("", ".vtu"):
+        raise ValueError(f"--vtk {value!r}: with --target-error, --vtk writes one file per level, FILE_level<k>.vtu; "
+                         f"give FILE or FILE.vtu")
+
+
+def level_file(base: str | Path, k: int) -> Path:
+    """The VTU file of level ``k`` for the ``--vtk`` name ``base``: ``out/u`` or ``out/u.vtu`` -> ``out/u_level3.vtu``."""
+    base = Path(base)
+    stem = base.name[:-4] if base.name.lower().endswith(".vtu") else base.name
+    return base.with_name(f"{stem}_level{k}.vtu")
 
 
 def resolve_policy(args) -> tuple[str, object, str]:

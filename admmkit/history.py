@@ -88,7 +88,11 @@ class History:
         return out
 
     def to_csv(self, path: str | Path) -> Path:
-        """Write the history as CSV (header row, one row per iteration) and return the path."""
+        """Write the history as CSV (header row, one row per iteration) and return the path.
+
+        Written by :mod:`admmkit.io`: whole or not at all, a symbolic link's target replaced, a FIFO or ``-``
+        (standard output) written into (docs/cli.md, "Output files").
+        """
         path = Path(path)
         with atomic_open(path, "w", newline="") as fh:     # whole or not at all (admmkit/io.py)
             writer = csv.writer(fh)

@@ -34,6 +34,8 @@ from pathlib import Path
 
 import numpy as np
 
+from admmkit.io import atomic_open, atomic_path, write_text
+
 HC_FACTORS = (5, 10, 20)       # h_c = a_target / factor
 RHO_SCALES = tuple(10.0 ** k for k in range(-4, 5))
 
@@ -122,7 +124,7 @@ def stability_study(h: float, scales, max_iter: int) -> list[dict]:
 
 
 def _write_csv(path: Path, rows: list[dict]) -> None:
-    with open(path, "w", newline="") as fh:
+    with atomic_open(path, "w", newline="") as fh:       # whole or not at all (admmkit/io.py)
         w = csv.DictWriter(fh, fieldnames=list(rows[0]))
         w.writeheader()
         for r in rows:
@@ -159,7 +161,8 @@ def _figures(out: Path, rows: list[dict], finest: dict, stab: list[dict], scales
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8, loc="upper right")
     fig.tight_layout()
-    fig.savefig(out / "cattaneo_traction.png", dpi=130)
+    with atomic_path(out / "cattaneo_traction.png") as tmp:
+        fig.savefig(tmp, dpi=130, format="png")
     plt.close(fig)
 
     fig, ax = plt.subplots(figsize=(6, 4))
@@ -172,7 +175,8 @@ def _figures(out: Path, rows: list[dict], finest: dict, stab: list[dict], scales
     ax.grid(alpha=0.3, which="both")
     ax.legend(fontsize=8)
     fig.tight_layout()
-    fig.savefig(out / "cattaneo_errors.png", dpi=130)
+    with atomic_path(out / "cattaneo_errors.png") as tmp:
+        fig.savefig(tmp, dpi=130, format="png")
     plt.close(fig)
 
     scenes = sorted({r["scene"] for r in stab})
@@ -192,7 +196,8 @@ def _figures(out: Path, rows: list[dict], finest: dict, stab: list[dict], scales
         ax.set(title=f"{name}: ADMM iterations (x = failed)", xlabel="rho_0 / E")
         fig.colorbar(im, ax=ax, label="log10 iterations")
     fig.tight_layout()
-    fig.savefig(out / "stability.png", dpi=130)
+    with atomic_path(out / "stability.png") as tmp:
+        fig.savefig(tmp, dpi=130, format="png")
     plt.close(fig)
 
 
@@ -231,7 +236,7 @@ def _readme(out: Path, argv: list[str], rows, stab, seconds: float, args) -> Non
             med = int(np.median([r["iterations"] for r in ok])) if ok else "-"
             lines.append(f"| {name} | {method} | {len(ok)}/{len(rs)} | {fails or '-'} | {med} |")
     lines += ["", "![stability](stability.png)", ""]
-    (out / "README.md").write_text("\n".join(lines))
+    write_text(out / "README.md", "\n".join(lines))
 
 
 def main(argv=None, prog: str = "admmkit bench friction") -> int:

@@ -48,12 +48,13 @@ def register(subparsers) -> None:
                        csv_help="write the contact-boundary table x, y, u_n, g, gap, lam, p, active "
                                 "(with friction also q, slip, s, zone)")
     add_output_file(p, "--plot", "FILE.png", "write the deformed body and the pressure/gap plot "
-                    "(with friction also the tangential traction and the stick/slip zones; 2D scenes only)")
+                    "(with friction also the tangential traction and the stick/slip zones; 2D scenes only)",
+                    extensions=(".png",))
     p.add_argument("--magnify", type=positive_float, default=None,
                    help="displacement magnification in --plot (default 10 for ex1, 20 otherwise)")
     add_output_file(p, "--vtk", "FILE.vtu", "write a VTU file for ParaView and meshio: displacement at the "
                     "mesh vertices, contact pressure, gap and status on Gamma_C (with friction also the "
-                    "tangential traction, slip and stick/slip zone)", suffix=".vtu")
+                    "tangential traction, slip and stick/slip zone)", extensions=(".vtu",))
     p.set_defaults(func=run)
 
 

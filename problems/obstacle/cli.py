@@ -3,8 +3,8 @@ from __future__ import annotations
 
 from admmkit import policies  # noqa: F401  (registers the rules the --policy option offers)
 from admmkit.cli_adaptive import adaptive_options, add_adaptive_options, balance_gamma, balance_line, estimator_name
-from admmkit.cli import (add_common_options, add_output_file, add_result_outputs, exit_code, positive_float,
-                         run_solve, write_result_csv, write_result_json)
+from admmkit.cli import (add_common_options, add_output_file, add_result_outputs, exit_code, level_file,
+                         positive_float, run_solve, write_result_csv, write_result_json)
 from admmkit.policies.paper_methods import PAPER_METHODS
 
 from .estimate import OBSTACLE_GAMMA, BalancedStop
@@ -30,9 +30,9 @@ def register(subparsers) -> None:
                    help=f"sparse solver of K + rho M, iterative for AMG-preconditioned CG, or jacobi for "
                         f"Jacobi-preconditioned CG with a factorisation where CG is dear (default {DEFAULT_BACKEND}; "
                         f"{ADAPTIVE_BACKEND} with --target-error in P1)")
-    add_output_file(p, "--plot", "FILE", "write a plot of u, psi and the contact set (PNG)")
+    add_output_file(p, "--plot", "FILE.png", "write a plot of u, psi and the contact set (PNG)", extensions=(".png",))
     add_output_file(p, "--vtk", "FILE.vtu", "write u, psi, the contact set and the --estimator's indicator per triangle as VTU "
-                    "(with --target-error one file per level, FILE_level<k>.vtu)", suffix=".vtu")
+                    "(with --target-error one file per level, FILE_level<k>.vtu)", extensions=(".vtu",))
     add_adaptive_options(p, max_levels=30, gamma=OBSTACLE_GAMMA, default_stop=True)    # --balance, --target-error
     add_common_options(p, policy="summable", order="zx", methods=PAPER_METHODS)
     add_result_outputs(p, json_help="write the run (provenance, scene, summary, errors, u on the free nodes) as JSON",
@@ -114,8 +114,7 @@ def run_adaptive(args) -> int:
     def show(level, out):
         if args.vtk:
             from .export import write_vtu
-            stem = args.vtk[:-4] if args.vtk.endswith(".vtu") else args.vtk
-            files.append(write_vtu(f"{stem}_level{show.k}.vtu", out.model, out.result.z, out.indicators))
+            files.append(write_vtu(level_file(args.vtk, show.k), out.model, out.result.z, out.indicators))
         err = f"{level.errors['H1_semi']:.3e}" if level.errors else "-"
         print(f"{show.k:5d} {level.cells:8d} {level.unknowns:9d}  {level.estimate:.3e}  {level.relative_estimate:12.3e}"
               f"  {err:>13s}  {level.iterations:10d}  {level.seconds:7.2f}  {level.status}", flush=True)

@@ -5,18 +5,19 @@ from pathlib import Path
 
 import numpy as np
 
-from admmkit.io import atomic_path
+from admmkit.io import atomic_path, is_stream
 
 from .estimate import zz
 
 
 def write_vtu(path, problem, u: np.ndarray, indicators: np.ndarray) -> Path:
     """Write the P1 solution (u on the free nodes, u_D on the boundary) and one indicator per triangle, whole or
-    not at all; returns the path (``.vtu`` appended if missing)."""
+    not at all; returns the path (``.vtu`` appended to a file name without it; a stream, see admmkit.io, keeps
+    its name)."""
     import meshio
     path = Path(path)
-    if path.suffix != ".vtu":
-        path = path.with_name(path.name + ".vtu")
+    if path.suffix.lower() != ".vtu" and not is_stream(path):
+        path = path.with_name(path.name + ".vtu")       # the Python API's stem (the CLI refuses other names)
     triangles = zz(problem).tri
     if np.shape(indicators) != (len(triangles),):
         raise ValueError(f"indicators must have one value per triangle ({len(triangles)}), "

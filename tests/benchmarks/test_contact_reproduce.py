@@ -13,7 +13,7 @@ from admmkit.problems.contact.output.plot import vertex_displacement
 
 
 def test_solve_contact_writes_files(tmp_path, capsys):
-    j, c, p, v = tmp_path / "u.json", tmp_path / "gc.csv", tmp_path / "fig.png", tmp_path / "disp"
+    j, c, p, v = tmp_path / "u.json", tmp_path / "gc.csv", tmp_path / "fig.png", tmp_path / "disp.vtu"
     rc = main(["solve", "contact", "--scene", "ex1", "--h", "1/10", "--policy", "sadmm", "--rho", "1e3",
                "--json", str(j), "--csv", str(c), "--plot", str(p), "--vtk", str(v)])
     out = capsys.readouterr().out
@@ -27,7 +27,7 @@ def test_solve_contact_writes_files(tmp_path, capsys):
     rows = list(csv.DictReader(c.open()))
     assert len(rows) == 20 and set(rows[0]) >= {"x", "u_n", "g", "lam"}
     assert p.stat().st_size > 10_000
-    assert (tmp_path / "disp.vtu").exists()
+    assert v.exists()
 
 
 @pytest.mark.parametrize("args, needle", [

@@ -49,7 +49,7 @@ def check_vtu(path, ops, r, n_points, cell_type):
 
 def test_solve_contact_vtu_has_shared_vertices_and_boundary_arrays(tmp_path, capsys):
     v, j = tmp_path / "u.vtu", tmp_path / "u.json"
-    assert main(["solve", "contact", "--scene", "ex1", "--h", "1/10", "--vtk", str(tmp_path / "u"),
+    assert main(["solve", "contact", "--scene", "ex1", "--h", "1/10", "--vtk", str(v),
                  "--json", str(j)]) == 0
     out = capsys.readouterr().out
     sol = solve_scene(example1(1 / 10), "sadmm", 1e3)

@@ -65,10 +65,8 @@ def run_adaptive(args, scene, method_name: str) -> int:
 def _level_vtu(base: str, k: int, out):
     """FILE_level<k>.vtu: displacement, contact fields and the indicator of level k (zz_indicator: whichever
     --estimator marked)."""
-    from pathlib import Path
+    from admmkit.cli import level_file
     from admmkit.problems.contact.output.export import boundary_fields, vtu_fields, write_vtu
-    path = Path(base)
-    stem = path.name[:-4] if path.name.endswith(".vtu") else path.name
     ops, res = out.model, out.result
     fields = vtu_fields(ops, boundary_fields(ops, res.x, res.lam, res.z))
-    return write_vtu(path.with_name(f"{stem}_level{k}.vtu"), ops, res.x, fields, cells={"zz_indicator": out.indicators})
+    return write_vtu(level_file(base, k), ops, res.x, fields, cells={"zz_indicator": out.indicators})

@@ -29,7 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from admmkit.cli_output import jsonable, provenance, result_record
-from admmkit.io import atomic_path, write_text
+from admmkit.io import atomic_path, is_stream, write_text
 
 #: VTU cell types by (dimension, polynomial order); order 2 uses the points at the edge midpoints
 CELL_TYPES = {(2, 1): "triangle", (2, 2): "triangle6", (3, 1): "tetra", (3, 2): "tetra10"}
@@ -177,12 +177,13 @@ def write_vtu(path: str | Path, ops, u_free: np.ndarray, boundary: dict[str, np.
     per element, e.g. error indicators) as a VTU file.
 
     Written with meshio in double precision, whole or not at all (a temporary
-    file renamed into place).  Returns the path (``.vtu`` appended if missing).
+    file renamed into place).  Returns the path (``.vtu`` appended to a file name without it; a stream, see
+    :mod:`admmkit.io`, keeps its name).
     """
     import meshio
     path = Path(path)
-    if path.suffix != ".vtu":
-        path = path.with_name(path.name + ".vtu")
+    if path.suffix.lower() != ".vtu" and not is_stream(path):
+        path = path.with_name(path.name + ".vtu")       # the Python API's stem (the CLI refuses other names)
     points, cell_type, elements = mesh_points(ops)
     data = {"displacement": point_displacement(ops, u_free)}
     if boundary:
