@@ -139,7 +139,7 @@ class Scene:
     def exact_coefficients(self) -> tuple[ng.CoefficientFunction, ng.CoefficientFunction]:
         """The exact solution u and its gradient as NGSolve coefficient functions (for the errors).
 
-        The radial scene's :func:`radial_exact` has its written-out pair (:func:`radial_exact_cf`); any other
+        The radial scene's :func:`radial_exact` has its written-out pair (``radial_exact_cf``); any other
         exact solution is evaluated on ``ngsolve.x``, ``ngsolve.y`` and differentiated by NGSolve (``Diff``).
         ValueError if the scene has none, or if it cannot be evaluated so (a callable using ``np.where``, say).
         """
