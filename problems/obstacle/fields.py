@@ -46,6 +46,10 @@ class Expression:
     def __repr__(self) -> str:
         return repr(self.text)
 
+    def __reduce__(self):
+        """Pickled as its text (a scene sent to a worker process is read again there)."""
+        return Expression, (self.text,)
+
 
 def field(text: str) -> Expression:
     """An expression string in x and y read into a field g(x, y) (:class:`Expression`)."""

@@ -1,6 +1,7 @@
 """Obstacle scenes of one's own: errors against the scene's own exact solution, scene files (TOML), and the
 command line's refusals of inputs it used to accept or misreport (issue #46 item 5)."""
 import math
+import pickle
 import re
 from pathlib import Path
 
@@ -107,6 +108,8 @@ def test_an_expression_gives_the_same_values_on_arrays_and_as_a_coefficient_func
     on_cf = [g(ng.x, ng.y)(mesh(a, b)) for a, b in zip(x, y)]
     assert np.allclose(g(x, y), on_cf, rtol=1e-14, atol=0)
     assert repr(g) == repr(g.text)
+    copy = pickle.loads(pickle.dumps(g))                  # a scene sent to a worker process
+    assert copy.text == g.text and np.array_equal(copy(x, y), g(x, y))
 
 
 @pytest.mark.parametrize("text, match", [("x +* 2", "not valid Python syntax"),
