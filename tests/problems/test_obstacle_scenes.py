@@ -268,7 +268,7 @@ def test_cli_refuses_what_it_used_to_ignore_or_misreport(args, match, capsys):
 @pytest.mark.parametrize("h", ["0", "-1", "1/0", "abc"])
 def test_cli_h_outside_the_numbers_is_argparses_error_naming_h(h, capsys):
     assert main(["solve", "obstacle", "--h", h]) == 2
-    assert f"argument --h: expected a" in capsys.readouterr().err
+    assert "argument --h: expected a" in capsys.readouterr().err
 
 
 def test_cli_h_at_the_edge_of_the_range_solves(capsys):
