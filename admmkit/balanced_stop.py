@@ -160,7 +160,7 @@ class BalancedStop(StoppingRule):
         if last is not None and 0.0 < bound < last[1]:
             q = (bound / last[1]) ** (1.0 / (n - last[0]))                  # decrease per iteration, < 1
             ratio = bound / (self.gamma * self.discretisation)                  # > 1: it did not fire
-            if 1.0 < ratio < math.inf:
+            if 1.0 < ratio < math.inf and q < 1.0:                              # q rounds to 1: no prediction
                 predicted = math.log(ratio) / -math.log(q)
                 steps, self.converging = min(self.every, max(1, int(predicted))), predicted <= self.every
         if bound <= self.near * self.gamma * self.discretisation:

@@ -7,6 +7,7 @@ from .discrete import make_problem
 from .p2 import ObstacleProblemP2
 from .problem import ObstacleProblem, build_mesh, solve_with_cvxpy
 from .scene import A_STAR, SCENES, Scene, pyramid, radial, radial_exact, radial_psi, scene
+from .scene_file import known_scenes, load_scene
 
 __all__ = ["Scene", "ObstacleProblem", "ObstacleProblemP2", "make_problem", "build_mesh", "solve_with_cvxpy", "scene", "radial",
-           "pyramid", "radial_exact", "radial_psi", "SCENES", "A_STAR"]
+           "pyramid", "radial_exact", "radial_psi", "SCENES", "A_STAR", "load_scene", "known_scenes"]

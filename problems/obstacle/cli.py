@@ -12,17 +12,23 @@ from .plot import plot_solution
 from .discrete import make_problem
 from .problem import DEFAULT_BACKEND
 from .xstep import ADAPTIVE_BACKEND
-from .scene import A_STAR, SCENES, scene as named_scene
+from .scene import A_STAR, SCENES, has_radial_exact, max_h
+from .scene_file import known_scenes, load_scene
+
+#: the defaults of the adaptive loop's options, which need --target-error (the parser leaves them None)
+ADAPTIVE_DEFAULTS = {"theta": 0.5, "max_levels": 30, "max_unknowns": 2_000_000}
 
 
 def register(subparsers) -> None:
     """Register ``solve obstacle``."""
     p = subparsers.add_parser("obstacle", help="-Delta u = f, u >= psi, u = u_D (P1 or P2, NGSolve)")
     p.add_argument("--scene", default="radial",
-                   help=f"named scene: {', '.join(SCENES)} (default radial)")
+                   help=f"a scene by name ({', '.join(SCENES)} built in; --list-scenes for all) or the path of a "
+                        f"TOML scene file (docs/obstacle.md, 'Your own obstacle'; default radial)")
+    p.add_argument("--list-scenes", action="store_true", help="list the scenes known by name and exit")
     p.add_argument("--h", type=positive_float, default=None,
-                   help="cell size, fractions allowed (default 1/16; with --target-error the first level's, default "
-                        "a fifth of the box's shorter side)")
+                   help="cell size, fractions allowed (default: 1/16 for a built-in scene, a file's own h; with "
+                        "--target-error the first level's, default a fifth of the box's shorter side)")
     p.add_argument("--fe-order", type=int, choices=(1, 2), default=None,
                    help="P1 or P2 elements (default P1; with --target-error P2, unless --estimator residual, which "
                         "is P1 only)")
@@ -33,25 +39,69 @@ def register(subparsers) -> None:
     add_output_file(p, "--plot", "FILE.png", "write a plot of u, psi and the contact set (PNG)", extensions=(".png",))
     add_output_file(p, "--vtk", "FILE.vtu", "write u, psi, the contact set and the --estimator's indicator per triangle as VTU "
                     "(with --target-error one file per level, FILE_level<k>.vtu)", extensions=(".vtu",))
-    add_adaptive_options(p, max_levels=30, gamma=OBSTACLE_GAMMA, default_stop=True)    # --balance, --target-error
+    add_adaptive_options(p, max_levels=ADAPTIVE_DEFAULTS["max_levels"], gamma=OBSTACLE_GAMMA,
+                         default_stop=True)                                            # --balance, --target-error
+    p.set_defaults(theta=None, max_levels=None, max_unknowns=None)      # given or not: they need --target-error
     add_common_options(p, policy="summable", order="zx", methods=PAPER_METHODS)
     add_result_outputs(p, json_help="write the run (provenance, scene, summary, errors, u on the free nodes) as JSON",
                        csv_help="write one row per free node: x, y, u, psi, in_contact")
     p.set_defaults(func=run)
 
 
+def list_scenes() -> int:
+    """``--list-scenes``: one line per scene known by name."""
+    for name, origin in known_scenes().items():
+        print(f"{name:10s} {origin}")
+    return 0
+
+
+def scene_of(args, h_default=None):
+    """The scene of ``--scene`` (a name or a TOML file) with cell size ``--h``, else ``h_default(scene)`` where
+    given; ValueError naming ``--scene`` or ``--h`` and the accepted range."""
+    try:
+        scene = load_scene(args.scene)
+    except ValueError as err:
+        raise ValueError(f"--scene {args.scene}: {err}") from None
+    h = args.h if args.h is not None else (h_default(scene) if h_default else None)
+    if h is None:
+        return scene
+    if h > max_h(scene.box):
+        x0, x1, y0, y1 = scene.box
+        raise ValueError(f"--h = {h:g} is outside the accepted range 0 < h <= {max_h(scene.box):.6g} for the scene "
+                         f"{scene.name or args.scene} on ({x0:g}, {x1:g}) x ({y0:g}, {y1:g}): two squares across its "
+                         f"shorter side, so that it has an interior node (e.g. --h 1/16)")
+    try:
+        return scene.with_h(h)
+    except ValueError as err:
+        raise ValueError(f"--h = {h:g}: {err}") from None
+
+
+def check_adaptive_flags(args) -> None:
+    """Refuse --theta, --max-levels and --max-unknowns without --target-error (they would be ignored)."""
+    if args.target_error is not None:
+        return
+    given = [flag for flag, value in (("--theta", args.theta), ("--max-levels", args.max_levels),
+                                      ("--max-unknowns", args.max_unknowns)) if value is not None]
+    if given:
+        raise ValueError(f"{', '.join(given)} {'needs' if len(given) == 1 else 'need'} --target-error (the adaptive "
+                         f"loop's options; a uniform solve has no levels to mark or cap)")
+
+
 def run(args) -> int:
     """Build the scene, solve it, print the summary and the errors against the exact solution; 0 only if converged."""
+    if args.list_scenes:
+        return list_scenes()
+    check_adaptive_flags(args)
     gamma = balance_gamma(args, OBSTACLE_GAMMA)      # the balanced stop is the default here
     estimator = estimator_name(args)
     if args.target_error is not None:
         return run_adaptive(args)
-    args.h = 1 / 16 if args.h is None else args.h
-    problem = make_problem(named_scene(args.scene, h=args.h), backend=args.backend or DEFAULT_BACKEND,
-                           fe_order=args.fe_order or 1)
+    scene = scene_of(args, h_default=lambda s: 1 / 16 if args.scene in SCENES else None)
+    args.h = scene.h
+    problem = make_problem(scene, backend=args.backend or DEFAULT_BACKEND, fe_order=args.fe_order or 1)
     nx, ny = problem.scene.counts
-    print(f"problem      obstacle/{args.scene}: h = {args.h:.6g} ({nx} x {ny} squares), P{problem.order}, "
-          f"{problem.n} free nodes, side {problem.scene.side}")
+    print(f"problem      obstacle/{scene.name or args.scene}: h = {args.h:.6g} ({nx} x {ny} squares), "
+          f"P{problem.order}, {problem.n} free nodes, side {problem.scene.side}")
     stop = None if gamma is None else BalancedStop(problem, gamma, estimator=estimator)
     result = run_solve(problem, args, stop=stop)
     if stop is not None:
@@ -61,8 +111,9 @@ def run(args) -> int:
     err = radius = None
     if problem.scene.exact is not None:
         err = problem.errors(result.x)
-        radius = problem.contact_radius(result.z)
         print(f"errors       L2 {err['L2']:.4e}   H1 {err['H1']:.4e}   H1-seminorm {err['H1_semi']:.4e}")
+    if has_radial_exact(problem.scene):
+        radius = problem.contact_radius(result.z)
         print(f"free bdry    radius {radius:.6f} (sqrt(area/pi))   exact a* = {A_STAR:.6f}   "
               f"difference {radius - A_STAR:+.3e}")
     if args.plot:
@@ -94,6 +145,8 @@ def run_adaptive(args) -> int:
     from admmkit.cli import resolve_policy
     from .adaptive import solve_adaptive
     from .plot import plot_adapted
+    for key, value in ADAPTIVE_DEFAULTS.items():
+        setattr(args, key, value if getattr(args, key) is None else getattr(args, key))
     options = adaptive_options(args, OBSTACLE_GAMMA)
     order, policy, name = resolve_policy(args)
     chosen = []
@@ -101,13 +154,15 @@ def run_adaptive(args) -> int:
         args.fe_order = 2 if options["estimator"] == "zz" else 1
         chosen.append(f"P{args.fe_order} ({'--fe-order 1 for P1' if args.fe_order == 2 else 'the residual estimator is P1 only'})")
     if args.h is None:
-        x0, x1, y0, y1 = named_scene(args.scene).box
-        args.h = min(x1 - x0, y1 - y0) / 5
-        chosen.append(f"first mesh h = {args.h:.6g}, a fifth of the box's shorter side (--h for another)")
+        scene = scene_of(args, h_default=lambda s: min(s.box[1] - s.box[0], s.box[3] - s.box[2]) / 5)
+        chosen.append(f"first mesh h = {scene.h:.6g}, a fifth of the box's shorter side (--h for another)")
+    else:
+        scene = scene_of(args)
+    args.h = scene.h
     if chosen:
         print("model        " + ", ".join(chosen) + ": the defaults of --target-error")
-    scene = named_scene(args.scene, h=args.h)
-    print(f"adaptive     obstacle/{args.scene}: from h = {args.h:.6g}, P{args.fe_order}, target {options['target']:g}, "
+    print(f"adaptive     obstacle/{scene.name or args.scene}: from h = {args.h:.6g}, P{args.fe_order}, "
+          f"target {options['target']:g}, "
           f"theta {options['theta']:g}, gamma {options['gamma']:g}, {options['estimator']} estimator, {name} order {order}")
     print("level    cells  unknowns   estimate  rel.estimate  H1-semi error  iterations  seconds  status")
 

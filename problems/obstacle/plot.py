@@ -7,7 +7,7 @@ import numpy as np
 
 from admmkit.figures import pyplot, save_figure
 
-from .scene import A_STAR
+from .scene import A_STAR, has_radial_exact
 
 
 def plot_solution(problem, u, z, path):
@@ -34,7 +34,7 @@ def plot_solution(problem, u, z, path):
     fig.colorbar(tri, ax=ax2, label="u_h")
     free = problem.nodes[problem.free]
     ax2.plot(free[contact, 0], free[contact, 1], "w.", ms=2, label="contact set")
-    if problem.scene.exact is not None:
+    if has_radial_exact(problem.scene):
         t = np.linspace(0, 2 * math.pi, 200)
         ax2.plot(A_STAR * np.cos(t), A_STAR * np.sin(t), "r-", lw=1, label="r = a*")
     ax2.set_aspect("equal"); ax2.set_title(f"{problem.scene.name}: u_h and contact set"); ax2.legend(loc="upper right")
@@ -43,7 +43,7 @@ def plot_solution(problem, u, z, path):
 
 
 def plot_adapted(problem, indicators, z, path):
-    """Write a PNG: the adapted mesh coloured by the ZZ indicators, with the contact set and r = a*."""
+    """Write a PNG: the adapted mesh coloured by the ZZ indicators, with the contact set (and r = a*, radial)."""
     plt = pyplot()
     from .estimate import zz
     tri = zz(problem).tri
@@ -55,7 +55,7 @@ def plot_adapted(problem, indicators, z, path):
     free = problem.nodes[problem.free]
     contact = problem.contact_set(z)
     ax.plot(free[contact, 0], free[contact, 1], "c.", ms=0.8, alpha=0.5, label="contact set")
-    if problem.scene.exact is not None:
+    if has_radial_exact(problem.scene):
         t = np.linspace(0, 2 * math.pi, 200)
         ax.plot(A_STAR * np.cos(t), A_STAR * np.sin(t), "b-", lw=1, label="r = a* (exact free boundary)")
     ax.set_aspect("equal"); ax.legend(loc="upper right", fontsize=8)

@@ -34,7 +34,7 @@ from admmkit.problems.fe import ADAPTIVE_TASKS_MIN_ELEMENTS, areas, ngsolve_task
 from admmkit.xstep import QuadraticXStep
 
 from .xstep import JacobiCG
-from .scene import A_STAR, Scene, check_boundary, radial_exact_cf
+from .scene import A_STAR, Scene, check_boundary
 
 BOUNDARY = "bottom|right|top|left"
 #: sparse solver of K + rho M.  Not "auto": on this 2-D scalar Laplacian the auto
@@ -257,14 +257,13 @@ class ObstacleProblem(Problem):
         return float(np.max(np.hypot(pts[:, 0] - (x0 + x1) / 2, pts[:, 1] - (y0 + y1) / 2), initial=0.0))
 
     def errors(self, u: np.ndarray, intorder: int = 6) -> dict[str, float]:
-        """L2 error, H1 seminorm error and H1 error of u against the exact solution.
+        """L2 error, H1 seminorm error and H1 error of u against the scene's exact solution.
 
-        Integrated by NGSolve over the mesh with ``bonus_intorder`` = intorder.
-        Only for scenes with an exact solution (radial).
+        Integrated by NGSolve over the mesh with ``bonus_intorder`` = intorder, against
+        :meth:`Scene.exact_coefficients` (the radial scene's written-out u and grad u, or the scene's own
+        exact solution differentiated by NGSolve).  ValueError for a scene without an exact solution.
         """
-        if self.scene.exact is None:
-            raise ValueError(f"scene {self.scene.name!r} has no exact solution")
-        u_ex, grad_ex = radial_exact_cf()
+        u_ex, grad_ex = self.scene.exact_coefficients()
         gf = self.gridfunction(u)
         l2 = ng.Integrate((gf - u_ex) ** 2 * ng.dx(bonus_intorder=intorder), self.mesh)
         semi = ng.Integrate(ng.InnerProduct(ng.grad(gf) - grad_ex, ng.grad(gf) - grad_ex)

@@ -4,9 +4,12 @@
     u = u_D on the boundary,
 
 on a rectangle Omega = (x0, x1) x (y0, y1), meshed with a structured P1 mesh of
-cell size h.  ``f``, ``psi`` and ``u_D`` are numbers or callables ``g(x, y)``
-that accept numpy arrays.  A :class:`Scene` is validated when it is built, so
-bad input fails early with a ``ValueError`` naming the parameter.
+cell size h.  ``f``, ``psi`` and ``u_D`` are numbers, callables ``g(x, y)``
+that accept numpy arrays, or expression strings in x and y (:mod:`.fields`);
+``exact``, the exact solution where one is known, an expression string or a
+callable that also works on NGSolve coefficient functions (for the errors).
+A :class:`Scene` is validated when it is built, so bad input fails early with
+a ``ValueError`` naming the parameter.  Scene files (TOML): :mod:`.scene_file`.
 
 Named scenes (:func:`scene`):
 
@@ -22,11 +25,16 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass
-from typing import Any, Callable
+from typing import Any
 
+import ngsolve as ng
 import numpy as np
 
+from .fields import field
+
 SIDES = ("lower", "upper")
+#: the fields of a scene that may be given as expression strings in x and y
+FIELDS = ("f", "psi", "u_D", "exact")
 
 # ---------------------------------------------------------------- the radial obstacle
 #: radius of the free boundary: the root of a^2 (1 - ln(a/2)) = 1
@@ -74,9 +82,12 @@ class Scene:
 
     ``h`` is the cell size of the structured mesh (round((x1-x0)/h) x
     round((y1-y0)/h) squares, each cut into two triangles); ``f``, ``psi``,
-    ``u_D`` are numbers or vectorised callables g(x, y); ``side`` is
-    ``"lower"`` (u >= psi) or ``"upper"`` (u <= psi); ``exact`` is the exact
-    solution (a callable like u_D) or None.
+    ``u_D`` are numbers, vectorised callables g(x, y) or expression strings in
+    x and y (``"sin(pi*x)"``; read into callables); ``side`` is ``"lower"``
+    (u >= psi) or ``"upper"`` (u <= psi); ``exact`` is the exact solution or
+    None: an expression string, a number, or a callable that works on numpy
+    arrays and on ``ngsolve.x``, ``ngsolve.y`` (:meth:`exact_coefficients`:
+    the errors are integrated against it).
     """
 
     box: tuple[float, float, float, float] = (0.0, 1.0, 0.0, 1.0)
@@ -85,11 +96,18 @@ class Scene:
     psi: Any = 0.0
     u_D: Any = 0.0
     side: str = "lower"
-    exact: Callable | None = None
+    exact: Any = None
     name: str = ""
 
     def __post_init__(self):
         object.__setattr__(self, "box", tuple(self.box))
+        for name in FIELDS:                                   # expression strings -> callables g(x, y)
+            text = getattr(self, name)
+            if isinstance(text, str):
+                try:
+                    object.__setattr__(self, name, field(text))
+                except ValueError as err:
+                    raise ValueError(f"{name}: {err}") from None
         self.validate()
 
     # -- derived quantities
@@ -118,6 +136,29 @@ class Scene:
                              f"({bad.sum()} such points); accepted: finite values")
         return v
 
+    def exact_coefficients(self) -> tuple[ng.CoefficientFunction, ng.CoefficientFunction]:
+        """The exact solution u and its gradient as NGSolve coefficient functions (for the errors).
+
+        The radial scene's :func:`radial_exact` has its written-out pair (``radial_exact_cf``); any other
+        exact solution is evaluated on ``ngsolve.x``, ``ngsolve.y`` and differentiated by NGSolve (``Diff``).
+        ValueError if the scene has none, or if it cannot be evaluated so (a callable using ``np.where``, say).
+        """
+        exact = self.exact
+        if exact is None:
+            raise ValueError(f"scene {self.name!r} has no exact solution")
+        if exact is radial_exact:
+            return radial_exact_cf()
+        try:
+            u = exact(ng.x, ng.y) if callable(exact) else exact
+            u = ng.CoefficientFunction(float(u)) if _is_real(u) else u
+            if not isinstance(u, ng.CoefficientFunction) or u.dim != 1:
+                raise TypeError(f"it gave {type(u).__name__}")
+            return u, ng.CoefficientFunction((u.Diff(ng.x), u.Diff(ng.y)))
+        except Exception as err:
+            raise ValueError(f"exact = {exact!r} cannot be evaluated as an NGSolve coefficient function of x, y "
+                             f"({err}); accepted: an expression string such as 'sin(pi*x)*sin(pi*y)', a number, "
+                             f"or a callable that works on ngsolve.x, ngsolve.y") from None
+
     # -- validation
     def validate(self) -> None:
         """Raise ValueError naming the offending parameter and its accepted range."""
@@ -131,6 +172,9 @@ class Scene:
         if self.h > min(x1 - x0, y1 - y0):
             raise ValueError(f"h = {self.h} is larger than the domain; accepted 0 < h <= {min(x1 - x0, y1 - y0)}")
         nx, ny = self.counts
+        if min(nx, ny) < 2:
+            raise ValueError(f"h = {self.h:g} leaves no interior node ({nx} x {ny} squares); accepted "
+                             f"0 < h <= {max_h(self.box):g}, two squares across the box's shorter side")
         if (nx + 1) * (ny + 1) > 4_000_000:
             raise ValueError(f"h = {self.h} is too small: {(nx + 1) * (ny + 1)} nodes (at most 4e6 accepted)")
         if self.side not in SIDES:
@@ -138,17 +182,32 @@ class Scene:
         for name in ("f", "psi", "u_D"):
             g = getattr(self, name)
             if not (callable(g) or _is_real(g)):
-                raise ValueError(f"{name} must be a number or a callable g(x, y), got {g!r}")
-        if self.exact is not None and not callable(self.exact):
-            raise ValueError(f"exact must be a callable u(x, y) or None, got {self.exact!r}")
+                raise ValueError(f"{name} must be a number, a callable g(x, y) or an expression string, got {g!r}")
+        if self.exact is not None and not (callable(self.exact) or _is_real(self.exact)):
+            raise ValueError(f"exact must be a number, a callable u(x, y), an expression string or None, "
+                             f"got {self.exact!r}")
+        if self.exact is not None:
+            self.exact_coefficients()
         # sample the fields on a grid (the mesh nodes are checked again in make_problem)
         X, Y = np.meshgrid(np.linspace(x0, x1, 41), np.linspace(y0, y1, 41))
-        for name in ("f", "psi", "u_D"):
+        for name in ("f", "psi", "u_D") + (("exact",) if self.exact is not None else ()):
             self.evaluate(name, X, Y)
         t = np.linspace(0.0, 1.0, 81)
         bx = np.concatenate([x0 + (x1 - x0) * t, np.full_like(t, x1), x0 + (x1 - x0) * t, np.full_like(t, x0)])
         by = np.concatenate([np.full_like(t, y0), y0 + (y1 - y0) * t, np.full_like(t, y1), y0 + (y1 - y0) * t])
         check_boundary(self, bx, by)
+
+
+def max_h(box) -> float:
+    """The largest cell size that leaves an interior node on the box: two squares across its shorter side
+    (round(side / h) >= 2, i.e. h <= side / 1.5)."""
+    x0, x1, y0, y1 = box
+    return min(x1 - x0, y1 - y0) / 1.5
+
+
+def has_radial_exact(scene: Scene) -> bool:
+    """Whether the scene's exact solution is the radial one, whose free boundary is the circle r = a*."""
+    return scene.exact is radial_exact
 
 
 def check_boundary(scene: Scene, x, y, tol: float = 1e-12) -> None:

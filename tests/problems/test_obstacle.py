@@ -133,7 +133,9 @@ def test_factorisations_equal_distinct_rho_values():
     (lambda: pyramid(psi=math.inf), r"psi is not finite"),
     (lambda: pyramid(f=lambda x, y: 1 / (x - x)), r"f is not finite"),
     (lambda: pyramid(f=math.nan), r"f is not finite"),
-    (lambda: pyramid(f="x+y"), r"f must be a number or a callable"),
+    (lambda: pyramid(f="x+"), r"f: expression 'x\+' is not valid Python syntax"),
+    (lambda: pyramid(f=[1.0]), r"f must be a number, a callable g\(x, y\) or an expression string"),
+    (lambda: radial(h=3.0), r"h = 3 leaves no interior node \(1 x 1 squares\); accepted 0 < h <= 2.66667"),
     (lambda: pyramid(side="both"), r"side = 'both'; accepted: lower, upper"),
     (lambda: Scene(box=(0, 0, 0, 1)), r"box = .*x0 < x1"),
 ])
@@ -160,6 +162,6 @@ def test_cli_prints_summary_errors_and_writes_plot(capsys, tmp_path):
 
 def test_cli_bad_scene_and_h(capsys):
     assert main(["solve", "obstacle", "--scene", "nope"]) == 2
-    assert "scene = 'nope' is unknown" in capsys.readouterr().err
+    assert "--scene nope: scene 'nope' is unknown" in capsys.readouterr().err
     assert main(["solve", "obstacle", "--h", "0"]) == 2         # argparse's error: main() returns its code
     assert "--h" in capsys.readouterr().err
