@@ -248,3 +248,17 @@ def test_converging_says_whether_the_crossing_is_predicted_within_every():
     slow.fired(SimpleNamespace(k=0))
     slow.fired(SimpleNamespace(k=1))
     assert not slow.converging
+
+
+def test_a_bound_that_falls_by_less_than_rounding_is_scheduled_without_a_prediction():
+    """A bound that falls by one ulp per test (q rounds to 1, log q = 0) above a tiny estimate: the schedule
+    doubles its intervals as for a flat bound, instead of dividing by log q = 0 (ZeroDivisionError before)."""
+    from types import SimpleNamespace
+
+    stop = Known(1e-8, gamma=0.3, every=10)
+    bounds = iter(1.66e-7 - 2.6e-23 * i for i in range(100))     # one ulp less per test
+    stop.algebraic_error_bound = lambda rec: next(bounds)
+    moving = dict(primal_residual=1.0, x_change=1.0, z_change=1.0, computed=lambda: _NONE)
+    for k in range(40):
+        assert stop.fired(SimpleNamespace(k=k, **moving)) is None
+    assert len(stop.tests) >= 4 and max(b - a for a, b in zip(stop.tests, stop.tests[1:])) <= 10
