@@ -30,7 +30,7 @@ record from the segment's numbers instead of running its steps in Python
 small QP.
 
 The first iteration of a run always runs in Python, so that what the
-plug-in's own steps return is checked (:func:`admmkit.checks.check_step`)
+plug-in's own steps return is checked (``admmkit.checks.check_step``)
 before a segment, which bypasses them, runs.
 
 What a segment changes, and nothing else: its iterations get history rows
