@@ -196,13 +196,6 @@ def check_step(problem, step: str, got, want: tuple, of: str) -> None:
                          f"(the shape of {of})")
 
 
-def check_steps(problem, x, z, x_new, z_new, Ax_new) -> None:
-    """Refuse, at the first iteration, a step that returns something other than an array of the iterate's shape."""
-    for step, got, want, of in (("x_step", x_new, x.shape, "x"), ("z_step", z_new, z.shape, "z"),
-                                ("apply_A", Ax_new, z.shape, "z")):
-        check_step(problem, step, got, want, of)
-
-
 def policy_answer(policy, rho_next, k: int) -> float:
     """The rho_(k+1) that ``policy.update`` returned at iteration ``k``, as a float, if it is one number, finite and
     > 0; else a TypeError (not a number: a bool, text, None, an array) or ValueError (NaN, inf, <= 0) naming the
