@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import contextlib
 import math
+import numbers
 import sys
 from dataclasses import dataclass
 from typing import Callable
@@ -50,16 +51,41 @@ def rho_in_range(rho) -> bool:
             and RHO_RANGE[0] <= rho <= RHO_RANGE[1])
 
 
+def is_number(value) -> bool:
+    """Whether ``value`` is one real number: an int, a float, a numpy scalar or a 0-d array of one
+    (not a bool, not text: ``"1"`` is not taken for 1)."""
+    if isinstance(value, (bool, np.bool_)):
+        return False
+    if isinstance(value, np.ndarray):
+        return value.ndim == 0 and value.dtype.kind in "iuf"
+    return isinstance(value, numbers.Real)
+
+
+def number(name: str, value, accepted: str) -> float:
+    """float(value) if it is a number (:func:`is_number`), else TypeError naming ``name`` and the ``accepted`` range."""
+    if not is_number(value):
+        raise TypeError(f"{name} must be a number ({accepted}), got {type(value).__name__} {value!r:.60}")
+    return float(value)
+
+
 def check_rho(rho, name: str) -> float:
-    """float(rho) if it is a number in :data:`RHO_RANGE`, else ValueError naming ``name``."""
-    try:
-        value = float(rho) if not isinstance(rho, (bool, str, bytes)) else math.nan
-    except (TypeError, ValueError):
-        value = math.nan
+    """float(rho) if it is a number in :data:`RHO_RANGE`: TypeError naming ``name`` for anything but a number,
+    ValueError for a number outside the range."""
+    value = number(name, rho, "finite, > 0")
     if not (math.isfinite(value) and value > 0):
         raise ValueError(f"{name} must be a finite number > 0, got {rho!r}")
     if not rho_in_range(value):
         raise ValueError(f"{name} must be in [{RHO_RANGE[0]:g}, {RHO_RANGE[1]:g}] (admmkit's rho range), got {rho!r}")
+    return value
+
+
+def check_time_limit(time_limit) -> float | None:
+    """None, or the wall-time limit in seconds: a finite number > 0 (TypeError for anything but a number)."""
+    if time_limit is None:
+        return None
+    value = number("time_limit", time_limit, "seconds, finite, > 0, or None")
+    if not (math.isfinite(value) and value > 0):
+        raise ValueError(f"time_limit must be a finite number > 0 seconds or None, got {time_limit!r}")
     return value
 
 
@@ -72,12 +98,9 @@ def check_order(order) -> str:
 
 
 def check_alpha(alpha) -> float:
-    """The over-relaxation parameter, a number in (0, 2)."""
-    try:
-        value = float(alpha)
-    except (TypeError, ValueError):
-        value = math.nan
-    if isinstance(alpha, bool) or not (0.0 < value < 2.0):
+    """The over-relaxation parameter, a number in (0, 2) (TypeError for anything but a number)."""
+    value = number("alpha", alpha, "in (0, 2)")
+    if not (0.0 < value < 2.0):
         raise ValueError(f"alpha must be a number in (0, 2) (1: no relaxation; OSQP uses 1.6), got {alpha!r}")
     return value
 
@@ -100,15 +123,16 @@ def make(policy) -> Policy:
     raise TypeError(f"policy must be a Policy object, a registered name or None, got {type(policy).__name__}")
 
 
-def starting_point(problem, x0, z0, lam0):
-    """(x0, z0, lam0) as float arrays: the given ones (checked) or the problem's defaults."""
+def starting_point(problem, x0, z0, lam0, names=("x0", "z0", "lam0")):
+    """(x0, z0, lam0) as float arrays: the given ones (checked, an error naming them by ``names``) or the
+    problem's defaults."""
     own_start = type(problem).initial_point is not Problem.initial_point
     if x0 is None and not own_start and not isinstance(getattr(problem, "n", None), (int, np.integer)):
         raise TypeError(f"{type(problem).__name__} must set the attribute n (the number of x unknowns, an int) "
                         f"or override initial_point(), or solve() must be given x0")
     dx, dz, dlam = problem.initial_point()
     out = []
-    for name, given, default in (("x0", x0, dx), ("z0", z0, dz), ("lam0", lam0, dlam)):
+    for name, given, default in zip(names, (x0, z0, lam0), (dx, dz, dlam)):
         if given is None:                  # the plug-in's own start: only its finiteness is in doubt
             v = np.array(default, dtype=float)
             if not np.isfinite(v).all():
@@ -124,7 +148,8 @@ def starting_point(problem, x0, z0, lam0):
         if v.shape != np.shape(default):
             raise ValueError(f"{name} must have shape {np.shape(default)}, got {v.shape}")
         if not np.all(np.isfinite(v)):
-            raise ValueError(f"{name} must be finite")
+            bad = int(np.size(v) - np.count_nonzero(np.isfinite(v)))
+            raise ValueError(f"{name} must be finite, got {bad} NaN or infinite entries of {v.size}")
         out.append(v)
     return out
 
@@ -158,16 +183,44 @@ def check_requirements(problem, order: str, adjoint: bool, parts) -> None:
                 + (", or pass stop=admmkit.RelativeChange(...)" if role == "stop" else ""))
 
 
-def check_steps(problem, x, z, x_new, z_new, Ax_new) -> None:
-    """Refuse, at the first iteration, a step that returns something other than an array of the iterate's shape."""
+def check_step(problem, step: str, got, want: tuple, of: str) -> None:
+    """Refuse what a step returned at the first iteration unless it is a numpy array of shape ``want`` (the shape
+    of ``of``, "x" or "z"): a TypeError or ValueError naming the Problem class, the method and both shapes."""
     name = type(problem).__name__
-    for step, got, want in (("x_step", x_new, x.shape), ("z_step", z_new, z.shape), ("apply_A", Ax_new, z.shape)):
-        if not isinstance(got, np.ndarray):
-            raise TypeError(f"{name}.{step}() returned {type(got).__name__}; it must return a numpy array "
-                            f"of shape {want}")
-        if got.shape != want:
-            raise ValueError(f"{name}.{step}() returned an array of shape {got.shape}; it must have shape {want} "
-                             f"(the shape of {'x' if step == 'x_step' else 'z'})")
+    if not isinstance(got, np.ndarray):
+        shape = f" of shape {np.shape(got)}" if isinstance(got, (list, tuple, np.generic)) else ""
+        raise TypeError(f"{name}.{step}() returned {type(got).__name__}{shape}; it must return a numpy array "
+                        f"of shape {want} (the shape of {of})")
+    if got.shape != want:
+        raise ValueError(f"{name}.{step}() returned an array of shape {got.shape}; it must have shape {want} "
+                         f"(the shape of {of})")
+
+
+def policy_answer(policy, rho_next, k: int) -> float:
+    """The rho_(k+1) that ``policy.update`` returned at iteration ``k``, as a float, if it is one number, finite and
+    > 0; else a TypeError (not a number: a bool, text, None, an array) or ValueError (NaN, inf, <= 0) naming the
+    policy's class and the value.  (A number outside :data:`RHO_RANGE` is the loop's to judge: the run diverged.)"""
+    name = type(policy).__name__
+    if not is_number(rho_next):
+        shape = f" of shape {np.shape(rho_next)}" if isinstance(rho_next, (np.ndarray, list, tuple)) else ""
+        raise TypeError(f"policy {name}.update() returned {type(rho_next).__name__}{shape} {rho_next!r:.60} at "
+                        f"iteration {k + 1}; it must return rho_(k+1), one number in (0, inf) (admmkit's rho is "
+                        f"a scalar: a penalty per row is the problem's inner product M)")
+    value = float(rho_next)
+    if not (math.isfinite(value) and value > 0):
+        raise ValueError(f"policy {name}.update() returned rho = {rho_next!r} at iteration {k + 1}; it must "
+                         f"return rho_(k+1) in (0, inf)")
+    return value
+
+
+def callback_answer(callback, answer):
+    """``answer`` if it is what a callback may return: None or a bool (True: stop the run); else a TypeError naming
+    the callback and what it returned."""
+    if answer is None or isinstance(answer, (bool, np.bool_)):
+        return answer
+    name = getattr(callback, "__qualname__", None) or type(callback).__name__
+    raise TypeError(f"callback {name} returned {type(answer).__name__} {answer!r:.60}; a callback returns None "
+                    f"(go on) or a bool (True stops the run with status 'stopped')")
 
 
 @dataclass
@@ -215,19 +268,21 @@ def prepare(problem, *, rho, policy, order, stop, max_iter, callback, x0, z0, la
     if warm_start is not None:
         if not isinstance(warm_start, Result) or warm_start.x_iterate is None:
             raise TypeError(f"warm_start must be an admmkit.Result of solve(), got {type(warm_start).__name__}")
+        names = tuple(name if given is not None else f"warm_start.{field}"
+                      for name, given, field in (("x0", x0, "x_iterate"), ("z0", z0, "z"), ("lam0", lam0, "lam")))
         x0 = warm_start.x_iterate if x0 is None else x0
         z0 = warm_start.z if z0 is None else z0
         lam0 = warm_start.lam if lam0 is None else lam0
+        rho_name = "rho" if rho is not None else "warm_start.rho"
         rho = warm_start.rho if rho is None else rho
-    rho = check_rho(1.0 if rho is None else rho, "rho")
+    else:
+        names, rho_name = ("x0", "z0", "lam0"), "rho"
+    rho = check_rho(1.0 if rho is None else rho, rho_name)
     alpha = check_alpha(alpha)
     max_iter = check_int("max_iter", max_iter, 1)
     check_every = check_int("check_every", check_every, 1)
     history_log = History(history)
-    if time_limit is not None and not (isinstance(time_limit, (int, float, np.integer, np.floating))
-                                       and not isinstance(time_limit, bool)
-                                       and math.isfinite(time_limit) and time_limit > 0):
-        raise ValueError(f"time_limit must be a finite number > 0 seconds or None, got {time_limit!r}")
+    time_limit = check_time_limit(time_limit)
     if blas_threads is not None and (isinstance(blas_threads, bool) or not isinstance(blas_threads, int) or blas_threads < 1):
         raise ValueError(f"blas_threads must be an integer >= 1 or None, got {blas_threads!r}")
     if callback is not None and not callable(callback):
@@ -242,10 +297,12 @@ def prepare(problem, *, rho, policy, order, stop, max_iter, callback, x0, z0, la
             raise TypeError(f"problem must implement {name}() (see admmkit.Problem), got {type(problem).__name__}")
     policy = make(policy)
 
-    x, z, lam = starting_point(problem, x0, z0, lam0)
-    Ax = np.asarray(problem.apply_A(x), dtype=float)
-    if Ax.shape != z.shape or lam.shape != z.shape:
-        raise ValueError(f"shapes do not match: A x0 has shape {Ax.shape}, z0 {z.shape}, lam0 {lam.shape}")
+    x, z, lam = starting_point(problem, x0, z0, lam0, names)
+    Ax = problem.apply_A(x)
+    check_step(problem, "apply_A", Ax, z.shape, "z")
+    Ax = np.asarray(Ax, dtype=float)
+    if lam.shape != z.shape:
+        raise ValueError(f"shapes do not match: z0 has shape {z.shape}, lam0 {lam.shape}")
     c = problem.c
     adjoint = order_key == "xz" and has_adjoint(problem, z)   # only order xz uses adjoint_norm
     check_requirements(problem, order_key, adjoint, (("policy", policy), ("stop", stop)))

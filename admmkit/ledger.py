@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import time
 
+from .checks import callback_answer
 from .norms import LAZY_FIELDS
 from .result import Status
 
@@ -36,10 +37,11 @@ class Ledger:
         limit, or None.
 
         The callback is called with every record, the last one included; its True ends the run
-        with status ``stopped`` unless ``final`` already ends it.
+        with status ``stopped`` unless ``final`` already ends it (an answer other than None or a
+        bool is a TypeError naming the callback, ``admmkit.checks.callback_answer``).
         """
         self.history.append(rec, rho_next)
-        if self.callback is not None and self.callback(rec) and final is None:
+        if self.callback is not None and callback_answer(self.callback, self.callback(rec)) and final is None:
             final = Status.STOPPED, f"callback stopped the run at iteration {rec.k + 1}"
         self.take_r[check] = rec._vals[_R] is not None      # ||r|| read (not merely taken) in this iteration
         if final is None and self.time_limit is not None and perf() - self.ctx.start > self.time_limit:

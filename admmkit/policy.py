@@ -100,9 +100,11 @@ def _lookup(key: str):
             return None
         try:
             cls = declared.load()
-        except Exception as err:
+        except KeyboardInterrupt:
+            raise
+        except BaseException as err:            # SystemExit too: a rule's import must not end the program
             raise ValueError(f"policy {key!r} (entry point {declared.value}) failed to import: "
-                             f"{type(err).__name__}: {err}") from None
+                             f"{raised(err)}") from None
         _REGISTRY[key] = check_policy_class(cls, f"{key!r} (entry point {declared.value})")
     return _REGISTRY[key]
 
@@ -142,18 +144,29 @@ def load_spec(spec: str):
             sys.modules[modname] = module
             try:
                 found.loader.exec_module(module)
-            except Exception as err:
+            except KeyboardInterrupt:
                 del sys.modules[modname]
-                raise ValueError(f"policy {spec!r}: importing {path} failed: {type(err).__name__}: {err}") from None
+                raise
+            except BaseException as err:        # SystemExit too: a rule file must not end the program
+                del sys.modules[modname]
+                raise ValueError(f"policy {spec!r}: importing {path} failed: {raised(err)}") from None
     else:
         try:
             module = importlib.import_module(target)
-        except Exception as err:
-            raise ValueError(f"policy {spec!r}: module {target!r} failed to import: "
-                             f"{type(err).__name__}: {err}") from None
+        except KeyboardInterrupt:
+            raise
+        except BaseException as err:
+            raise ValueError(f"policy {spec!r}: module {target!r} failed to import: {raised(err)}") from None
     if not hasattr(module, cls_name):
         raise ValueError(f"policy {spec!r}: {target} has no {cls_name!r}")
     return check_policy_class(getattr(module, cls_name), repr(spec))
+
+
+def raised(err: BaseException) -> str:
+    """What user code raised, in one phrase: ``SystemExit: sys.exit(0)`` or ``ZeroDivisionError: division by zero``."""
+    if isinstance(err, SystemExit):
+        return f"SystemExit: sys.exit({err.code!r}) (a rule must not end the program)"
+    return f"{type(err).__name__}: {err}"
 
 
 def check_policy_class(cls, what: str):
@@ -175,7 +188,13 @@ def make_policy(name: str, **params) -> Policy:
         known = ", ".join(policy_names()) or "none registered"
         raise TypeError(f"policy name must be a string, one of: {known}; got {type(name).__name__}")
     if is_spec(name):
-        return load_spec(name)(**params)
+        cls = load_spec(name)
+        try:
+            return cls(**params)
+        except (KeyboardInterrupt, TypeError, ValueError):      # a bad parameter names itself
+            raise
+        except BaseException as err:
+            raise ValueError(f"policy {name!r}: {cls.__name__}() raised {raised(err)}") from None
     cls = _lookup(name.strip().lower().replace("-", "_"))
     if cls is None:
         known = ", ".join(policy_names()) or "none registered"

@@ -29,6 +29,10 @@ record from the segment's numbers instead of running its steps in Python
 (:meth:`FastForward.serve`): the same bits, about 25 us less per test on a
 small QP.
 
+The first iteration of a run always runs in Python, so that what the
+plug-in's own steps return is checked (``admmkit.checks.check_step``)
+before a segment, which bypasses them, runs.
+
 What a segment changes, and nothing else: its iterations get history rows
 with rho and the time at the segment's end, and NaN for every norm (a lean
 history computes none there either); a time limit is tested at its end.
@@ -76,7 +80,7 @@ class FastForward:
     def __call__(self, k: int, x, z, lam, Ax, rho: float):
         """(x, z, lam, Ax, k) after the iterations k .. j - 1 that nobody reads (j: :meth:`next_read`); where the
         plug-in runs the read iteration j too, its outputs wait for :meth:`serve`."""
-        if not self.enabled:
+        if not self.enabled or k == 0:      # the first iteration runs in Python: its steps' returns are checked
             return x, z, lam, Ax, k
         count = self.next_read(k) - k + self.reads          # with the read iteration, if the plug-in runs it
         if count < (1 if self.reads else MIN_SEGMENT):

@@ -73,23 +73,26 @@ def solve(
     problem : Problem
         The plug-in.
     rho : float or None
-        Initial penalty rho_0, finite and > 0 (default 1, or the final rho
-        of ``warm_start``).
+        Initial penalty rho_0, a number (not text), finite and > 0 (default 1,
+        or the final rho of ``warm_start``).
     policy : Policy, str or None
         A :class:`Policy` (reset at the start of the run), a registered
         name such as ``"summable"`` (found by entry point: no import needed), or None to
-        keep rho fixed.
+        keep rho fixed.  Its ``update`` must return one number in (0, inf)
+        (else a TypeError or ValueError naming it, ``admmkit.checks.policy_answer``).
     order : str
         ``"xz"`` (ADMM1: x-step first) or ``"zx"`` (ADMM2: z-step first).
     stop : StoppingRule or None
-        A stopping rule; default :func:`admmkit.default_stop`,
+        A stopping rule (its ``fired`` returns its name, a :class:`admmkit.Stop`
+        or None; else a TypeError naming it); default :func:`admmkit.default_stop`,
         Boyd's residuals ``ResidualTolerance(1e-6, 1e-5)``.  The paper's
         methods pass ``RelativeChange(1e-5)``.
     max_iter : int
         Iteration cap, an integer >= 1.
     callback : callable or None
         Called with every :class:`IterationRecord`, the last one included;
-        returning True stops the run with status ``stopped`` (unless it
+        it returns None or a bool (anything else is a TypeError naming it):
+        True stops the run with status ``stopped`` (unless it
         has already ended for another reason at that iteration).  A callback
         with the attribute ``every_record = False`` (a progress display, a
         watcher of the tested iterations) is called only with the records
@@ -97,8 +100,8 @@ def solve(
         so that the others may run in a compiled segment
         (:mod:`admmkit.segments`); its True still stops the run there.
     x0, z0, lam0 : numpy.ndarray or None
-        Starting point (default ``problem.initial_point()``, or the final
-        iterate of ``warm_start``).
+        Starting point, finite (default ``problem.initial_point()``, or the
+        final iterate of ``warm_start``).
     time_limit : float or None
         Optional wall-time limit in seconds (for benchmarks; it makes
         a run machine-dependent, so it never steers rho).

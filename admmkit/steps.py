@@ -24,11 +24,12 @@ in sequence; :class:`PolicyStep` is eq. (17).  ``admmkit.solve`` runs them.
 """
 from __future__ import annotations
 
+import math
 import time
 
 import numpy as np
 
-from .checks import RHO_RANGE, check_steps, rho_in_range
+from .checks import RHO_RANGE, check_step, policy_answer, rho_in_range
 from .result import Status
 
 perf = time.perf_counter
@@ -80,7 +81,8 @@ def order_zx(problem, ctx):
     the dual update when ``take_r`` and alpha = 1 (:func:`dual_update_and_residual`; with
     alpha != 1 the dual update's vector is not the record's r), ``t`` the perf_counter()
     after the two steps.  ``iterate.seconds()`` is (x-step, z-step) seconds so far.  The first
-    call checks the shapes the steps returned (``admmkit.checks.check_steps``).
+    call checks what each step returned as it returns it (``admmkit.checks.check_step``: an array
+    of the iterate's shape), before anything uses it.
     """
     alpha, c, c_zero, norm, relaxed = ctx.alpha, ctx.c, ctx.c_is_zero, ctx.norm, ctx.alpha != 1.0
     x_seconds = z_seconds = 0.0
@@ -90,17 +92,21 @@ def order_zx(problem, ctx):
         nonlocal x_seconds, z_seconds, first
         t0 = perf()
         z1 = problem.z_step(Ax, lam, rho, z)                                                # (11)
+        if first:                       # a step of the wrong shape would broadcast silently: stop at once
+            check_step(problem, "z_step", z1, z.shape, "z")
         t1 = perf()
         hat = relax_z(alpha, z1, Ax, c, c_zero) if relaxed else None
         z_hat = z1 if hat is None else hat
         x1 = problem.x_step(z_hat, lam, rho, x)                                             # (12)
+        if first:
+            check_step(problem, "x_step", x1, x.shape, "x")
         Ax1 = problem.apply_A(x1)
+        if first:
+            check_step(problem, "apply_A", Ax1, z.shape, "z")
+            first = False
         t2 = perf()
         z_seconds += t1 - t0
         x_seconds += t2 - t1
-        if first:                       # a step of the wrong shape would broadcast silently: stop at once
-            check_steps(problem, x, z, x1, z1, Ax1)
-            first = False
         if take_r and not relaxed:                                                          # (13), ||r|| taken
             lam1, r_norm = dual_update_and_residual(lam, rho, Ax1, z_hat, c, c_zero, norm)
         else:
@@ -129,17 +135,21 @@ def order_xz(problem, ctx):
         nonlocal x_seconds, z_seconds, first
         t0 = perf()
         x1 = problem.x_step(z, lam, rho, x)                                                 # x^{k+1}
+        if first:                       # a step of the wrong shape would broadcast silently: stop at once
+            check_step(problem, "x_step", x1, x.shape, "x")
         Ax1 = problem.apply_A(x1)
+        if first:
+            check_step(problem, "apply_A", Ax1, z.shape, "z")
         t1 = perf()
         hat = relax_Ax(alpha, Ax1, z, c, c_zero) if relaxed else None
         Ax_hat = Ax1 if hat is None else hat
         z1 = problem.z_step(Ax_hat, lam, rho, z)                                            # z^{k+1}
+        if first:
+            check_step(problem, "z_step", z1, z.shape, "z")
+            first = False
         t2 = perf()
         x_seconds += t1 - t0
         z_seconds += t2 - t1
-        if first:                       # a step of the wrong shape would broadcast silently: stop at once
-            check_steps(problem, x, z, x1, z1, Ax1)
-            first = False
         if take_r and not relaxed:                                                          # lam^{k+1}, ||r||
             lam1, r_norm = dual_update_and_residual(lam, rho, Ax_hat, z1, c, c_zero, norm)
         else:
@@ -158,8 +168,11 @@ class PolicyStep:
     """rho_{k+1} = policy.update(record of iteration k) (eq. (17) for SADMM), timed.
 
     :meth:`update` returns (rho_{k+1}, None), or (rho_{k+1}, (status, message))
-    when the rule returned a rho outside admmkit's range ``admmkit.checks.RHO_RANGE``
-    (the run then ends as diverged).
+    when the run ends there as diverged: the rule returned a number outside
+    admmkit's range ``admmkit.checks.RHO_RANGE``, or a non-finite one from a
+    record with a non-finite norm.  Anything else that is not one number in
+    (0, inf) is the rule's error: ``admmkit.checks.policy_answer`` raises,
+    naming its class and the value.
     """
 
     __slots__ = ("policy", "seconds")
@@ -174,6 +187,17 @@ class PolicyStep:
         self.seconds += perf() - t0
         if rho_next is rho or rho_in_range(rho_next):          # the same object: checked already
             return rho_next, None
-        return rho_next, (Status.DIVERGED, f"policy {self.policy!r} returned rho={rho_next!r} at iteration "
-                                           f"{rec.k + 1}, outside admmkit's rho range [{RHO_RANGE[0]:g}, "
-                                           f"{RHO_RANGE[1]:g}]")
+        if _blown_up(rec):                                     # a rule fed inf or NaN: the iterates diverged
+            return rho, (Status.DIVERGED, f"non-finite iterate at iteration {rec.k + 1} (policy "
+                                          f"{self.policy!r} returned rho={rho_next!r})")
+        value = policy_answer(self.policy, rho_next, rec.k)   # TypeError / ValueError unless a number in (0, inf)
+        if rho_in_range(value):
+            return value, None
+        return value, (Status.DIVERGED, f"policy {self.policy!r} returned rho={rho_next!r} at iteration "
+                                        f"{rec.k + 1}, outside admmkit's rho range [{RHO_RANGE[0]:g}, "
+                                        f"{RHO_RANGE[1]:g}]")
+
+
+def _blown_up(rec) -> bool:
+    """Whether the iterates of the record blew up: ||r||_M or ||x^{k+1}||_X is inf or NaN."""
+    return not (math.isfinite(rec.primal_residual) and math.isfinite(rec.x_norm))

@@ -1,8 +1,11 @@
 """Stopping rules that compose: ``RelativeChange(1e-5) | ResidualTolerance(1e-8, 1e-6)``.
 
-A rule is called with the iteration record and returns the name of the rule
-that fired (the run has converged), a :class:`Stop` (the run ends with another
-status, such as ``primal_infeasible`` with its certificate), or None.
+A rule is called with the iteration record and returns its name (``rule.name``:
+it fired, the run has converged), a :class:`Stop` (the run ends with another
+status, such as ``primal_infeasible`` with its certificate), or None (go on).
+Anything else (True, 42, another text) is refused at once with a TypeError
+naming the rule's class (:func:`verdict`): a rule that fired by mistake would
+otherwise end the run as ``converged``.
 ``a | b`` fires when either fires, ``a & b`` when both do.  The iteration cap
 (``max_iter``) is a parameter of :func:`admmkit.solve`.
 """
@@ -48,8 +51,12 @@ class StoppingRule:
     tolerance: float | None = None
 
     def fired(self, rec: IterationRecord) -> str | None:
-        """Return the name of the rule that fired at this record (or a :class:`Stop`), or None."""
+        """Return ``self.name`` if the rule fires at this record (or a :class:`Stop`), else None."""
         raise NotImplementedError
+
+    def fired_names(self) -> tuple[str, ...]:
+        """The names :meth:`fired` may return besides a :class:`Stop`: the rule's own ``name``."""
+        return (self.name,)
 
     def __or__(self, other: "StoppingRule") -> "AnyOf":
         return AnyOf(self, other)
@@ -59,6 +66,16 @@ class StoppingRule:
 
     def __repr__(self) -> str:
         return self.name
+
+
+def verdict(rule: StoppingRule, answer):
+    """``answer``, what ``rule.fired`` returned, if it is one of the rule's :meth:`~StoppingRule.fired_names`, a
+    :class:`Stop` or None; else a TypeError naming the rule's class and the answer."""
+    if answer is None or isinstance(answer, Stop) or (isinstance(answer, str) and answer in rule.fired_names()):
+        return answer
+    raise TypeError(f"stopping rule {type(rule).__name__}.fired() returned {type(answer).__name__} {answer!r:.60}; "
+                    f"it must return the rule's name {rule.name!r} when it fires, an admmkit.Stop to end the run "
+                    f"with another status, or None")
 
 
 def _number(name: str, value, low: str) -> float:
@@ -138,10 +155,14 @@ class AnyOf(StoppingRule):
     def fired(self, rec: IterationRecord) -> str | None:
         """The name (or :class:`Stop`) of the first rule that fires, or None."""
         for rule in self.rules:
-            name = rule.fired(rec)
-            if name:
+            name = verdict(rule, rule.fired(rec))
+            if name is not None:
                 return name
         return None
+
+    def fired_names(self) -> tuple[str, ...]:
+        """The names of its rules (the one that fired is reported)."""
+        return tuple(name for rule in self.rules for name in rule.fired_names())
 
 
 class AllOf(StoppingRule):
@@ -154,8 +175,8 @@ class AllOf(StoppingRule):
 
     def fired(self, rec: IterationRecord) -> str | None:
         """This rule's name if every rule fires (the first :class:`Stop` among them if one gave one), else None."""
-        verdicts = [rule.fired(rec) for rule in self.rules]
-        if not all(verdicts):
+        verdicts = [verdict(rule, rule.fired(rec)) for rule in self.rules]
+        if any(v is None for v in verdicts):
             return None
         return next((v for v in verdicts if isinstance(v, Stop)), self.name)
 

@@ -6,8 +6,9 @@ iterates never depend on it).  A test looks at the record in this order:
 - divergence: a norm already computed is inf or NaN (if none is, ||r||_M is
   computed so that a blow-up is seen); the dual residual and scale are not
   watched in order "xz" without ``adjoint_norm``, where they are NaN by design;
-- the stopping rule: it fired (a name, status ``converged``, or a
-  :class:`admmkit.stopping.Stop` with its own status and certificate);
+- the stopping rule: it fired (its name, status ``converged``, or a
+  :class:`admmkit.stopping.Stop` with its own status and certificate; any
+  other answer is a TypeError, :func:`admmkit.stopping.verdict`);
 - stalling: x, z and lam stopped changing before the rule fired.
 """
 from __future__ import annotations
@@ -17,6 +18,7 @@ import time
 
 from .norms import LAZY_FIELDS
 from .result import Status
+from .stopping import verdict
 
 perf = time.perf_counter
 _isfinite = math.isfinite
@@ -40,7 +42,7 @@ class Termination:
     def check(self, rec) -> tuple | None:
         """(status, message) if the run ends at this iteration (diverged, the rule fired, stalled), else None."""
         t0 = perf()
-        fired = self.stop.fired(rec)
+        fired = verdict(self.stop, self.stop.fired(rec))     # its name, a Stop or None: else a TypeError
         vals = rec._vals                    # the lazy norms as they stand (rec.computed() without the copy)
         final = None
         if diverged(rec, vals, self.watched):

@@ -33,19 +33,40 @@ def load_mat(path: str | Path, **qp_options) -> QP:
     missing = [f for f in FIELDS if f not in data]
     if missing:
         raise ValueError(f"{path} lacks the field(s) {', '.join(missing)}; a QP file needs P, q, A, l, u (and r)")
-    l = np.asarray(data["l"], dtype=float).ravel()
-    u = np.asarray(data["u"], dtype=float).ravel()
+    P, q, A, l, u = (field(path, data, name) for name in FIELDS)
+    l = np.asarray(l, dtype=float).ravel()
+    u = np.asarray(u, dtype=float).ravel()
     l[l <= -INFINITY_CUTOFF] = -np.inf
     u[u >= INFINITY_CUTOFF] = np.inf
-    r_value = np.asarray(data.get("r", 0.0)).ravel()
+    r_value = np.asarray(field(path, data, "r") if "r" in data else 0.0).ravel()
     if r_value.size > 1:
         raise ValueError(f"{path}: r must be one number, got {r_value.size} values")
-    r = float(r_value[0]) if r_value.size else 0.0        # an empty r (as some files store 0) is 0
+    r = r_value[0] if r_value.size else 0.0        # an empty r (as some files store 0) is 0; the QP checks r
     try:
-        return QP(sp.csc_matrix(data["P"]), np.ravel(data["q"]), sp.csc_matrix(data["A"]), l, u, r,
-                  name=path.stem, **qp_options)
+        return QP(sp.csc_matrix(P), np.ravel(q), sp.csc_matrix(A), l, u, r, name=path.stem, **qp_options)
     except (TypeError, ValueError) as err:
         raise ValueError(f"{path}: {err}") from None
+
+
+def field(path: Path, data: dict, name: str):
+    """The field ``name`` of the MAT file ``path`` read into ``data``: a sparse matrix or an array of numbers as
+    stored; a ValueError naming the file and the field when it holds text, a cell array or a struct."""
+    value = data[name]
+    if sp.issparse(value):
+        return value
+    value = np.asarray(value)
+    kind = value.dtype.kind
+    if kind in "biufc":                               # complex: the QP's own check names it ("must be real")
+        return value
+    if kind in "US":
+        what = f"text {str(value.ravel()[0])[:40]!r}" if value.size else "text"
+    elif value.dtype.names:
+        what = f"a struct (fields {', '.join(value.dtype.names)})"
+    elif kind == "O":
+        what = f"a cell array of shape {value.shape}"
+    else:
+        what = f"data of type {value.dtype}"
+    raise ValueError(f"{path}: the field {name} holds {what}, not {'a number' if name == 'r' else 'numbers'}")
 
 
 def read_matrices(path: str | Path):
@@ -57,10 +78,12 @@ def read_matrices(path: str | Path):
     path = Path(path)
     try:
         data = scipy.io.loadmat(str(path), variable_names=["P", "A"])
-        return sp.csc_matrix(data["P"]), sp.csc_matrix(data["A"])
-    except Exception as err:  # scipy raises several types for non-MAT content; KeyError for a missing field
-        what = f"no field {err}" if isinstance(err, KeyError) else str(err)
-        raise ValueError(f"{path.name} is not a readable MAT file: {what}") from None
+    except Exception as err:  # scipy raises several types for non-MAT content
+        raise ValueError(f"{path.name} is not a readable MAT file: {err}") from None
+    missing = [name for name in ("P", "A") if name not in data]
+    if missing:
+        raise ValueError(f"{path.name} is not a readable MAT file: no field {', '.join(map(repr, missing))}")
+    return sp.csc_matrix(field(path, data, "P")), sp.csc_matrix(field(path, data, "A"))
 
 
 def list_problems(folder: str | Path) -> list[Path]:

@@ -14,6 +14,10 @@ import dataclasses
 import math
 from dataclasses import dataclass
 
+import numpy as np
+
+from admmkit.checks import number          # float(value), or a TypeError naming the setting
+
 
 @dataclass(frozen=True)
 class QPSettings:
@@ -24,7 +28,7 @@ class QPSettings:
     others the run.
     """
 
-    rho: float = 0.1                   # rho_0 (clamped to [1e-6, 1e6] as OSQP does)
+    rho: float = 0.1                   # rho_0 in (0, inf) (clamped to [1e-6, 1e6] as OSQP does)
     sigma: float = 1e-6                # proximal weight of the x-step
     alpha: float = 1.6                 # over-relaxation
     relax_x: bool = True               # relax x too, as OSQP (it enters the proximal term sigma and the residuals)
@@ -50,21 +54,21 @@ class QPSettings:
 
     def __post_init__(self):
         for name in ("rho", "alpha", "eps_prim_inf", "eps_dual_inf", "adaptive_rho_tolerance", "delta"):
-            v = getattr(self, name)
-            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
-                raise ValueError(f"{name} must be a finite number > 0, got {v!r}")
+            v = number(name, getattr(self, name), "finite, > 0")
+            if not (math.isfinite(v) and v > 0):
+                raise ValueError(f"{name} must be a finite number > 0, got {getattr(self, name)!r}")
         if not 0 < self.alpha < 2:
             raise ValueError(f"alpha must be in (0, 2), got {self.alpha!r}")
         if self.adaptive_rho_tolerance < 1:
             raise ValueError(f"adaptive_rho_tolerance must be >= 1, got {self.adaptive_rho_tolerance!r}")
         for name in ("sigma", "eps_abs", "eps_rel"):
-            v = getattr(self, name)
-            if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
-                raise ValueError(f"{name} must be a finite number >= 0, got {v!r}")
+            v = number(name, getattr(self, name), "finite, >= 0")
+            if not (math.isfinite(v) and v >= 0):
+                raise ValueError(f"{name} must be a finite number >= 0, got {getattr(self, name)!r}")
         for name, low in (("scaling", 0), ("check_every", 1), ("adaptive_rho_interval", 1), ("max_iter", 1),
                           ("polish_refine_iter", 0)):
             v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, int) or v < low:
+            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < low:
                 raise ValueError(f"{name} must be an integer >= {low}, got {v!r}")
         if not isinstance(self.compiled, bool):
             raise ValueError(f"compiled must be True or False, got {self.compiled!r}")
@@ -72,8 +76,10 @@ class QPSettings:
             raise ValueError(f"xstep must be one of auto, reduced, kkt, got {self.xstep!r}")
         if self.order not in ("xz", "zx"):
             raise ValueError(f"order must be 'xz' or 'zx', got {self.order!r}")
-        if self.time_limit is not None and not (math.isfinite(self.time_limit) and self.time_limit > 0):
-            raise ValueError(f"time_limit must be a finite number > 0 or None, got {self.time_limit!r}")
+        if self.time_limit is not None:
+            v = number("time_limit", self.time_limit, "seconds, finite, > 0, or None")
+            if not (math.isfinite(v) and v > 0):
+                raise ValueError(f"time_limit must be a finite number > 0 or None, got {self.time_limit!r}")
 
     def replace(self, **changes) -> "QPSettings":
         """A copy with some settings changed (unknown names raise TypeError); no change: this object itself."""

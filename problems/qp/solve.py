@@ -29,6 +29,7 @@ import numpy as np
 
 import admmkit
 from admmkit import Result, Status
+from admmkit.checks import number
 
 from .polish import polish as polish_solution
 from .problem import QP
@@ -103,7 +104,8 @@ def solve_qp(qp: QP, settings: QPSettings | None = None, *, policy="osqp", warm_
     ``policy``: "osqp" (default: OSQP's rule with OSQP's normalisation, see
     ``admmkit.problems.qp.solve.default_policy``), None for a fixed rho, or any policy or registered
     name :func:`admmkit.solve` accepts.  ``warm_start``: a previous result of
-    this QP (its x, y and rho).  ``rho`` overrides rho_0.  ``acceleration``:
+    this QP (its x, y and rho; finite).  ``rho`` overrides rho_0: a number in (0, inf),
+    clamped to OSQP's [1e-6, 1e6] as OSQP does.  ``acceleration``:
     None, "anderson", "fast" or an accelerator, as :func:`admmkit.solve` takes it.
     """
     if not isinstance(qp, QP):
@@ -124,9 +126,13 @@ def solve_qp(qp: QP, settings: QPSettings | None = None, *, policy="osqp", warm_
             raise ValueError(f"warm_start has x of shape {np.shape(warm_start.x)} and y of shape "
                              f"{np.shape(warm_start.lam)}; this QP needs ({qp.n},) and ({qp.m},): give a result "
                              f"of a QP of the same size")
+        for name, v in (("x", warm_start.x), ("y", warm_start.lam)):
+            if not np.all(np.isfinite(v)):
+                raise ValueError(f"warm_start.{name} must be finite, got {np.size(v) - np.count_nonzero(np.isfinite(v))} "
+                                 f"NaN or infinite entries: give a result that did not diverge")
         x0, z0, lam0 = run_qp.iterate_from(warm_start.x, warm_start.lam)
         rho = warm_start.rho if rho is None else rho
-    rho0 = min(max(settings.rho if rho is None else rho, RHO_MIN), RHO_MAX)
+    rho0 = min(max(settings.rho if rho is None else check_rho(rho), RHO_MIN), RHO_MAX)
     stop = QPTermination(run_qp, settings.eps_abs, settings.eps_rel, gap=settings.gap,
                          infeasibility=settings.infeasibility, eps_prim_inf=settings.eps_prim_inf,
                          eps_dual_inf=settings.eps_dual_inf)
@@ -140,6 +146,16 @@ def solve_qp(qp: QP, settings: QPSettings | None = None, *, policy="osqp", warm_
     res.timings["setup"] = setup_time
     res.counters["factorizations"] = res.counters.get("factorizations", 0) + setup_factorizations
     return _qp_result(run_qp, settings, res, stop, res.last_record)
+
+
+def check_rho(rho) -> float:
+    """``rho`` (solve_qp's keyword, or a warm start's) as a float in (0, inf): TypeError unless a number, ValueError
+    outside the range.  (A valid rho is then clamped to OSQP's [RHO_MIN, RHO_MAX], as OSQP does.)"""
+    value = number("rho", rho, "in (0, inf)")
+    if not (math.isfinite(value) and value > 0):
+        raise ValueError(f"rho must be a number in (0, inf), got {rho!r} (a rho in range is clamped to OSQP's "
+                         f"[{RHO_MIN:g}, {RHO_MAX:g}])")
+    return value
 
 
 def _same(view: np.ndarray, array: np.ndarray) -> bool:

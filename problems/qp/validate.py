@@ -17,11 +17,14 @@ def _inf(v) -> float:
 
 
 def _real(name: str, value, sparse_ok: bool = False):
-    """``value`` as a real float array (or sparse matrix); ValueError naming ``name`` for text or complex values."""
+    """``value`` as a real float array, or a sparse matrix of any scipy format as a float CSC matrix (``value``
+    itself when it is one); ValueError naming ``name`` for text or complex values."""
     if sparse_ok and sp.issparse(value):
-        if np.iscomplexobj(value.data):
+        if np.iscomplexobj(value):
             raise ValueError(f"{name} must be real, got complex entries")
-        return value
+        if value.dtype.kind not in "biuf":
+            raise ValueError(f"{name} must be a matrix of numbers, got a sparse matrix of dtype {value.dtype}")
+        return _csc(value)
     if np.iscomplexobj(value):
         raise ValueError(f"{name} must be real, got complex values")
     try:
@@ -58,7 +61,7 @@ def _validate(P, q, A, l, u, allow_nonconvex: bool = False):
     solves such a QP: a point ADMM returns is then at best stationary)."""
     P = _real("P", P, sparse_ok=True)
     if not sp.issparse(P) and P.ndim != 2:
-        raise ValueError(f"P must be a square matrix, got an array of shape {P.shape}")
+        raise ValueError(f"P must be a square 2-D matrix of shape (n, n), got an array of shape {P.shape}")
     P = _csc(P)
     n = P.shape[0]
     if P.shape != (n, n):
@@ -84,8 +87,9 @@ def _validate(P, q, A, l, u, allow_nonconvex: bool = False):
     if not np.all(np.isfinite(q)):
         raise ValueError("q must be finite")
     A = _real("A", A, sparse_ok=True)
-    if not sp.issparse(A):
-        A = np.atleast_2d(A)
+    if not sp.issparse(A) and A.ndim != 2:
+        raise ValueError(f"A must be a 2-D matrix of shape (m, n) with n = {n} (from P), got an array of shape "
+                         f"{A.shape}")
     A = _csc(A)
     if A.shape[1] != n:
         raise ValueError(f"A must have n = {n} columns (from P), got shape {A.shape}")
