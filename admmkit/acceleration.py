@@ -231,7 +231,8 @@ class Acceleration:
     Order "xz" starts an iteration from (z, lam), order "zx" from (A x, lam).
     :meth:`step` takes the vectors before and after an iteration and returns
     the (z, lam, A x) the next iteration starts from.  A change of rho
-    changes the map T, so the accelerator is reset and the plain iterate kept.
+    changes the map T: the rho event (:class:`admmkit.steps.RhoEvent`) resets
+    the accelerator through :meth:`reset` and the plain iterate is kept.
     """
 
     def __init__(self, accelerator: Accelerator, order: str, inner):
@@ -239,14 +240,16 @@ class Acceleration:
         self._u = 0 if order == "xz" else 2        # the index of u in (z, lam, Ax)
         accelerator.start()
 
-    def step(self, old: tuple, new: tuple, rho: float, rho_next: float) -> tuple:
-        """(z, lam, Ax) for the next iteration from those before (``old``) and after (``new``) it."""
-        if rho_next != rho:
-            self.accelerator.reset()
-            return new
+    def step(self, old: tuple, new: tuple, rho: float) -> tuple:
+        """(z, lam, Ax) for the next iteration from those before (``old``) and after (``new``) it, at an
+        unchanged rho (a change of rho restarts the accelerator instead: :meth:`reset`)."""
         i = self._u
         u, lam = self.accelerator.propose((old[i], old[1]), (new[i], new[1]), rho, self.inner)
         return (u, lam, new[2]) if i == 0 else (new[0], lam, u)
+
+    def reset(self) -> None:
+        """Restart: part of the event of a change of rho (:class:`admmkit.steps.RhoEvent`)."""
+        self.accelerator.reset()
 
     def summary(self) -> dict:
         """The accelerator and its counts (extrapolated, rejected, restarts) for the result."""

@@ -147,6 +147,7 @@ class IterativeXSolver:
         self._A = None
         self._amg = None
         self._rho_amg = None      # rho the preconditioner was built or refreshed for
+        self._event_action = None  # what the last update_rho did, reported by the next solve
         self._fresh_factor = None  # CG convergence factor with a fresh hierarchy
         self._stale_loss = 0.0    # seconds lost to a stale hierarchy since the last refresh
         self._x_prev = None
@@ -193,6 +194,11 @@ class IterativeXSolver:
             self._rho_amg, self._fresh_factor, self._stale_loss = rho, None, 0.0
         return action
 
+    def update_rho(self, rho: float) -> None:
+        """The event of a change of rho: A = K + rho D and the preconditioner's set-up, Galerkin refresh or keep
+        (:meth:`_prepare`), made now rather than at the next solve; that solve reports the action."""
+        self._event_action = self._prepare(float(rho))
+
     def _refresh_price(self) -> float:
         """What a Galerkin refresh costs, in CG iterations, from nonzero counts (never from the clock, so that
         the iterates do not depend on the machine's load).
@@ -233,6 +239,9 @@ class IterativeXSolver:
         if self.perm is not None:
             b = np.take(b, self.perm)
         action = self._prepare(rho)
+        if action == "none" and self._event_action is not None:    # done at the rho event (update_rho)
+            action = self._event_action
+        self._event_action = None
         tol = self.inner_tolerance()
         start = time.perf_counter()
         guess = self.space.guess(rho, b)

@@ -95,7 +95,7 @@ def _checked(solve1, name: str, A):
 
 
 class CachedFactorization:
-    """Cache of sparse factorisations of matrix(rho), one per rho value.
+    """Cache of factorisations of matrix(rho), one per rho value: the one owner of a plug-in's factors.
 
     ``matrix(rho)`` returns the sparse SPD matrix for a penalty ``rho``; it is
     called and factorised the first time a rho value is seen.  Entries are
@@ -104,7 +104,9 @@ class CachedFactorization:
     factorisation and refactorises it in place for a new rho when the backend
     can and the pattern is the same (qdldl: the numeric factorisation only, its
     ordering kept, as OSQP does on a change of rho; the same factor as a new
-    one), else factorises anew.
+    one), else factorises anew.  ``factor`` replaces the backend's sparse
+    factorisation by any callable matrix -> solve (a callable rhs -> x), e.g.
+    a dense Cholesky factor of a small dense matrix; ``backend`` then names it.
 
     Attributes: ``factorizations`` and ``solves`` count the work done,
     ``factor_time`` and ``solve_time`` the seconds spent in it, ``backend`` is
@@ -112,13 +114,16 @@ class CachedFactorization:
     """
 
     def __init__(self, matrix: Callable[[float], "sp.spmatrix"], *, backend: str = "auto",
-                 max_cached: int = 32, in_place: bool = False):
+                 max_cached: int = 32, in_place: bool = False, factor: Callable | None = None):
         if not callable(matrix):
             raise TypeError("matrix must be a callable rho -> sparse matrix")
+        if factor is not None and not callable(factor):
+            raise TypeError(f"factor must be a callable matrix -> solve, got {factor!r}")
         if isinstance(max_cached, bool) or not isinstance(max_cached, int) or max_cached < 1:
             raise ValueError(f"max_cached must be an integer >= 1, got {max_cached!r}")
         self.matrix = matrix
-        self.backend = _resolve(backend)
+        self.factor = factor
+        self.backend = _resolve(backend) if factor is None else getattr(factor, "__name__", "custom")
         self.max_cached = 1 if in_place else max_cached
         self.in_place = bool(in_place)
         self.factorizations = 0
@@ -161,7 +166,15 @@ class CachedFactorization:
                 if solve is not None:
                     self._cache.clear()
                     return solve
-        return factorize(matrix, self.backend)
+        return factorize(matrix, self.backend) if self.factor is None else self.factor(matrix)
+
+    def prepare(self, rho: float) -> None:
+        """Factorise matrix(rho) now unless it is held (the event of a change of rho: :meth:`admmkit.Problem.update_rho`)."""
+        self._factor(rho)
+
+    def clear(self) -> None:
+        """Drop every held factorisation (the counters stay): memory back, the next rho factorises anew."""
+        self._cache.clear()
 
     def solve(self, rho: float, rhs: np.ndarray) -> np.ndarray:
         """Solve ``matrix(rho) @ x = rhs``, factorising matrix(rho) if not cached."""

@@ -29,7 +29,8 @@ class Problem(ABC):
     the absolute dual tolerance).  Optional: ``c`` (default 0), the inner
     products :meth:`inner`, :meth:`x_norm`, :meth:`x_distance`,
     :meth:`adjoint_norm` (needed only for Boyd's dual residual in order "xz"),
-    :meth:`objective`, :meth:`kkt` and :meth:`counters`.
+    :meth:`objective`, :meth:`kkt`, :meth:`counters` and :meth:`update_rho`
+    (the event of a change of rho).
     """
 
     #: number of x unknowns
@@ -43,9 +44,9 @@ class Problem(ABC):
         """Return argmin_x L_rho(x, z; lam).
 
         ``x`` is the current iterate, passed for warm starts or proximal terms;
-        ``rho`` is passed on every call so that a plug-in can cache work per
-        rho (see :class:`admmkit.linsolve.CachedFactorization`).  Return a new
-        array; do not modify the arguments.
+        ``rho`` is passed on every call, the value of the last
+        :meth:`update_rho` event during a run (or rho_0).  Return a new array;
+        do not modify the arguments.
         """
 
     @abstractmethod
@@ -55,6 +56,19 @@ class Problem(ABC):
     @abstractmethod
     def apply_A(self, x: np.ndarray) -> np.ndarray:
         """Return A x, the constraint map applied to x."""
+
+    # -- the event of a change of rho --------------------------------------
+    def update_rho(self, rho: float) -> None:
+        """A change of rho: the loop calls this once, at the line where rho_{k+1} != rho_k takes effect.
+
+        The place to redo what depends on rho, as OSQP's ``update_rho``: a new
+        factorisation of the x-step's matrix, a numeric refactorisation of the
+        same pattern, a Galerkin refresh of a multigrid hierarchy, or nothing
+        (the default; a plug-in whose steps take rho as a scalar has nothing
+        to redo).  Called only when another iteration follows.  The building
+        blocks implement it (:class:`admmkit.QuadraticXStep`,
+        :class:`admmkit.SplitProblem`); docs/framework.md lists what each x-step does.
+        """
 
     # -- inner products (defaults: Euclidean) -------------------------------
     def inner(self, a: np.ndarray, b: np.ndarray) -> float:

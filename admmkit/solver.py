@@ -10,7 +10,9 @@ then each iteration is, line by line:
   only when the stopping rule, the policy, the callback or the history reads it;
 - on a tested iteration, the tests (:mod:`admmkit.termination`): divergence,
   the stopping rule, stalling;
-- the policy's rho_{k+1} (17) (:class:`admmkit.steps.PolicyStep`);
+- the policy's rho_{k+1} (17) (:class:`admmkit.steps.PolicyStep`), and where
+  it differs from rho_k the one event of a change of rho
+  (:class:`admmkit.steps.RhoEvent`: ``problem.update_rho``, the accelerator's restart);
 - the bookkeeping (:mod:`admmkit.ledger`): the history, the callback, the
   time limit, and whether the next dual update takes ||r||.
 """
@@ -30,7 +32,7 @@ from .problem import Problem
 from .record import IterationRecord, loop_record
 from .result import Result, Status
 from .segments import FastForward
-from .steps import ITERATIONS, PolicyStep
+from .steps import ITERATIONS, PolicyStep, RhoEvent
 from .stopping import StoppingRule
 from .termination import Termination
 
@@ -143,6 +145,7 @@ def solve(
     ctx, rho, rho_changes, every, last = run.ctx, run.rho, 0, run.check_every, run.max_iter - 1
     x, z, lam, Ax = run.x, run.z, run.lam, run.Ax
     accel = None if accelerator is None else Acceleration(accelerator, run.order, checks.inner_of(problem))
+    rho_event = RhoEvent(problem, accel)                    # a change of rho, eq. (17) taking effect: one call
     fast = FastForward(run, enabled=run.compiled and accel is None)    # unread iterations, compiled (segments)
     iterate = fast.serve(iterate)                    # ... and a read one the segment ran: its numbers, not a rerun
     rec = final = old = None
@@ -167,16 +170,17 @@ def solve(
             final = ledger.close(rec, rho_next, check, final)     # the history, the callback, the time limit
             if final is not None:
                 break
-            if accel is not None:                        # the state iteration k + 1 starts from, (A2)-(A5)
-                z, lam, Ax = accel.step(old, (z, lam, Ax), rho, rho_next)
-            if rho_next != rho:
-                rho, rho_changes = float(rho_next), rho_changes + 1
+            if rho_next != rho:         # the rho event: the problem's refresh, the accelerator's restart (steps)
+                rho = rho_event.change(rho_next, follows=k + 1 < run.max_iter)
+                rho_changes += 1
+            elif accel is not None:                      # the state iteration k + 1 starts from, (A2)-(A5)
+                z, lam, Ax = accel.step(old, (z, lam, Ax), rho)
             k += 1
         total = perf() - start
     ledger.finish(rec)
     x_seconds, z_seconds = iterate.seconds()
     timings = dict(x_step=x_seconds, z_step=z_seconds, policy=rho_step.seconds,
-                   residuals=watch.seconds, total=total)
+                   residuals=watch.seconds, total=total, rho_update=rho_event.seconds)
     result = _result(run, x, z, lam, rec, final, watch.stopped_by, rho, rho_changes, timings)
     if fast.segments:       # the iterations run in compiled segments, and their seconds (in no step's time)
         result.timings["segments"] = fast.seconds

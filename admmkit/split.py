@@ -44,6 +44,10 @@ class SplitProblem(Problem):
         """The quadratic x-step (eq. (12))."""
         return self.f(z, lam, rho, x, self.c)
 
+    def update_rho(self, rho):
+        """The event of a change of rho: the x-step's refresh (:meth:`admmkit.QuadraticXStep.update_rho`)."""
+        self.f.update_rho(rho)
+
     def z_step(self, Ax, lam, rho, z):
         """prox_{g, 1/rho}^M (A x - c + lam / rho) (eq. (11))."""
         v = (Ax if np.isscalar(self.c) and self.c == 0 else Ax - self.c) + lam / rho

@@ -201,3 +201,35 @@ class PolicyStep:
 def _blown_up(rec) -> bool:
     """Whether the iterates of the record blew up: ||r||_M or ||x^{k+1}||_X is inf or NaN."""
     return not (math.isfinite(rec.primal_residual) and math.isfinite(rec.x_norm))
+
+
+class RhoEvent:
+    """A change of rho taking effect: the one event the loop raises where rho_{k+1} != rho_k (eq. (17)).
+
+    As OSQP's ``update_rho``, one call chain: ``problem.update_rho(rho_{k+1})``
+    redoes what depends on rho (a factorisation, a numeric refactorisation, a
+    Galerkin refresh, or nothing: :meth:`admmkit.Problem.update_rho`), and an
+    accelerator restarts (its history mixed two penalties).  The problem is
+    told only when another iteration follows, so that no refresh is made for
+    an iteration that will not run.  ``seconds`` is the time spent in the
+    problem's refreshes (``result.timings["rho_update"]``).
+    """
+
+    __slots__ = ("update_rho", "accel", "seconds")
+
+    def __init__(self, problem, accel=None) -> None:
+        # a plug-in written to the protocol without subclassing admmkit.Problem may lack the hook: nothing to redo
+        self.update_rho = getattr(problem, "update_rho", None)
+        self.accel, self.seconds = accel, 0.0
+
+    def change(self, rho_next, follows: bool = True) -> float:
+        """Make rho_{k+1} the run's rho and return it as a float."""
+        rho = float(rho_next)
+        if follows and self.update_rho is not None:
+            t0 = perf()
+            self.update_rho(rho)
+            self.seconds += perf() - t0
+        if self.accel is not None:
+            self.accel.reset()
+        return rho
+

@@ -137,6 +137,15 @@ class QuadraticXStep:
             return self._amg.solve(rho, b, x)
         return self._cg(rho, b, x)
 
+    def update_rho(self, rho: float) -> None:
+        """The event of a change of rho: ``"direct"`` factorises K + rho A'MA now (held per rho, so a return to
+        an earlier rho costs nothing), ``"amg"`` makes its set-up, Galerkin refresh or keep decision now
+        (``admmkit.iterative.IterativeXSolver.update_rho``); ``"diagonal"`` and ``"cg"`` have nothing to redo."""
+        if self.solver == "direct":
+            self._cache.prepare(rho)
+        elif self.solver == "amg":
+            self._amg.update_rho(rho)
+
     def _cg(self, rho, b, x):
         n, P, sigma, A = self.n, self.P, self.sigma, self.A
 

@@ -87,9 +87,9 @@ def run_case(case: dict) -> dict:
         _PROBLEMS.clear()
         _PROBLEMS[d.key] = d.make_admm()
     problem = _PROBLEMS[d.key]
-    cache = getattr(problem, "_cholesky", None)
-    if isinstance(cache, dict):
-        cache.clear()      # memory: dense factorisations per rho of the condensed mode (iterates are unchanged)
+    factors = getattr(problem, "factors", None)     # the condensed mode's dense factors per rho (public)
+    if factors is not None:
+        factors.clear()    # each case counts its own factorisations, from an empty cache (iterates are unchanged)
     rho0 = case["rho_scale"] * d.rho_unit
     t0 = time.perf_counter()
     res = paper_rule_run(problem, case["method"], rho0, tol=case["tol"], max_iter=case["max_iter"],

@@ -134,6 +134,11 @@ class ObstacleProblem(Problem):
         """Solve (K + rho M) u = F + M (rho z - lam) (admmkit.xstep.QuadraticXStep)."""
         return self._xstep(z, lam, rho, x)
 
+    def update_rho(self, rho):
+        """A change of rho: the x-step's refresh (a factorisation or an AMG decision; Jacobi-CG decides at
+        each solve, from the CG iterations spent at that rho)."""
+        self._xstep.update_rho(rho)
+
     def z_step(self, Ax, lam, rho, z):
         """Project u + lam/rho pointwise onto {z >= psi} (or {z <= psi}): the prox of the obstacle's indicator."""
         return self._g.prox(Ax + lam / rho, 1.0 / rho, self.m)

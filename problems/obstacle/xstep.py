@@ -67,6 +67,10 @@ class JacobiCG:
         """
         return z + self.solve(rho, self.F - self.K @ z - self.m * lam, x - z)
 
+    def update_rho(self, rho: float) -> None:
+        """A change of rho: nothing to redo here (rent or buy is decided at each solve, from the CG
+        iterations spent at that rho)."""
+
     def solve(self, rho: float, b: np.ndarray, x0: np.ndarray) -> np.ndarray:
         """The solution of (K + rho M) u = b, from x0."""
         rho = float(rho)

@@ -156,6 +156,11 @@ class QP(Problem):
         self._solver.solves -= 1
         return 1
 
+    def update_rho(self, rho: float) -> None:
+        """A change of rho (OSQP's ``update_rho``): the x-step's KKT or reduced matrix factorised now, held per
+        rho (a numeric refactorisation of the same pattern with qdldl)."""
+        self._solver.prepare(rho)
+
     def penalty(self, rho: float) -> np.ndarray:
         """OSQP's rho_vec: rho w_i, and RHO_MIN on free rows under row_weights "osqp" (Q5)."""
         R = rho * (np.ones(self.m) if self.w is None else self.w)

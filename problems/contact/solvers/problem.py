@@ -45,6 +45,7 @@ import scipy.sparse as sp
 from scipy.linalg.lapack import dpotrs
 
 from admmkit.iterative import IterativeXSolver
+from admmkit.linsolve import CachedFactorization
 from admmkit.operators import LinearMap
 from admmkit.xstep import QuadraticXStep
 
@@ -66,6 +67,24 @@ ITERATIVE_MIN_N_3D = 30_000
 FAST_AMG = {"spectral_steps": 10, "cycle_values": "float32"}
 
 
+class DenseCholesky:
+    """The Cholesky factor of a dense SPD matrix (LAPACK's potrf), solved by LAPACK's potrs directly.
+
+    cho_solve's checks cost 0.25 ms at n_c = 600 and its wrapper ~40 us at n_c = 80 (a third of an
+    iteration); the loop checks the iterates for non-finite values anyway.
+    """
+
+    __slots__ = ("factor", "lower")
+    ldl = refactor = None        # what admmkit.linsolve.CachedFactorization asks of a solve
+
+    def __init__(self, matrix: np.ndarray):
+        self.factor, self.lower = sla.cho_factor(matrix)
+
+    def __call__(self, rhs: np.ndarray) -> np.ndarray:
+        """The solution of matrix @ x = rhs."""
+        return dpotrs(self.factor, rhs, lower=self.lower)[0]
+
+
 class FullContact(_ContactBase):
     """Full-space mode: x = u, one cached sparse factorisation per rho."""
 
@@ -80,6 +99,10 @@ class FullContact(_ContactBase):
     def x_step(self, z, lam, rho, u):
         """Solve (K + rho B'M_c B) u = f + B'M_c (rho p - lam), eq. (12) (A = [B; T] with friction)."""
         return self._xstep(z, lam, rho, u)
+
+    def update_rho(self, rho):
+        """A change of rho: K + rho B'M_c B factorised now (held per rho, admmkit.QuadraticXStep)."""
+        self._xstep.update_rho(rho)
 
     def apply_A(self, u):
         """u_n = B u at the contact nodes (and T u with friction)."""
@@ -112,22 +135,17 @@ class CondensedContact(_ContactBase):
         self._A_c = sp.csr_matrix(self.A)[:, self.schur.contact_dofs]
         self.d0 = self._A_c @ u0_c                 # A K^{-1} f (A touches the contact dofs only)
         self.C = self.schur.compliance(self.A)     # A K^{-1} A'
-        self._cholesky: dict[float, tuple] = {}
+        # the dense n_c x n_c factors of M_c^{-1} + rho C, one per rho, at most 32 held (least recently used out)
+        self.factors = CachedFactorization(lambda rho: np.diag(1.0 / self.w) + rho * self.C, factor=DenseCholesky)
         self._recent_Cw: deque = deque(maxlen=2)  # (x, C w) of the last x-steps: one C-matvec per iteration
-        self.factorizations = 0
-        self.solves = 0
+
+    def update_rho(self, rho):
+        """A change of rho: M_c^{-1} + rho C factorised now (dense Cholesky, held per rho)."""
+        self.factors.prepare(rho)
 
     def x_step(self, z, lam, rho, x):
         """(M_c^{-1} + rho C) w = rho p - lam - rho d0, s = 1: eq. (12) on Gamma_C."""
-        key = float(rho)
-        if key not in self._cholesky:
-            self._cholesky[key] = sla.cho_factor(np.diag(1.0 / self.w) + rho * self.C)
-            self.factorizations += 1
-        self.solves += 1
-        # LAPACK's potrs directly: cho_solve's checks cost 0.25 ms at n_c = 600 and its wrapper ~40 us at
-        # n_c = 80 (a third of an iteration); the loop checks the iterates for non-finite values anyway
-        factor, lower = self._cholesky[key]
-        w, _ = dpotrs(factor, rho * z - lam - rho * self.d0, lower=lower)
+        w = self.factors.solve(rho, rho * z - lam - rho * self.d0)
         x_new = np.concatenate(([1.0], w))
         self._recent_Cw.append((x_new, self.C @ w))
         return x_new
@@ -166,8 +184,8 @@ class CondensedContact(_ContactBase):
         return x0, np.zeros(m), np.zeros(m)
 
     def counters(self):
-        """Dense factorisations (one per rho) and solves on Gamma_C."""
-        return {"factorizations": self.factorizations, "solves": self.solves}
+        """Dense factorisations (one per rho held) and solves on Gamma_C."""
+        return {"factorizations": self.factors.factorizations, "solves": self.factors.solves}
 
 
 class IterativeContact(_ContactBase):
@@ -182,6 +200,10 @@ class IterativeContact(_ContactBase):
         modes, blocks = near_null_space(ops)
         options.setdefault("amg_options", FAST_AMG)
         self.solver = IterativeXSolver(ops.K, AtMA, near_null=modes, blocks=blocks, **options)
+
+    def update_rho(self, rho):
+        """A change of rho: K + rho B'M_c B, and the AMG hierarchy's set-up, Galerkin refresh or keep, now."""
+        self.solver.update_rho(rho)
 
     def x_step(self, z, lam, rho, u):
         """Solve (K + rho B'M_c B) u = f + B'M_c (rho p - lam), eq. (12), by AMG-CG warm-started."""
