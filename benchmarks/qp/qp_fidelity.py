@@ -63,7 +63,7 @@ def check_problems(data: Path, names: list[str] | None) -> None:
     unknown = [n for n in names if n not in known]
     if unknown:
         upper = {k.upper(): k for k in known}
-        close = [upper[c] for c in difflib.get_close_matches(unknown[0].upper(), list(upper), n=3)]
+        close = [upper[c] for c in difflib.get_close_matches(unknown[0].upper(), list(upper), n=3, cutoff=0.7)]
         hint = (f"; did you mean {', '.join(close)}?" if close else
                 f"; it holds {len(known)} problems" + (f", e.g. {', '.join(known[:5])}" if known else ""))
         raise ValueError(f"--problems: no problem named {', '.join(unknown)} in --data {data}{hint}")

@@ -174,8 +174,6 @@ def main(argv=None, prog: str = "admmkit bench qp-speed") -> int:
     if args.max_size < 1 or args.min_size < 0 or not all(0 < e < math.inf for e in args.eps) or args.max_iter < 1 \
             or args.repeat < 1:
         parser.error("--max-size, --eps, --max-iter and --repeat must be positive, --min-size >= 0 (and --eps finite)")
-    if not Path(args.data).is_dir():
-        parser.error(f"--data: no folder {args.data}")
     from admmkit.benchmarks.runner.harness import require
     require(prog.removeprefix("admmkit "), "osqp")        # the other solver of the comparison
     check_problems(Path(args.data), args.problems)
