@@ -243,6 +243,8 @@ def run(out="out/obstacle", *, quick: bool = False, command: str = "admmkit benc
     failed: list[dict] = []
     srows = sweep(n_sweep, rhos, out=out / "sweep", executor=executor, progress=progress, report_only=report_only,
                   harness=failed)
+    from admmkit.benchmarks.runner.harness import check_harness, check_something_left
+    check_something_left(srows, failed, len(failed) + len(srows), out / "sweep" / "results.jsonl", report_only)
     write_csv(out / "sweep.csv", srows)
     write_text(out / "sweep.md", sweep_markdown(srows) + f"\nMade by `{command}`.\n")
     plot_sweep(srows, out / "sweep.png")
@@ -253,6 +255,5 @@ def run(out="out/obstacle", *, quick: bool = False, command: str = "admmkit benc
             res = solve(p, rho=1.0, policy="summable", order="zx", stop=ResidualTolerance(1e-10, 1e-9))
             plot_solution(p, res.x, res.x, out / f"{sc.name}.png")
     print(f"wrote {', '.join(sorted(f.name for f in out.iterdir()))} to {out}")
-    from admmkit.benchmarks.runner.harness import check_harness
     check_harness(failed, len(failed) + len(srows), left_out="left out of the sweep's tables")
     return 0

@@ -143,6 +143,20 @@ def without_harness_failures(records: dict) -> tuple[dict, list[dict]]:
     return kept, [r for r in records.values() if is_harness_failure(r)]
 
 
+def check_something_left(kept, failed: list[dict], total: int, results, report_only: bool) -> None:
+    """Before a summary: refuse in one line when no case is left to summarise.
+
+    Every case failed in the harness: :class:`HarnessFailed` (no file written); ``--report-only`` on a
+    folder without a finished case of the grid: a ``ValueError`` naming the flag and the results file.
+    """
+    if kept:
+        return
+    check_harness(failed, total, left_out="no file written")
+    if report_only:
+        raise ValueError(f"--report-only: {results} holds no finished case of this grid; run the same command "
+                         "without --report-only first")
+
+
 def check_harness(records, total: int, files=(), left_out: str = "nothing ranked on them") -> None:
     """Raise :class:`HarnessFailed` (with ``files`` written) if any record is a harness failure."""
     failed = harness_failures(records)

@@ -90,6 +90,17 @@ def test_report_only_needs_no_reference_solver(tmp_path, monkeypatch, capsys):
     assert not (tmp_path / "README.md").exists()
 
 
+@pytest.mark.parametrize("study, results", [("stability", "results.jsonl"), ("precision", "results.jsonl"),
+                                            ("paper-compare", "results.jsonl"), ("policies", "results.jsonl"),
+                                            ("obstacle", "sweep/results.jsonl")])
+def test_report_only_on_an_empty_folder_is_one_line(study, results, tmp_path, capsys):
+    code = main(["bench", study, "--quick", "--report-only", "-q", "--out", str(tmp_path)])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and err == [f"admmkit: error: --report-only: {tmp_path / results} holds no finished case of "
+                                 "this grid; run the same command without --report-only first"]
+    assert not list(tmp_path.glob("*.md")) and not list(tmp_path.glob("*.png"))
+
+
 # ---------------------------------------------------------------- whose failure a failed case is
 def _solve_with(rule):
     def case(_case):
