@@ -48,7 +48,7 @@ def rows_of(records: dict) -> list[dict]:
     """One row per run; a case that raised or timed out fails at each of its accuracies.
 
     ``harness``: the case failed in the harness (a missing package, an error outside the rule's code): such
-    a row is no run of the rule (:func:`without_harness_failures` leaves its problem out).
+    a row is no run of the rule (``without_harness_failures`` leaves its problem out).
     """
     rows = []
     for rec in records.values():
@@ -176,7 +176,7 @@ def summarise(records: dict, out: Path, *, command: str, wall: float | None, not
     """Write runs.csv, the profiles, failures.md and README.md (the ranking); returns the files.
 
     Cases that failed in the harness are ranked on nowhere: their problems are left out for every
-    configuration, the README says how many, and :class:`~admmkit.benchmarks.runner.harness.HarnessFailed`
+    configuration, the README says how many, and ``HarnessFailed`` (``admmkit.benchmarks.runner.harness``)
     is raised once the files are written (none if nothing is left to rank).
     """
     out.mkdir(parents=True, exist_ok=True)
