@@ -134,9 +134,10 @@ def harness_message(failed: list[dict], total: int, left_out: str = "nothing ran
     """``576 of 960 cases failed in the harness (ModuleNotFoundError: No module named 'cvxpy'); ...``."""
     causes = Counter(first_line(r["error"]) for r in failed)
     cause, count = causes.most_common(1)[0]
-    more = f"; {len(causes) - 1} other cause(s)" if len(causes) > 1 else ""
-    return (f"{len(failed)} of {total} cases failed in the harness ({cause}{'' if count == len(failed) else f', {count} times'}"
-            f"{more}); {left_out}; fix it and run the same command again: those cases run again")
+    if len(causes) > 1:
+        cause += f", {count} times; {len(causes) - 1} other cause(s)"
+    return (f"{len(failed)} of {total} cases failed in the harness ({cause}); {left_out}; fix it and run the same "
+            "command again: those cases run again")
 
 
 def without_harness_failures(records: dict) -> tuple[dict, list[dict]]:

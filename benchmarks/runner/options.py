@@ -86,10 +86,15 @@ def study(run):
         try:
             return run(args)
         except HarnessFailed as failed:
-            print_files(failed.files)
-            print(f"admmkit: error: {' '.join(str(failed).split())}", file=sys.stderr)
-            return EXIT_HARNESS
+            return harness_exit(failed)
     return command
+
+
+def harness_exit(failed: HarnessFailed) -> int:
+    """List the files a study wrote, say in one line how many cases failed in the harness; EXIT_HARNESS."""
+    print_files(failed.files)
+    print(f"admmkit: error: {' '.join(str(failed).split())}", file=sys.stderr)
+    return EXIT_HARNESS
 
 
 def split_list(text):
@@ -122,6 +127,4 @@ def run_own(module: str, argv: list[str], prog: str) -> int:
     except SystemExit as exit_:
         return exit_.code if isinstance(exit_.code, int) else 2
     except HarnessFailed as failed:
-        print_files(failed.files)
-        print(f"admmkit: error: {' '.join(str(failed).split())}", file=sys.stderr)
-        return EXIT_HARNESS
+        return harness_exit(failed)

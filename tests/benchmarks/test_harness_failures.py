@@ -76,7 +76,8 @@ def test_a_study_refuses_at_once_when_a_package_is_missing(module, argv, tmp_pat
 
 def test_require_names_the_command_the_module_and_the_pip_command(monkeypatch):
     monkeypatch.setitem(sys.modules, "distributed", None)
-    with pytest.raises(MissingPackage, match=r'^bench executors needs dask.distributed: pip install "admmkit\[sweep\]"$'):
+    expected = r'^bench executors needs dask.distributed: pip install "admmkit\[sweep\]"$'
+    with pytest.raises(MissingPackage, match=expected):
         require("bench executors", "numpy", "distributed")
     require("bench executors", "numpy")                        # present: nothing said
 
