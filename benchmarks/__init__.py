@@ -5,8 +5,9 @@
   (``sweep_local``: local processes; ``sweep_dask``: Dask), the worker side
   (``sweep_worker``), the consolidated table (``sweep_table``), reports and
   figures (``report``), Dolan-Moré profiles (``profiles``), the machine and
-  the one timer (``machine``), and the options every study command shares
-  (``options``);
+  the one timer (``machine``), the options every study command shares
+  (``options``), and what a study needs installed and which failed cases are
+  the harness's, not the rule's (``harness``);
 - ``rules``: every rule swept: the methods and problem families with their
   references and peers (``methods``, ``families``, ``references``, ``peers``,
   ``pdas``), work-precision (``precision``), stability (``stability``), the

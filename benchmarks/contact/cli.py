@@ -8,7 +8,7 @@ is imported only when its command runs.  The shared options live in
 from __future__ import annotations
 
 from admmkit.cli import positive_float, positive_int  # noqa: F401
-from admmkit.benchmarks.runner.options import add_out, add_sweep_options, executor_of, own_parser, print_files
+from admmkit.benchmarks.runner.options import add_out, add_sweep_options, executor_of, needs, own_parser, print_files, study
 
 
 def reproduce(commands) -> None:
@@ -20,10 +20,11 @@ def reproduce(commands) -> None:
     r.add_argument("--quick", action="store_true", help="h = 1/10 and 1/20 only (CI smoke test)")
     r.add_argument("--repeats", type=positive_int, default=1, help="repeats per run, the median time (default 1)")
     r.add_argument("-q", "--quiet", action="store_true", help="no progress lines")
-    r.set_defaults(func=_reproduce)
+    r.set_defaults(func=study(_reproduce))
 
 
 def _reproduce(args) -> int:
+    needs(args, "cvxpy", "clarabel")               # the paper's reference solver: nothing weaker replaces it
     from admmkit.benchmarks.contact.paper import PAPER_HS, run_reproduction
     hs = (1 / 10, 1 / 20) if args.quick else PAPER_HS
     run_reproduction(out=args.out, hs=hs, repeats=args.repeats, progress=not args.quiet, command=args.command_line)
@@ -36,10 +37,11 @@ def paper_compare(targets) -> None:
                            description="The paper's Tables 1-2 beside this machine's times, with ratios.")
     add_sweep_options(c, "paper-compare")
     c.add_argument("--repeats", type=positive_int, default=3, help="repeats, median time (default 3)")
-    c.set_defaults(func=_paper_compare)
+    c.set_defaults(func=study(_paper_compare))
 
 
 def _paper_compare(args) -> int:
+    needs(args)
     from admmkit.benchmarks.contact import paper_compare
     print_files(paper_compare.run(args.out, repeats=args.repeats, workers=args.workers, quick=args.quick,
                                    progress=args.progress, command=args.command_line, report_only=args.report_only,

@@ -257,6 +257,8 @@ def main(argv=None, prog: str = "admmkit bench friction") -> int:
         parser.error(f"--slide must be a finite number > 0, got {args.slide}")
     if args.max_iter < 1:
         parser.error(f"--max-iter must be >= 1, got {args.max_iter}")
+    from admmkit.benchmarks.runner.harness import require
+    require(prog.removeprefix("admmkit "), "cvxpy", "clarabel")     # the Tresca references
     from admmkit.blas import limit_blas
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)

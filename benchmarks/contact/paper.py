@@ -16,6 +16,11 @@ file ``benchmarks/contact/data/paper_tables.json``), iteration tables, the true 
 at the stop against a tight reference solution of the same discrete problem
 (:mod:`admmkit.problems.contact.validation.reference`), the figures (the paper's Figs 1-4 and the
 contact pressure / gap along Gamma_C) and a README.md saying what each file is.
+
+The reference is cvxpy + Clarabel, as in the committed results (docs/results/paper).  The reproduction
+never puts a weaker one in its place: without cvxpy or Clarabel it refuses before any work, and if
+Clarabel does not solve a mesh (the reference falls back to a tight SADMM run) it stops before writing
+anything, so the files already in ``out`` stay as they were (:class:`WeakReference`).
 """
 from __future__ import annotations
 
@@ -34,9 +39,16 @@ from admmkit.problems.contact.validation.reference import errors_against, refere
 from admmkit.problems.contact.model.scene import example1, example2
 
 from admmkit.benchmarks.contact.paper_data import MAGNIFY, METHOD_NAMES, PAPER_HS, PAPER_RHOS, Run
+from admmkit.benchmarks.runner.harness import require
 from admmkit.benchmarks.runner.report import h_label, rho_label
 
 EXAMPLES = {"ex1": example1, "ex2": example2}
+#: the reference solver of the paper's error table (``Reference.solver`` starts with it)
+REFERENCE_SOLVER = "cvxpy + Clarabel"
+
+
+class WeakReference(ValueError):
+    """A mesh's reference is not cvxpy + Clarabel: the reproduction stops before writing anything."""
 def _timed_run(ops, method, rho, mode, repeats):
     sols, walls, cpus = [], [], []
     for _ in range(max(1, repeats)):
@@ -62,6 +74,7 @@ def run_reproduction(out="out/paper", hs=PAPER_HS, rhos=PAPER_RHOS, repeats: int
     from contextlib import nullcontext
 
     from threadpoolctl import threadpool_limits
+    require("reproduce paper", "cvxpy", "clarabel")          # the reference solver, before any work
     with threadpool_limits(blas_threads, user_api="blas") if blas_threads else nullcontext():
         return _run_reproduction(out, hs, rhos, repeats, progress, examples, methods, mode, command, blas_threads)
 
@@ -84,6 +97,10 @@ def _run_reproduction(out, hs, rhos, repeats, progress, examples, methods, mode,
         for h in hs:
             ops = assemble(EXAMPLES[ex](h))
             ref = reference_solution(ops)
+            if not ref.solver.startswith(REFERENCE_SOLVER):
+                raise WeakReference(f"reproduce paper: the reference of {ex} h={h_label(h)} is {ref.solver!r}, not "
+                                    f"{REFERENCE_SOLVER} (Clarabel failed or is missing); nothing written, the "
+                                    f"files in {out} are kept")
             refs[(ex, h)] = ref
             if progress:
                 print(f"[{ex} h={h_label(h)}] n_free {ops.n_free}, n_c {ops.n_c}; reference ({ref.solver}) "

@@ -30,6 +30,7 @@ from pathlib import Path
 from admmkit.io import write_text
 
 from admmkit.benchmarks.runner.report import NOISE_NOTE, fmt, machine_info, machine_markdown, md_table, pyplot, save_figure, write_csv
+from admmkit.benchmarks.runner.harness import check_harness, check_something_left, without_harness_failures
 from admmkit.benchmarks.runner.sweep import Executor, finished, run_sweep
 
 METHODS = ("admm1", "admm2", "sadmm")
@@ -263,6 +264,10 @@ def run(out="out/paper-compare", *, repeats: int = 3, workers: int = 2, quick: b
                         cases, "admmkit.benchmarks.contact.paper_compare:run_case", out / "results.jsonl", workers=workers,
                         executor=executor, progress=progress, cost=lambda c: 1 / c["h"] ** 2,
                         label=lambda c: f"{c['scene']} h={c['h']:.4g} {c['method']} rho={c['rho']:g}")
-    return summarise(records, out, command=command, wall=None if report_only else time.perf_counter() - t0,
-                     reproduction=reproduction)
+    kept, failed = without_harness_failures(records)      # a harness failure is no run of a method
+    check_something_left(kept, failed, len(cases), out / "results.jsonl", report_only)
+    files = summarise(kept, out, command=command, wall=None if report_only else time.perf_counter() - t0,
+                      reproduction=reproduction)
+    check_harness(failed, len(cases), files, left_out="left out of the comparison")
+    return files
 

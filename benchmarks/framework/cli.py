@@ -8,7 +8,7 @@ is imported only when its command runs.  The shared options live in
 from __future__ import annotations
 
 from admmkit.cli import positive_float, positive_int  # noqa: F401
-from admmkit.benchmarks.runner.options import add_out, own_parser, print_files
+from admmkit.benchmarks.runner.options import add_out, needs, own_parser, print_files, study
 
 
 def executors(targets) -> None:
@@ -22,10 +22,11 @@ def executors(targets) -> None:
     e.add_argument("--rounds", type=positive_int, default=2,
                    help="rounds of the three executors, the order reversed every second round (default 2)")
     e.add_argument("-q", "--quiet", "--no-progress", dest="progress", action="store_false", help="no progress line")
-    e.set_defaults(func=_executors)
+    e.set_defaults(func=study(_executors))
 
 
 def _executors(args) -> int:
+    needs(args, "dask", "distributed", "cvxpy", "clarabel")    # Dask itself; the references of bench policies
     from admmkit.benchmarks.framework.executors import run
     print_files(run(args.out, quick=args.quick, rounds=args.rounds, progress=args.progress,
                      command=args.command_line))

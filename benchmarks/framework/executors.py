@@ -27,6 +27,7 @@ from pathlib import Path
 
 from admmkit.benchmarks.runner.report import NOISE_NOTE, machine_info, machine_markdown, md_table, write_csv, write_text
 from admmkit.benchmarks.runner.sweep import Executor, case_id, run_sweep
+from admmkit.benchmarks.runner.harness import check_harness, harness_failures
 
 _OPS: dict = {}
 
@@ -142,4 +143,6 @@ def run(out="out/executors", *, quick: bool = False, rounds: int = 2, progress: 
     files.append(write_text(out / "README.md", text))
     if progress:
         print(text)
+    failed = [r for key in runs for r in harness_failures(done[key])]
+    check_harness(failed, len(cases) * len(runs), files, left_out="no iterations to compare on them (not 'same')")
     return files

@@ -171,6 +171,8 @@ def main(argv=None, prog: str = "admmkit bench four-problems") -> int:
     parser.add_argument("--problems", default=",".join(PROBLEMS), help=f"comma-separated subset of {', '.join(PROBLEMS)}")
     parser.add_argument("--rules", default="all", help="comma-separated rules (default: every registered rule)")
     args = parser.parse_args(argv)
+    from admmkit.benchmarks.runner.harness import require
+    require(prog.removeprefix("admmkit "), "cvxpy")      # the references
     import admmkit
     from admmkit import policies  # noqa: F401  (registers the rules)
     names = args.problems.split(",")

@@ -8,7 +8,7 @@ is imported only when its command runs.  The shared options live in
 from __future__ import annotations
 
 from admmkit.cli import positive_float, positive_int  # noqa: F401
-from admmkit.benchmarks.runner.options import add_executor_options, add_out, executor_of, own_parser, split_list
+from admmkit.benchmarks.runner.options import add_executor_options, add_out, executor_of, needs, own_parser, split_list, study
 
 
 def maros_meszaros(targets) -> None:
@@ -36,10 +36,11 @@ def maros_meszaros(targets) -> None:
     b.add_argument("--resume", action="store_true",
                    help="keep the cases already in OUT/results.jsonl (without it the sweep starts afresh)")
     b.add_argument("-q", "--quiet", "--no-progress", dest="quiet", action="store_true", help="no progress lines")
-    b.set_defaults(func=_maros_meszaros)
+    b.set_defaults(func=study(_maros_meszaros))
 
 
 def _maros_meszaros(args) -> int:
+    needs(args, *([] if args.no_osqp else ["osqp"]))
     from admmkit.benchmarks.qp.maros_meszaros import EPS, run_benchmark
     run_benchmark(args.data, args.out, policy_names=split_list(args.policies), orders=split_list(args.orders) or (),
                   eps=tuple(args.eps) if args.eps else EPS, max_iter=args.max_iter, time_limit=args.time_limit,

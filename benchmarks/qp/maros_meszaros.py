@@ -54,6 +54,7 @@ from admmkit.benchmarks.qp.maros_meszaros_report import FIELDS, plot_profiles, r
 from admmkit.benchmarks.qp.maros_meszaros_stats import (OSQP_DIRECT, RHO0, SHIFT, performance_profile,  # noqa: F401
                                                        shifted_geometric_mean, summarize)
 from admmkit.benchmarks.qp.maros_meszaros_runs import VARIANTS, run_admmkit, run_osqp
+from admmkit.benchmarks.runner.harness import check_harness, without_harness_failures
 from admmkit.benchmarks.runner.sweep import Executor, case_id, finished, run_sweep
 
 from admmkit.problems.qp.convexity import check_convex
@@ -255,6 +256,7 @@ def run_benchmark(folder, out, *, policy_names=None, orders=ORDERS, eps=EPS, max
                         env={DATA_ENV: str(Path(folder).resolve())}, progress=progress, cost=lambda c: costs[c["problem"]],
                         label=lambda c: f"{c['problem']} {c['variant']}/{c['solver']}/{c['order']}",
                         table=lambda rec: [{"id": rec["id"], **r} for r in case_rows(rec)])
+    records, failed = without_harness_failures(records)      # a harness failure is no run of a solver
     rows = [r for c in cases if case_id(c) in records for r in case_rows(records[case_id(c)])]
     meta = {"max_iter": max_iter, "time_limit": time_limit, "machine": machine_info(), "started": started,
             "wall": time.perf_counter() - t_start,
@@ -262,5 +264,7 @@ def run_benchmark(folder, out, *, policy_names=None, orders=ORDERS, eps=EPS, max
     report = write_report(rows, out, skipped=skipped, kkt_form=kkt_form, meta=meta, command=command)
     if progress:
         print(report["text"])
+    check_harness(failed, len(cases), [out / "results.csv", out / "summary.csv", out / "README.md"],
+                  left_out="left out of the tables and profiles")
     return {"rows": rows, "summary": report["summary"], "skipped": skipped, "kkt_form": kkt_form,
             "figures": report["figures"], "out": out}

@@ -104,6 +104,8 @@ def main(argv=None, prog: str = "admmkit bench qp-agreement") -> int:
     args = parser.parse_args(argv)
     if args.count < 1 or args.eps <= 0 or args.max_iter < 1:
         parser.error("--count, --eps and --max-iter must be positive")
+    from admmkit.benchmarks.runner.harness import require
+    require(prog.removeprefix("admmkit "), "cvxpy", "clarabel")     # the reference: cvxpy + Clarabel
     for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
         os.environ.setdefault(var, "1")
     from admmkit.io import write_text

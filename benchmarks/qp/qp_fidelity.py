@@ -50,6 +50,25 @@ COLUMNS = ("problem", "n", "m", "nnz", "eps", "solver", "status", "solved", "ite
            "us_per_iter", "neutral_primal", "neutral_dual", "neutral_gap", "neutral_ok")
 
 
+def check_problems(data: Path, names: list[str] | None) -> None:
+    """ValueError naming ``--problems`` if a name is no problem of the ``--data`` folder (with the closest names)."""
+    if not data.is_dir():
+        raise ValueError(f"--data: no folder {data}")
+    if not names:
+        return
+    import difflib
+
+    from admmkit.problems.qp.mat import list_problems
+    known = [f.stem for f in list_problems(data)]
+    unknown = [n for n in names if n not in known]
+    if unknown:
+        upper = {k.upper(): k for k in known}
+        close = [upper[c] for c in difflib.get_close_matches(unknown[0].upper(), list(upper), n=3, cutoff=0.7)]
+        hint = (f"; did you mean {', '.join(close)}?" if close else
+                f"; it holds {len(known)} problems" + (f", e.g. {', '.join(known[:5])}" if known else ""))
+        raise ValueError(f"--problems: no problem named {', '.join(unknown)} in --data {data}{hint}")
+
+
 def select(data: Path, max_nnz: float, names: list[str] | None, skipped: dict | None = None) -> list[tuple[str, int]]:
     """(name, nnz) of the convex problems with nnz(P) + nnz(A) <= max_nnz (or the named ones), smallest first;
     a nonconvex one (``load_mat`` refuses it) goes into ``skipped`` with the reason."""
@@ -223,6 +242,9 @@ def main(argv=None, prog: str = "admmkit bench qp-fidelity") -> int:
     args = parser.parse_args(argv)
     if args.max_iter < 1 or args.time_limit <= 0 or args.max_nnz <= 0 or min(args.eps) <= 0:
         parser.error("--max-iter, --time-limit, --max-nnz and --eps must be positive")
+    from admmkit.benchmarks.runner.harness import require
+    require(prog.removeprefix("admmkit "), "osqp")        # the other solver of the comparison
+    check_problems(Path(args.data), args.problems)
     for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
         os.environ.setdefault(var, "1")
     import admmkit

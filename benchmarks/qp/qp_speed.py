@@ -33,7 +33,7 @@ from pathlib import Path
 import numpy as np
 import scipy.sparse as sp
 
-from .qp_fidelity import DEFAULT_DATA, select
+from .qp_fidelity import DEFAULT_DATA, check_problems, select
 
 CONFIGS = ("osqp", "admmkit", "admmkit-python")
 COLUMNS = ("problem", "n", "m", "eps", "solver", "status", "iterations", "whole_ms", "loop_ms", "ratio_whole",
@@ -174,8 +174,9 @@ def main(argv=None, prog: str = "admmkit bench qp-speed") -> int:
     if args.max_size < 1 or args.min_size < 0 or not all(0 < e < math.inf for e in args.eps) or args.max_iter < 1 \
             or args.repeat < 1:
         parser.error("--max-size, --eps, --max-iter and --repeat must be positive, --min-size >= 0 (and --eps finite)")
-    if not Path(args.data).is_dir():
-        parser.error(f"--data: no folder {args.data}")
+    from admmkit.benchmarks.runner.harness import require
+    require(prog.removeprefix("admmkit "), "osqp")        # the other solver of the comparison
+    check_problems(Path(args.data), args.problems)
     for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
         os.environ.setdefault(var, "1")
     from threadpoolctl import threadpool_limits
@@ -190,6 +191,9 @@ def main(argv=None, prog: str = "admmkit bench qp-speed") -> int:
         P, A = read_matrices(data / f"{name}.mat")
         if args.problems or args.min_size <= P.shape[0] + A.shape[0] <= args.max_size:
             chosen.append(name)
+    if not chosen:
+        raise ValueError(f"--min-size/--max-size: no convex problem of --data {data} has "
+                         f"{args.min_size} <= n + m <= {args.max_size}")
     t0 = time.perf_counter()
     warm = (lambda p: (p.P, p.q, p.A, p.l, p.u))(random_qp(5, 5))    # numba: compile or load every kernel (a
     _admmkit(*warm, 1e-3, 100, True)                                   # tight eps runs the infeasibility tests)

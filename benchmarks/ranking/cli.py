@@ -1,7 +1,7 @@
 """The command of the ranking (``admmkit bench rules``), registered by an entry point in ``pyproject.toml``."""
 from __future__ import annotations
 
-from admmkit.benchmarks.runner.options import add_sweep_options, executor_of, print_files, split_list
+from admmkit.benchmarks.runner.options import add_sweep_options, executor_of, needs, print_files, split_list, study
 
 
 def rules(targets) -> None:
@@ -19,10 +19,15 @@ def rules(targets) -> None:
     r.add_argument("--families", default=",".join(FAMILIES), help=f"comma-separated (default {','.join(FAMILIES)})")
     r.add_argument("--data", default=None, metavar="DIR",
                    help="Maros-Meszaros MAT files for the qp family (default ../shared/data/maros_meszaros if there)")
-    r.set_defaults(func=_rules)
+    r.set_defaults(func=study(_rules))
+
+
+#: the families whose references are cvxpy + Clarabel solves
+CVXPY_FAMILIES = ("contact", "obstacle", "friction", "framework", "stability")
 
 
 def _rules(args) -> int:
+    needs(args, *(["cvxpy", "clarabel"] if set(split_list(args.families) or []) & set(CVXPY_FAMILIES) else []))
     from admmkit.benchmarks.ranking.study import run
     print_files(run(args.out, rules=split_list(args.rules), acceleration=split_list(args.acceleration) or [],
                     families=split_list(args.families) or [], quick=args.quick, data=args.data,

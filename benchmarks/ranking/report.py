@@ -29,6 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from admmkit.benchmarks.runner import profiles
+from admmkit.benchmarks.runner.harness import check_harness, first_line, harness_failures, is_harness_failure
 from admmkit.benchmarks.runner.profiles import plot_profiles, profile, score
 from admmkit.benchmarks.runner.report import (NOISE_NOTE, fmt, md_table, pyplot, save_figure, write_csv,
                                                write_text)
@@ -44,7 +45,11 @@ def config_of(case: dict) -> str:
 
 
 def rows_of(records: dict) -> list[dict]:
-    """One row per run; a case that raised or timed out fails at each of its accuracies."""
+    """One row per run; a case that raised or timed out fails at each of its accuracies.
+
+    ``harness``: the case failed in the harness (a missing package, an error outside the rule's code): such
+    a row is no run of the rule (``without_harness_failures`` leaves its problem out).
+    """
     rows = []
     for rec in records.values():
         case = rec["case"]
@@ -54,6 +59,7 @@ def rows_of(records: dict) -> list[dict]:
                 "acceleration": case.get("acceleration") or "none", "config": config_of(case),
                 "rho_sweep": " ".join(problem.split(" rho")[0:1])}
         runs = (rec.get("result") or {}).get("runs")
+        harness = is_harness_failure(rec)
         if runs is None:
             error = (rec.get("error") or "error").split(":")[0]
             runs = [{"eps": e, "solved": False, "status": error, "iterations": math.nan, "seconds": math.nan}
@@ -62,8 +68,19 @@ def rows_of(records: dict) -> list[dict]:
             suffix = f" eps={run['eps']:g}" if run.get("eps") is not None else ""
             rows.append(base | {"problem": problem + suffix, "rho_sweep": base["rho_sweep"] + suffix,
                                 "solved": bool(run["solved"]), "status": run["status"],
-                                "iterations": run["iterations"], "seconds": run["seconds"]})
+                                "iterations": run["iterations"], "seconds": run["seconds"], "harness": harness})
     return rows
+
+
+def without_harness_failures(rows: list[dict]) -> tuple[list[dict], set]:
+    """(the rows of the problems on which no run failed in the harness, the (family, problem) left out).
+
+    A problem with a harness failure is left out for every configuration: a profile compares the
+    configurations on the same problems, and a missing run would count as the configuration's failure.
+    """
+    bad = {(r["family"], r["problem"]) for r in rows if r.get("harness")}
+    kept = [{k: v for k, v in r.items() if k != "harness"} for r in rows if (r["family"], r["problem"]) not in bad]
+    return kept, bad
 
 
 def cost_table(rows: list[dict], metric: str, configs: list[str]) -> np.ndarray:
@@ -156,9 +173,17 @@ def _styles(configs: list[str]) -> dict[str, dict]:
 
 def summarise(records: dict, out: Path, *, command: str, wall: float | None, notes=(), missing: int = 0,
               families=None) -> list[Path]:
-    """Write runs.csv, the profiles, failures.md and README.md (the ranking); returns the files."""
+    """Write runs.csv, the profiles, failures.md and README.md (the ranking); returns the files.
+
+    Cases that failed in the harness are ranked on nowhere: their problems are left out for every
+    configuration, the README says how many, and ``HarnessFailed`` (``admmkit.benchmarks.runner.harness``)
+    is raised once the files are written (none if nothing is left to rank).
+    """
     out.mkdir(parents=True, exist_ok=True)
-    rows = rows_of(records)
+    harness = harness_failures(records)
+    rows, left_out = without_harness_failures(rows_of(records))
+    if not rows:                                       # nothing to rank: no file, the reason in one line
+        check_harness(harness, len(records) + missing, left_out="nothing ranked on them: no file written")
     families = [f for f in (families or []) if any(r["family"] == f for r in rows)]
     configs = sorted({r["config"] for r in rows})
     files = [write_csv(out / "runs.csv", rows)]
@@ -171,6 +196,10 @@ def summarise(records: dict, out: Path, *, command: str, wall: float | None, not
              (f"Wall time of this invocation: {wall:.0f} s." if wall is not None else
               "Rewritten from results.jsonl (--report-only).") + f" {len(rows)} runs"
              + (f"; {missing} cases not run yet (resume with the same command)." if missing else "."), ""]
+    if harness:
+        notes = [*notes, f"**{len(harness)} cases failed in the harness** ({first_line(harness[0]['error'])}): not "
+                 f"runs of the rules; their {len(left_out)} problems are left out of the ranking for every "
+                 "configuration (the cases are in results.jsonl with their errors; the same command runs them again)"]
     lines += [f"- {n}" for n in notes] + ([""] if notes else [])
     lines += ["Ranked by the overall iteration score: the mean, over the families, of the Dolan-More profile "
               "averaged over log tau for tau in [1, 10] (1 = the fewest iterations on every problem). "
@@ -192,7 +221,10 @@ def summarise(records: dict, out: Path, *, command: str, wall: float | None, not
     lines += ["## Failures", "", f"{failed} of {len(rows)} runs did not solve; every one is in "
               "[failures.md](failures.md) with its status."]
     write_text(out / "README.md", "\n".join(lines) + "\n")
-    return files + [out / "failures.md", out / "README.md"]
+    files += [out / "failures.md", out / "README.md"]
+    check_harness(harness, len(records) + missing, files,
+                  left_out=f"nothing ranked on them (their {len(left_out)} problems left out for every configuration)")
+    return files
 
 
 def _ranking(rows: list[dict], families: list[str], configs: list[str]) -> list[list]:

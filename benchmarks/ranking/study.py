@@ -172,5 +172,8 @@ def run(out="out/rules", *, rules=None, acceleration=("none", "anderson"), famil
     records, wall = run_or_report(cases, "admmkit.benchmarks.ranking.cases:run_case", out, report_only=report_only,
                                   env={DATA_ENV: str(data_dir.resolve()), stability.CACHE_ENV: str(out / "cache")},
                                   executor=executor or Executor(), progress=progress, cost=case_cost, label=label)
+    if not records:
+        raise ValueError(f"--report-only: {out / 'results.jsonl'} holds no finished case of this grid; run the "
+                         "same command without --report-only first")
     return summarise(records, out, command=command, wall=wall, notes=notes, missing=len(cases) - len(records),
                      families=families)

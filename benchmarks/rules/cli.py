@@ -8,7 +8,7 @@ is imported only when its command runs.  The shared options live in
 from __future__ import annotations
 
 from admmkit.cli import positive_float, positive_int  # noqa: F401
-from admmkit.benchmarks.runner.options import add_sweep_options, executor_of, print_files, split_list
+from admmkit.benchmarks.runner.options import add_sweep_options, executor_of, needs, print_files, split_list, study
 
 
 def precision(targets) -> None:
@@ -24,10 +24,11 @@ def precision(targets) -> None:
                    help="mesh size (repeatable; default 1/20, 1/40, 1/80, 1/160)")
     p.add_argument("--methods", default=None, help="comma-separated ADMM methods (default: every policy, both orders)")
     p.add_argument("--time-limit", type=positive_float, default=60.0, help="seconds per ADMM/OSQP run (default 60)")
-    p.set_defaults(func=_precision)
+    p.set_defaults(func=study(_precision))
 
 
 def _precision(args) -> int:
+    needs(args, "cvxpy", "clarabel", "osqp")       # the peers: cvxpy + Clarabel, cvxpy + OSQP, OSQP
     from admmkit.benchmarks.rules import precision
     from admmkit.benchmarks.rules.families import kind_of
     for s in args.scenes or []:
@@ -46,10 +47,11 @@ def stability(targets) -> None:
                                        "examples (rho_0/E = 1e-6..1e6; h, nu, P1/P2).")
     add_sweep_options(s, "stability")
     s.add_argument("--methods", default=None, help="comma-separated ADMM methods (default: every policy, both orders)")
-    s.set_defaults(func=_stability)
+    s.set_defaults(func=study(_stability))
 
 
 def _stability(args) -> int:
+    needs(args, "cvxpy", "clarabel")               # the references
     from admmkit.benchmarks.rules import stability
     print_files(stability.run(args.out, quick=args.quick, workers=args.workers, methods=parse_methods(args.methods),
                                progress=args.progress, command=args.command_line, report_only=args.report_only,
@@ -65,10 +67,11 @@ def policies_fe(targets) -> None:
                                        "on contact Example 1 (h = 1/20) and the radial obstacle (h = 1/16).")
     add_sweep_options(b, "policies")
     b.add_argument("--rules", default=",".join(RULES), help=f"comma-separated rules (default {','.join(RULES)})")
-    b.set_defaults(func=_policies_fe)
+    b.set_defaults(func=study(_policies_fe))
 
 
 def _policies_fe(args) -> int:
+    needs(args, "cvxpy", "clarabel")               # the references
     import admmkit
 
     from admmkit.benchmarks.rules.policies_fe import run
@@ -94,10 +97,11 @@ def obstacle_rates(targets) -> None:
                            description="Errors against the radial exact solution under refinement and the "
                                        "iterations of every rule across rho_0 (benchmarks/rules/obstacle_rates.py).")
     add_sweep_options(o, "obstacle")
-    o.set_defaults(func=_obstacle_rates)
+    o.set_defaults(func=study(_obstacle_rates))
 
 
 def _obstacle_rates(args) -> int:
+    needs(args, "cvxpy", "clarabel")               # the references
     from admmkit.benchmarks.rules.obstacle_rates import run
     return run(args.out, quick=args.quick, command=args.command_line, executor=executor_of(args), progress=args.progress,
                report_only=args.report_only)

@@ -25,7 +25,7 @@ import admmkit
 from admmkit.figures import pyplot, save_figure
 from admmkit.io import write_text
 
-from admmkit.benchmarks.runner.options import print_files
+from admmkit.benchmarks.runner.options import needs, print_files
 from admmkit.benchmarks.runner.report import fmt, md_table, write_csv
 
 OBSTACLE_N = (8, 16, 32, 64, 128)                  # h = 4/N on (-2, 2)^2
@@ -143,5 +143,6 @@ def register(targets) -> None:
 
 
 def _run(args) -> int:
+    needs(args, "cvxpy", "clarabel")               # the obstacle's u_h
     print_files(run(Path(args.out), args.command_line, quick=args.quick))     # the command as typed, for the report
     return 0

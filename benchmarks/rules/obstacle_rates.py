@@ -109,12 +109,14 @@ def run_case(case: dict) -> dict:
 
 
 def sweep(N: int = SWEEP_N, rhos=RHOS, policy_names=None, max_iter: int = MAX_ITER, *, out: Path | None = None,
-          executor=None, progress: bool = True, report_only: bool = False) -> list[dict]:
+          executor=None, progress: bool = True, report_only: bool = False, harness: list | None = None) -> list[dict]:
     """Iterations of every policy x order x rho0 on the radial scene with h = 4/N, on the sweep runner
     (:mod:`admmkit.benchmarks.runner.sweep`: local processes or Dask, finished cases kept in ``out/results.jsonl``; a rerun
-    resumes; ``report_only``: the finished cases only)."""
+    resumes; ``report_only``: the finished cases only).  A case that failed in the harness is no row (no rule's
+    result); its record goes into the list ``harness`` when one is given."""
     import tempfile
 
+    from admmkit.benchmarks.runner.harness import is_harness_failure
     from admmkit.benchmarks.runner.sweep import Executor, case_id, run_or_report
     cases = sweep_cases(N, rhos, policy_names, max_iter)
     with tempfile.TemporaryDirectory() as scratch:
@@ -126,6 +128,10 @@ def sweep(N: int = SWEEP_N, rhos=RHOS, policy_names=None, max_iter: int = MAX_IT
     rows = []
     for c in (c for c in cases if case_id(c) in records):
         rec = records[case_id(c)]
+        if is_harness_failure(rec):
+            if harness is not None:
+                harness.append(rec)
+            continue
         rows.append(rec["result"] if rec.get("result") is not None else
                     dict(policy=c["policy"], order=c["order"], rho0=c["rho0"], status="error: " + rec["error"][:60],
                          iterations=max_iter, error_at_stop=math.nan, kkt_sign=math.nan, kkt_complementarity=math.nan,
@@ -234,7 +240,11 @@ def run(out="out/obstacle", *, quick: bool = False, command: str = "admmkit benc
         obstacle_stops.run(out, meshes[:-1] if len(meshes) > 3 else meshes, command)
 
     print(f"policy sweep (radial, h = 4/{n_sweep}):", flush=True)
-    srows = sweep(n_sweep, rhos, out=out / "sweep", executor=executor, progress=progress, report_only=report_only)
+    failed: list[dict] = []
+    srows = sweep(n_sweep, rhos, out=out / "sweep", executor=executor, progress=progress, report_only=report_only,
+                  harness=failed)
+    from admmkit.benchmarks.runner.harness import check_harness, check_something_left
+    check_something_left(srows, failed, len(failed) + len(srows), out / "sweep" / "results.jsonl", report_only)
     write_csv(out / "sweep.csv", srows)
     write_text(out / "sweep.md", sweep_markdown(srows) + f"\nMade by `{command}`.\n")
     plot_sweep(srows, out / "sweep.png")
@@ -245,4 +255,5 @@ def run(out="out/obstacle", *, quick: bool = False, command: str = "admmkit benc
             res = solve(p, rho=1.0, policy="summable", order="zx", stop=ResidualTolerance(1e-10, 1e-9))
             plot_solution(p, res.x, res.x, out / f"{sc.name}.png")
     print(f"wrote {', '.join(sorted(f.name for f in out.iterdir()))} to {out}")
+    check_harness(failed, len(failed) + len(srows), left_out="left out of the sweep's tables")
     return 0

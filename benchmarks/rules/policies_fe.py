@@ -34,6 +34,7 @@ from admmkit import policies  # noqa: F401  (registers the rules)
 from admmkit import RelativeChange
 
 from admmkit.benchmarks.rules.methods import method_label, policy_version
+from admmkit.benchmarks.runner.harness import check_harness, first_line, harness_failures, is_harness_failure
 from admmkit.benchmarks.runner.report import write_csv, write_text
 from admmkit.benchmarks.runner.sweep import Executor, run_sweep
 
@@ -277,19 +278,27 @@ def run(out="out/policies", rules=RULES, quick: bool = False, command: str = "",
             continue
         row = _row(rec["result"])
         results.setdefault(row["case"], ([], norms[c["problem"]]))[0].append(row)
-    failed = [r for r in records.values() if r.get("error")]
+    harness = harness_failures(records)
+    failed = [r for r in records.values() if r.get("error") and not is_harness_failure(r)]
     rows = [r for rs, _ in results.values() for r in rs]
     if not rows:
+        check_harness(harness, len(cases), left_out="no table written")
+        if report_only:
+            raise ValueError(f"--report-only: {out / 'results.jsonl'} holds no finished case of this grid; run the "
+                             "same command without --report-only first")
         raise RuntimeError(f"no case of the policies sweep finished; see {out / 'results.jsonl'}")
-    write_csv(out / "sweep.csv", rows)
-    plot(results, out / "sweep")
+    files = [write_csv(out / "sweep.csv", rows), *plot(results, out / "sweep")]
     text = markdown(results, command, max_iter)
     if failed or len(records) < len(cases):
-        text += (f"\n**{len(cases) - len(records)} cases not run, {len(failed)} raised** "
+        text += (f"\n**{len(cases) - len(records)} cases not run, {len(failed)} raised in the rule's own code** "
                  "(their errors are in results.jsonl).\n")
-    write_text(out / "README.md", text)
+    if harness:
+        text += (f"\n**{len(harness)} cases failed in the harness** ({first_line(harness[0]['error'])}): not runs of "
+                 "the rules, left out of the tables (the same command runs them again).\n")
+    files.append(write_text(out / "README.md", text))
     if progress:
         print(text)
+    check_harness(harness, len(cases), files, left_out="left out of the tables")
     return results
 
 

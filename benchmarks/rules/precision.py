@@ -31,6 +31,7 @@ from admmkit.benchmarks.rules import methods as methods_mod
 from admmkit.benchmarks.rules.peers import PEERS, applicable, run_peer
 from admmkit.benchmarks.rules.families import (CACHE_ENV, CONTACT_SCENES, OBSTACLE_SCENES, QP_SCENES, discrete, kind_of, mm_folder,
                        problem_key)
+from admmkit.benchmarks.runner.harness import check_harness, check_something_left, without_harness_failures
 from admmkit.benchmarks.runner.sweep import Executor, run_or_report
 from admmkit.benchmarks.rules.precision_report import _problem_label, summarise
 
@@ -109,6 +110,10 @@ def run(out="out/precision", *, quick: bool = False, workers: int = 2, repeats: 
     records, wall = run_or_report(cases, "admmkit.benchmarks.rules.precision:run_case", out, report_only=report_only,
                                   env={CACHE_ENV: str(out / "cache")}, workers=workers, executor=executor,
                                   progress=progress, cost=case_cost, label=lambda c: f"{_problem_label(c)} {c['method']}")
-    return summarise(records, out, command=command, wall=wall, skipped=methods_mod.skipped_policies(),
-                     missing=len(cases) - len(records))
+    kept, failed = without_harness_failures(records)      # a harness failure is no outcome of a method
+    check_something_left(kept, failed, len(cases), out / "results.jsonl", report_only)
+    files = summarise(kept, out, command=command, wall=wall, skipped=methods_mod.skipped_policies(),
+                      missing=len(cases) - len(kept))
+    check_harness(failed, len(cases), files, left_out="left out of the summary, counted as not run")
+    return files
 

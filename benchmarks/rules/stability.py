@@ -31,6 +31,7 @@ import numpy as np
 
 from admmkit.benchmarks.rules import methods as methods_mod
 from admmkit.benchmarks.rules.families import CACHE_ENV, discrete, problem_key
+from admmkit.benchmarks.runner.harness import check_harness, check_something_left, without_harness_failures
 from admmkit.benchmarks.runner.sweep import Executor, clean_float, run_or_report
 from admmkit.benchmarks.rules.stability_report import FALSE_CONVERGENCE_ERROR, MAX_ITER, OUTCOMES, _h_label, summarise
 
@@ -130,5 +131,9 @@ def run(out="out/stability", *, quick: bool = False, workers: int = 2, methods=N
                                   progress=progress, cost=case_cost,
                                   label=lambda c: (f"{c['sweep']} {c['scene']} h={_h_label(c['h'])} nu={c['nu']} "
                                                    f"P{c['p']} s={c['rho_scale']:g} {c['method']}"))
-    return summarise(records, out, command=command, wall=wall,
-                     skipped=methods_mod.skipped_policies(), missing=len(cases) - len(records))
+    kept, failed = without_harness_failures(records)      # a harness failure is no outcome of a method
+    check_something_left(kept, failed, len(cases), out / "results.jsonl", report_only)
+    files = summarise(kept, out, command=command, wall=wall,
+                      skipped=methods_mod.skipped_policies(), missing=len(cases) - len(kept))
+    check_harness(failed, len(cases), files, left_out="left out of the summary, counted as not run")
+    return files

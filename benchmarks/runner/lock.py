@@ -5,18 +5,23 @@ finished yet (nothing is lost, the work is doubled).  :func:`hold` takes
 ``<folder>/.sweep.lock`` for the length of a sweep; a second run finds it and
 refuses with one line that names the holder.  A run that was killed leaves
 its lock behind, but the lock names a process that no longer exists, so the
-next run takes it over.  A lock from another machine (a shared file system)
-cannot be checked and is respected; its line says how to clear it.
+next run takes it over; so does a lock file that is empty or unreadable for
+more than a second (no run leaves such a file while it lives), with a one-line
+note.  A lock from another machine (a shared file system) cannot be checked
+and is respected; its line says how to clear it.
 """
 from __future__ import annotations
 
 import os
 import socket
+import sys
 import time
 from contextlib import contextmanager
 from pathlib import Path
 
 LOCK_NAME = ".sweep.lock"
+#: seconds after which an empty or unreadable lock file counts as garbage (a run writes its own at once)
+WRITE_GRACE = 1.0
 
 
 class FolderLocked(ValueError):
@@ -43,6 +48,18 @@ def _holder(lock: Path) -> tuple[int, str, str] | None:
         return None
 
 
+def _settled(lock: Path) -> bool:
+    """Whether the lock file was last written more than WRITE_GRACE seconds ago (or is gone).
+
+    A run writes its lock in one short write right after creating it, so a lock that is still empty or
+    unreadable after that is garbage (a crash between the two, a file made by hand), not a run's.
+    """
+    try:
+        return time.time() - lock.stat().st_mtime > WRITE_GRACE
+    except OSError:
+        return True
+
+
 @contextmanager
 def hold(folder: str | Path):
     """Hold ``folder`` for this process while the block runs; FolderLocked if a live run holds it."""
@@ -55,7 +72,12 @@ def hold(folder: str | Path):
         except FileExistsError:
             holder = _holder(lock)
             if holder is None:
-                time.sleep(0.05)             # another run is writing it: look again
+                if _settled(lock):           # empty or garbage for a while: no run is writing it
+                    print(f"admmkit: note: {lock} was empty or unreadable (no run writes such a lock); "
+                          "taken over", file=sys.stderr)
+                    lock.unlink(missing_ok=True)
+                else:
+                    time.sleep(0.05)         # another run is writing it: look again
                 continue
             pid, where, since = holder
             if pid == me and where == host:
@@ -73,7 +95,8 @@ def hold(folder: str | Path):
             f.write(f"{me} {host} {time.strftime('%Y-%m-%d %H:%M:%S')}")
         break
     else:
-        raise FolderLocked(f"{folder}: could not take {lock} (it keeps changing)")
+        raise FolderLocked(f"{folder}: could not take {lock}: other runs keep taking it; if none is running, "
+                           f"delete {lock}")
     try:
         yield
     finally:

@@ -8,9 +8,15 @@ meanings (``--out``, ``--workers``, ``--dask-workers``, ``--scheduler``,
 from __future__ import annotations
 
 import argparse
+import functools
 import importlib
+import sys
 
 from admmkit.cli import positive_float, positive_int  # noqa: F401  (positive_float: for the studies' own options)
+from admmkit.benchmarks.runner.harness import HarnessFailed, require, require_executor
+
+#: the exit code of a study some of whose cases failed in the harness (docs/cli.md, "Studies")
+EXIT_HARNESS = 1
 
 def add_out(p, study: str) -> None:
     p.add_argument("--out", default=f"out/{study}", help=f"output folder (default out/{study})")
@@ -49,11 +55,54 @@ def add_sweep_options(p, study: str) -> None:
                    help="run nothing: write the files from the cases already in <out>/results.jsonl")
 
 
+def command_name(args) -> str:
+    """``bench rules``, ``reproduce``: the command the parsed arguments belong to (for one-line errors)."""
+    top = getattr(args, "command", None) or "admmkit"
+    target = getattr(args, f"{top}_target", None) or getattr(args, "target", None)     # reproduce paper
+    return f"{top} {target}" if isinstance(target, str) else top
+
+
+def needs(args, *modules: str) -> None:
+    """Refuse before any work if a module the study needs (or Dask, when asked for) is missing.
+
+    One line naming the command and the pip command (:func:`admmkit.benchmarks.runner.harness.require`).
+    ``--report-only`` runs nothing, so it needs nothing.
+    """
+    if getattr(args, "report_only", False):
+        return
+    name = command_name(args)
+    require(name, *modules)
+    require_executor(name, args)
+
+
+def study(run):
+    """A study command's function, with the harness's verdict: some cases failed in the harness -> exit 1.
+
+    The study has written its files without those cases (:class:`HarnessFailed` holds them): they are
+    listed, then one line ``admmkit: error: N of M cases failed in the harness (...)`` on stderr.
+    """
+    @functools.wraps(run)
+    def command(args):
+        try:
+            return run(args)
+        except HarnessFailed as failed:
+            return harness_exit(failed)
+    return command
+
+
+def harness_exit(failed: HarnessFailed) -> int:
+    """List the files a study wrote, say in one line how many cases failed in the harness; EXIT_HARNESS."""
+    print_files(failed.files)
+    print(f"admmkit: error: {' '.join(str(failed).split())}", file=sys.stderr)
+    return EXIT_HARNESS
+
+
 def split_list(text):
     return [t.strip() for t in text.split(",") if t.strip()] if text else None
 
 
 def print_files(files) -> None:
+    """``wrote FILE``, one line per file written."""
     for f in files:
         print(f"wrote {f}")
 
@@ -77,3 +126,5 @@ def run_own(module: str, argv: list[str], prog: str) -> int:
         return int(importlib.import_module(module).main(argv, prog=prog) or 0)
     except SystemExit as exit_:
         return exit_.code if isinstance(exit_.code, int) else 2
+    except HarnessFailed as failed:
+        return harness_exit(failed)

@@ -20,7 +20,12 @@ always has the same id.  :func:`run_sweep`
   already in the file is never written again, and a torn last line (a power
   cut) is ended before the next append, so it costs only itself;
 - records a case that raises, overruns ``Executor.timeout`` or keeps killing
-  its worker as that case's outcome (``record["error"]``) and goes on;
+  its worker as that case's outcome (``record["error"]``) and goes on, with
+  whose failure it is (``record["fault"]``: ``"case"`` for a timeout or an
+  exception inside a rule's own code, ``"harness"`` for a missing package,
+  an exception elsewhere or a dead worker:
+  :mod:`admmkit.benchmarks.runner.harness`); a harness failure is no result,
+  so a resumed sweep runs its case again;
 - prints a progress line (done / total, elapsed, estimated time left, the last case);
 - writes the records as one flat table at the end, ``results.parquet`` (or
   ``results.csv`` without pyarrow) beside the results file
@@ -41,6 +46,7 @@ from pathlib import Path
 from typing import Callable, Iterable
 
 from admmkit.benchmarks.runner.sweep_worker import THREAD_ENV  # noqa: F401  (the workers' environment; re-exported)
+from admmkit.benchmarks.runner.harness import is_harness_failure
 from admmkit.benchmarks.runner.jsonable import json_default
 from admmkit.benchmarks.runner.lock import hold
 from admmkit.io import named_os_error
@@ -195,8 +201,9 @@ def run_sweep(cases: Iterable[dict], func: str, results_path: str | Path, *, wor
     (default: ``Executor(workers=workers)``; ``workers=1`` runs in this
     process).  ``env``: environment variables set in every worker before its
     cases run.  A case that raises, times out or kills its worker is recorded
-    with its error (``record["error"]``) and not retried on resume; delete
-    its line to retry it.  ``table``: write ``results.parquet`` (or .csv)
+    with its error (``record["error"]``) and whose failure it is
+    (``record["fault"]``); a resumed sweep runs the harness failures again,
+    not the cases' own failures (delete such a line to retry it).  ``table``: write ``results.parquet`` (or .csv)
     beside the results file at the end, one row per record (a function of a
     record returning rows replaces the default flattening; False: no table).
     """
@@ -213,7 +220,7 @@ def run_sweep(cases: Iterable[dict], func: str, results_path: str | Path, *, wor
         ids = [case_id(c) for c in cases]
         if len(set(ids)) != len(ids):
             raise ValueError("two cases are identical (same id); cases must differ")
-        todo = [(cid, c) for cid, c in zip(ids, cases) if cid not in done]
+        todo = [(cid, c) for cid, c in zip(ids, cases) if cid not in done or is_harness_failure(done[cid])]
         groups: dict[str, list] = {}
         for cid, c in todo:
             groups.setdefault(str(c.get("group", cid)), []).append((cid, c))

@@ -24,6 +24,7 @@ from __future__ import annotations
 import logging
 import time
 
+from admmkit.benchmarks.runner.harness import HARNESS
 from admmkit.benchmarks.runner.sweep_worker import THREAD_ENV, run_task
 
 
@@ -33,7 +34,7 @@ WORKER_SATURATION = "distributed.scheduler.worker-saturation"
 
 def _error_record(cid, case, err) -> dict:
     return {"id": cid, "case": case, "result": None, "seconds": 0.0,
-            "error": f"WorkerDied: {type(err).__name__}: {err}"}
+            "error": f"WorkerDied: {type(err).__name__}: {err}", "fault": HARNESS}
 
 
 def run_dask(tasks: list[list], func_path: str, emit, *, scheduler: str | None = None, n_workers: int | None = None,

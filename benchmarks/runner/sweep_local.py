@@ -27,6 +27,7 @@ import threading
 import time
 from multiprocessing.connection import wait
 
+from admmkit.benchmarks.runner.harness import CASE, HARNESS
 from admmkit.benchmarks.runner.sweep_worker import THREAD_ENV, init_worker, load, run_case
 
 #: seconds past the per-case time limit after which the driver kills the worker
@@ -207,7 +208,8 @@ def _lost_worker(slot: _Slot, emit, queue, deaths, retries: int, overdue: bool) 
         why = (f"CaseTimeout: the case overran the per-case time limit by {GRACE:g} s; its worker was killed"
                if overdue else f"WorkerDied: the worker process running this case ended (exit code {code}) "
                                f"{deaths[cid]} time(s)")
-        emit({"id": cid, "case": case, "result": None, "seconds": time.monotonic() - slot.since, "error": why})
+        emit({"id": cid, "case": case, "result": None, "seconds": time.monotonic() - slot.since, "error": why,
+              "fault": CASE if overdue else HARNESS})
         remaining = remaining[1:]
     if remaining:
         queue.appendleft((task_id, remaining))

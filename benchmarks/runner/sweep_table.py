@@ -5,8 +5,9 @@ The results file itself loads with ``pandas.read_json(path, lines=True)``
 flat: one row per record (or per row a study derives from a record), the
 case's keys as ``case.<key>``, the result's as ``result.<key>`` (nested dicts
 joined with dots, lists kept as JSON text), and ``id``, ``seconds``,
-``error`` and ``worker_peak_mb`` (the worker's peak memory so far).  It is
-written whole or not at all (:func:`admmkit.io.atomic_path`).
+``error``, ``fault`` (whose failure: ``case`` or ``harness``) and
+``worker_peak_mb`` (the worker's peak memory so far).  It is written whole
+or not at all (:func:`admmkit.io.atomic_path`).
 """
 from __future__ import annotations
 
@@ -34,7 +35,7 @@ def flatten(value, prefix: str = "") -> dict:
 def record_rows(record: dict) -> list[dict]:
     """The default: one flat row per record."""
     row = {"id": record.get("id"), "seconds": record.get("seconds"), "error": record.get("error"),
-           "worker_peak_mb": record.get("worker_peak_mb")}
+           "fault": record.get("fault"), "worker_peak_mb": record.get("worker_peak_mb")}
     row.update(flatten(record.get("case") or {}, "case"))
     result = record.get("result")
     row.update(flatten(result, "result") if isinstance(result, dict) else {"result": result})

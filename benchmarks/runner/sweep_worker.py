@@ -3,7 +3,7 @@
 Shared by both executors (:mod:`admmkit.benchmarks.runner.sweep_local`,
 :mod:`admmkit.benchmarks.runner.sweep_dask`).  A worker never writes the results file: it
 returns a record ``{"id", "case", "result", "seconds"}`` (plus ``"error"``
-when the case raised or ran out of time) and the driver alone appends it.
+and ``"fault"`` when the case raised or ran out of time) and the driver alone appends it.
 
 A per-case time limit (``timeout``) raises :class:`CaseTimeout` in the thread
 running the case at its next Python bytecode (a watchdog timer and
@@ -22,6 +22,8 @@ import time
 import traceback
 from contextlib import contextmanager
 from typing import Callable
+
+from admmkit.benchmarks.runner.harness import CASE, fault_of
 
 #: environment of the worker processes: one BLAS / OpenMP thread each
 THREAD_ENV = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", "MPLBACKEND": "Agg"}
@@ -103,21 +105,28 @@ def peak_memory_mb() -> float | None:
 
 
 def run_case(func: Callable, cid: str, case: dict, timeout: float | None = None) -> dict:
-    """Run one case and return its record; an exception or a timeout becomes the record's ``error``."""
+    """Run one case and return its record; an exception or a timeout becomes the record's ``error``.
+
+    A failed record also says whose failure it is (``fault``: ``"case"`` for a timeout or an exception raised
+    inside a rule's own code, ``"harness"`` otherwise; :mod:`admmkit.benchmarks.runner.harness`).
+    """
     t0 = time.perf_counter()
+    fault = None
     try:
         with deadline(timeout):
             result, error = func(case), None
     except CaseTimeout:
         result, error = None, f"CaseTimeout: the case ran longer than {timeout:g} s (the sweep's --case-timeout)"
+        fault = CASE
     except Exception as err:  # a failing case is recorded, the sweep goes on
         result, error = None, f"{type(err).__name__}: {err}\n{traceback.format_exc(limit=4)}"
+        fault = fault_of(err)
     rec = {"id": cid, "case": case, "result": result, "seconds": time.perf_counter() - t0}
     peak = peak_memory_mb()
     if peak is not None:
         rec["worker_peak_mb"] = peak
     if error:
-        rec["error"] = error
+        rec["error"], rec["fault"] = error, fault
     return rec
 
 

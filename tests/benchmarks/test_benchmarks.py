@@ -5,6 +5,7 @@ two or three methods, and only check that the commands run, write their files
 and resume without redoing finished cases.
 """
 import csv
+import json
 
 import pytest
 
@@ -43,10 +44,12 @@ def test_sweep_resumes_without_redoing_finished_cases(tmp_path):
     assert records[case_id(cases[1])]["result"] == {"square": "from before"}     # not redone
     assert records[case_id(cases[3])]["result"] == {"square": 9}
     assert "error" in records[case_id(cases[0])]                                  # a raising case is recorded
+    assert records[case_id(cases[0])]["fault"] == "harness"                       # raised outside any rule
     lines = path.read_text().splitlines()
     assert len(lines) == 4
     run_sweep(cases, "tests.benchmarks.test_benchmarks:square_case", path, workers=1, progress=False)
-    assert len(path.read_text().splitlines()) == 4                                 # nothing left to do
+    again = [json.loads(line)["case"]["value"] for line in path.read_text().splitlines()[4:]]
+    assert again == [0]                        # only the harness failure runs again (#46 item 4), nothing finished
     with pytest.raises(ValueError, match="workers must be an integer >= 1"):
         run_sweep(cases, "tests.benchmarks.test_benchmarks:square_case", path, workers=0)
 

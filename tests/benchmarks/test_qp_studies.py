@@ -34,6 +34,7 @@ def test_qp_agreement_on_a_few_qps(tmp_path):
     assert "Command: `admmkit bench qp-agreement" in (tmp_path / "README.md").read_text()
 
 
+@pytest.mark.skipif(not MM.is_dir(), reason=f"Maros-Meszaros data not found at {MM}")
 def test_qp_speed_on_three_problems(tmp_path):
     pytest.importorskip("osqp")
     from admmkit.benchmarks.qp import qp_speed

@@ -1,4 +1,5 @@
 """One run per output folder (#27 item 3): a live holder makes a second run refuse; a dead one's lock is taken."""
+import os
 import socket
 import subprocess
 import sys
@@ -76,3 +77,31 @@ def test_the_command_line_refuses_in_one_line_with_exit_2(tmp_path, capsys):
         holder.wait()
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 2 and len(err) == 1 and str(holder.pid) in err[0]
+
+
+@pytest.mark.parametrize("content", [b"", b"garbage", b"12 only-two-fields", b"\xff\xfe not text"])
+def test_an_empty_or_garbage_lock_is_taken_over_with_a_note(tmp_path, content, capsys):
+    """No run leaves such a lock while it lives (it writes its own at once): it is stale, not 'changing'."""
+    lock = tmp_path / LOCK_NAME
+    lock.write_bytes(content)
+    os.utime(lock, (time.time() - 60, time.time() - 60))             # written a minute ago
+    records = run_sweep([{"value": 2}], FUNC, tmp_path / "results.jsonl", workers=1, progress=False, table=False)
+    assert [r["result"]["square"] for r in records.values()] == [4]
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [f"admmkit: note: {lock} was empty or unreadable (no run writes such a lock); taken over"]
+    assert not lock.exists()
+
+
+def test_a_lock_being_written_is_waited_for_then_judged(tmp_path):
+    """A fresh empty lock may be a run's between its create and its write: looked at again, then taken."""
+    lock = tmp_path / LOCK_NAME
+    lock.write_bytes(b"")
+    t0 = time.perf_counter()
+    with hold(tmp_path):
+        assert _holder_pid(lock) == os.getpid()
+    assert 0.5 < time.perf_counter() - t0 < 5
+
+
+def _holder_pid(lock):
+    return int(lock.read_text().split()[0])
+
