@@ -11,7 +11,7 @@ from pathlib import Path
 
 from admmkit.cli_adaptive import add_adaptive_options, balance_gamma, balance_line, estimator_name
 from admmkit.cli import (add_common_options, add_output_file, add_result_outputs, exit_code, positive_float,
-                         print_summary, progress, resolve_policy, stop_rule, write_result_csv)
+                         print_summary, progress, resolve_policy, stop_rule, write_history, write_result_csv)
 
 from admmkit.problems.contact.solvers.friction import TANGENTIAL
 from admmkit.problems.contact.solvers.methods import METHODS
@@ -57,25 +57,60 @@ def register(subparsers) -> None:
     p.set_defaults(func=run)
 
 
-def _scene(args):
-    from admmkit.problems.contact.output.cli_output import apply_friction_options
+def scene_names() -> dict[str, str]:
+    """{name: "2-D, frictionless", ...} of every scene file in problems/contact/scenes (dimension, tangential law)."""
+    import tomllib
     from admmkit.problems.contact.model.scene import SCENES_DIR
-    from admmkit.problems.contact.model.scene_file import load_scene
-    name = str(args.scene)
+    out = {}
+    for path in sorted(SCENES_DIR.glob("*.toml")):
+        data = tomllib.loads(path.read_text(encoding="utf-8"))
+        data = data.get("scene", data)
+        out[path.stem] = f"{data.get('dim', 2)}-D, {data.get('tangential', 'frictionless')}"
+    return out
+
+
+def scene_file(name: str) -> Path:
+    """The TOML file of ``--scene``: a file path, or a name in problems/contact/scenes; ValueError naming --scene."""
+    from admmkit.cli import did_you_mean
+    from admmkit.problems.contact.model.scene import SCENES_DIR
     path = Path(name)
-    if not path.exists() and not (SCENES_DIR / f"{path.name}.toml").exists():
-        known = ", ".join(sorted(p.stem for p in SCENES_DIR.glob("*.toml")))
-        raise ValueError(f"--scene: unknown scene {name!r}; give one of {known} or the path of a TOML scene file")
     if path.is_dir():
         raise ValueError(f"--scene: {name!r} is a directory, not a TOML scene file")
+    if path.is_file():
+        return path
+    known = scene_names()
+    if name in known:
+        return SCENES_DIR / f"{name}.toml"
+    if path.suffix or "/" in name or "\\" in name:      # it looks like a file: say that it is not there
+        raise ValueError(f"--scene: no such scene file {name}")
+    raise ValueError(f"--scene: unknown scene {name!r}; give one of {', '.join(known)} or the path of a TOML "
+                     f"scene file{did_you_mean(name, known)}")
+
+
+def _scene(args):
+    from admmkit.problems.contact.output.cli_output import apply_friction_options
+    from admmkit.problems.contact.model.scene_file import load_scene
+    name = str(args.scene)
+    path = scene_file(name)
+
+    def shown(err) -> str:                                        # a bundled scene by its name, not its path
+        return str(err).replace(f"{path}: ", "")
+    try:
+        load_scene(path)                                          # the file as it is: its errors are --scene's
+    except ValueError as err:
+        raise ValueError(f"--scene {name}: {shown(err)}") from None
     changes = {key: value for key, value in (("h", args.h), ("order", args.fe_order)) if value is not None}
     try:
-        scene = load_scene(name, **changes)
-        args.adaptive_defaults = _adaptive_defaults(args, scene)
-        if args.adaptive_defaults:
-            scene = load_scene(name, **(changes | args.adaptive_defaults))
-    except ValueError as err:
-        raise ValueError(f"--scene {name}: {err}") from None
+        scene = load_scene(path, **changes)
+    except ValueError as err:                                     # the file loads: the options are to blame
+        given = " ".join(f for f, v in (("--h", args.h), ("--fe-order", args.fe_order)) if v is not None)
+        raise ValueError(f"{given or '--scene'}: {shown(err)} (scene {name})") from None
+    args.adaptive_defaults = _adaptive_defaults(args, scene)
+    if args.adaptive_defaults:
+        try:
+            scene = load_scene(path, **(changes | args.adaptive_defaults))
+        except ValueError as err:
+            raise ValueError(f"--target-error on scene {name}: {shown(err)}") from None
     if args.plot and not hasattr(scene, "L"):
         raise ValueError(f"--plot draws 2D scenes only; {scene.name or name} is a 3D scene (dim = 3): "
                          f"write --vtk FILE.vtu and open it in ParaView")
@@ -144,8 +179,7 @@ def run(args) -> int:
     line = friction_line(sol, fields)
     if line:
         print(line)
-    if args.history:
-        print(f"history      {r.history.to_csv(args.history)}")
+    write_history(r.history, args)
     if args.json:
         print(f"json         {write_json(args.json, sol, args)}")
     if args.csv:

@@ -40,6 +40,14 @@ def register(subparsers) -> None:
     p.set_defaults(func=run)
 
 
+def _scene(args):
+    """The named scene at ``--h``; ValueError naming --h and its accepted range."""
+    try:
+        return named_scene(args.scene, h=args.h)
+    except ValueError as err:
+        raise ValueError(f"--h: {err} (scene {args.scene})") from None
+
+
 def run(args) -> int:
     """Build the scene, solve it, print the summary and the errors against the exact solution; 0 only if converged."""
     gamma = balance_gamma(args, OBSTACLE_GAMMA)      # the balanced stop is the default here
@@ -47,7 +55,7 @@ def run(args) -> int:
     if args.target_error is not None:
         return run_adaptive(args)
     args.h = 1 / 16 if args.h is None else args.h
-    problem = make_problem(named_scene(args.scene, h=args.h), backend=args.backend or DEFAULT_BACKEND,
+    problem = make_problem(_scene(args), backend=args.backend or DEFAULT_BACKEND,
                            fe_order=args.fe_order or 1)
     nx, ny = problem.scene.counts
     print(f"problem      obstacle/{args.scene}: h = {args.h:.6g} ({nx} x {ny} squares), P{problem.order}, "
@@ -106,7 +114,7 @@ def run_adaptive(args) -> int:
         chosen.append(f"first mesh h = {args.h:.6g}, a fifth of the box's shorter side (--h for another)")
     if chosen:
         print("model        " + ", ".join(chosen) + ": the defaults of --target-error")
-    scene = named_scene(args.scene, h=args.h)
+    scene = _scene(args)
     print(f"adaptive     obstacle/{args.scene}: from h = {args.h:.6g}, P{args.fe_order}, target {options['target']:g}, "
           f"theta {options['theta']:g}, gamma {options['gamma']:g}, {options['estimator']} estimator, {name} order {order}")
     print("level    cells  unknowns   estimate  rel.estimate  H1-semi error  iterations  seconds  status")

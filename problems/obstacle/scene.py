@@ -128,8 +128,10 @@ class Scene:
             raise ValueError(f"box = {self.box!r}; accepted: x0 < x1 and y0 < y1")
         if not (_is_real(self.h) and math.isfinite(self.h) and self.h > 0):
             raise ValueError(f"h = {self.h!r} is outside the accepted range 0 < h (finite)")
-        if self.h > min(x1 - x0, y1 - y0):
-            raise ValueError(f"h = {self.h} is larger than the domain; accepted 0 < h <= {min(x1 - x0, y1 - y0)}")
+        if self.h > min(x1 - x0, y1 - y0) / 1.5:     # two squares across (round(side / h) >= 2): an interior node
+            raise ValueError(f"h = {self.h} is larger than the domain allows; accepted 0 < h <= "
+                             f"{min(x1 - x0, y1 - y0) / 1.5:.6g} (two squares across its shorter side, so that "
+                             f"the mesh has an interior node)")
         nx, ny = self.counts
         if (nx + 1) * (ny + 1) > 4_000_000:
             raise ValueError(f"h = {self.h} is too small: {(nx + 1) * (ny + 1)} nodes (at most 4e6 accepted)")

@@ -12,7 +12,8 @@ Two presets (docs/cli.md, docs/qp.md):
 from __future__ import annotations
 
 from admmkit import policies  # noqa: F401  (registers the rules the --policy option offers)
-from admmkit.cli import add_common_options, add_result_outputs, positive_float, progress, resolve_policy, run_solve
+from admmkit.cli import (add_common_options, add_result_outputs, positive_float, progress, resolve_policy, run_solve,
+                         write_history)
 from admmkit.cli_output import print_summary
 from admmkit.policies.paper_methods import PAPER_METHODS
 
@@ -107,6 +108,8 @@ def osqp_settings_from(args, order: str):
         changes |= {"eps_abs": args.eps_abs, "eps_rel": args.eps_rel or 0.0}
     if args.eps_inf is not None:
         changes |= {"eps_prim_inf": args.eps_inf, "eps_dual_inf": args.eps_inf}
+    if getattr(args, "history_every_iteration", False):
+        changes["check_every"] = 1                # a complete --history row per iteration (the same iterates)
     return osqp_settings(**changes)
 
 
@@ -120,14 +123,13 @@ def run_osqp(qp, args):
         order, rule, name = resolve_policy(args)
     settings = osqp_settings_from(args, order)
     shown = default_policy(qp_for(qp, settings), settings) if rule == "osqp" else rule
-    with progress(args, settings.max_iter) as show:
+    with progress(args, settings.max_iter, every=settings.check_every) as show:
         result = solve_qp(qp, settings, policy=rule, callback=show)
     args.resolved = {"policy": name, "order": order, "policy_repr": repr(shown),
                      "stop": f"osqp_termination(eps_abs={settings.eps_abs:g}, eps_rel={settings.eps_rel:g}, "
                              f"eps_prim_inf={settings.eps_prim_inf:g}, eps_dual_inf={settings.eps_dual_inf:g})"}
     print_summary(result, name, settings.rho)
-    if args.history:
-        print(f"history      {result.history.to_csv(args.history)}")
+    write_history(result.history, args)
     return result
 
 
