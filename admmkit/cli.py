@@ -110,19 +110,22 @@ def add_common_options(parser: argparse.ArgumentParser, *, policy: str = "summab
 def add_stop_options(parser: argparse.ArgumentParser, *, max_iter: int = 10_000) -> None:
     """Stopping rule, iteration cap, history, progress and quiet options (read by :func:`stop_rule`)."""
     parser.add_argument("--tol", type=positive_float, default=None,
-                        help="relative-change tolerance in the problem's x norm (the paper's rule; "
+                        help="relative-change tolerance > 0 in the problem's x norm (the paper's rule; "
                              "default 1e-5 unless --eps-abs is given)")
-    parser.add_argument("--eps-abs", type=positive_float, default=None, help="Boyd's residual test: absolute tolerance")
+    parser.add_argument("--eps-abs", type=positive_float, default=None,
+                        help="Boyd's residual test: absolute tolerance > 0 (default: not used)")
     parser.add_argument("--eps-rel", type=float, default=None,
-                        help="Boyd's residual test: relative tolerance (default 0; needs --eps-abs)")
-    parser.add_argument("--max-iter", type=positive_int, default=max_iter, help=f"iteration cap (default {max_iter})")
+                        help="Boyd's residual test: relative tolerance >= 0 (default 0; needs --eps-abs)")
+    parser.add_argument("--max-iter", type=positive_int, default=max_iter,
+                        help=f"iteration cap, an integer >= 1 (default {max_iter})")
     add_output_file(parser, "--history", "CSV", "write the history to this CSV file: one complete row (every "
                     "norm computed) per tested iteration, the ones where the stopping rule is checked (every "
                     "iteration, except every 25th in solve qp's osqp preset) and the last")
     parser.add_argument("--history-every-iteration", action="store_true",
-                        help="with --history: test every iteration (check_every = 1), so the history has a row "
-                             "per iteration; the iterates are the same, the run is slower and may stop at an "
-                             "earlier iteration than a test every 25 would")
+                        help="with --history: test the stopping rule at every iteration (check_every = 1), so "
+                             "the history has a row per iteration; it changes the timing, not the iterates, though "
+                             "the run may stop at an earlier iteration than a test every 25 would (it matters in "
+                             "solve qp's osqp preset; the other solves test every iteration already)")
     needs = dict(parser.get_default("option_needs") or {})
     needs["history_every_iteration"] = ("--history-every-iteration", "history", "--history FILE")
     parser.set_defaults(option_needs=needs)
@@ -130,6 +133,13 @@ def add_stop_options(parser: argparse.ArgumentParser, *, max_iter: int = 10_000)
                         help="print a line of residuals every N >= 1 iterations instead of the bar (default: a "
                              "progress bar on stderr when a run takes more than 2 s; -q for neither)")
     parser.add_argument("-q", "--quiet", action="store_true", help="no progress bar or lines (the summary stays)")
+
+
+def set_help(parser: argparse.ArgumentParser, **helps: str) -> None:
+    """Replace the help of options already added, by destination (``tol="..."``): a plug-in whose default differs."""
+    for action in parser._actions:
+        if action.dest in helps:
+            action.help = plain(helps[action.dest])
 
 
 def add_output_file(parser: argparse.ArgumentParser, flag: str, metavar: str, help: str, suffix: str = "") -> None:
@@ -319,9 +329,13 @@ class Parser(argparse.ArgumentParser):
         super().__init__(*args, **kwargs)
 
     def add_argument(self, *args, **kwargs):
-        """``ArgumentParser.add_argument`` with the help text shown without markup."""
-        if isinstance(kwargs.get("help"), str) and kwargs["help"] != argparse.SUPPRESS:
-            kwargs["help"] = plain(kwargs["help"])
+        """``ArgumentParser.add_argument`` with the help text shown without markup, and the default named
+        where the help text does not name it."""
+        text, default = kwargs.get("help"), kwargs.get("default")
+        if isinstance(text, str) and text != argparse.SUPPRESS:
+            if "default" not in text and default not in (None, False, argparse.SUPPRESS) and args[0].startswith("-"):
+                text += f" (default {', '.join(map(str, default)) if isinstance(default, (list, tuple)) else default})"
+            kwargs["help"] = plain(text)
         return super().add_argument(*args, **kwargs)
 
     def parse_known_args(self, args=None, namespace=None):
@@ -384,13 +398,31 @@ def build_parser() -> argparse.ArgumentParser:
     groups = {}
     for name, help_text in GROUPS.items():
         if any(path.startswith(name + ".") for path in found):
-            sub = top.add_parser(name, help=help_text)
+            sub = top.add_parser(name, help=help_text, description=help_text[0].upper() + help_text[1:] + ".")
             groups[name] = sub.add_subparsers(dest=name + "_target", metavar="TARGET", required=True)
     for path in sorted(found):
-        group, _, _ = path.rpartition(".")
-        register = found[path].load()
+        group, _, name = path.rpartition(".")
+        try:
+            register = found[path].load()
+        except (ImportError, AttributeError) as err:    # a broken plug-in: its command says so, the others work
+            register = _unloadable(name, found[path].value, err)
         register(groups[group] if group else top)
     return parser
+
+
+def _unloadable(name: str, where: str, err: BaseException):
+    """A ``register`` for a command whose entry point does not load: running it is one line, exit 2."""
+    reason = f"the command {name!r} ({where}) could not be loaded: {type(err).__name__}: {err}"
+
+    def fail(args):
+        raise ValueError(reason)
+
+    def register(subparsers) -> None:
+        p = subparsers.add_parser(name, help="(could not be loaded: run it to see why)", description=reason,
+                                  add_help=False, prefix_chars="\0")
+        p.add_argument("argv", nargs=argparse.REMAINDER)
+        p.set_defaults(func=fail)
+    return register
 
 
 def command_line(argv: list[str]) -> str:
