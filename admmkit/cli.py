@@ -23,6 +23,10 @@ and the one place that turns an error into one line on stderr and an exit code:
   ``stalled``, ...): the summary says why, the files asked for are written;
 - 2: bad input (an option out of range, an unknown name, an output path that
   cannot be written): one line on stderr, nothing computed, nothing written.
+
+Every parser is a :class:`Parser`: a usage error is that one line too, with the
+closest name for a misspelt command, option or choice, and no usage block
+(``--help`` prints it); help texts are shown without markup.
 """
 from __future__ import annotations
 
@@ -120,7 +124,7 @@ def add_stop_options(parser: argparse.ArgumentParser, *, max_iter: int = 10_000)
                         help=f"iteration cap, an integer >= 1 (default {max_iter})")
     add_output_file(parser, "--history", "CSV", "write the history to this CSV file: one complete row (every "
                     "norm computed) per tested iteration, the ones where the stopping rule is checked (every "
-                    "iteration, except every 25th in solve qp's osqp preset) and the last")
+                    "iteration; every 25th in solve qp's osqp preset) and the last")
     parser.add_argument("--history-every-iteration", action="store_true",
                         help="with --history: test the stopping rule at every iteration (check_every = 1), so "
                              "the history has a row per iteration; it changes the timing, not the iterates, though "
@@ -324,7 +328,8 @@ class Parser(argparse.ArgumentParser):
     """
 
     def __init__(self, *args, **kwargs) -> None:
-        kwargs["description"] = _wrap(plain(kwargs["description"])) if kwargs.get("description") else None
+        for key in ("description", "epilog"):
+            kwargs[key] = _wrap(plain(kwargs[key])) if kwargs.get(key) else None
         kwargs.setdefault("formatter_class", argparse.RawDescriptionHelpFormatter)
         super().__init__(*args, **kwargs)
 

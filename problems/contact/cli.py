@@ -103,16 +103,14 @@ def _scene(args):
 
     def shown(err) -> str:                                        # a bundled scene by its name, not its path
         return str(err).replace(f"{path}: ", "")
-    try:
-        load_scene(path)                                          # the file as it is: its errors are --scene's
-    except ValueError as err:
-        raise ValueError(f"--scene {name}: {shown(err)}") from None
     changes = {key: value for key, value in (("h", args.h), ("order", args.fe_order)) if value is not None}
     try:
         scene = load_scene(path, **changes)
-    except ValueError as err:                                     # the file loads: the options are to blame
-        given = " ".join(f for f, v in (("--h", args.h), ("--fe-order", args.fe_order)) if v is not None)
-        raise ValueError(f"{given or '--scene'}: {shown(err)} (scene {name})") from None
+    except ValueError as err:
+        if changes and _loads(path):                              # the file loads as it is: the options are to blame
+            given = " ".join(f for f, v in (("--h", args.h), ("--fe-order", args.fe_order)) if v is not None)
+            raise ValueError(f"{given}: {shown(err)} (scene {name})") from None
+        raise ValueError(f"--scene {name}: {shown(err)}") from None
     args.adaptive_defaults = _adaptive_defaults(args, scene)
     if args.adaptive_defaults:
         try:
@@ -123,6 +121,16 @@ def _scene(args):
         raise ValueError(f"--plot draws 2D scenes only; {scene.name or name} is a 3D scene (dim = 3): "
                          f"write --vtk FILE.vtu and open it in ParaView")
     return apply_friction_options(scene, args)
+
+
+def _loads(path) -> bool:
+    """Whether the scene file ``path`` loads as it is (without --h or --fe-order)."""
+    from admmkit.problems.contact.model.scene_file import load_scene
+    try:
+        load_scene(path)
+    except ValueError:
+        return False
+    return True
 
 
 def _adaptive_defaults(args, scene) -> dict:

@@ -160,6 +160,6 @@ def test_cli_prints_summary_errors_and_writes_plot(capsys, tmp_path):
 
 def test_cli_bad_scene_and_h(capsys):
     assert main(["solve", "obstacle", "--scene", "nope"]) == 2
-    assert "scene = 'nope' is unknown" in capsys.readouterr().err
+    assert "--scene: 'nope' is not accepted; give one of radial, pyramid" in capsys.readouterr().err
     assert main(["solve", "obstacle", "--h", "0"]) == 2         # argparse's error: main() returns its code
     assert "--h" in capsys.readouterr().err
