@@ -269,7 +269,8 @@ def progress(args, total: int, every: int = 1):
 
 
 def write_history(history, args) -> None:
-    """``--history``: the complete rows of ``history`` as CSV (:meth:`admmkit.history.History.to_csv`), and a line."""
+    """``--history``: the complete rows of ``history`` as CSV (``History.to_csv(path, rows="complete")``), and a
+    line saying where."""
     if getattr(args, "history", None):
         print(f"history      {history.to_csv(args.history, rows='complete')}")
 
@@ -303,7 +304,8 @@ def did_you_mean(word: str, candidates) -> str:
 
 
 def plain(text: str | None) -> str | None:
-    """Help text without reStructuredText or Markdown markup: ``x``, `x`, **x**, *x* and :role:`x` become x."""
+    """Help text without reStructuredText or Markdown markup: double or single backquotes, double or single
+    stars and a role before backquotes (``:mod:`` and the like) are dropped, the text between them kept."""
     if not text:
         return text
     text = re.sub(r":[a-z]+:`~?([^`]+)`", r"\1", text)          # :mod:`admmkit.cli` -> admmkit.cli

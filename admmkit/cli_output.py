@@ -26,7 +26,7 @@ from .result import Result, Status
 PROGRESS_DELAY = 2.0
 #: and is refreshed every this many seconds
 PROGRESS_INTERVAL = 0.5
-#: on a stream that is not a terminal (a log): a plain line every this many seconds instead of the bar
+#: seconds between the plain lines that replace the bar on a stream that is not a terminal (a log, a pipe)
 PROGRESS_LOG_INTERVAL = 10.0
 
 
