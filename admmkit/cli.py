@@ -310,7 +310,8 @@ def plain(text: str | None) -> str | None:
         return text
     text = re.sub(r":[a-z]+:`~?([^`]+)`", r"\1", text)          # :mod:`admmkit.cli` -> admmkit.cli
     text = re.sub(r"`{1,2}([^`]+)`{1,2}", r"\1", text)           # ``x`` and `x` -> x
-    return re.sub(r"\*{1,2}([^*\s][^*]*)\*{1,2}", r"\1", text)   # **x** and *x* -> x
+    text = re.sub(r"\*\*([^*]+)\*\*", r"\1", text)                   # **x** -> x
+    return re.sub(r"(?<![\w*])\*([^*\s][^*]*?)\*(?![\w*])", r"\1", text)  # *x* -> x, but not a*b*c
 
 
 def _wrap(text: str) -> str:
@@ -340,7 +341,8 @@ class Parser(argparse.ArgumentParser):
         where the help text does not name it."""
         text, default = kwargs.get("help"), kwargs.get("default")
         if isinstance(text, str) and text != argparse.SUPPRESS:
-            if "default" not in text and default not in (None, False, argparse.SUPPRESS) and args[0].startswith("-"):
+            optional = bool(args) and args[0][:1] == "-"
+            if optional and "default" not in text and default not in (None, False, argparse.SUPPRESS):
                 text += f" (default {', '.join(map(str, default)) if isinstance(default, (list, tuple)) else default})"
             kwargs["help"] = plain(text)
         return super().add_argument(*args, **kwargs)
@@ -443,7 +445,7 @@ def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     try:
         args = parser.parse_args(argv)
-    except SystemExit as stop:                  # argparse: usage and one error line already on stderr
+    except SystemExit as stop:                  # Parser.error: its one line is on stderr (or --help printed)
         return int(stop.code or 0)
     if not getattr(args, "func", None):
         parser.print_help()

@@ -2,6 +2,7 @@
 what exists, progress without bar frames in a log, a history of complete rows, ``--progress N >= 1``."""
 import csv
 import io
+import json
 import re
 
 import pytest
@@ -186,15 +187,14 @@ def rows_of(path):
 def test_the_qp_history_has_complete_rows_of_the_tested_iterations(tmp_path, capsys):
     h, j = tmp_path / "h.csv", tmp_path / "r.json"
     code, out, _ = run([*QP, "--eps", "1e-6", "--history", str(h), "--json", str(j), "-q"], capsys)
-    import json
     n = json.loads(j.read_text())["result"]["iterations"]
     rows = rows_of(h)
     assert code == 0 and [int(r["k"]) for r in rows] == [k for k in range(n) if (k + 1) % 25 == 0 or k == n - 1]
     assert len(rows) >= 2 and not any(v in ("nan", "") for r in rows for v in r.values())
     # the same run without --history: the same iterations and solution (completing records steers nothing)
     code, _, _ = run([*QP, "--eps", "1e-6", "--json", str(tmp_path / "plain.json"), "-q"], capsys)
-    plain_run = json.loads((tmp_path / "plain.json").read_text())
-    assert plain_run["result"]["iterations"] == n and plain_run["arrays"]["x"] == json.loads(j.read_text())["arrays"]["x"]
+    plain_run, with_history = json.loads((tmp_path / "plain.json").read_text()), json.loads(j.read_text())
+    assert plain_run["result"]["iterations"] == n and plain_run["arrays"]["x"] == with_history["arrays"]["x"]
 
 
 def test_history_every_iteration_gives_a_complete_row_per_iteration(tmp_path, capsys):
