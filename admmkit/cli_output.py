@@ -81,8 +81,8 @@ class Progress:
         now = time.perf_counter()
         if self._first is None:
             self._first = now                             # the iterations start here (after the set-up)
-        if not self._terminal:
-            if now >= self._next:
+        if not self._terminal:                            # a log: a plain line once the iterations have a rate
+            if now >= self._next and now - self._first >= self.interval:
                 self._next = now + self.log_interval
                 self._log_line(rec, now - self._first)
             return None
