@@ -46,7 +46,7 @@ class Progress:
     on a terminal, a tqdm bar (iterations of the ``total`` cap, rate, rho) is refreshed every ``interval``
     seconds (default :data:`PROGRESS_INTERVAL`).  On a stream that is not a terminal (a log: a file, a pipe)
     no bar is drawn: one plain line ``ADMM: iteration k (cap N), t s, r it/s, rho=...`` is written once the run
-    has taken ``delay`` seconds and then every ``log_interval`` seconds (default :data:`PROGRESS_LOG_INTERVAL`),
+    has taken ``delay`` seconds (its iterations at least ``interval``) and then every ``log_interval`` seconds (default :data:`PROGRESS_LOG_INTERVAL`),
     so a log holds no carriage return and a few lines at most per minute.  ``lines`` (a callback printing every
     N iterations, ``--progress N``) replaces both.  The callback reads only ``rec.k`` and ``rec.rho`` (no norm is
     computed for it) and always returns None, so it never steers or stops a run.  ``enabled=False``
