@@ -23,12 +23,21 @@ and the one place that turns an error into one line on stderr and an exit code:
   ``stalled``, ...): the summary says why, the files asked for are written;
 - 2: bad input (an option out of range, an unknown name, an output path that
   cannot be written): one line on stderr, nothing computed, nothing written.
+
+Every parser is a :class:`Parser`: a usage error is that one line too, with the
+closest name for a misspelt command, option or choice, and no usage block
+(``--help`` prints it); help texts are shown without markup.
 """
 from __future__ import annotations
 
 import argparse
+import contextlib
+import difflib
+import re
 import shlex
+import shutil
 import sys
+import textwrap
 from fractions import Fraction
 from importlib.metadata import entry_points
 from pathlib import Path
@@ -105,17 +114,36 @@ def add_common_options(parser: argparse.ArgumentParser, *, policy: str = "summab
 def add_stop_options(parser: argparse.ArgumentParser, *, max_iter: int = 10_000) -> None:
     """Stopping rule, iteration cap, history, progress and quiet options (read by :func:`stop_rule`)."""
     parser.add_argument("--tol", type=positive_float, default=None,
-                        help="relative-change tolerance in the problem's x norm (the paper's rule; "
+                        help="relative-change tolerance > 0 in the problem's x norm (the paper's rule; "
                              "default 1e-5 unless --eps-abs is given)")
-    parser.add_argument("--eps-abs", type=positive_float, default=None, help="Boyd's residual test: absolute tolerance")
+    parser.add_argument("--eps-abs", type=positive_float, default=None,
+                        help="Boyd's residual test: absolute tolerance > 0 (default: not used)")
     parser.add_argument("--eps-rel", type=float, default=None,
-                        help="Boyd's residual test: relative tolerance (default 0; needs --eps-abs)")
-    parser.add_argument("--max-iter", type=positive_int, default=max_iter, help=f"iteration cap (default {max_iter})")
-    add_output_file(parser, "--history", "CSV", "write the per-iteration history to this CSV file")
-    parser.add_argument("--progress", type=int, default=0, metavar="N",
-                        help="print a line of residuals every N iterations (default: a progress bar on "
-                             "stderr when a run takes more than 2 s)")
+                        help="Boyd's residual test: relative tolerance >= 0 (default 0; needs --eps-abs)")
+    parser.add_argument("--max-iter", type=positive_int, default=max_iter,
+                        help=f"iteration cap, an integer >= 1 (default {max_iter})")
+    add_output_file(parser, "--history", "CSV", "write the history to this CSV file: one complete row (every "
+                    "norm computed) per tested iteration, the ones where the stopping rule is checked (every "
+                    "iteration; every 25th in solve qp's osqp preset) and the last")
+    parser.add_argument("--history-every-iteration", action="store_true",
+                        help="with --history: test the stopping rule at every iteration (check_every = 1), so "
+                             "the history has a row per iteration; it changes the timing, not the iterates, though "
+                             "the run may stop at an earlier iteration than a test every 25 would (it matters in "
+                             "solve qp's osqp preset; the other solves test every iteration already)")
+    needs = dict(parser.get_default("option_needs") or {})
+    needs["history_every_iteration"] = ("--history-every-iteration", "history", "--history FILE")
+    parser.set_defaults(option_needs=needs)
+    parser.add_argument("--progress", type=positive_int, default=None, metavar="N",
+                        help="print a line of residuals every N >= 1 iterations instead of the bar (default: a "
+                             "progress bar on stderr when a run takes more than 2 s; -q for neither)")
     parser.add_argument("-q", "--quiet", action="store_true", help="no progress bar or lines (the summary stays)")
+
+
+def set_help(parser: argparse.ArgumentParser, **helps: str) -> None:
+    """Replace the help of options already added, by destination (``tol="..."``): a plug-in whose default differs."""
+    for action in parser._actions:
+        if action.dest in helps:
+            action.help = plain(helps[action.dest])
 
 
 def add_output_file(parser: argparse.ArgumentParser, flag: str, metavar: str, help: str,
@@ -237,8 +265,9 @@ def resolve_policy(args) -> tuple[str, object, str]:
     try:
         return args.order or getattr(args, "default_order", "zx"), make_policy(key), key
     except ValueError:
-        raise ValueError(f"--policy: unknown name {name!r}; give one of "
-                         f"{', '.join([*methods, *policy_names()])}, or module:Class or path/to/file.py:Class") from None
+        known = [*methods, *policy_names()]
+        raise ValueError(f"--policy: unknown name {name!r}; give one of {', '.join(known)}, or module:Class or "
+                         f"path/to/file.py:Class{did_you_mean(key, known)}") from None
 
 
 def stop_rule(args) -> StoppingRule:
@@ -253,9 +282,9 @@ def stop_rule(args) -> StoppingRule:
     return rules[0] if len(rules) == 1 else AnyOf(*rules)
 
 
-def progress_callback(every: int):
-    """A callback that prints one line every ``every`` iterations (None if every <= 0)."""
-    if every <= 0:
+def progress_callback(every: int | None):
+    """A callback that prints one line every ``every`` iterations (None if ``every`` is None or <= 0)."""
+    if not every or every <= 0:
         return None
 
     def show(rec) -> None:
@@ -265,13 +294,44 @@ def progress_callback(every: int):
     return show
 
 
-def progress(args, total: int):
-    """A ``Progress`` context (admmkit/cli_output.py) as the options ask.
+class CompleteTested:
+    """A callback that computes every norm of the tested iterations' records (iteration k with
+    (k + 1) % ``every`` == 0), then calls ``inner`` (the progress display, or None).
 
-    ``--progress N``: a line every N iterations; otherwise a bar after 2 s; nothing with ``-q``.
+    The history keeps the record's norms, so those rows become complete (``--history`` writes them,
+    ``History.to_csv(rows="complete")``); the loop completes the last record itself.  It reads the records the
+    loop computed anyway and returns what ``inner`` returns, so it changes no iterate and stops no run.
     """
-    lines = 0 if getattr(args, "quiet", False) else getattr(args, "progress", 0)
-    return Progress(total, enabled=not getattr(args, "quiet", False), lines=progress_callback(lines))
+
+    def __init__(self, every: int, inner=None) -> None:
+        self.every, self.inner = int(every), inner
+        self.every_record = getattr(inner, "every_record", True) if inner is not None else False
+
+    def __call__(self, rec):
+        if (rec.k + 1) % self.every == 0:
+            rec.complete()
+        return None if self.inner is None else self.inner(rec)
+
+
+@contextlib.contextmanager
+def progress(args, total: int, every: int = 1):
+    """A ``Progress`` context (admmkit/cli_output.py) as the options ask, yielding the callback for the solve.
+
+    ``--progress N``: a line every N iterations; otherwise a bar after 2 s; nothing with ``-q``.  With
+    ``--history`` the callback also completes the records of the tested iterations (every ``every``-th:
+    the solve's check_every), :class:`CompleteTested`.
+    """
+    quiet = getattr(args, "quiet", False)
+    lines = None if quiet else getattr(args, "progress", None)
+    with Progress(total, enabled=not quiet, lines=progress_callback(lines)) as show:
+        yield CompleteTested(every, show) if getattr(args, "history", None) else show
+
+
+def write_history(history, args) -> None:
+    """``--history``: the complete rows of ``history`` as CSV (``History.to_csv(path, rows="complete")``), and a
+    line saying where."""
+    if getattr(args, "history", None):
+        print(f"history      {history.to_csv(args.history, rows='complete')}")
 
 
 def run_solve(problem, args, stop: StoppingRule | None = None) -> Result:
@@ -287,8 +347,7 @@ def run_solve(problem, args, stop: StoppingRule | None = None) -> Result:
                        max_iter=args.max_iter, callback=show)
     args.resolved = {"policy": name, "order": order, "policy_repr": repr(policy), "stop": stop.name}
     print_summary(result, name, args.rho)
-    if args.history:
-        print(f"history      {result.history.to_csv(args.history)}")
+    write_history(result.history, args)
     return result
 
 
@@ -297,24 +356,141 @@ def commands() -> dict[str, object]:
     return {ep.name: ep for ep in entry_points(group=GROUP)}
 
 
+def did_you_mean(word: str, candidates) -> str:
+    """`` (did you mean X?)`` for the candidate closest to a misspelt ``word`` (difflib), else ``""``."""
+    close = difflib.get_close_matches(str(word), [str(c) for c in candidates], n=1, cutoff=0.6)
+    return f" (did you mean {close[0]}?)" if close else ""
+
+
+def plain(text: str | None) -> str | None:
+    """Help text without reStructuredText or Markdown markup: double or single backquotes, double or single
+    stars and a role before backquotes (``:mod:`` and the like) are dropped, the text between them kept."""
+    if not text:
+        return text
+    text = re.sub(r":[a-z]+:`~?([^`]+)`", r"\1", text)          # :mod:`admmkit.cli` -> admmkit.cli
+    text = re.sub(r"`{1,2}([^`]+)`{1,2}", r"\1", text)           # ``x`` and `x` -> x
+    text = re.sub(r"\*\*([^*]+)\*\*", r"\1", text)                   # **x** -> x
+    return re.sub(r"(?<![\w*])\*([^*\s][^*]*?)\*(?![\w*])", r"\1", text)  # *x* -> x, but not a*b*c
+
+
+def _wrap(text: str) -> str:
+    """Wrap each paragraph of ``text`` to the terminal (at most 100 columns), keeping the blank lines between them."""
+    width = max(40, min(100, shutil.get_terminal_size().columns) - 2)
+    return "\n\n".join(textwrap.fill(" ".join(par.split()), width) for par in text.split("\n\n"))
+
+
+class Parser(argparse.ArgumentParser):
+    """The parser of every ``admmkit`` command: a usage error is ONE line on stderr, ``admmkit: error: ...``, exit 2.
+
+    The line names the option and what it accepts and, for a misspelt command, option or choice, the closest
+    name (``did you mean --policy?``, :func:`did_you_mean`); the usage block is printed only by ``--help``.
+    Descriptions and help texts are shown without markup (:func:`plain`), each paragraph of a description on
+    its own (a ``typical: ...`` paragraph stays a line of its own).  ``add_subparsers`` makes its sub-parsers
+    of this class, so the plug-ins get it without asking for it.
+    """
+
+    def __init__(self, *args, **kwargs) -> None:
+        for key in ("description", "epilog"):
+            kwargs[key] = _wrap(plain(kwargs[key])) if kwargs.get(key) else None
+        kwargs.setdefault("formatter_class", argparse.RawDescriptionHelpFormatter)
+        super().__init__(*args, **kwargs)
+
+    def add_argument(self, *args, **kwargs):
+        """``ArgumentParser.add_argument`` with the help text shown without markup, and the default named
+        where the help text does not name it."""
+        text, default = kwargs.get("help"), kwargs.get("default")
+        if isinstance(text, str) and text != argparse.SUPPRESS:
+            optional = bool(args) and args[0][:1] == "-"
+            if optional and "default" not in text and default not in (None, False, argparse.SUPPRESS):
+                text += f" (default {', '.join(map(str, default)) if isinstance(default, (list, tuple)) else default})"
+            kwargs["help"] = plain(text)
+        return super().add_argument(*args, **kwargs)
+
+    def parse_known_args(self, args=None, namespace=None):
+        """``ArgumentParser.parse_known_args``, remembering the innermost parser that left arguments unread."""
+        namespace, extras = super().parse_known_args(args, namespace)
+        if extras and not hasattr(namespace, "_unread_by"):
+            namespace._unread_by = self         # a sub-command's parser: its options are the ones to suggest
+        return namespace, extras
+
+    def parse_args(self, args=None, namespace=None):
+        """``ArgumentParser.parse_args``; an unknown option is named with the closest option of its command."""
+        namespace, extras = self.parse_known_args(args, namespace)
+        if extras:
+            self.error(vars(namespace).pop("_unread_by", self)._unknown(extras))
+        for dest, (flag, other, other_flag) in (getattr(namespace, "option_needs", None) or {}).items():
+            if getattr(namespace, dest, None) and not getattr(namespace, other, None):
+                self.error(f"{flag} needs {other_flag}")
+        return namespace
+
+    def _unknown(self, extras: list[str]) -> str:
+        word = extras[0]
+        if not word.startswith("-"):
+            return f"unexpected argument {word!r} for {self.prog}"
+        flag = word.split("=", 1)[0]
+        flags = [s for action in self._actions if action.help != argparse.SUPPRESS for s in action.option_strings]
+        return f"unknown option {flag} for {self.prog}{did_you_mean(flag, flags)}"
+
+    def _check_value(self, action, value):
+        """A value outside ``choices``: the accepted values and the closest one (argparse calls this)."""
+        if action.choices is None or value in action.choices:
+            return
+        names = [str(c) for c in action.choices]
+        if isinstance(action, argparse._SubParsersAction):
+            raise argparse.ArgumentError(None, f"{value!r} is not a command of {self.prog}; give one of "
+                                               f"{', '.join(names)}{did_you_mean(value, names)}")
+        raise argparse.ArgumentError(action, f"{value!r} is not accepted; give one of {', '.join(names)}"
+                                             f"{did_you_mean(value, names)}")
+
+    def error(self, message: str):
+        """Print ``admmkit: error: MESSAGE`` as one line (no usage block) and exit with code 2."""
+        message = re.sub(r"^argument ([^:]+): ", r"\1: ", str(message))
+        if message.startswith("the following arguments are required"):
+            commands = [a for a in self._actions if isinstance(a, argparse._SubParsersAction)]
+            if commands:
+                message = f"{self.prog} needs a command: one of {', '.join(commands[0].choices)}"
+            else:
+                message = f"{self.prog}: {message}"
+        print(f"admmkit: error: {' '.join(message.split())}", file=sys.stderr)
+        raise SystemExit(EXIT_BAD_INPUT)
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser with every installed sub-command."""
-    parser = argparse.ArgumentParser(prog="admmkit", description="ADMM with adaptive penalty parameters.",
-                                     epilog="exit codes: 0 converged, 1 the run ended otherwise "
-                                            "(max_iter, diverged, converged_inaccurate, ...), 2 bad input")
+    parser = Parser(prog="admmkit", description="ADMM with adaptive penalty parameters.",
+                    epilog="exit codes: 0 converged, 1 the run ended otherwise "
+                           "(max_iter, diverged, converged_inaccurate, ...), 2 bad input")
     parser.add_argument("--version", action="version", version=f"admmkit {__version__}")
     top = parser.add_subparsers(dest="command", metavar="COMMAND")
     found = commands()
     groups = {}
     for name, help_text in GROUPS.items():
         if any(path.startswith(name + ".") for path in found):
-            sub = top.add_parser(name, help=help_text)
+            sub = top.add_parser(name, help=help_text, description=help_text[0].upper() + help_text[1:] + ".")
             groups[name] = sub.add_subparsers(dest=name + "_target", metavar="TARGET", required=True)
     for path in sorted(found):
-        group, _, _ = path.rpartition(".")
-        register = found[path].load()
+        group, _, name = path.rpartition(".")
+        try:
+            register = found[path].load()
+        except (ImportError, AttributeError) as err:    # a broken plug-in: its command says so, the others work
+            register = _unloadable(name, found[path].value, err)
         register(groups[group] if group else top)
     return parser
+
+
+def _unloadable(name: str, where: str, err: BaseException):
+    """A ``register`` for a command whose entry point does not load: running it is one line, exit 2."""
+    reason = f"the command {name!r} ({where}) could not be loaded: {type(err).__name__}: {err}"
+
+    def fail(args):
+        raise ValueError(reason)
+
+    def register(subparsers) -> None:
+        p = subparsers.add_parser(name, help="(could not be loaded: run it to see why)", description=reason,
+                                  add_help=False, prefix_chars="\0")
+        p.add_argument("argv", nargs=argparse.REMAINDER)
+        p.set_defaults(func=fail)
+    return register
 
 
 def command_line(argv: list[str]) -> str:
@@ -328,7 +504,7 @@ def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     try:
         args = parser.parse_args(argv)
-    except SystemExit as stop:                  # argparse: usage and one error line already on stderr
+    except SystemExit as stop:                  # Parser.error: its one line is on stderr (or --help printed)
         return int(stop.code or 0)
     if not getattr(args, "func", None):
         parser.print_help()

@@ -26,19 +26,31 @@ from .result import Result, Status
 PROGRESS_DELAY = 2.0
 #: and is refreshed every this many seconds
 PROGRESS_INTERVAL = 0.5
+#: seconds between the plain lines that replace the bar on a stream that is not a terminal (a log, a pipe)
+PROGRESS_LOG_INTERVAL = 10.0
+
+
+def is_terminal(stream) -> bool:
+    """Whether ``stream`` is a terminal (``isatty()``); a file, a pipe or a StringIO is not."""
+    isatty = getattr(stream, "isatty", None)
+    try:
+        return bool(callable(isatty) and isatty())
+    except (ValueError, OSError):          # a closed stream
+        return False
 
 
 class Progress:
     """Progress of one solve on stderr, as a context manager that yields the ``callback`` to pass to solve.
 
-    Nothing is shown for runs shorter than ``delay`` seconds (default
-    :data:`PROGRESS_DELAY`); after that a
-    tqdm bar (iterations of the ``total`` cap, rate, rho) is refreshed every
-    ``interval`` seconds (default :data:`PROGRESS_INTERVAL`).  ``lines`` (a callback printing every N iterations,
-    ``--progress N``) replaces the bar.  The callback reads only ``rec.k`` and
-    ``rec.rho`` (no norm is computed for it) and always returns None, so it
-    never steers or stops a run.  ``enabled=False`` (``--quiet``) yields None.
-    On a stream that is not a terminal (a log) the bar's last frame ends with a newline.
+    Nothing is shown for runs shorter than ``delay`` seconds (default :data:`PROGRESS_DELAY`).  After that,
+    on a terminal, a tqdm bar (iterations of the ``total`` cap, rate, rho) is refreshed every ``interval``
+    seconds (default :data:`PROGRESS_INTERVAL`).  On a stream that is not a terminal (a log: a file, a pipe)
+    no bar is drawn: one plain line ``ADMM: iteration k (cap N), t s, r it/s, rho=...`` is written once the run
+    has taken ``delay`` seconds (its iterations at least ``interval``) and then every ``log_interval`` seconds (default :data:`PROGRESS_LOG_INTERVAL`),
+    so a log holds no carriage return and a few lines at most per minute.  ``lines`` (a callback printing every
+    N iterations, ``--progress N``) replaces both.  The callback reads only ``rec.k`` and ``rec.rho`` (no norm is
+    computed for it) and always returns None, so it never steers or stops a run.  ``enabled=False``
+    (``--quiet``) yields None.
     """
 
     #: the bar needs no record of every iteration (it reads k and rho of those it is given): the loop may run the
@@ -46,13 +58,14 @@ class Progress:
     every_record = False
 
     def __init__(self, total: int, *, enabled: bool = True, lines=None, delay: float | None = None,
-                 interval: float | None = None, file=None) -> None:
+                 interval: float | None = None, file=None, log_interval: float | None = None) -> None:
         self.total, self.enabled, self.lines = int(total), enabled, lines
         self.delay = float(PROGRESS_DELAY if delay is None else delay)
         self.interval = float(PROGRESS_INTERVAL if interval is None else interval)
+        self.log_interval = float(PROGRESS_LOG_INTERVAL if log_interval is None else log_interval)
         self.file = file
         self.bar = None
-        self._first, self._next = None, math.inf
+        self._first, self._next, self._terminal = None, math.inf, True
 
     def __enter__(self):
         if not self.enabled:
@@ -61,12 +74,18 @@ class Progress:
             return self.lines
         self._first = None
         self._next = time.perf_counter() + self.delay
+        self._terminal = is_terminal(self.file or sys.stderr)
         return self
 
     def __call__(self, rec) -> None:
         now = time.perf_counter()
         if self._first is None:
             self._first = now                             # the iterations start here (after the set-up)
+        if not self._terminal:                            # a log: a plain line once the iterations have a rate
+            if now >= self._next and now - self._first >= self.interval:
+                self._next = now + self.log_interval
+                self._log_line(rec, now - self._first)
+            return None
         if now < self._next or (self.bar is None and now - self._first < self.interval):
             return None                                   # (a rate needs some iterations behind it)
         self._next = now + self.interval
@@ -81,15 +100,18 @@ class Progress:
         self.bar.refresh()
         return None
 
+    def _log_line(self, rec, seconds: float) -> None:
+        """One plain line for a log: the iteration, the cap, the time since the first iteration, the rate, rho."""
+        done = rec.k + 1
+        rate = f", {done / seconds:.3g} it/s" if seconds > 0 else ""
+        stream = self.file or sys.stderr
+        stream.write(f"ADMM: iteration {done} (cap {self.total}), {seconds:.1f} s{rate}, rho={rec.rho:.3g}\n")
+        stream.flush()
+
     def __exit__(self, *exc) -> None:
         if self.bar is not None:
             self.bar.close()                 # leave=False: on a terminal the line is cleared
             self.bar = None
-            stream = self.file or sys.stderr
-            isatty = getattr(stream, "isatty", None)
-            if not (callable(isatty) and isatty()):
-                stream.write("\n")           # a log keeps every frame: end the last one, so that the summary
-                stream.flush()               # (stdout, often the same file: `> log 2>&1`) begins its own line
 
 
 def exit_code(result: Result) -> int:

@@ -87,17 +87,27 @@ class History:
             out[name] = np.array([row[j] for row in rows], dtype=dtype)
         return out
 
-    def to_csv(self, path: str | Path) -> Path:
-        """Write the history as CSV (header row, one row per iteration) and return the path.
+    def complete_rows(self) -> list[int]:
+        """Positions of the rows with every norm computed (a lean history: the iterations whose record was
+        completed, e.g. the tested ones when the command line asks for ``--history``, and always the last)."""
+        return [i for i, row in enumerate(self._rows) if all(v is not None for v in row[5])]
 
-        Written by :mod:`admmkit.io`: whole or not at all, a symbolic link's target replaced, a FIFO or ``-``
-        (standard output) written into (docs/cli.md, "Output files").
+    def to_csv(self, path: str | Path, rows: str = "all") -> Path:
+        """Write the history as CSV (header row, then one row per iteration) and return the path.
+
+        ``rows``: ``"all"`` (default) every iteration, NaN where a lean row did not compute a norm;
+        ``"complete"`` only the rows with every norm computed (:meth:`complete_rows`), so no cell is NaN
+        for want of a computation.  Written by :mod:`admmkit.io`: whole or not at all, a symbolic link's
+        target replaced, a FIFO or ``-`` (standard output) written into (docs/cli.md, "Output files").
         """
+        if rows not in ("all", "complete"):
+            raise ValueError(f"rows must be 'all' or 'complete', got {rows!r}")
         path = Path(path)
+        picked = self._rows if rows == "all" else [self._rows[i] for i in self.complete_rows()]
         with atomic_open(path, "w", newline="") as fh:     # whole or not at all (admmkit/io.py)
             writer = csv.writer(fh)
             writer.writerow(COLUMNS)
-            for row in self._rows:
+            for row in picked:
                 writer.writerow([int(v) if isinstance(v, (bool, np.bool_)) else repr(float(v)) if isinstance(v, float) else v
                                  for v in self._row(row)])
         return path

@@ -14,7 +14,8 @@ from admmkit.benchmarks.runner.options import add_out, add_sweep_options, execut
 def reproduce(commands) -> None:
     """``admmkit reproduce paper``: the paper's Tables 1-2 and Figs 1-4 (admmkit.benchmarks.contact.paper)."""
     r = commands.add_parser("reproduce", help="reproduce a paper's tables and figures",
-                            description="Reproduce the paper's section 4: both examples x ADMM1/ADMM2/SADMM x rho x h.")
+                            description="Reproduce the paper's section 4: both examples x ADMM1/ADMM2/SADMM x rho x h."
+                                       "\n\ntypical: ~15 s on 2 cores (docs/results/paper), 0.4 GB. needs: ngsolve, matplotlib (installed with admmkit)")
     r.add_argument("target", choices=["paper"], help="paper: Tables 1-2 and Figs 1-4 of Yuan & Zhang (2023)")
     add_out(r, "paper")
     r.add_argument("--quick", action="store_true", help="h = 1/10 and 1/20 only (CI smoke test)")
@@ -34,7 +35,8 @@ def _reproduce(args) -> int:
 def paper_compare(targets) -> None:
     """``admmkit bench paper-compare``: our times and iterations beside the paper's tables."""
     c = targets.add_parser("paper-compare", help="our ADMM1/ADMM2/SADMM times and iterations beside the paper's tables",
-                           description="The paper's Tables 1-2 beside this machine's times, with ratios.")
+                           description="The paper's Tables 1-2 beside this machine's times, with ratios."
+                                       "\n\ntypical: ~7 min with --workers 1 --repeats 5 (docs/benchmarks.md); --quick a minute. needs: ngsolve")
     add_sweep_options(c, "paper-compare")
     c.add_argument("--repeats", type=positive_int, default=3, help="repeats, median time (default 3)")
     c.set_defaults(func=study(_paper_compare))
@@ -52,7 +54,8 @@ def _paper_compare(args) -> int:
 def contact_speed(targets) -> None:
     """``admmkit bench contact``: SADMM time against one factorisation + solve of K."""
     b = targets.add_parser("contact", help="SADMM time / (one factorisation + solve of K), Ex. 1-2",
-                           description="SADMM time against one sparse factorisation + solve of K.")
+                           description="SADMM time against one sparse factorisation + solve of K."
+                                       "\n\ntypical: ~4 min (245 s, docs/results/contact_speed.md). needs: ngsolve")
     b.add_argument("--out", default="out/contact/contact_speed.md",
                    help="Markdown file to write (default out/contact/contact_speed.md)")
     b.add_argument("--h", type=positive_float, action="append", default=None, dest="hs",
@@ -71,7 +74,8 @@ def _contact_speed(args) -> int:
 def contact_schur(targets) -> None:
     """``admmkit bench contact-schur``: the condensed set-up (Schur complement on Gamma_C) by backend."""
     b = targets.add_parser("contact-schur", help="the Schur complement's set-up by backend, Ex. 1-2, and SADMM / (factor + solve)",
-                           description="Time the candidate ways to build the contact-boundary Schur complement of K.")
+                           description="Time the candidate ways to build the contact-boundary Schur complement of K."
+                                       "\n\ntypical: ~9 min with --repeats 5 (542 s, docs/results/contact_schur), less with the default 3. needs: ngsolve")
     # a file, not a folder: its own dest, so that the generic check of a folder --out leaves it alone (it refused
     # the README's own regeneration command once the README existed); checked as an output file instead
     b.add_argument("--out", dest="out_file", metavar="FILE", default="out/contact/contact_schur.md",
@@ -95,7 +99,8 @@ def hertz(targets) -> None:
     """``admmkit bench hertz``: contact half-width and peak pressure against Hertz."""
     h = targets.add_parser("hertz", help="Hertz validation: half-cylinder on a rigid plane, a and p0 vs Hertz",
                            description="Contact half-width and peak pressure against Hertz on meshes refined near "
-                                       "the contact (problems/contact/validation/hertz.py).")
+                                       "the contact (problems/contact/validation/hertz.py)."
+                                       "\n\ntypical: minutes. needs: ngsolve (netgen meshes), matplotlib")
     add_out(h, "scale")
     h.add_argument("--k", type=positive_int, action="append", default=None, dest="ks",
                    help="refinement a_target/h_c (repeatable; default 10 20 40 80)")
@@ -112,7 +117,8 @@ def scale(targets) -> None:
     """``admmkit bench scale``: Example 1 with the iterative x-step from 1e3 to 1e6 unknowns."""
     s = targets.add_parser("scale", help="Example 1 with the iterative x-step from 1e3 to 1e6 unknowns: time, memory",
                            description="SADMM on Example 1 with the AMG-CG x-step at growing sizes, each in its own "
-                                       "process: wall time, iterations, peak memory, the 60 s / 8 GB target at 1e6.")
+                                       "process: wall time, iterations, peak memory, the 60 s / 8 GB target at 1e6."
+                                       "\n\ntypical: ~2 min and 2.4 GB at the largest size, 1e6 unknowns (104 s, docs/results/scale); --quick seconds. needs: ngsolve, pyamg")
     add_out(s, "scale")
     s.add_argument("--h", type=positive_float, action="append", default=None, dest="hs",
                    help="mesh size (repeatable; default 1/20 1/40 1/80 1/160 1/320 1/500)")
@@ -134,7 +140,8 @@ def amg_crossover(targets) -> None:
     """``admmkit bench amg-crossover``: direct against AMG x-steps by size; AMG reuse across rho."""
     c = targets.add_parser("amg-crossover", help="full / condensed / iterative x-steps against size; AMG reuse across rho",
                            description="When the iterative x-step beats the direct ones (Example 1), and when reusing "
-                                       "the AMG hierarchy of an earlier rho is cheaper than rebuilding it.")
+                                       "the AMG hierarchy of an earlier rho is cheaper than rebuilding it."
+                                       "\n\ntypical: tens of minutes (one run at 1e6 unknowns takes ~1.5 min and 2.5 GB, docs/scale.md); --quick a minute. needs: ngsolve, pyamg")
     add_out(c, "scale")
     c.add_argument("--h", type=positive_float, action="append", default=None, dest="hs",
                    help="mesh size (repeatable; default 1/20 ... 1/500)")
@@ -156,7 +163,8 @@ def contact3d(targets) -> None:
     """``admmkit bench contact3d``: the 3D block on a curved foundation, direct against AMG."""
     d = targets.add_parser("contact3d", help="3D block on a curved foundation with the AMG x-step; direct vs AMG",
                            description="The 3D analogue of Example 2: direct factorisation vs AMG by size, then SADMM "
-                                       "with the iterative x-step, a figure and VTK output.")
+                                       "with the iterative x-step, a figure and VTK output."
+                                       "\n\ntypical: several minutes (the SADMM run at h = 1/32 alone ~80 s and 1.9 GB, docs/results/scale/contact3d.md); --quick a minute. needs: ngsolve, pyamg, matplotlib, meshio")
     add_out(d, "scale")
     d.add_argument("--h", type=positive_float, default=1 / 32, help="mesh size of the SADMM run (default 1/32)")
     d.add_argument("--probe-h", type=positive_float, action="append", default=None, dest="probe_hs",

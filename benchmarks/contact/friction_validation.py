@@ -25,7 +25,8 @@ stability.csv, stability.png and README.md with the command line and the tables.
 """
 from __future__ import annotations
 
-import argparse
+
+from admmkit.cli import Parser
 import csv
 import math
 import sys
@@ -241,7 +242,8 @@ def _readme(out: Path, argv: list[str], rows, stab, seconds: float, args) -> Non
 
 def main(argv=None, prog: str = "admmkit bench friction") -> int:
     """Run both studies, print the tables, write CSV, PNG and README.md to --out."""
-    parser = argparse.ArgumentParser(prog=prog, description=__doc__.split("\n\n")[0])
+    parser = Parser(prog=prog, description=__doc__.split("\n\n")[0] +   # one-line usage errors (admmkit.cli)
+                    "\n\ntypical: ~90 s (92 s, docs/results/friction). needs: ngsolve, matplotlib")
     parser.add_argument("--out", default="out/friction_validation", help="output folder (default out/friction_validation)")
     parser.add_argument("--mu", type=float, default=0.3, help="Coulomb coefficient of the Cattaneo case (default 0.3)")
     parser.add_argument("--nu", type=float, default=0.49, help="Poisson ratio of the Cattaneo case (default 0.49)")

@@ -26,6 +26,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from admmkit.cli import Parser  # noqa: E402
 from admmkit.io import write_text  # noqa: E402  (after the path, for `python benchmarks/contact/linsolve_backends.py`)
 
 GRIDS = [22, 70, 223, 707]  # n = 2 N (N + 1) free DOFs: ~1e3, 1e4, 1e5, 1e6
@@ -182,7 +183,10 @@ def report(results, args):
 
 def main(argv=None, prog: str = "admmkit bench linsolve") -> int:
     """Command-line entry point (``admmkit bench linsolve``)."""
-    parser = argparse.ArgumentParser(prog=prog, description=__doc__.split("\n")[0])
+    parser = Parser(prog=prog, description=__doc__.split("\n")[0] +   # one-line usage errors (admmkit.cli)
+                    "\n\ntypical: minutes to tens of minutes up to 1e6 unknowns (--max-n for less). "
+                    "needs: scipy; it also times the optional backends that are installed: qdldl, "
+                    "scikit-sparse (cholmod), pypardiso, ngsolve")
     parser.add_argument("--max-n", type=int, default=1_100_000, help="largest system size")
     parser.add_argument("--repeats", type=int, default=3, help="factorisations per median")
     parser.add_argument("--max-seconds", type=float, default=60.0,

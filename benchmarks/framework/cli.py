@@ -16,7 +16,8 @@ def executors(targets) -> None:
     e = targets.add_parser("executors", help="the bench-policies sweep on 2 local processes and a 2-worker Dask "
                                              "LocalCluster: iterations identical?, wall-time ratio",
                            description="Runs the cases of `admmkit bench policies` on both executors, one after "
-                                       "the other, and compares iteration counts and wall times (needs dask).")
+                                       "the other, and compares iteration counts and wall times (needs dask)."
+                                       "\n\ntypical: ~10 min: two rounds of three executors, ~90 s each (docs/benchmarks.md). needs: ngsolve, dask[distributed] (pip install 'admmkit[sweep]')")
     add_out(e, "executors")
     e.add_argument("--quick", action="store_true", help="the coarse smoke grid of bench policies")
     e.add_argument("--rounds", type=positive_int, default=2,

@@ -18,7 +18,6 @@ and every failure) under --out.
 """
 from __future__ import annotations
 
-import argparse
 import shlex
 import sys
 import time
@@ -27,6 +26,7 @@ from pathlib import Path
 import numpy as np
 import scipy.sparse as sp
 
+from admmkit.cli import Parser
 from admmkit.io import write_text
 
 from admmkit.benchmarks.runner.report import write_csv
@@ -166,7 +166,8 @@ def summarise(rows: list[dict], command: str) -> str:
 
 def main(argv=None, prog: str = "admmkit bench four-problems") -> int:
     """Run the study, print the summary, write four_problems.csv and four_problems.md under --out."""
-    parser = argparse.ArgumentParser(prog=prog, description=__doc__.splitlines()[0])
+    parser = Parser(prog=prog, description=__doc__.splitlines()[0] +   # one-line usage errors (admmkit.cli)
+                    "\n\ntypical: minutes. needs: cvxpy (pip install 'admmkit[test]')")
     parser.add_argument("--out", default="out/four_problems", help="output folder (default ./out/four_problems/)")
     parser.add_argument("--problems", default=",".join(PROBLEMS), help=f"comma-separated subset of {', '.join(PROBLEMS)}")
     parser.add_argument("--rules", default="all", help="comma-separated rules (default: every registered rule)")

@@ -37,7 +37,6 @@ shown beside it.  Each time is the minimum over ``--repeats`` runs.
 """
 from __future__ import annotations
 
-import argparse
 import os
 import shlex
 import sys
@@ -46,6 +45,7 @@ from pathlib import Path
 
 import numpy as np
 
+from admmkit.cli import Parser
 from admmkit.io import write_text
 
 from admmkit.benchmarks.runner.report import write_csv
@@ -160,7 +160,8 @@ def steady_allocator() -> bool:
 
 def main(argv=None, prog: str = "admmkit bench loop-overhead") -> int:
     """Run the benchmark, print the table and write loop_overhead.csv and loop_overhead.md under --out."""
-    parser = argparse.ArgumentParser(prog=prog, description=__doc__.splitlines()[0])
+    parser = Parser(prog=prog, description=__doc__.splitlines()[0] +   # one-line usage errors (admmkit.cli)
+                    "\n\ntypical: minutes. needs: numpy (nothing beyond admmkit)")
     parser.add_argument("--out", default="out/loop_overhead", help="output folder (default ./out/loop_overhead/)")
     parser.add_argument("--sizes", default="10,100000,1000000", help="comma-separated n (default 10,1e5,1e6)")
     parser.add_argument("--iterations", default="3000,3000,300",

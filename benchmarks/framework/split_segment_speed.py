@@ -12,7 +12,8 @@ again.  Usage: ``admmkit bench split-speed --out DIR`` (README.md and split_spee
 """
 from __future__ import annotations
 
-import argparse
+
+from admmkit.cli import Parser
 
 import numpy as np
 
@@ -51,7 +52,9 @@ def main(argv=None, prog: str = "admmkit bench split-speed") -> int:
     import sys
     import time
     from pathlib import Path
-    parser = argparse.ArgumentParser(prog=prog, description=__doc__.splitlines()[0])
+    parser = Parser(prog=prog, description=__doc__.splitlines()[0] +   # one-line usage errors (admmkit.cli)
+                    "\n\ntypical: ~10 s plus start-up (the timings took 7 s, docs/results/split_speed). "
+                    "needs: numba (installed with admmkit)")
     parser.add_argument("--out", default="out/split_speed", help="output folder (default ./out/split_speed/)")
     parser.add_argument("--iterations", type=int, default=2000, help="iterations per run (default 2000)")
     parser.add_argument("--repeats", type=int, default=5, help="runs of each; the minimum counts (default 5)")

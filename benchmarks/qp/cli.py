@@ -19,7 +19,8 @@ def maros_meszaros(targets) -> None:
                            description="Penalty rules (both orders) in OSQP's machinery and in the textbook loop, "
                                        "one-off ablations, and OSQP 1.x, at absolute accuracies 1e-3 and 1e-6, judged "
                                        "by the neutral criteria; writes results.csv, summary.csv, README.md and "
-                                       "performance profiles (PNG, SVG) to --out.")
+                                       "performance profiles (PNG, SVG) to --out."
+                                       "\n\ntypical: hours for the whole Maros-Meszaros set (5440 cases; resumable with --resume), less with --problems. needs: osqp, the Maros-Meszaros MAT files (--data)")
     b.add_argument("--data", required=True, metavar="DIR", help="folder of MAT files, e.g. ../shared/data/maros_meszaros")
     add_out(b, "maros_meszaros")
     b.add_argument("--policies", default=None, help="comma-separated rules (default: every registered rule)")

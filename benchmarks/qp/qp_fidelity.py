@@ -25,7 +25,8 @@ runs OSQP's rule with one piece of the machinery off at a time.
 """
 from __future__ import annotations
 
-import argparse
+
+from admmkit.cli import Parser
 import os
 import shlex
 import statistics
@@ -221,7 +222,9 @@ def summarise(rows: list[dict], eps_list, max_iter: int = MAX_ITER, time_limit: 
 
 def main(argv=None, prog: str = "admmkit bench qp-fidelity") -> int:
     """Run the study, print the summary and write qp_fidelity.csv and README.md under --out."""
-    parser = argparse.ArgumentParser(prog=prog, description=__doc__.splitlines()[0])
+    parser = Parser(prog=prog, description=__doc__.splitlines()[0] +   # one-line usage errors (admmkit.cli)
+                    "\n\ntypical: ~1 min (50 s, docs/results/qp_fidelity), up to ~8 min with every rule. "
+                    "needs: osqp, the Maros-Meszaros MAT files (--data)")
     parser.add_argument("--data", default=str(DEFAULT_DATA), help="folder of Maros-Meszaros MAT files")
     parser.add_argument("--out", default="out/qp_fidelity", help="output folder (default ./out/qp_fidelity/)")
     parser.add_argument("--max-nnz", type=float, default=MAX_NNZ, help=f"largest nnz(P) + nnz(A) (default {MAX_NNZ})")

@@ -10,7 +10,8 @@ def rules(targets) -> None:
     r = targets.add_parser("rules", help="rank the penalty rules (and yours) on every family, with acceleration",
                            description="Runs the rules through the QP (Maros-Meszaros under OSQP's machinery), "
                                        "contact, obstacle, friction, framework and stability families and ranks "
-                                       "them by performance profiles (benchmarks/ranking/study.py).")
+                                       "them by performance profiles (benchmarks/ranking/study.py)."
+                                       "\n\ntypical: ~13 min (757 s, docs/results/rules_full), --quick ~90 s (docs/results/rules_quick). needs: ngsolve; the qp family the Maros-Meszaros MAT files (--data)")
     add_sweep_options(r, "rules")
     r.add_argument("--rules", default=None,
                    help="comma-separated rules: names, module:Class or path/to/file.py:Class (default: all registered)")

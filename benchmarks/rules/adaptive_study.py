@@ -169,7 +169,8 @@ def register(targets) -> None:
     b = targets.add_parser("adaptive", help="adaptive against uniform refinement at the same true error "
                                             "(contact Examples 1 and 2, Hertz, radial obstacle)",
                            description="Unknowns, wall time, rates, effectivity and iterations of adaptive and "
-                                       "uniform refinement (benchmarks/rules/adaptive_study.py).")
+                                       "uniform refinement (benchmarks/rules/adaptive_study.py)."
+                                       "\n\ntypical: tens of minutes; --quick minutes. needs: ngsolve, matplotlib")
     b.add_argument("--out", default="out/adaptive_study", help="output folder (default out/adaptive_study)")
     b.add_argument("--quick", action="store_true", help="coarse targets and the three coarsest uniform meshes")
     b.add_argument("--scenes", nargs="+", choices=SCENES, default=list(SCENES),

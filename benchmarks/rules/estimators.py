@@ -136,7 +136,8 @@ def register(targets) -> None:
     b = targets.add_parser("estimators", help="ZZ and residual error estimators against the true error (obstacle, "
                                               "contact Example 1)",
                            description="Effectivity and convergence of both estimators under uniform refinement "
-                                       "(benchmarks/rules/estimators.py).")
+                                       "(benchmarks/rules/estimators.py)."
+                                       "\n\ntypical: minutes; --quick less. needs: ngsolve, matplotlib")
     b.add_argument("--out", default="docs/results/estimators", help="output folder (default docs/results/estimators)")
     b.add_argument("--quick", action="store_true", help="the three coarsest meshes only")
     b.set_defaults(func=_run)

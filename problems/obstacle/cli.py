@@ -4,7 +4,8 @@ from __future__ import annotations
 from admmkit import policies  # noqa: F401  (registers the rules the --policy option offers)
 from admmkit.cli_adaptive import adaptive_options, add_adaptive_options, balance_gamma, balance_line, estimator_name
 from admmkit.cli import (add_common_options, add_output_file, add_result_outputs, exit_code, level_file,
-                         positive_float, run_solve, write_result_csv, write_result_json)
+                         positive_float, run_solve, set_help, write_result_csv, write_result_json)
+from admmkit.sparse_backends import AUTO_ORDER, available_backends
 from admmkit.policies.paper_methods import PAPER_METHODS
 
 from .estimate import OBSTACLE_GAMMA, BalancedStop
@@ -18,10 +19,19 @@ from .scene_file import known_scenes, load_scene
 #: the defaults of the adaptive loop's options, which need --target-error (the parser leaves them None)
 ADAPTIVE_DEFAULTS = {"theta": 0.5, "max_levels": 30, "max_unknowns": 2_000_000}
 
+#: ``--backend``: the sparse factorisations of admmkit.linsolve, and the two CG x-steps (problems/obstacle/xstep.py)
+SPARSE = ("auto", *AUTO_ORDER)
+BACKENDS = (*SPARSE, "iterative", "jacobi")
+
 
 def register(subparsers) -> None:
     """Register ``solve obstacle``."""
-    p = subparsers.add_parser("obstacle", help="-Delta u = f, u >= psi, u = u_D (P1 or P2, NGSolve)")
+    p = subparsers.add_parser("obstacle", help="-Delta u = f, u >= psi, u = u_D (P1 or P2, NGSolve)",
+                              description="Solve an obstacle problem -Delta u = f, u >= psi, u = u_D on a named scene "
+                                          "or a TOML scene file, and check it against its exact solution where it has one."
+                                          "\n\ntypical: ~12 s at the default h = 1/16 on 2 cores, most of it "
+                                          "start-up (imports, compiled kernels), 0.3 GB. needs: ngsolve (installed "
+                                          "with admmkit); --plot matplotlib")
     p.add_argument("--scene", default="radial",
                    help=f"a scene by name ({', '.join(SCENES)} built in; --list-scenes for all) or the path of a "
                         f"TOML scene file (docs/obstacle.md, 'Your own obstacle'; default radial)")
@@ -32,10 +42,11 @@ def register(subparsers) -> None:
     p.add_argument("--fe-order", type=int, choices=(1, 2), default=None,
                    help="P1 or P2 elements (default P1; with --target-error P2, unless --estimator residual, which "
                         "is P1 only)")
-    p.add_argument("--backend", default=None,
-                   help=f"sparse solver of K + rho M, iterative for AMG-preconditioned CG, or jacobi for "
-                        f"Jacobi-preconditioned CG with a factorisation where CG is dear (default {DEFAULT_BACKEND}; "
-                        f"{ADAPTIVE_BACKEND} with --target-error in P1)")
+    p.add_argument("--backend", default=None, choices=BACKENDS, metavar="NAME",
+                   help=f"the x-step's solver of K + rho M: a sparse factorisation, {', '.join(SPARSE)} (auto: the "
+                        f"fastest installed; installed here: {', '.join(available_backends())}), or iterative "
+                        f"(AMG-preconditioned CG) or jacobi (Jacobi-preconditioned CG with a factorisation where CG "
+                        f"is dear) (default {DEFAULT_BACKEND}; {ADAPTIVE_BACKEND} with --target-error in P1)")
     add_output_file(p, "--plot", "FILE.png", "write a plot of u, psi and the contact set (PNG)", extensions=(".png",))
     add_output_file(p, "--vtk", "FILE.vtu", "write u, psi, the contact set and the --estimator's indicator per triangle as VTU "
                     "(with --target-error one file per level, FILE_level<k>.vtu)", extensions=(".vtu",))
@@ -45,6 +56,11 @@ def register(subparsers) -> None:
     add_common_options(p, policy="summable", order="zx", methods=PAPER_METHODS)
     add_result_outputs(p, json_help="write the run (provenance, scene, summary, errors, u on the free nodes) as JSON",
                        csv_help="write one row per free node: x, y, u, psi, in_contact")
+    set_help(p, tol="relative-change tolerance > 0 in the problem's norm (the paper's rule); default: none, the "
+                    f"run stops balanced (--balance {OBSTACLE_GAMMA:g}) unless --tol or --eps-abs is given",
+             balance="stop when a guaranteed bound of the algebraic error is below GAMMA x the estimated "
+                     "discretisation error, 0 < GAMMA <= 1; the default stop of solve obstacle, with GAMMA = "
+                     f"{OBSTACLE_GAMMA:g}, unless --tol or --eps-abs is given")
     p.set_defaults(func=run)
 
 

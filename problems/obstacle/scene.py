@@ -169,8 +169,6 @@ class Scene:
             raise ValueError(f"box = {self.box!r}; accepted: x0 < x1 and y0 < y1")
         if not (_is_real(self.h) and math.isfinite(self.h) and self.h > 0):
             raise ValueError(f"h = {self.h!r} is outside the accepted range 0 < h (finite)")
-        if self.h > min(x1 - x0, y1 - y0):
-            raise ValueError(f"h = {self.h} is larger than the domain; accepted 0 < h <= {min(x1 - x0, y1 - y0)}")
         nx, ny = self.counts
         if min(nx, ny) < 2:
             raise ValueError(f"h = {self.h:g} leaves no interior node ({nx} x {ny} squares); accepted "

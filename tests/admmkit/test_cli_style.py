@@ -206,7 +206,7 @@ def test_progress_bar_after_the_delay_and_quiet_silences_it(capsys, monkeypatch)
     monkeypatch.setattr("admmkit.cli_output.PROGRESS_DELAY", 0.0)
     monkeypatch.setattr("admmkit.cli_output.PROGRESS_INTERVAL", 0.0)
     _, _, err = run(QP, capsys)
-    assert "iterations (cap)" in err                       # tqdm's bar on stderr
+    assert "ADMM: iteration" in err and "\r" not in err    # stderr is no terminal here: plain lines, no bar
     _, _, err = run([*QP, "-q"], capsys)
     assert err == ""
     _, _, err = run([*QP, "--quiet", "--progress", "5"], capsys)
@@ -224,7 +224,7 @@ def test_the_summary_begins_its_own_line_when_stdout_and_stderr_share_a_log(tmp_
         subprocess.run([sys.executable, "-c", script, *QP], stdout=fh, stderr=subprocess.STDOUT,
                        cwd=os.getcwd(), check=True, timeout=300)
     text = log.read_text()
-    assert "iterations (cap)" in text                     # the bar was shown
+    assert "ADMM: iteration" in text and "\r" not in text  # a log gets plain progress lines, never bar frames
     lines = text.split("\n")
     assert any(line.startswith("status") for line in lines), text
     assert not any("\r" in line and "status" in line for line in lines), text
@@ -236,11 +236,14 @@ def test_short_runs_show_nothing(capsys):
 
 
 def test_the_progress_callback_never_steers(vector_problem):
-    stream = io.StringIO()
+    class Terminal(io.StringIO):
+        def isatty(self):
+            return True
+    stream = Terminal()
     plain = admmkit.solve(vector_problem, rho=1.0, max_iter=200)
     with Progress(200, delay=0.0, interval=0.0, file=stream) as show:
         shown = admmkit.solve(vector_problem, rho=1.0, max_iter=200, callback=show)
-    assert "iterations (cap)" in stream.getvalue()
+    assert "iterations (cap)" in stream.getvalue()       # on a terminal: tqdm's bar
     assert shown.iterations == plain.iterations and shown.status == plain.status
     assert np.array_equal(shown.x, plain.x) and np.array_equal(shown.lam, plain.lam)
     with Progress(10, enabled=False) as show:
