@@ -83,6 +83,14 @@ def test_documented_command_ends_as_documented(where, command, comment, tmp_path
     assert done.returncode == expected_exit(comment), (
         f"{where}: `{command}` exited {done.returncode}, the docs promise {expected_exit(comment)}\n"
         f"{done.stdout[-2000:]}\n{done.stderr[-2000:]}")
+    for figure in promised_counts(comment):        # "# ... 22,904 unknowns": the run prints that count
+        assert re.search(rf"\b{figure}\b", done.stdout), (
+            f"{where}: the docs say {figure:,} unknowns for `{command}`; the run printed\n{done.stdout[-1500:]}")
+
+
+def promised_counts(comment: str) -> list[int]:
+    """The unknown counts a command's comment promises (``18,689 unknowns`` -> 18689)."""
+    return [int(m.replace(",", "")) for m in re.findall(r"(\d[\d,]*) unknowns", comment)]
 
 
 class _nothing:
