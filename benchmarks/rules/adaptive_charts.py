@@ -25,9 +25,9 @@ def error_figure(rows: list[dict]):
     plt = pyplot()
     comp = {c["scene"]: c for c in comparison(rows)}
     groups = [g for g in GROUPS if series(rows, g[0], g[1], "adaptive")]
-    nrows = max(math.ceil(len(groups) / PAIRS_PER_ROW), 1)
-    fig, axes = plt.subplots(nrows, 2 * PAIRS_PER_ROW, figsize=(4.3 * 2 * PAIRS_PER_ROW, 3.5 * nrows + 0.8),
-                             squeeze=False)
+    pairs = min(PAIRS_PER_ROW, max(len(groups), 1))
+    nrows = max(math.ceil(len(groups) / pairs), 1)
+    fig, axes = plt.subplots(nrows, 2 * pairs, figsize=(4.3 * 2 * pairs, 3.5 * nrows + 0.8), squeeze=False)
     panels = list(axes.flat)
     for i, (scene, order, title) in enumerate(groups):
         for ax, key, label in ((panels[2 * i], "unknowns", "unknowns"),
