@@ -127,25 +127,38 @@ def _median(values) -> float:
 
 
 def figure(rows: list[dict], families: list[str], configs: list[str], metric: str, path: Path) -> Path:
-    """The profiles of one metric: one panel per family and the overall mean."""
+    """The profiles of one metric: one panel per family and the overall mean (:func:`profiles_figure`)."""
+    save_figure(profiles_figure(rows, families, configs, metric), path)
+    return path
+
+
+def profiles_figure(rows: list[dict], families: list[str], configs: list[str], metric: str):
+    """The figure of :func:`figure` (open; the caller saves or closes it): a grid of at most 4 columns, the legend
+    in a spare panel; a panel without a curve says why in it (:func:`empty_note`)."""
     plt = pyplot()
     panels = families + ["overall"]
     cols = min(len(panels), 4)
     nrows = math.ceil(len(panels) / cols)
     fig, axes = plt.subplots(nrows, cols, figsize=(4.2 * cols, 3.6 * nrows), squeeze=False)
     styles = _styles(configs)
-    mean = np.zeros((len(TAUS), len(configs)))
+    mean, empty = np.zeros((len(TAUS), len(configs))), 0
     for ax, family in zip(axes.flat, panels):
         if family == "overall":
             fractions, n = mean / max(len(families), 1), len(families)
-            title = f"overall: mean of {n} famil{'y' if n == 1 else 'ies'}"
+            title, note = f"overall: mean of {n} famil{'y' if n == 1 else 'ies'}", None
+            if empty:
+                title += f"\n({empty} without a solved run count as 0)"
         else:
             sub = [r for r in rows if r["family"] == family]
             table = cost_table(sub, metric, configs)
             fractions = profile(table, TAUS)[1]
             mean += fractions
-            title = f"{family}: {table.shape[0]} problems"
+            title, note = f"{family}: {table.shape[0]} problems", empty_note(sub, table)
+            empty += note is not None
         plot_profiles(ax, TAUS, fractions, configs, title, styles)
+        if note:
+            ax.text(0.5, 0.55, note, transform=ax.transAxes, ha="center", va="center", fontsize=9, wrap=True,
+                    bbox=dict(boxstyle="round", fc="lightyellow", ec="0.5"))
     spare = list(axes.flat)[len(panels):]
     for ax in spare:
         ax.axis("off")
@@ -157,9 +170,19 @@ def figure(rows: list[dict], families: list[str], configs: list[str], metric: st
     else:
         fig.legend(handles, names, loc="lower center", fontsize=8, ncol=min(len(names), 6))
         fig.tight_layout(rect=(0, 0.06 * math.ceil(len(names) / 6) / nrows, 1, 1))
-    save_figure(fig, path)
-    plt.close(fig)
-    return path
+    return fig
+
+
+def empty_note(rows: list[dict], table: np.ndarray) -> str | None:
+    """Why a family's panel has no curve (None when it has one): it has no runs, or none of its runs solved."""
+    if not rows:
+        return "no run of this family in this study\n(not run yet, or not in --quick)"
+    if not np.isfinite(table).any():
+        statuses = sorted({str(r["status"]) for r in rows})
+        shown = ", ".join(statuses[:3]) + (", ..." if len(statuses) > 3 else "")
+        return (f"no run of this family solved:\n{len(rows)} runs failed ({shown});\n"
+                "every one is in failures.md")
+    return None
 
 
 def _styles(configs: list[str]) -> dict[str, dict]:

@@ -143,18 +143,33 @@ def figure_solution(ops, u, lam, magnify, title, path, p=None, friction=None):
     return save_figure(fig, path, ("png",))[0]
 
 
-def figure_adapted(ops, u, lam, indicators, title, path):
-    """The adapted mesh coloured by the ZZ indicators (top) and the contact pressure along Gamma_C (bottom)."""
-    plt = pyplot()
+def adapted_figure(ops, u, lam, indicators, title):
+    """The figure of :func:`figure_adapted` (open; the caller saves or closes it)."""
+    from admmkit.problems.mesh_plot import check_indicators, draw_size_panels
     points, triangles, _ = vertex_displacement(ops, u)
-    fig, (ax, bx) = plt.subplots(2, 1, figsize=(9, 6.5), gridspec_kw={"height_ratios": [2, 1]})
-    shade = ax.tripcolor(points[:, 0], points[:, 1], triangles, facecolors=np.log10(np.maximum(indicators, 1e-300)),
-                         cmap="magma_r", edgecolors="k", linewidth=0.08)
-    fig.colorbar(shade, ax=ax, label="log10 eta_T (ZZ)")
-    ax.set_aspect("equal"); ax.set_title(title)
+    check_indicators(indicators, len(triangles))
+    plt = pyplot()
+    fig = plt.figure(figsize=(13, 10))
+    gs = fig.add_gridspec(3, 2, width_ratios=[2.2, 1], height_ratios=[2, 2, 1.3])
+    mesh, eta, bx = fig.add_subplot(gs[0, 0]), fig.add_subplot(gs[1, 0]), fig.add_subplot(gs[2, 0])
+    draw_size_panels(fig, mesh, (fig.add_subplot(gs[0, 1]), fig.add_subplot(gs[1, 1])), points, triangles)
+    mesh.set_title(title, fontsize=10)
+    mesh.legend(loc="upper right", fontsize=8, framealpha=0.9)
+    shade = eta.tripcolor(points[:, 0], points[:, 1], triangles, facecolors=np.log10(np.maximum(indicators, 1e-300)),
+                          cmap="YlGnBu", edgecolors="none")
+    fig.colorbar(shade, ax=eta, label="log10 eta_T (ZZ indicator)")
+    eta.set_aspect("equal"); eta.set_xlabel("x"); eta.set_ylabel("y")
+    eta.set_title("ZZ error indicators", fontsize=10)
     order = np.argsort(ops.xc[:, 0])
-    bx.plot(ops.xc[order, 0], lam[:ops.n_c][order], "b.-", ms=3)
+    bx.plot(ops.xc[order, 0], lam[:ops.n_c][order], "b.-", ms=3, label="contact pressure lam")
     bx.set_xlabel("x on Gamma_C"); bx.set_ylabel("contact pressure lam"); bx.grid(alpha=0.3)
-    bx.set_xlim(ax.get_xlim())
+    bx.set_xlim(mesh.get_xlim()); bx.legend(fontsize=8)
     fig.tight_layout()
-    return save_figure(fig, path, ("png",), dpi=130)[0]
+    return fig
+
+
+def figure_adapted(ops, u, lam, indicators, title, path):
+    """Write a PNG: the adapted mesh coloured by log10 h_T (top left) with two zooms on its finest triangles (right;
+    :func:`admmkit.problems.mesh_plot.draw_size_panels`), the ZZ indicators (middle) and the contact pressure along
+    Gamma_C (bottom)."""
+    return save_figure(adapted_figure(ops, u, lam, indicators, title), path, ("png",), dpi=130)[0]
