@@ -83,13 +83,13 @@ def scene_of(args, h_default=None):
         return scene
     if h > max_h(scene.box):
         x0, x1, y0, y1 = scene.box
-        raise ValueError(f"--h = {h:g} is outside the accepted range 0 < h <= {max_h(scene.box):.6g} for the scene "
-                         f"{scene.name or args.scene} on ({x0:g}, {x1:g}) x ({y0:g}, {y1:g}): two squares across its "
-                         f"shorter side, so that it has an interior node (e.g. --h 1/16)")
+        raise ValueError(f"--h: h = {h:g} is larger than the domain allows; accepted 0 < h <= {max_h(scene.box):.6g} "
+                         f"for the scene {scene.name or args.scene} on ({x0:g}, {x1:g}) x ({y0:g}, {y1:g}): two "
+                         f"squares across its shorter side, so that it has an interior node (e.g. --h 1/16)")
     try:
         return scene.with_h(h)
     except ValueError as err:
-        raise ValueError(f"--h = {h:g}: {err}") from None
+        raise ValueError(f"--h: h = {h:g}: {err}") from None
 
 
 def check_adaptive_flags(args) -> None:

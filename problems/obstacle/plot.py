@@ -58,7 +58,7 @@ def solution_figure(problem, u, z):
     ax1.plot(x[line], psi_all[line], "k--", label="obstacle psi")
     if problem.scene.exact is not None:
         xs = np.linspace(x0, x1, 801)
-        ax1.plot(xs, problem.scene.exact(xs, np.full_like(xs, yc)), "r:", label="exact u")
+        ax1.plot(xs, problem.scene.evaluate("exact", xs, np.full_like(xs, yc)), "r:", label="exact u")
     touching = problem.contact_set(z)
     on_line = np.isin(line, problem.free[touching])
     ax1.plot(x[line][on_line], full[line][on_line], "o", ms=3, color=CONTACT_STYLE["edgecolor"],

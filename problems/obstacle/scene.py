@@ -171,8 +171,9 @@ class Scene:
             raise ValueError(f"h = {self.h!r} is outside the accepted range 0 < h (finite)")
         nx, ny = self.counts
         if min(nx, ny) < 2:
-            raise ValueError(f"h = {self.h:g} leaves no interior node ({nx} x {ny} squares); accepted "
-                             f"0 < h <= {max_h(self.box):g}, two squares across the box's shorter side")
+            raise ValueError(f"h = {self.h:g} leaves no interior node ({nx} x {ny} squares): it is larger than the "
+                             f"domain allows; accepted 0 < h <= {max_h(self.box):g}, two squares across the box's "
+                             f"shorter side")
         if (nx + 1) * (ny + 1) > 4_000_000:
             raise ValueError(f"h = {self.h} is too small: {(nx + 1) * (ny + 1)} nodes (at most 4e6 accepted)")
         if self.side not in SIDES:

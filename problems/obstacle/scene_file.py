@@ -54,7 +54,10 @@ def load_scene(name_or_path, **changes) -> Scene:
     if not path.exists():
         if path.suffix or len(path.parts) > 1:
             raise ValueError(f"{path}: no such file")
-        raise ValueError(f"scene {text!r} is unknown and there is no such file; known scenes: "
+        import difflib
+        close = difflib.get_close_matches(text, list(known_scenes()), n=1)
+        hint = f" (did you mean {close[0]}?)" if close else ""
+        raise ValueError(f"scene {text!r} is unknown and there is no such file{hint}; known scenes: "
                          f"{', '.join(known_scenes())} (or the path of a TOML scene file)")
     if not path.is_file():
         raise ValueError(f"{path}: not a file (a TOML scene file is needed)")

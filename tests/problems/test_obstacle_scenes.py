@@ -199,7 +199,7 @@ def test_the_docs_example_is_the_shipped_ridge_file():
     ('box = [0, 1, 0, "1"]', "key 'box' must be four numbers"),
     ("box = [1, 0, 0, 1]", r"box = \(1.0, 0.0, 0.0, 1.0\); accepted: x0 < x1"),
     ('side = "both"', "side = 'both'; accepted: lower, upper"),
-    ("h = 3", "h = 3 is larger than the domain"),
+    ("h = 3", "h = 3 leaves no interior node"),
     ('psi = "log(x)"', r"psi is not finite at \(0, 0\)"),
     ('exact = "1/x"', "exact is not finite"),
     ("psi = 1", "psi: the obstacle lies above the boundary data"),
@@ -255,9 +255,9 @@ def test_cli_a_bad_file_names_the_file_and_the_key(tmp_path, capsys):
     (["--max-levels", "4", "--max-unknowns", "100"], "--max-levels, --max-unknowns need --target-error"),
     (["--target-error", "0.1", "--theta", "2"], r"--theta = 2 is outside the accepted range \(0, 1\)"),
     (["--target-error", "0.1", "--max-levels", "0"], "--max-levels = 0 is outside the accepted range an integer >= 1"),
-    (["--h", "3"], r"--h = 3 is outside the accepted range 0 < h <= 2.66667 for the scene radial"),
-    (["--h", "3", "--target-error", "0.1"], r"--h = 3 is outside the accepted range 0 < h <= 2.66667"),
-    (["--scene", "pyramid", "--h", "0.7"], r"--h = 0.7 is outside the accepted range 0 < h <= 0.666667"),
+    (["--h", "3"], r"--h: h = 3 is larger than the domain allows; accepted 0 < h <= 2.66667 for the scene radial"),
+    (["--h", "3", "--target-error", "0.1"], r"--h: h = 3 is larger than the domain allows; accepted 0 < h <= 2.66667"),
+    (["--scene", "pyramid", "--h", "0.7"], r"--h: h = 0.7 is larger than the domain allows; accepted 0 < h <= 0.666667"),
 ])
 def test_cli_refuses_what_it_used_to_ignore_or_misreport(args, match, capsys):
     assert main(["solve", "obstacle", *args]) == 2
@@ -268,7 +268,7 @@ def test_cli_refuses_what_it_used_to_ignore_or_misreport(args, match, capsys):
 @pytest.mark.parametrize("h", ["0", "-1", "1/0", "abc"])
 def test_cli_h_outside_the_numbers_is_argparses_error_naming_h(h, capsys):
     assert main(["solve", "obstacle", "--h", h]) == 2
-    assert "argument --h: expected a" in capsys.readouterr().err
+    assert "--h: expected a" in capsys.readouterr().err
 
 
 def test_cli_h_at_the_edge_of_the_range_solves(capsys):
