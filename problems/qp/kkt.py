@@ -39,3 +39,27 @@ def kkt_residuals(qp, x: np.ndarray, z: np.ndarray, lam: np.ndarray) -> dict:
         "complementarity": max(_inf(comp_u), _inf(comp_l)),
         "sign": max(_inf(y_pos[~fin_u]), _inf(y_neg[~fin_l])),
     }
+
+
+def kkt_relative(qp, x: np.ndarray, z: np.ndarray, lam: np.ndarray) -> dict:
+    """The relative KKT measures of a QP answer, for :func:`admmkit.solve`'s check of a stop (``converged`` or
+    ``converged_inaccurate``): OSQP's (R1)-(R3) in the user's problem, each divided by its own scale,
+
+        primal  ||A x - z||_inf / max(||A x||_inf, ||z||_inf),
+        dual    ||P x + q + A'y||_inf / max(||P x||_inf, ||q||_inf, ||A'y||_inf),
+        gap     |x'Px + q'x + S(y)| / max(|x'Px|, |q'x|, |S(y)|),
+
+    at the user's x and the loop's (z, lam) (unscaled here: z = E^-1 zb, y = E M lam / c).  Each scale is
+    floored at 1e-30 (0/0 counts as 0).  Without it the check fell back on the ADMM residuals of the last
+    record, which a relative-change stop can meet far from the QP's solution.
+    """
+    from .residuals import osqp_residuals            # residuals imports the QP, which imports this module
+    if qp.scaled:
+        z = qp.scaling.unscale_z(z)
+    res = osqp_residuals(qp, np.asarray(x, dtype=float), np.asarray(z, dtype=float), qp.multiplier(lam))
+    return {name: _relative(abs(res[name]), res[name + "_scale"]) for name in ("primal", "dual", "gap")}
+
+
+def _relative(residual: float, scale: float) -> float:
+    """residual / scale with the scale floored at 1e-30 (0 / 0 counts as 0)."""
+    return 0.0 if residual == 0 else residual / max(scale, 1e-30)
