@@ -122,7 +122,8 @@ class ADMMKIT(QpSolver):
         settings = osqp_settings(**CVXPY_DEFAULTS) if self.settings is None else self.settings
         result = solve_qp(qp, settings, policy=self.policy, **opts)
         for text in result.warnings:
-            warnings.warn(f"ADMMKIT: {text}", ScaleWarning, stacklevel=2)
+            warnings.warn(f"ADMMKIT (rows of the QP cvxpy passes: its equalities, then its inequalities): {text}",
+                          ScaleWarning, stacklevel=2)
         return result
 
     def invert(self, solution, inverse_data):

@@ -169,9 +169,9 @@ def _qp_result(qp: QP, settings: QPSettings, res: Result, stop: QPTermination, r
         status = QPStatus(termination)
     elif termination == SOLVED + "_inaccurate":
         status = Status.CONVERGED_INACCURATE
-    if status is Status.CONVERGED and stop.scale.span_columns.size:        # the dual test was blind on some columns
-        status = Status.CONVERGED_INACCURATE
-        message += "; but the dual test cannot see some columns (see warnings)"
+    if status is Status.CONVERGED and (stop.scale.span_columns.size or stop.scale.void_rows.size):
+        status = Status.CONVERGED_INACCURATE        # the dual test was blind on some columns, or no x meets a row
+        message += "; but the test cannot see some rows or columns (see warnings)"
     lam_z = rec.lam_z if rec is not None else res.lam
     zb = rec.z if rec is not None else res.z
     xb = qp.relaxed_x(res.x_iterate)                                       # OSQP's x under (Q4)

@@ -136,6 +136,8 @@ SOLVED, PRIMAL_INFEASIBLE, DUAL_INFEASIBLE = "solved", "primal_infeasible", "dua
 
 #: rows (columns) whose inf-norm is below the largest one's over SCALE_SPAN are out of the tolerance's sight
 SCALE_SPAN = 1e10
+#: an infeasibility certificate's equations must hold to this fraction of the sizes they sum (ScaleCheck.certifies)
+CERTIFICATE_TOL = 1e-6
 
 
 class ScaleWarning(UserWarning):
@@ -167,7 +169,9 @@ class ScaleCheck:
 
     On such rows OSQP's (R1) is vacuous; :meth:`row_test` is its row-normalised form
     (R1') max_i |Ax - z|_i / nu_i <= eps_abs + eps_rel max_i max(|Ax|_i, |z|_i) / nu_i, the same test
-    in the problem whose rows have unit norm, unchanged by any row scaling.  Span columns
+    in the problem whose rows have unit norm, unchanged by any row scaling.  Void rows (no entry, bounds
+    that exclude 0) make the QP infeasible whatever x is; when their bounds are within eps_abs of 0 the test
+    cannot see it, so a solved run with void rows ends ``converged_inaccurate``.  Span columns
     (kappa_j = ||(P; A)_j||_inf below max kappa / SCALE_SPAN) leave the dual test (R2) blind on
     them; no cheap normalised form is taken, so a run with such columns ends ``converged_inaccurate``.
     """
@@ -181,6 +185,7 @@ class ScaleCheck:
         self.bound = np.maximum(np.where(finite_l, np.abs(qp.l), 0.0), np.where(finite_u, np.abs(qp.u), 0.0))
         top = nu[self.live].max(initial=0.0)
         self.span_rows = np.flatnonzero(self.live & (nu < top / SCALE_SPAN))
+        self.void_rows = np.flatnonzero((nu == 0) & ((qp.l > 0) | (qp.u < 0)))
         kappa = np.maximum(_inf_norms(qp.A, 0), _inf_norms(qp.P, 0)) if qp.n else np.zeros(0)
         self.kappa = kappa
         self.span_columns = np.flatnonzero((kappa > 0) & (kappa < kappa.max(initial=0.0) / SCALE_SPAN))
@@ -201,6 +206,26 @@ class ScaleCheck:
         scale = np.maximum(np.abs(Ax[live]), np.abs(z[live])) / nu
         return float(r.max(initial=0.0)) <= eps_abs + eps_rel * float(scale.max(initial=0.0))
 
+    def certifies(self, kind: str, c: np.ndarray) -> bool:
+        """True when ``c`` (a confirmed LP certificate, "primal" or "dual") holds entry by entry against the sizes
+        it sums, to CERTIFICATE_TOL: each (A'y)_j against (|A'| |y|)_j, S(y) against its terms; each (P d)_j,
+        (A d)_i and q'd likewise.  The LPs hold their equations to an absolute tolerance, which a row or column
+        scaled by 1e-12 meets with a vector that certifies nothing (issue #46 item 3)."""
+        qp, tol = self.qp, CERTIFICATE_TOL
+        c = np.asarray(c, dtype=float)
+        c = c / max(float(np.max(np.abs(c), initial=0.0)), 1e-300)
+        absc = np.abs(c)
+        if kind == "primal":
+            if np.any((c > 0) & np.isinf(qp.u)) or np.any((c < 0) & np.isinf(qp.l)):
+                return False
+            terms = np.where(c > 0, qp.u, 0.0) * np.maximum(c, 0.0) + np.where(c < 0, qp.l, 0.0) * np.minimum(c, 0.0)
+            return bool(terms.sum() < -tol * np.abs(terms).sum()
+                        and np.all(np.abs(qp.At @ c) <= tol * (abs(qp.At) @ absc)))
+        Ad, size = qp.A @ c, abs(qp.A) @ absc
+        cone = np.all((Ad <= tol * size) | np.isinf(qp.u)) and np.all((Ad >= -tol * size) | np.isinf(qp.l))
+        return bool(cone and qp.q @ c < -tol * (np.abs(qp.q) @ absc)
+                    and np.all(np.abs(qp.P @ c) <= tol * (abs(qp.P) @ absc)))
+
     def warnings(self, x: np.ndarray, eps_abs: float, eps_rel: float, row_test: bool | None) -> list[str]:
         """The sentences for ``QPResult.warnings`` at the answer x: which rows and columns, and why."""
         out = []
@@ -219,6 +244,12 @@ class ScaleCheck:
                        f"bounds below eps_abs = {eps_abs:g}: at max(1, ||x||_inf) = {xn:.3g} the absolute "
                        f"tolerance exceeds every number they hold, so OSQP's primal test cannot fail on them"
                        f"{held}")
+        if self.void_rows.size:
+            v = self.void_rows
+            gap = np.maximum(self.qp.l[v], -self.qp.u[v])
+            out.append(f"rows {_indices(v)} have no entries and bounds that exclude 0 (by {gap.min():.2g} to "
+                       f"{gap.max():.2g}): no x meets them, so the QP is infeasible, by less than the tolerance "
+                       f"if the run ended solved (then reported converged_inaccurate)")
         if self.span_columns.size:
             c, k = self.span_columns, self.kappa
             out.append(f"columns {_indices(c)} of (P; A) have inf-norms {k[c].min():.2g} to {k[c].max():.2g}, "
@@ -314,11 +345,13 @@ class QPTermination(StoppingRule):
         dx, dy = iterate_deltas(qp, rec)
         # a candidate (I1)/(I2) is declared only once the exact LP (C1)/(C2) confirms it, with the LP's certificate
         cert = None if primal else primal_certificate(qp, dy, self.eps_prim_inf)
-        if cert is not None and (cert := confirmed_certificate(qp, "primal")) is not None:
+        if cert is not None and (cert := confirmed_certificate(qp, "primal")) is not None \
+                and self.scale.certifies("primal", cert):
             self.outcome, self.certificate = PRIMAL_INFEASIBLE, cert
             return Stop(self.names[PRIMAL_INFEASIBLE], Status.PRIMAL_INFEASIBLE, cert)
         cert = None if (dual or dx is None) else dual_certificate(qp, dx, self.eps_dual_inf)
-        if cert is not None and (cert := confirmed_certificate(qp, "dual")) is not None:
+        if cert is not None and (cert := confirmed_certificate(qp, "dual")) is not None \
+                and self.scale.certifies("dual", cert):
             self.outcome, self.certificate = DUAL_INFEASIBLE, cert
             return Stop(self.names[DUAL_INFEASIBLE], Status.DUAL_INFEASIBLE, cert)
         return None
