@@ -15,11 +15,11 @@ time_limit, stalled, stopped -> user_limit; diverged -> a ``SolverError`` carryi
 (which names the rule and the value it returned).
 
 Defaults: those of cvxpy's own OSQP interface (``cvxpy/reductions/solvers/qp_solvers/osqp_qpif.py``),
-eps_abs = eps_rel = 1e-5, max_iter = 10000, polishing on (:data:`CVXPY_DEFAULTS`), so that
+eps_abs = eps_rel = 1e-5, max_iter = 10000, polishing on (``CVXPY_DEFAULTS``), so that
 ``solver=ADMMKIT()`` and ``solver=cp.OSQP`` ask for the same accuracy; ``settings=`` replaces them.
 
-A constraint row whose scale makes a tolerance vacuous (:class:`admmkit.problems.qp.termination.ScaleCheck`)
-is reported with a :class:`ScaleWarning` (``warnings.warn``) carrying ``QPResult.warnings``.
+A constraint row whose scale makes a tolerance vacuous (``admmkit.problems.qp.termination.ScaleCheck``)
+is reported with a ``ScaleWarning`` (``warnings.warn``) carrying ``QPResult.warnings``.
 
 cvxpy is needed only to use this module (``pip install cvxpy``).
 """
@@ -46,7 +46,7 @@ from .settings import osqp_settings
 from .solve import solve_qp
 from .termination import ScaleWarning
 
-#: cvxpy's OSQP interface asks OSQP for these (osqp_qpif.py: eps 1e-5, 10000 iterations, polishing)
+#: the settings cvxpy's OSQP interface, osqp_qpif.py, gives OSQP (eps 1e-5, 10000 iterations, polishing)
 CVXPY_DEFAULTS = {"eps_abs": 1e-5, "eps_rel": 1e-5, "max_iter": 10_000, "polish": True}
 
 STATUS = {Status.CONVERGED: s.OPTIMAL, Status.CONVERGED_INACCURATE: s.OPTIMAL_INACCURATE,
@@ -65,7 +65,7 @@ class ADMMKIT(QpSolver):
         The penalty rule (default ``"osqp"``: OSQP's rule); any name, spec or
         object :func:`admmkit.problems.qp.solve_qp` accepts.
     settings : QPSettings or None
-        Default :func:`admmkit.problems.qp.osqp_settings` with :data:`CVXPY_DEFAULTS` (cvxpy's OSQP
+        Default :func:`admmkit.problems.qp.osqp_settings` with ``CVXPY_DEFAULTS`` (cvxpy's OSQP
         interface's eps 1e-5, 10000 iterations, polishing).
     **changes
         Settings to change (``eps_abs=1e-6``, ``max_iter=...``, ``polish=True``);

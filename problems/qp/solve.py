@@ -59,7 +59,7 @@ class QPResult(Result):
     scales at the last iterate), ``neutral`` (the neutral criteria at the
     returned x, y), ``polish`` (None if not asked; else a dict whose
     ``status`` is "succeeded" or "failed"), ``settings``, ``warnings`` (sentences naming the rows or
-    columns whose scale makes a tolerance vacuous, :class:`admmkit.problems.qp.termination.ScaleCheck`;
+    columns whose scale makes a tolerance vacuous, ``admmkit.problems.qp.termination.ScaleCheck``;
     empty when there are none).
     """
 

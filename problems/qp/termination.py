@@ -169,7 +169,7 @@ class ScaleCheck:
     - tiny rows (at an answer x): nu_i max(1, ||x||_inf) and the row's finite bounds all below eps_abs;
       the absolute tolerance alone exceeds every number the row holds, so its test cannot fail.
 
-    On such rows OSQP's (R1) is vacuous; :meth:`row_test` is its row-normalised form
+    On such rows OSQP's (R1) is vacuous; ``row_test`` is its row-normalised form
     (R1') max_i |Ax - z|_i / nu_i <= eps_abs + eps_rel max_i max(|Ax|_i, |z|_i) / nu_i, the same test
     in the problem whose rows have unit norm, unchanged by any row scaling.  Void rows (no entry, bounds
     that exclude 0) make the QP infeasible whatever x is; when their bounds are within eps_abs of 0 the test
@@ -275,10 +275,10 @@ class QPTermination(StoppingRule):
     (None when solved), ``last`` the residuals of the last check and
     ``passed`` which of the primal, dual and gap tests held there.
 
-    When the QP has rows the test cannot see (:class:`ScaleCheck`: span or
+    When the QP has rows the test cannot see (``ScaleCheck``: span or
     tiny rows), "solved" also needs the row-normalised test (R1'), and
     ``row_test`` keeps its verdict (None when not asked); a confirmed
-    certificate is declared only if :meth:`ScaleCheck.certifies` holds.
+    certificate is declared only if ``ScaleCheck.certifies`` holds.
 
     ``tolerance`` is None: the test is itself a KKT test in the user's
     problem, so :func:`admmkit.solve`'s second check (``converged_inaccurate``)
@@ -309,7 +309,7 @@ class QPTermination(StoppingRule):
         self.reset()
 
     def _rows_seen(self, rec: IterationRecord) -> bool:
-        """True unless the QP has rows OSQP's primal test cannot see (:class:`ScaleCheck`) at this iterate and the
+        """True unless the QP has rows OSQP's primal test cannot see (``ScaleCheck``) at this iterate and the
         row-normalised test (R1') fails there; ``row_test`` keeps the verdict (None: no such rows)."""
         qp, scale = self.qp, self.scale
         x, Axb = qp.relaxed_x(rec.x), rec.Ax
