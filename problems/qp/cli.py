@@ -143,7 +143,10 @@ def run_osqp(qp, args):
 
 
 def run_textbook(qp, args):
-    """The plain loop (``admmkit.cli.run_solve``), its result as a ``QPResult`` with the neutral criteria."""
+    """The plain loop (``admmkit.cli.run_solve``), its result as a ``QPResult`` with the neutral criteria.
+
+    Its status is checked against the QP's own relative KKT residuals (``QP.kkt_relative``): a relative-change
+    stop far from the solution is ``converged_inaccurate``, not ``converged`` (issue #46 item 7)."""
     import dataclasses
 
     from admmkit import Result

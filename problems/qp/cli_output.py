@@ -27,7 +27,8 @@ def certificate_summary(qp, result) -> dict | None:
 
 
 def qp_lines(result, certificate: dict | None, preset: str) -> list[str]:
-    """Lines after the common summary: termination, certificate, neutral criteria, polish."""
+    """Lines after the common summary: termination, certificate, neutral criteria, polish, one line per warning (rows
+    or columns whose scale makes a tolerance vacuous: ``QPResult.warnings``)."""
     termination = getattr(result, "termination", None)
     if preset == "osqp":
         s = result.settings
@@ -47,16 +48,19 @@ def qp_lines(result, certificate: dict | None, preset: str) -> list[str]:
     if getattr(result, "polish", None) is not None:
         p = result.polish
         lines.append(f"polish       {p.get('status')}" + (f"  ({p['reason']})" if p.get("reason") else ""))
+    lines += [f"warning      {text}" for text in getattr(result, "warnings", None) or ()]
     return lines
 
 
 def qp_record(result, certificate: dict | None, preset: str) -> dict:
-    """:func:`admmkit.cli_output.result_record` plus termination, neutral, OSQP residuals, polish and certificate."""
+    """:func:`admmkit.cli_output.result_record` plus termination, neutral, OSQP residuals, polish, certificate and
+    warnings."""
     settings = getattr(result, "settings", None)
     return result_record(result) | jsonable({
         "preset": preset, "termination": getattr(result, "termination", None) if preset == "osqp" else result.stopped_by,
         "neutral": result.neutral, "residuals": getattr(result, "residuals", None),
         "polish": getattr(result, "polish", None), "certificate": certificate,
+        "warnings": list(getattr(result, "warnings", None) or ()),
         "settings": dataclasses.asdict(settings) if settings is not None else None})
 
 

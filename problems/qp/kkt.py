@@ -1,4 +1,5 @@
-"""The KKT residuals of a QP answer in the user's problem (what ``QP.kkt`` and every result report)."""
+"""The KKT residuals of a QP answer in the user's problem (what ``QP.kkt`` and every result report), OSQP's (R1)-(R3)
+with the support function S(y) of [l, u], and their relative form (``QP.kkt_relative``, the check of a stop)."""
 from __future__ import annotations
 
 import numpy as np
@@ -39,3 +40,57 @@ def kkt_residuals(qp, x: np.ndarray, z: np.ndarray, lam: np.ndarray) -> dict:
         "complementarity": max(_inf(comp_u), _inf(comp_l)),
         "sign": max(_inf(y_pos[~fin_u]), _inf(y_neg[~fin_l])),
     }
+
+
+#: OSQP_ZERO_DEADZONE in double precision
+ZERO_DEADZONE = 1e-15
+
+
+def support(y: np.ndarray, l: np.ndarray, u: np.ndarray, project: bool = True) -> float:
+    """S(y) = u' max(y, 0) + l' min(y, 0); with ``project`` y is first projected as OSQP does (R3), else inf where
+    y pushes against an infinite bound (N)."""
+    y_pos, y_neg = np.maximum(y, 0.0), np.minimum(y, 0.0)
+    if project:
+        y_pos = np.where(np.isfinite(u) & (np.abs(y_pos) >= ZERO_DEADZONE), y_pos, 0.0)
+        y_neg = np.where(np.isfinite(l) & (np.abs(y_neg) >= ZERO_DEADZONE), y_neg, 0.0)
+    elif np.any(y_pos[~np.isfinite(u)] > 0) or np.any(y_neg[~np.isfinite(l)] < 0):
+        return float("inf")
+    up = np.where(y_pos != 0, u, 0.0)
+    lo = np.where(y_neg != 0, l, 0.0)
+    return float(up @ y_pos + lo @ y_neg)
+
+
+def osqp_residuals(qp, x: np.ndarray, z: np.ndarray, y: np.ndarray, Ax: np.ndarray | None = None) -> dict:
+    """(R1)-(R3) at (x, z, y) of the user's problem: residuals and the norms the relative tolerances scale with."""
+    Ax = qp.A @ x if Ax is None else Ax
+    Px = qp.P @ x
+    Aty = qp.At @ y
+    quad, lin, sup = float(x @ Px), float(qp.q @ x), support(y, qp.l, qp.u)
+    return {
+        "primal": _inf(Ax - z), "primal_scale": max(_inf(Ax), _inf(z)),
+        "dual": _inf(Px + qp.q + Aty), "dual_scale": max(_inf(Px), _inf(Aty), _inf(qp.q)),
+        "gap": quad + lin + sup, "gap_scale": max(abs(quad), abs(lin), abs(sup)),
+    }
+
+
+def kkt_relative(qp, x: np.ndarray, z: np.ndarray, lam: np.ndarray) -> dict:
+    """The relative KKT measures of a QP answer, for :func:`admmkit.solve`'s check of a stop (``converged`` or
+    ``converged_inaccurate``): OSQP's (R1)-(R3) in the user's problem, each divided by its own scale,
+
+        primal  ||A x - z||_inf / max(||A x||_inf, ||z||_inf),
+        dual    ||P x + q + A'y||_inf / max(||P x||_inf, ||q||_inf, ||A'y||_inf),
+        gap     |x'Px + q'x + S(y)| / max(|x'Px|, |q'x|, |S(y)|),
+
+    at the user's x and the loop's (z, lam) (unscaled here: z = E^-1 zb, y = E M lam / c).  Each scale is
+    floored at 1e-30 (0/0 counts as 0).  Without it the check fell back on the ADMM residuals of the last
+    record, which a relative-change stop can meet far from the QP's solution.
+    """
+    if qp.scaled:
+        z = qp.scaling.unscale_z(z)
+    res = osqp_residuals(qp, np.asarray(x, dtype=float), np.asarray(z, dtype=float), qp.multiplier(lam))
+    return {name: _relative(abs(res[name]), res[name + "_scale"]) for name in ("primal", "dual", "gap")}
+
+
+def _relative(residual: float, scale: float) -> float:
+    """residual / scale with the scale floored at 1e-30 (0 / 0 counts as 0)."""
+    return 0.0 if residual == 0 else residual / max(scale, 1e-30)

@@ -47,7 +47,7 @@ import numpy as np
 from admmkit import Problem
 
 from . import products, rows
-from .kkt import kkt_residuals
+from .kkt import kkt_relative, kkt_residuals
 from .rows import FREE_ROW_PENALTY
 from .validate import _real, _validate, check_options
 from .xstep_forms import REDUCED_MAX_NNZ, reduced_nnz_bound, x_step_backend, x_step_solution, x_step_solver
@@ -290,6 +290,11 @@ class QP(Problem):
         """KKT residuals (inf-norms) of the user's QP at the user's x and the loop's (z, lam), OSQP's definitions and
         more (``admmkit.problems.qp.kkt``)."""
         return kkt_residuals(self, x, z, lam)
+
+    def kkt_relative(self, x, z, lam):
+        """OSQP's (R1)-(R3) relative to their scales at the user's x and the loop's (z, lam)
+        (``admmkit.problems.qp.kkt.kkt_relative``): what :func:`admmkit.solve` checks a stop against."""
+        return kkt_relative(self, x, z, lam)
 
     def counters(self):
         """Factorisations and solves of the x-step matrix so far."""

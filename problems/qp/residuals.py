@@ -26,41 +26,11 @@ import numpy as np
 
 from admmkit.segments import AVAILABLE as NUMBA      # numba installed (asked once, without importing it)
 
+from .kkt import ZERO_DEADZONE, osqp_residuals, support  # noqa: F401  (defined beside the KKT residuals; re-exported)
 from .problem import QP
-
-#: OSQP_ZERO_DEADZONE in double precision
-ZERO_DEADZONE = 1e-15
-
 
 def _inf(v: np.ndarray) -> float:
     return float(np.max(np.abs(v), initial=0.0))
-
-
-def support(y: np.ndarray, l: np.ndarray, u: np.ndarray, project: bool = True) -> float:
-    """S(y) = u' max(y, 0) + l' min(y, 0); with ``project`` y is first projected as OSQP does (R3), else inf where
-    y pushes against an infinite bound (N)."""
-    y_pos, y_neg = np.maximum(y, 0.0), np.minimum(y, 0.0)
-    if project:
-        y_pos = np.where(np.isfinite(u) & (np.abs(y_pos) >= ZERO_DEADZONE), y_pos, 0.0)
-        y_neg = np.where(np.isfinite(l) & (np.abs(y_neg) >= ZERO_DEADZONE), y_neg, 0.0)
-    elif np.any(y_pos[~np.isfinite(u)] > 0) or np.any(y_neg[~np.isfinite(l)] < 0):
-        return float("inf")
-    up = np.where(y_pos != 0, u, 0.0)
-    lo = np.where(y_neg != 0, l, 0.0)
-    return float(up @ y_pos + lo @ y_neg)
-
-
-def osqp_residuals(qp: QP, x: np.ndarray, z: np.ndarray, y: np.ndarray, Ax: np.ndarray | None = None) -> dict:
-    """(R1)-(R3) at (x, z, y) of the user's problem: residuals and the norms the relative tolerances scale with."""
-    Ax = qp.A @ x if Ax is None else Ax
-    Px = qp.P @ x
-    Aty = qp.At @ y
-    quad, lin, sup = float(x @ Px), float(qp.q @ x), support(y, qp.l, qp.u)
-    return {
-        "primal": _inf(Ax - z), "primal_scale": max(_inf(Ax), _inf(z)),
-        "dual": _inf(Px + qp.q + Aty), "dual_scale": max(_inf(Px), _inf(Aty), _inf(qp.q)),
-        "gap": quad + lin + sup, "gap_scale": max(abs(quad), abs(lin), abs(sup)),
-    }
 
 
 def iterate_residuals(qp: QP, xb: np.ndarray, zb: np.ndarray, lam: np.ndarray, Axb: np.ndarray | None = None,

@@ -27,6 +27,9 @@ from admmkit.segments import AVAILABLE as NUMBA      # numba installed (asked on
 
 #: OSQP_MIN_SCALING, OSQP_MAX_SCALING
 MIN_SCALING, MAX_SCALING = 1e-4, 1e4
+#: a row of A whose inf-norm is below TINY_ROW (and not 0) is divided by it, as a power of 2, before the Ruiz
+#: steps: they leave rows below MIN_SCALING as they are, and the loop would never see such a row (issue #46)
+TINY_ROW = 1e-6
 
 
 @dataclass
@@ -132,6 +135,19 @@ def _csc(M):
     return M if sp.isspmatrix_csc(M) and M.dtype == np.float64 else sp.csc_matrix(M, dtype=float)
 
 
+def _lift_tiny_rows(Ae: _Entries, E: np.ndarray) -> None:
+    """Divide every row of A with inf-norm in (0, TINY_ROW) by that norm rounded to a power of 2 (exact), into E.
+
+    OSQP's steps count a norm below MIN_SCALING as 1, so a row of norm 1e-8 stays 1e-8 in the scaled
+    problem and rho A'A does not see it.  No Maros-Meszaros row is below TINY_ROW (the smallest is 1e-4),
+    so their scalings, and the iterates, are OSQP's."""
+    nu = Ae.row_max()(Ae.matrix.data)
+    tiny = (nu > 0) & (nu < TINY_ROW)
+    if tiny.any():
+        E[tiny] = np.exp2(-np.round(np.log2(nu[tiny])))
+        Ae.scale(E, np.ones(Ae.matrix.shape[1]))
+
+
 def ruiz(P: sp.spmatrix, q: np.ndarray, A: sp.spmatrix, iterations: int = 10, compiled: bool = True):
     """Return (Scaling, Pb, qb, Ab): ``iterations`` Ruiz steps with cost scaling, as OSQP's ``scale_data``.
 
@@ -148,6 +164,7 @@ def ruiz(P: sp.spmatrix, q: np.ndarray, A: sp.spmatrix, iterations: int = 10, co
     if not iterations:                           # the data as it is (a CSC matrix is returned itself, not copied)
         return Scaling(D, E, c), _csc(P), np.asarray(q, dtype=float).copy(), _csc(A)
     Pe, Ae, q = _Entries(P), _Entries(A), np.asarray(q, dtype=float).copy()
+    _lift_tiny_rows(Ae, E)
     if compiled and NUMBA:
         from .ruiz_kernel import ruiz_steps
         c = ruiz_steps(int(iterations), MIN_SCALING, MAX_SCALING, Pe.matrix.data, Pe.rows, Pe.cols,

@@ -23,7 +23,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -37,6 +37,7 @@ from .residuals import neutral_residuals
 from .settings import QPSettings, osqp_settings
 from .termination import (DUAL_INFEASIBLE, PRIMAL_INFEASIBLE, SOLVED, QPTermination, _iterate, osqp_relative_residuals,
                           residuals_of_iterate)
+from .termination import ScaleWarning  # noqa: F401  (re-exported: what the cvxpy interface warns with)
 
 #: OSQP_RHO_MIN, OSQP_RHO_MAX
 RHO_MIN, RHO_MAX = 1e-6, 1e6
@@ -58,7 +59,9 @@ class QPResult(Result):
     normalised dy or dx of an infeasibility stop), ``residuals (OSQP's primal, dual and gap with their
     scales at the last iterate), ``neutral`` (the neutral criteria at the
     returned x, y), ``polish`` (None if not asked; else a dict whose
-    ``status`` is "succeeded" or "failed"), ``settings``.
+    ``status`` is "succeeded" or "failed"), ``settings``, ``warnings`` (sentences naming the rows or
+    columns whose scale makes a tolerance vacuous, ``admmkit.problems.qp.termination.ScaleCheck``;
+    empty when there are none).
     """
 
     termination: str | None = None
@@ -66,6 +69,7 @@ class QPResult(Result):
     neutral: dict | None = None
     polish: dict | None = None
     settings: QPSettings | None = None
+    warnings: list[str] = field(default_factory=list)
 
     @property
     def y(self) -> np.ndarray:
@@ -181,6 +185,9 @@ def _qp_result(qp: QP, settings: QPSettings, res: Result, stop: QPTermination, r
         status = QPStatus(termination)
     elif termination == SOLVED + "_inaccurate":
         status = Status.CONVERGED_INACCURATE
+    if status is Status.CONVERGED and (stop.scale.span_columns.size or stop.scale.void_rows.size):
+        status = Status.CONVERGED_INACCURATE        # the dual test was blind on some columns, or no x meets a row
+        message += "; but the test cannot see some rows or columns (see warnings)"
     lam_z = rec.lam_z if rec is not None else res.lam
     zb = rec.z if rec is not None else res.z
     xb = qp.relaxed_x(res.x_iterate)                                       # OSQP's x under (Q4)
@@ -215,8 +222,9 @@ def _qp_result(qp: QP, settings: QPSettings, res: Result, stop: QPTermination, r
         else:
             polish_info = {"status": "failed", "reason": f"not run: the run ended {termination or res.status.value}"}
     neutral = neutral_residuals(qp, x, y) if finite else None
+    warnings = stop.scale.warnings(x, stop.eps_abs, stop.eps_rel, stop.row_test) if finite else []
     fields = {f.name: getattr(res, f.name) for f in dataclasses.fields(Result)}
     fields.update(x=x, z=z, lam=y, status=status, message=message, objective=objective, kkt=kkt,
                   certificate=stop.certificate if termination else None)
     return QPResult(**fields, termination=termination, residuals=residuals, neutral=neutral, polish=polish_info,
-                    settings=settings)
+                    settings=settings, warnings=warnings)

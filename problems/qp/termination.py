@@ -134,6 +134,131 @@ class OSQPTermination(StoppingRule):
 #: the tests a QPTermination reports as fired
 SOLVED, PRIMAL_INFEASIBLE, DUAL_INFEASIBLE = "solved", "primal_infeasible", "dual_infeasible"
 
+#: rows (columns) whose inf-norm is below the largest one's over SCALE_SPAN are out of the tolerance's sight
+SCALE_SPAN = 1e10
+#: an infeasibility certificate's equations must hold to this fraction of the sizes they sum (ScaleCheck.certifies)
+CERTIFICATE_TOL = 1e-6
+
+
+class ScaleWarning(UserWarning):
+    """The QP's scale makes a tolerance vacuous on some rows or columns (``QPResult.warnings`` says which)."""
+
+
+def _column_norms(M) -> np.ndarray:
+    """The inf-norm of every column of the CSC matrix ``M`` (of every row if ``M`` is CSR; an empty one: 0)."""
+    out = np.zeros(len(M.indptr) - 1)
+    full = np.flatnonzero(np.diff(M.indptr))
+    if full.size:
+        out[full] = np.maximum.reduceat(np.abs(M.data), M.indptr[full])
+    return out
+
+
+def _indices(idx: np.ndarray, shown: int = 8) -> str:
+    """'3, 7, 12' or '0, 1, ..., 29 (30 in all)'."""
+    head = ", ".join(str(int(i)) for i in idx[:shown])
+    return head if idx.size <= shown else f"{head}, ... ({idx.size} in all)"
+
+
+class ScaleCheck:
+    """Which rows and columns of the user's QP a tolerance cannot see (issue #46).
+
+    With nu_i = ||a_i||_inf of a constrained row (a finite bound, a_i != 0):
+
+    - span rows: nu_i < max nu / SCALE_SPAN; the relative tolerance eps_rel max(||Ax||_inf, ||z||_inf)
+      is set by the largest rows and passes any residual of these;
+    - tiny rows (at an answer x): nu_i max(1, ||x||_inf) and the row's finite bounds all below eps_abs;
+      the absolute tolerance alone exceeds every number the row holds, so its test cannot fail.
+
+    On such rows OSQP's (R1) is vacuous; ``row_test`` is its row-normalised form
+    (R1') max_i |Ax - z|_i / nu_i <= eps_abs + eps_rel max_i max(|Ax|_i, |z|_i) / nu_i, the same test
+    in the problem whose rows have unit norm, unchanged by any row scaling.  Void rows (no entry, bounds
+    that exclude 0) make the QP infeasible whatever x is; when their bounds are within eps_abs of 0 the test
+    cannot see it, so a solved run with void rows ends ``converged_inaccurate``.  Span columns
+    (kappa_j = ||(P; A)_j||_inf below max kappa / SCALE_SPAN) leave the dual test (R2) blind on
+    them; no cheap normalised form is taken, so a run with such columns ends ``converged_inaccurate``.
+    """
+
+    def __init__(self, qp: QP):
+        self.qp = qp
+        nu = _column_norms(qp.A.tocsr())
+        finite_l, finite_u = np.isfinite(qp.l), np.isfinite(qp.u)
+        self.live = (finite_l | finite_u) & (nu > 0)
+        self.nu = nu
+        self.bound = np.maximum(np.where(finite_l, np.abs(qp.l), 0.0), np.where(finite_u, np.abs(qp.u), 0.0))
+        top = nu[self.live].max(initial=0.0)
+        self.span_rows = np.flatnonzero(self.live & (nu < top / SCALE_SPAN))
+        self.void_rows = np.flatnonzero((nu == 0) & ((qp.l > 0) | (qp.u < 0)))
+        kappa = np.maximum(_column_norms(qp.A), _column_norms(qp.P))
+        self.kappa = kappa
+        self.span_columns = np.flatnonzero((kappa > 0) & (kappa < kappa.max(initial=0.0) / SCALE_SPAN))
+
+    def tiny_rows(self, x: np.ndarray, eps_abs: float) -> np.ndarray:
+        """The constrained rows whose every number (nu_i max(1, ||x||_inf), the finite bounds) is below eps_abs."""
+        reach = self.nu * max(1.0, float(np.max(np.abs(x), initial=0.0)))
+        return np.flatnonzero(self.live & (reach < eps_abs) & (self.bound < eps_abs))
+
+    def blind_rows(self, x: np.ndarray, eps_abs: float) -> np.ndarray:
+        """The span rows and the tiny rows at ``x``, in order."""
+        return np.union1d(self.span_rows, self.tiny_rows(x, eps_abs))
+
+    def row_test(self, Ax: np.ndarray, z: np.ndarray, eps_abs: float, eps_rel: float) -> bool:
+        """(R1'): OSQP's primal test with every constrained row divided by its inf-norm (user's Ax and z)."""
+        live, nu = self.live, self.nu[self.live]
+        r = np.abs(Ax[live] - z[live]) / nu
+        scale = np.maximum(np.abs(Ax[live]), np.abs(z[live])) / nu
+        return float(r.max(initial=0.0)) <= eps_abs + eps_rel * float(scale.max(initial=0.0))
+
+    def certifies(self, kind: str, c: np.ndarray) -> bool:
+        """True when ``c`` (a confirmed LP certificate, "primal" or "dual") holds entry by entry against the sizes
+        it sums, to CERTIFICATE_TOL: each (A'y)_j against (|A'| |y|)_j, S(y) against its terms; each (P d)_j,
+        (A d)_i and q'd likewise.  The LPs hold their equations to an absolute tolerance, which a row or column
+        scaled by 1e-12 meets with a vector that certifies nothing (issue #46 item 3)."""
+        qp, tol = self.qp, CERTIFICATE_TOL
+        c = np.asarray(c, dtype=float)
+        c = c / max(float(np.max(np.abs(c), initial=0.0)), 1e-300)
+        absc = np.abs(c)
+        if kind == "primal":
+            if np.any((c > 0) & np.isinf(qp.u)) or np.any((c < 0) & np.isinf(qp.l)):
+                return False
+            terms = np.where(c > 0, qp.u, 0.0) * np.maximum(c, 0.0) + np.where(c < 0, qp.l, 0.0) * np.minimum(c, 0.0)
+            return bool(terms.sum() < -tol * np.abs(terms).sum()
+                        and np.all(np.abs(qp.At @ c) <= tol * (abs(qp.At) @ absc)))
+        Ad, size = qp.A @ c, abs(qp.A) @ absc
+        cone = np.all((Ad <= tol * size) | np.isinf(qp.u)) and np.all((Ad >= -tol * size) | np.isinf(qp.l))
+        return bool(cone and qp.q @ c < -tol * (np.abs(qp.q) @ absc)
+                    and np.all(np.abs(qp.P @ c) <= tol * (abs(qp.P) @ absc)))
+
+    def warnings(self, x: np.ndarray, eps_abs: float, eps_rel: float, row_test: bool | None) -> list[str]:
+        """The sentences for ``QPResult.warnings`` at the answer x: which rows and columns, and why."""
+        out = []
+        nu, top = self.nu, self.nu[self.live].max(initial=0.0)
+        held = {None: "", True: "; the run also met the row-normalised test (R1')",
+                False: "; the row-normalised test (R1') did not hold, so the run is not reported solved"}[row_test]
+        if self.span_rows.size:
+            r = self.span_rows
+            out.append(f"rows {_indices(r)} have inf-norms {nu[r].min():.2g} to {nu[r].max():.2g}, below "
+                       f"1e-10 x the largest row's {top:.2g}: the relative tolerance eps_rel = {eps_rel:g} "
+                       f"cannot see their residuals{held}")
+        tiny = np.setdiff1d(self.tiny_rows(x, eps_abs), self.span_rows)
+        if tiny.size:
+            xn = max(1.0, float(np.max(np.abs(x), initial=0.0)))
+            out.append(f"rows {_indices(tiny)} have inf-norms {nu[tiny].min():.2g} to {nu[tiny].max():.2g} and "
+                       f"bounds below eps_abs = {eps_abs:g}: at max(1, ||x||_inf) = {xn:.3g} the absolute "
+                       f"tolerance exceeds every number they hold, so OSQP's primal test cannot fail on them"
+                       f"{held}")
+        if self.void_rows.size:
+            v = self.void_rows
+            gap = np.maximum(self.qp.l[v], -self.qp.u[v])
+            out.append(f"rows {_indices(v)} have no entries and bounds that exclude 0 (by {gap.min():.2g} to "
+                       f"{gap.max():.2g}): no x meets them, so the QP is infeasible, by less than the tolerance "
+                       f"if the run ended solved (then reported converged_inaccurate)")
+        if self.span_columns.size:
+            c, k = self.span_columns, self.kappa
+            out.append(f"columns {_indices(c)} of (P; A) have inf-norms {k[c].min():.2g} to {k[c].max():.2g}, "
+                       f"below 1e-10 x the largest column's {k.max():.2g}: the dual test cannot see their "
+                       f"residuals, so a solved run is reported converged_inaccurate; rescale these variables")
+        return out
+
 
 class QPTermination(StoppingRule):
     """OSQP 1.x's ``check_termination``: residuals (R1), (R2), the duality gap (R3) and infeasibility (I1), (I2).
@@ -149,6 +274,11 @@ class QPTermination(StoppingRule):
     ``outcome`` is one of those three, ``certificate`` the normalised dy or dx
     (None when solved), ``last`` the residuals of the last check and
     ``passed`` which of the primal, dual and gap tests held there.
+
+    When the QP has rows the test cannot see (``ScaleCheck``: span or
+    tiny rows), "solved" also needs the row-normalised test (R1'), and
+    ``row_test`` keeps its verdict (None when not asked); a confirmed
+    certificate is declared only if ``ScaleCheck.certifies`` holds.
 
     ``tolerance`` is None: the test is itself a KKT test in the user's
     problem, so :func:`admmkit.solve`'s second check (``converged_inaccurate``)
@@ -173,12 +303,28 @@ class QPTermination(StoppingRule):
         self.eps_prim_inf, self.eps_dual_inf = float(eps_prim_inf), float(eps_dual_inf)
         tests = "primal+dual+gap" if self.gap else "primal+dual"
         self.name = f"osqp_{tests}(eps_abs={self.eps_abs:g}, eps_rel={self.eps_rel:g})"
+        self.scale = ScaleCheck(qp)
         self.names = {SOLVED: self.name, PRIMAL_INFEASIBLE: f"primal_infeasible(eps={self.eps_prim_inf:g})",
                       DUAL_INFEASIBLE: f"dual_infeasible(eps={self.eps_dual_inf:g})"}
         self.reset()
 
+    def _rows_seen(self, rec: IterationRecord) -> bool:
+        """True unless the QP has rows OSQP's primal test cannot see (``ScaleCheck``) at this iterate and the
+        row-normalised test (R1') fails there; ``row_test`` keeps the verdict (None: no such rows)."""
+        qp, scale = self.qp, self.scale
+        x, Axb = qp.relaxed_x(rec.x), rec.Ax
+        xu = qp.scaling.unscale_x(x) if qp.scaled else x
+        if not scale.blind_rows(xu, self.eps_abs).size:
+            self.row_test = None
+            return True
+        Axb = Axb if x is rec.x else qp.As @ x
+        Ax, z = (Axb / qp.scaling.E, rec.z / qp.scaling.E) if qp.scaled else (Axb, rec.z)
+        self.row_test = scale.row_test(Ax, z, self.eps_abs, self.eps_rel)
+        return self.row_test
+
     def reset(self) -> None:
         """Forget the last check (a rule object can serve several runs)."""
+        self.row_test: bool | None = None
         self.outcome: str | None = None
         self.certificate: np.ndarray | None = None
         self.last: dict | None = None
@@ -195,6 +341,9 @@ class QPTermination(StoppingRule):
         dual = res["dual"] <= self.eps_abs + self.eps_rel * res["dual_scale"]
         gap = not self.gap or abs(res["gap"]) <= self.eps_abs + self.eps_rel * res["gap_scale"]
         self.passed = {"primal": primal, "dual": dual, "gap": gap}
+        if primal and dual and gap and not self._rows_seen(rec):
+            self.passed["row_normalised"] = False
+            return None                 # OSQP's test held only because it cannot see some rows: go on
         if primal and dual and gap:
             self.outcome, self.certificate = SOLVED, None
             return self.names[SOLVED]
@@ -203,11 +352,13 @@ class QPTermination(StoppingRule):
         dx, dy = iterate_deltas(qp, rec)
         # a candidate (I1)/(I2) is declared only once the exact LP (C1)/(C2) confirms it, with the LP's certificate
         cert = None if primal else primal_certificate(qp, dy, self.eps_prim_inf)
-        if cert is not None and (cert := confirmed_certificate(qp, "primal")) is not None:
+        if cert is not None and (cert := confirmed_certificate(qp, "primal")) is not None \
+                and self.scale.certifies("primal", cert):
             self.outcome, self.certificate = PRIMAL_INFEASIBLE, cert
             return Stop(self.names[PRIMAL_INFEASIBLE], Status.PRIMAL_INFEASIBLE, cert)
         cert = None if (dual or dx is None) else dual_certificate(qp, dx, self.eps_dual_inf)
-        if cert is not None and (cert := confirmed_certificate(qp, "dual")) is not None:
+        if cert is not None and (cert := confirmed_certificate(qp, "dual")) is not None \
+                and self.scale.certifies("dual", cert):
             self.outcome, self.certificate = DUAL_INFEASIBLE, cert
             return Stop(self.names[DUAL_INFEASIBLE], Status.DUAL_INFEASIBLE, cert)
         return None

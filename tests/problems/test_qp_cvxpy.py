@@ -59,3 +59,54 @@ def test_a_capped_run_is_a_user_limit_not_optimal():
     prob = random_problem("inequality", 0)
     prob.solve(solver=ADMMKIT(), eps_abs=1e-12, eps_rel=0.0, max_iter=5)
     assert prob.status == cp.USER_LIMIT
+
+
+# ---------------------------------------------------------------- #46 item 4, #47 item 9
+@pytest.mark.parametrize("atom, cone", [(lambda x: cp.norm(x, 2), "SOC"), (lambda x: cp.sum(cp.exp(x)), "ExpCone")])
+def test_a_cone_the_plug_in_lacks_is_named(atom, cone):
+    x = cp.Variable(3)
+    with pytest.raises(cp.error.SolverError, match=f"ADMMKIT cannot solve this problem: it needs the cone\\(s\\) {cone}"):
+        cp.Problem(cp.Minimize(atom(x)), [x >= 1]).solve(solver=ADMMKIT())
+
+
+def test_a_rule_returning_nan_is_named_in_the_error():
+    from admmkit import Policy
+
+    class NaNRule(Policy):
+        name = "nan_rule"
+
+        def reset(self, rho0):
+            pass
+
+        def update(self, rec):
+            return float("nan")
+
+    x = cp.Variable(3)
+    problem = cp.Problem(cp.Minimize(cp.sum_squares(x)), [x >= 1])
+    with pytest.raises((cp.error.SolverError, ValueError), match="NaNRule.*nan"):
+        problem.solve(solver=ADMMKIT(policy=NaNRule()))
+
+
+def test_the_defaults_are_those_of_cvxpys_osqp_interface():
+    """Swapping solver=cp.OSQP for solver=ADMMKIT() keeps the accuracy asked (eps 1e-5, polishing): with OSQP's
+    native defaults (1e-3, no polish) this projection's value was 8.32935."""
+    from admmkit.problems.qp.cvxpy_interface import CVXPY_DEFAULTS
+    assert CVXPY_DEFAULTS == {"eps_abs": 1e-5, "eps_rel": 1e-5, "max_iter": 10_000, "polish": True}
+    x = cp.Variable(3)
+    problem = cp.Problem(cp.Minimize(cp.sum_squares(x)), [cp.sum(x) == 5, x >= 0])
+    problem.solve(solver=ADMMKIT())
+    assert problem.value == pytest.approx(25 / 3, rel=1e-9)
+    stats = problem.solver_stats.extra_stats
+    assert (stats.settings.eps_abs, stats.settings.max_iter, stats.settings.polish) == (1e-5, 10_000, True)
+    problem.solve(solver=ADMMKIT(), polishing=False, eps_abs=1e-3, eps_rel=1e-3)      # OSQP 1.x's name is taken
+    assert problem.solver_stats.extra_stats.settings.polish is False
+
+
+def test_without_cvxpy_the_import_error_names_the_pip_command():
+    import subprocess
+    import sys
+    code = ("import sys; sys.modules['cvxpy'] = None\n"
+            "try:\n    import admmkit.problems.qp.cvxpy_interface\n"
+            "except ImportError as e:\n    print(type(e).__name__, '|', e)\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.strip()
+    assert out == "ImportError | admmkit.problems.qp.cvxpy_interface needs cvxpy: pip install cvxpy"
