@@ -78,8 +78,9 @@ class QPResult(Result):
 
     @property
     def solved(self) -> bool:
-        """True when the residual (and gap) test held at the requested accuracy."""
-        return self.termination == SOLVED
+        """True when the residual (and gap) test held at the requested accuracy and nothing downgraded the run
+        (a test blind on some rows or columns makes it ``converged_inaccurate``: see ``warnings``)."""
+        return self.termination == SOLVED and self.status is Status.CONVERGED
 
 
 def qp_for(qp: QP, settings: QPSettings) -> QP:
