@@ -164,7 +164,7 @@ def test_a_policy_returning_zero_is_refused_naming_it(vector_problem):
 
 def test_timings_and_result_summary(vector_problem):
     res = solve(vector_problem, policy="summable", order="zx")
-    assert set(res.timings) == {"x_step", "z_step", "policy", "residuals", "total"}
+    assert set(res.timings) == {"x_step", "z_step", "policy", "residuals", "total", "rho_update"}
     assert res.timings["total"] >= res.timings["x_step"] + res.timings["z_step"]
     assert "status       converged" in res.summary()
 
