@@ -11,6 +11,8 @@ from admmkit.problems.obstacle.estimate import OBSTACLE_GAMMA
 from admmkit.benchmarks.rules.adaptive_compare import at_error, common_error, comparison, rate
 from admmkit.benchmarks.rules.adaptive_hertz import penetration_term
 
+pytestmark = pytest.mark.study      # the whole adaptive study's smoke run (its fixture runs the study)
+
 
 @pytest.fixture(scope="module")
 def quick(tmp_path_factory):

@@ -88,6 +88,7 @@ def test_the_quick_qp_grid_reads_the_named_problems(tmp_path):
 
 
 # ---------------------------------------------------------------- a run, with a rule from a file
+@pytest.mark.study
 def test_a_rule_in_a_file_is_ranked_beside_ours(rule_file, tmp_path):
     spec = canonical_spec(f"{rule_file}:MyFixed")
     files = rank.run(tmp_path / "out", rules=["fixed", spec, "summable"], acceleration=["none", "anderson"],
@@ -109,6 +110,7 @@ def test_a_rule_in_a_file_is_ranked_beside_ours(rule_file, tmp_path):
     assert failures.count("\n| obstacle |") == len(failed)
 
 
+@pytest.mark.study
 def test_the_ranking_is_the_same_on_a_dask_local_cluster(rule_file, tmp_path):
     pytest.importorskip("distributed")
     spec = canonical_spec(f"{rule_file}:MyFixed")

@@ -88,6 +88,7 @@ def _rows(path):
         return list(csv.DictReader(fh))
 
 
+@pytest.mark.study
 def test_bench_precision_smoke(tmp_path, capsys):
     out = tmp_path / "precision"
     argv = ["bench", "precision", "--out", str(out), "--scene", "ex1", "--h", "1/10", "--methods", "admm1,sadmm",
@@ -110,6 +111,7 @@ def test_bench_precision_smoke(tmp_path, capsys):
     assert "wrote" in capsys.readouterr().out
 
 
+@pytest.mark.study
 def test_bench_stability_smoke(tmp_path):
     out = tmp_path / "stability"
     assert main(["bench", "stability", "--out", str(out), "--quick", "--methods", "admm2,sadmm", "--workers", "1",

@@ -50,6 +50,7 @@ def test_bad_input(args, needle, capsys):
     assert needle in err and "Traceback" not in err
 
 
+@pytest.mark.study
 def test_reproduce_small(tmp_path):
     res = run_reproduction(out=tmp_path, hs=(1 / 10,), rhos=(1e3, 1e4), progress=False)
     names = ["table1_ex1_time", "table2_ex2_time", "iterations_ex1", "iterations_ex2", "error_at_stop"]

@@ -26,6 +26,7 @@ def test_adaptive_rules_solve_to_1e_8(built, name):
         assert res.status is admmkit.Status.CONVERGED and err <= 1e-8, (name, rule, order, rho0, err)
 
 
+@pytest.mark.study
 @pytest.mark.parametrize("name", list(PROBLEMS))
 def test_default_stop_never_lies(built, name):
     problem, ref = built[name]

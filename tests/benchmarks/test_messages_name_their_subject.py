@@ -29,6 +29,7 @@ def test_read_matrices_names_the_file(tmp_path):
         read_matrices(bad)
 
 
+@pytest.mark.study
 @pytest.mark.skipif(not (SHARED / "HS21.mat").exists(), reason="needs ../shared/data/maros_meszaros")
 def test_bench_qp_lists_a_corrupt_file_as_skipped_and_goes_on(tmp_path):
     from admmkit.benchmarks.qp.maros_meszaros import run_benchmark

@@ -1,4 +1,5 @@
 """``admmkit bench obstacle``'s rho sweep on the sweep runner: the same runs as solve() itself, resumable."""
+import pytest
 import math
 
 from admmkit import RelativeChange, solve
@@ -7,6 +8,7 @@ from admmkit.problems.obstacle import make_problem
 from admmkit.problems.obstacle.scene import radial
 
 
+@pytest.mark.study
 def test_sweep_runs_on_the_runner_and_reports_from_its_results(tmp_path):
     rows = sweep(16, rhos=(1e-2, 1e2), policy_names=["summable", "fixed"], max_iter=3000, out=tmp_path,
                  progress=False)

@@ -1,9 +1,11 @@
 """``admmkit bench policies``: the rules on contact (frictionless and Tresca) and the obstacle across rho_0 (smoke run)."""
+import pytest
 import csv
 
 from admmkit.benchmarks.rules.policies_fe import run
 
 
+@pytest.mark.study
 def test_policy_sweep_smoke(tmp_path):
     results = run(tmp_path, rules=("aadmm", "quantized"), quick=True, progress=False, max_iter=3000,
                   command="admmkit bench policies --quick")

@@ -82,6 +82,7 @@ def test_osqp_direct_run():
     assert max(row["neutral_primal"], row["neutral_dual"], row["neutral_gap"]) <= 1e-6
 
 
+@pytest.mark.study
 @pytest.mark.parametrize("variant,order", [("preset", "xz"), ("preset", "zx"), ("textbook", "xz")])
 def test_one_run_gives_the_looser_accuracy_of_a_run_stopped_there(variant, order):
     # the 1e-3 row of a run to 1e-6 is where a run asked for 1e-3 stops, and is judged at that iterate
