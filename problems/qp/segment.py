@@ -28,7 +28,7 @@ from admmkit.compiled import AVAILABLE, all_finite, compiled_now, csc_matvec, ke
 #: default): below it, importing numba and loading (or, on a fresh install, compiling) the kernels costs more
 #: than the whole solve, which then runs numpy/scipy and the kernels as Python, with the same iterates
 #: (docs/qp.md, "First call", says how the threshold was measured)
-COMPILED_MIN_SIZE = 2000
+COMPILED_MIN_SIZE = 1000
 
 
 def compiled_pays(n: int, m: int, nnz: int) -> bool:
