@@ -47,10 +47,11 @@ import contextvars
 import importlib.util
 import os
 import sys
+import types
 
 import numpy as np
 
-#: True when numba is installed (asked without importing it: ``import admmkit`` stays light)
+#: True when numba is installed, asked without importing it (``import admmkit`` stays light)
 AVAILABLE = importlib.util.find_spec("numba") is not None
 
 #: inside :func:`compiled_code`: True (compiled kernels) or False (the kernels as Python); None: not set
@@ -117,6 +118,10 @@ class Kernel:
         if not dispatcher.signatures:                  # the first compiled call in this process
             _note_cold(self)
         return dispatcher(*args)
+
+    def __get__(self, obj, kind=None):
+        """A kernel looked up on an instance is bound to it, as a function is (and tools see a routine)."""
+        return self if obj is None else types.MethodType(self, obj)
 
     def __repr__(self) -> str:
         return f"<admmkit kernel {self.__module__}.{self.__qualname__}>"

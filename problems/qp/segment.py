@@ -32,9 +32,16 @@ COMPILED_MIN_SIZE = 1000
 
 
 def compiled_pays(n: int, m: int, nnz: int) -> bool:
-    """Whether a QP of n variables, m constraints and nnz stored entries of P and A is large enough that compiled
-    kernels pay for numba's import and their load or compile (and numba is installed)."""
-    return AVAILABLE and nnz + n + m >= COMPILED_MIN_SIZE
+    """Whether compiled kernels pay for a QP of n variables, m constraints and nnz stored entries of P and A: numba
+    is installed and either the QP is large enough to pay for numba's import and the kernels' load or compile, or
+    this process has them already (a compiled solve ran: compiled code then costs nothing more)."""
+    return AVAILABLE and (nnz + n + m >= COMPILED_MIN_SIZE or kernels_loaded())
+
+
+def kernels_loaded() -> bool:
+    """Whether this process has the QP's compiled segment (and with it numba and the other kernels) loaded."""
+    dispatcher = _xz_kkt._dispatcher
+    return dispatcher is not None and bool(dispatcher.signatures)
 
 
 def choose_compiled(setting, qp) -> tuple[bool, bool]:
