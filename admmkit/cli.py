@@ -455,26 +455,126 @@ class Parser(argparse.ArgumentParser):
         raise SystemExit(EXIT_BAD_INPUT)
 
 
-def build_parser() -> argparse.ArgumentParser:
-    """The argument parser with every installed sub-command."""
+#: each built-in command's one-line help, shown by ``admmkit --help`` and ``admmkit bench --help`` without importing
+#: the command (its registrar, and the plug-in or study behind it, load only when the command line names it;
+#: tests/admmkit/test_first_call_paths.py checks that each line is the one its registrar gives)
+COMMAND_HELP = {
+    "demo": "the main job: solve the paper's two examples with SADMM and plot them",
+    "reproduce": "reproduce a paper's tables and figures",
+    "warm-up": "compile (or load from numba's cache) every compiled kernel now, so that no later call waits for it",
+    "solve.contact": "elastic contact with a rigid foundation, with or without friction (NGSolve, 2D and 3D)",
+    "solve.obstacle": "-Delta u = f, u >= psi, u = u_D (P1 or P2, NGSolve)",
+    "solve.qp": "min 1/2 x'Px + q'x s.t. l <= Ax <= u (OSQP's form)",
+    "bench.adaptive": "adaptive against uniform refinement at the same true error (contact Examples 1 and 2, Hertz, "
+                      "radial obstacle)",
+    "bench.amg-crossover": "full / condensed / iterative x-steps against size; AMG reuse across rho",
+    "bench.contact": "SADMM time / (one factorisation + solve of K), Ex. 1-2",
+    "bench.contact-schur": "the Schur complement's set-up by backend, Ex. 1-2, and SADMM / (factor + solve)",
+    "bench.contact3d": "3D block on a curved foundation with the AMG x-step; direct vs AMG",
+    "bench.estimators": "ZZ and residual error estimators against the true error (obstacle, contact Example 1)",
+    "bench.executors": "the bench-policies sweep on 2 local processes and a 2-worker Dask LocalCluster: iterations "
+                       "identical?, wall-time ratio",
+    "bench.first-call": "fresh processes side by side with OSQP: import, first solve (cached and empty kernel cache), "
+                        "the cvxpy route, --help, a whole solve contact",
+    "bench.four-problems": "LASSO, weighted box LS, consensus and 2-D TV with the building blocks, against cvxpy",
+    "bench.friction": "Cattaneo-Mindlin partial slip under refinement, and every rule on frictional contact",
+    "bench.hertz": "Hertz validation: half-cylinder on a rigid plane, a and p0 vs Hertz",
+    "bench.linsolve": "sparse direct backends from 1e3 to 1e6 unknowns, 1 and 2 threads",
+    "bench.loop-overhead": "the loop's cost per iteration against a bare numpy loop of the same updates",
+    "bench.obstacle": "obstacle problem: convergence rates against the exact solution, rho sweep",
+    "bench.paper-compare": "our ADMM1/ADMM2/SADMM times and iterations beside the paper's tables",
+    "bench.policies": "penalty rules on contact Ex.1 and the radial obstacle, rho_0 over 12 decades",
+    "bench.precision": "work-precision: true error against time, every method and peer",
+    "bench.qp": "every penalty rule, with and without OSQP's machinery, and OSQP on a folder of QPs",
+    "bench.qp-agreement": "random feasible QPs against cvxpy + Clarabel",
+    "bench.qp-fidelity": "admmkit's OSQP preset against OSQP 1.x, problem by problem (Maros-Meszaros)",
+    "bench.qp-speed": "a whole QP solve (compiled and Python) against OSQP 1.x's C, problem by problem",
+    "bench.rules": "rank the penalty rules (and yours) on every family, with acceleration",
+    "bench.scale": "Example 1 with the iterative x-step from 1e3 to 1e6 unknowns: time, memory",
+    "bench.split-speed": "time per iteration of the building blocks, compiled segment against the Python loop",
+    "bench.stability": "rho_0 over 13 decades, mesh, nu, P1/P2: iterations and failures",
+}
+
+
+class _Commands(argparse._SubParsersAction):
+    """Sub-commands that load their registrar only when the command line names them.
+
+    :meth:`add_command` adds a bare parser with the command's one-line help
+    (:data:`COMMAND_HELP`), enough for the list of ``--help`` and for a
+    did-you-mean on a misspelt name; when argparse reaches the command (the
+    command line names it), :meth:`load` replaces the bare parser with the one
+    its registrar builds, in the same place of the list.
+    """
+
+    def __init__(self, *args, **kwargs) -> None:
+        super().__init__(*args, **kwargs)
+        self.pending = {}            # command name -> (entry-point path, entry point) not loaded yet
+
+    def add_command(self, name: str, path: str, entry_point) -> None:
+        """A bare parser for the command ``name`` (entry point ``path``); its registrar waits for :meth:`load`."""
+        self.add_parser(name, help=COMMAND_HELP.get(path, f"(a plug-in command: admmkit {path.replace('.', ' ')} "
+                                                          f"--help says more)"), add_help=False)
+        self.pending[name] = (path, entry_point)
+
+    def load(self, name: str) -> None:
+        """Replace the bare parser of ``name`` with its registrar's (a broken plug-in: one that says why)."""
+        if name not in self.pending:
+            return
+        path, entry_point = self.pending.pop(name)
+        order = list(self._name_parser_map)
+        del self._name_parser_map[name]
+        self._choices_actions = [a for a in self._choices_actions if a.dest != name]
+        try:
+            register = entry_point.load()
+        except (ImportError, AttributeError) as err:    # a broken plug-in: its command says so, the others work
+            register = _unloadable(name, entry_point.value, err)
+        register(self)
+        rank = {key: i for i, key in enumerate(order)}
+        self._name_parser_map = dict(sorted(self._name_parser_map.items(), key=lambda kv: rank.get(kv[0], len(rank))))
+        self.choices = self._name_parser_map
+        self._choices_actions.sort(key=lambda a: rank.get(a.dest, len(rank)))
+
+    def load_all(self) -> None:
+        """Load every pending command (and the commands of the groups among them)."""
+        for name in list(self.pending):
+            self.load(name)
+        for sub in self._name_parser_map.values():
+            for action in sub._actions:
+                if isinstance(action, _Commands):
+                    action.load_all()
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        """argparse reached the command ``values[0]``: load it, then parse its arguments."""
+        if values:
+            self.load(values[0])
+        super().__call__(parser, namespace, values, option_string)
+
+
+def build_parser(*, load_all: bool = False) -> argparse.ArgumentParser:
+    """The argument parser with every installed sub-command.
+
+    A command's registrar (and the plug-in or study it imports) loads only
+    when the command line names it: ``admmkit --help`` and ``admmkit solve qp
+    ...`` import no other plug-in.  ``load_all``: load every registrar now
+    (a check that each loads and registers).
+    """
     parser = Parser(prog="admmkit", description="ADMM with adaptive penalty parameters.",
                     epilog="exit codes: 0 converged, 1 the run ended otherwise "
                            "(max_iter, diverged, converged_inaccurate, ...), 2 bad input")
     parser.add_argument("--version", action="version", version=f"admmkit {__version__}")
-    top = parser.add_subparsers(dest="command", metavar="COMMAND")
+    top = parser.add_subparsers(dest="command", metavar="COMMAND", action=_Commands)
     found = commands()
     groups = {}
     for name, help_text in GROUPS.items():
         if any(path.startswith(name + ".") for path in found):
             sub = top.add_parser(name, help=help_text, description=help_text[0].upper() + help_text[1:] + ".")
-            groups[name] = sub.add_subparsers(dest=name + "_target", metavar="TARGET", required=True)
+            groups[name] = sub.add_subparsers(dest=name + "_target", metavar="TARGET", required=True,
+                                              action=_Commands)
     for path in sorted(found):
         group, _, name = path.rpartition(".")
-        try:
-            register = found[path].load()
-        except (ImportError, AttributeError) as err:    # a broken plug-in: its command says so, the others work
-            register = _unloadable(name, found[path].value, err)
-        register(groups[group] if group else top)
+        (groups[group] if group else top).add_command(name, path, found[path])
+    if load_all:
+        top.load_all()
     return parser
 
 

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from admmkit.compiled import njit
+from admmkit.compiled import kernel
 
 from .sparse_kernels import _worse      # max(m, abs(v)) that keeps a NaN, as np.max does
 
@@ -21,7 +21,7 @@ from .sparse_kernels import _worse      # max(m, abs(v)) that keeps a NaN, as np
 DIVISION_TOL = 1e-30
 
 
-@njit(cache=True)
+@kernel(cache=True)
 def primal_candidate(Ap, Ai, Ax, l, u, dy, eps, out):
     """(I1): writes the normalised, projected dy into ``out`` and returns True if it is a certificate candidate."""
     m, n = dy.shape[0], Ap.shape[0] - 1
@@ -51,7 +51,7 @@ def primal_candidate(Ap, Ai, Ax, l, u, dy, eps, out):
     return worst < eps
 
 
-@njit(cache=True)
+@kernel(cache=True)
 def dual_candidate(Pp, Pi, Px, q, Ap, Ai, Ax, l, u, dx, eps, out):
     """(I2): writes the normalised dx into ``out`` and returns True if it is a certificate candidate."""
     n, m = dx.shape[0], l.shape[0]
@@ -83,7 +83,7 @@ def dual_candidate(Pp, Pi, Px, q, Ap, Ai, Ax, l, u, dx, eps, out):
     return True
 
 
-@njit(cache=True)
+@kernel(cache=True)
 def dual_update_change(rho, alpha, Ax, z_prev, z, w, E, c, out):
     """dy = E M dlam / c with dlam = lam^{k+1} - lam^k = rho (alpha A x^{k+1} + (1 - alpha) z^k - z^{k+1}) (order xz),
     into ``out``: the operations of :func:`admmkit.problems.qp.infeasibility.iterate_deltas`, entry by entry."""

@@ -7,7 +7,8 @@ A x at every iteration that runs in Python (every tested one) and for
 so on the small Maros-Meszaros problems these wrappers were a visible part of
 a whole solve.  The kernels sum in scipy's order
 (:func:`admmkit.compiled.csc_matvec`, :func:`admmkit.compiled.csc_rmatvec`),
-so the iterates are the same bits either way; without numba, scipy.
+so the iterates are the same bits either way; scipy where compiled code is
+not chosen (:func:`admmkit.compiled.compiled_now`: a small QP, or numba missing).
 """
 from __future__ import annotations
 
@@ -15,14 +16,13 @@ import math
 
 import numpy as np
 
-from admmkit.segments import AVAILABLE
+from admmkit.compiled import compiled_now, csc_matvec, csc_rmatvec
 
 
 def apply_A(A, x: np.ndarray) -> np.ndarray:
     """A x for the CSC matrix ``A``."""
-    if not AVAILABLE or A.format != "csc":
+    if A.format != "csc" or not compiled_now():
         return A @ x
-    from admmkit.compiled import csc_matvec
     out = np.empty(A.shape[0])
     csc_matvec(A.indptr, A.indices, A.data, np.ascontiguousarray(x, dtype=np.float64), out)
     return out
@@ -30,9 +30,8 @@ def apply_A(A, x: np.ndarray) -> np.ndarray:
 
 def adjoint_norm(A, y: np.ndarray) -> float:
     """||A' y||_2 for the CSC matrix ``A``, without forming A' (scipy's ``A.T @ y`` sums the same way)."""
-    if not AVAILABLE or A.format != "csc":
+    if A.format != "csc" or not compiled_now():
         return float(np.linalg.norm(A.T @ y))
-    from admmkit.compiled import csc_rmatvec
     out = np.empty(A.shape[1])
     csc_rmatvec(A.indptr, A.indices, A.data, np.ascontiguousarray(y, dtype=np.float64), out)
     return float(np.linalg.norm(out))

@@ -12,12 +12,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from admmkit.compiled import csc_matvec, njit
+from admmkit.compiled import csc_matvec, kernel
 
 from .residuals import ZERO_DEADZONE
 
 
-@njit(cache=True)
+@kernel(cache=True)
 def _residuals(Pp, Pi, Pd, Ap, Ai, Ad, q, lo, up, w, E, D, xb, zb, lam, Axb):
     """(primal, primal scale, dual, dual scale, x'Px, q'x, S(y)) unscaled, then the four scaled norms."""
     n, m = xb.shape[0], zb.shape[0]

@@ -11,10 +11,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from admmkit.compiled import njit
+from admmkit.compiled import kernel
 
 
-@njit(cache=True, inline="always")
+@kernel(cache=True, inline="always")
 def _limit(v, low, high):
     """OSQP's limit_scaling of one value: below ``low`` it counts as 1, above ``high`` as ``high``."""
     if v < low:
@@ -22,7 +22,7 @@ def _limit(v, low, high):
     return min(v, high)
 
 
-@njit(cache=True)
+@kernel(cache=True)
 def ruiz_steps(iterations, low, high, Pd, Pr, Pc, Ad, Ar, Ac, q, D, E):
     """``iterations`` Ruiz steps with cost scaling on the entries (data, rows, cols) of P and A and on q, D, E,
     in place, with OSQP's limits ``low``, ``high`` (MIN_SCALING, MAX_SCALING); returns the cost scaling c."""

@@ -22,10 +22,39 @@ from __future__ import annotations
 
 import numpy as np
 
-from admmkit.compiled import AVAILABLE, all_finite, csc_matvec, ldl_solve, njit
+from admmkit.compiled import AVAILABLE, all_finite, compiled_now, csc_matvec, kernel, ldl_solve
+
+#: the size nnz(P) + nnz(A) + n + m from which a QP solve runs compiled code under ``compiled="auto"`` (the
+#: default): below it, importing numba and loading (or, on a fresh install, compiling) the kernels costs more
+#: than the whole solve, which then runs numpy/scipy and the kernels as Python, with the same iterates
+#: (docs/qp.md, "First call", says how the threshold was measured)
+COMPILED_MIN_SIZE = 1000
 
 
-@njit(cache=True)
+def compiled_pays(n: int, m: int, nnz: int) -> bool:
+    """Whether compiled kernels pay for a QP of n variables, m constraints and nnz stored entries of P and A: numba
+    is installed and either the QP is large enough to pay for numba's import and the kernels' load or compile, or
+    this process has them already (a compiled solve ran: compiled code then costs nothing more)."""
+    return AVAILABLE and (nnz + n + m >= COMPILED_MIN_SIZE or kernels_loaded())
+
+
+def kernels_loaded() -> bool:
+    """Whether this process has the QP's compiled segment (and with it numba and the other kernels) loaded."""
+    dispatcher = _xz_kkt._dispatcher
+    return dispatcher is not None and bool(dispatcher.signatures)
+
+
+def choose_compiled(setting, qp) -> tuple[bool, bool]:
+    """(compiled segment, compiled helper passes) for the setting ``compiled`` of a solve of ``qp``: True both,
+    "auto" both as :func:`compiled_pays` says, False no segment (every iteration in Python) and the helper passes
+    (scaling, residuals, certificates) as :func:`compiled_pays` says."""
+    pays = compiled_pays(qp.n, qp.m, qp.P.nnz + qp.A.nnz)
+    if setting is True:
+        return AVAILABLE, AVAILABLE
+    return (pays if setting == "auto" else False), pays
+
+
+@kernel(cache=True)
 def _xz_kkt(count, rho, alpha, a, sigma, Lp, Li, Lx, Dinv, perm, Ap, Ai, Ad, q, lo, up, free, w_free,
             x, x_prev, x_rel, x_rel_prev, z, lam, Ax, rhs, sol, work, keep_last, z_last, lam_last, Ax_last, hat):
     """``count`` iterations on the state arrays (x, x_prev, x_rel, x_rel_prev, z, lam, Ax), in place;
@@ -73,7 +102,7 @@ def _xz_kkt(count, rho, alpha, a, sigma, Lp, Li, Lx, Dinv, perm, Ap, Ai, Ad, q, 
     return count
 
 
-@njit(cache=True)
+@kernel(cache=True)
 def _kkt_solve(rho, sigma, Lp, Li, Lx, Dinv, perm, q, free, w_free, xp, z, lam, rhs, work, sol):
     """One x-step (Q1), (Q5) in the KKT form into ``sol``, as :meth:`QP.x_step` computes it; False (nothing
     to trust in ``sol``) if the right-hand side or the solution is not finite."""
@@ -92,9 +121,9 @@ def _kkt_solve(rho, sigma, Lp, Li, Lx, Dinv, perm, q, free, w_free, xp, z, lam, 
 
 def kkt_x_step(qp, xp, z, lam, rho: float):
     """The KKT x-step's solution x~ in one compiled call with qdldl's factors (the same bits as qdldl's solve), or
-    None where it does not apply (numba missing, another backend, a non-finite number: the Python path then
-    meets it as it would anyway)."""
-    if not AVAILABLE:
+    None where it does not apply (compiled code not chosen, :func:`admmkit.compiled.compiled_now`; another
+    backend; a non-finite number: the Python path then meets it as it would anyway)."""
+    if not compiled_now():
         return None
     factors = qp._solver.ldl(rho)
     if factors is None:
@@ -111,14 +140,14 @@ def kkt_x_step(qp, xp, z, lam, rho: float):
 
 def run_segment(qp, x, z, lam, Ax, rho: float, alpha: float, order: str, count: int, read: bool = False):
     """``count`` iterations of ``qp`` from (x, z, lam, Ax) in one compiled call, or None where the kernel does
-    not apply (order "zx", the reduced x-step, a backend other than qdldl, numba missing).
+    not apply (order "zx", the reduced x-step, a backend other than qdldl, compiled code not chosen).
 
     Returns (x, z, lam, Ax, done) in new arrays; the QP's relaxed-x bookkeeping (Q4) follows, and its
     solve counter grows by ``done``.  ``read``: the last iteration is one the loop reads
     (:mod:`admmkit.segments`); a sixth item, (x, z, lam, A x) it started from and its relaxed vector (None
     when alpha = 1), is returned, None unless all ``count`` iterations were done.
     """
-    if not AVAILABLE or order != "xz" or qp.xstep != "kkt":
+    if order != "xz" or qp.xstep != "kkt" or not compiled_now():
         return None
     factors = qp._solver.ldl(rho)
     if factors is None:

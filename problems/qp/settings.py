@@ -50,7 +50,10 @@ class QPSettings:
     polish_refine_iter: int = 3
     delta: float = 1e-6                # regularisation of the polishing system
     time_limit: float | None = None    # seconds (benchmarks only)
-    compiled: bool = True              # iterations between checks in the compiled segment (admmkit.segments)
+    # compiled code (numba): "auto" where the QP is large enough to pay for numba's import and its kernels' load
+    # or compile (problems.qp.segment.compiled_pays), True always, False every iteration in Python (the helper
+    # passes as "auto" decides); the iterates are the same bits every way (docs/qp.md, "First call")
+    compiled: bool | str = "auto"
 
     def __post_init__(self):
         for name in ("rho", "alpha", "eps_prim_inf", "eps_dual_inf", "adaptive_rho_tolerance", "delta"):
@@ -70,8 +73,8 @@ class QPSettings:
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < low:
                 raise ValueError(f"{name} must be an integer >= {low}, got {v!r}")
-        if not isinstance(self.compiled, bool):
-            raise ValueError(f"compiled must be True or False, got {self.compiled!r}")
+        if not (isinstance(self.compiled, bool) or self.compiled == "auto"):
+            raise ValueError(f"compiled must be 'auto', True or False, got {self.compiled!r}")
         if self.xstep not in ("auto", "reduced", "kkt"):
             raise ValueError(f"xstep must be one of auto, reduced, kkt, got {self.xstep!r}")
         if self.order not in ("xz", "zx"):

@@ -30,9 +30,11 @@ import numpy as np
 import admmkit
 from admmkit import Result, Status
 from admmkit.checks import number
+from admmkit.compiled import compiled_code
 
 from .polish import polish as polish_solution
 from .problem import QP
+from .segment import choose_compiled
 from .residuals import neutral_residuals
 from .settings import QPSettings, osqp_settings
 from .termination import (DUAL_INFEASIBLE, PRIMAL_INFEASIBLE, SOLVED, QPTermination, _iterate, osqp_relative_residuals,
@@ -121,36 +123,38 @@ def solve_qp(qp: QP, settings: QPSettings | None = None, *, policy="osqp", warm_
         settings = settings.replace(**changes)
     else:
         raise TypeError(f"settings must be a QPSettings (e.g. osqp_settings()), got {type(settings).__name__}")
-    run_qp = qp_for(qp, settings)
-    rule = default_policy(run_qp, settings) if isinstance(policy, str) and policy == "osqp" else policy
-    x0 = z0 = lam0 = None
-    if warm_start is not None:
-        if not isinstance(warm_start, Result):
-            raise TypeError(f"warm_start must be a result of solve_qp, got {type(warm_start).__name__}")
-        if np.shape(warm_start.x) != (qp.n,) or np.shape(warm_start.lam) != (qp.m,):
-            raise ValueError(f"warm_start has x of shape {np.shape(warm_start.x)} and y of shape "
-                             f"{np.shape(warm_start.lam)}; this QP needs ({qp.n},) and ({qp.m},): give a result "
-                             f"of a QP of the same size")
-        for name, v in (("x", warm_start.x), ("y", warm_start.lam)):
-            if not np.all(np.isfinite(v)):
-                raise ValueError(f"warm_start.{name} must be finite, got {np.size(v) - np.count_nonzero(np.isfinite(v))} "
-                                 f"NaN or infinite entries: give a result that did not diverge")
-        x0, z0, lam0 = run_qp.iterate_from(warm_start.x, warm_start.lam)
-        rho = warm_start.rho if rho is None else rho
-    rho0 = min(max(settings.rho if rho is None else check_rho(rho), RHO_MIN), RHO_MAX)
-    stop = QPTermination(run_qp, settings.eps_abs, settings.eps_rel, gap=settings.gap,
-                         infeasibility=settings.infeasibility, eps_prim_inf=settings.eps_prim_inf,
-                         eps_dual_inf=settings.eps_dual_inf)
-    start = time.perf_counter()
-    setup_factorizations = run_qp.setup(rho0)                               # OSQP factorises in its setup too
-    setup_time = time.perf_counter() - start
-    res = admmkit.solve(run_qp, rho=rho0, policy=rule, order=settings.order, stop=stop, max_iter=settings.max_iter,
-                        alpha=settings.alpha, check_every=settings.check_every, x0=x0, z0=z0, lam0=lam0,
-                        time_limit=settings.time_limit, callback=callback, acceleration=acceleration,
-                        compiled=settings.compiled)
-    res.timings["setup"] = setup_time
-    res.counters["factorizations"] = res.counters.get("factorizations", 0) + setup_factorizations
-    return _qp_result(run_qp, settings, res, stop, res.last_record)
+    segment, helpers = choose_compiled(settings.compiled, qp)
+    with compiled_code(helpers):          # the helper kernels compiled, or run as Python (the same bits)
+        run_qp = qp_for(qp, settings)
+        rule = default_policy(run_qp, settings) if isinstance(policy, str) and policy == "osqp" else policy
+        x0 = z0 = lam0 = None
+        if warm_start is not None:
+            if not isinstance(warm_start, Result):
+                raise TypeError(f"warm_start must be a result of solve_qp, got {type(warm_start).__name__}")
+            if np.shape(warm_start.x) != (qp.n,) or np.shape(warm_start.lam) != (qp.m,):
+                raise ValueError(f"warm_start has x of shape {np.shape(warm_start.x)} and y of shape "
+                                 f"{np.shape(warm_start.lam)}; this QP needs ({qp.n},) and ({qp.m},): give a result "
+                                 f"of a QP of the same size")
+            for name, v in (("x", warm_start.x), ("y", warm_start.lam)):
+                if not np.all(np.isfinite(v)):
+                    raise ValueError(f"warm_start.{name} must be finite, got {np.size(v) - np.count_nonzero(np.isfinite(v))} "
+                                     f"NaN or infinite entries: give a result that did not diverge")
+            x0, z0, lam0 = run_qp.iterate_from(warm_start.x, warm_start.lam)
+            rho = warm_start.rho if rho is None else rho
+        rho0 = min(max(settings.rho if rho is None else check_rho(rho), RHO_MIN), RHO_MAX)
+        stop = QPTermination(run_qp, settings.eps_abs, settings.eps_rel, gap=settings.gap,
+                             infeasibility=settings.infeasibility, eps_prim_inf=settings.eps_prim_inf,
+                             eps_dual_inf=settings.eps_dual_inf)
+        start = time.perf_counter()
+        setup_factorizations = run_qp.setup(rho0)                               # OSQP factorises in its setup too
+        setup_time = time.perf_counter() - start
+        res = admmkit.solve(run_qp, rho=rho0, policy=rule, order=settings.order, stop=stop, max_iter=settings.max_iter,
+                            alpha=settings.alpha, check_every=settings.check_every, x0=x0, z0=z0, lam0=lam0,
+                            time_limit=settings.time_limit, callback=callback, acceleration=acceleration,
+                            compiled=segment)
+        res.timings["setup"] = setup_time
+        res.counters["factorizations"] = res.counters.get("factorizations", 0) + setup_factorizations
+        return _qp_result(run_qp, settings, res, stop, res.last_record)
 
 
 def check_rho(rho) -> float:

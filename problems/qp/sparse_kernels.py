@@ -18,10 +18,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from admmkit.compiled import njit
+from admmkit.compiled import kernel
 
 
-@njit(cache=True)
+@kernel(cache=True)
 def _transpose(indptr, indices, data):
     """The CSC arrays of P' (P's CSR arrays) by a counting sort: row indices sorted, O(nnz)."""
     n = indptr.shape[0] - 1
@@ -42,7 +42,7 @@ def _transpose(indptr, indices, data):
     return tp, ti, tx
 
 
-@njit(cache=True)
+@kernel(cache=True)
 def symmetry_defect(indptr, indices, data):
     """(max |P_ij - P_ji|, max |P_ij|) over the stored entries of the canonical CSC matrix P (square).
 
@@ -78,7 +78,7 @@ def symmetry_defect(indptr, indices, data):
     return defect, scale
 
 
-@njit(cache=True)
+@kernel(cache=True)
 def kkt_arrays(n, m, Pp, Pi, Px, sigma, Ap, Ai, Ax, upper):
     """CSC arrays (indptr, indices, data) of K = [[P + sigma I, A'], [A, 1]] and the positions of K_{n+i, n+i}.
 
@@ -151,14 +151,14 @@ def kkt_arrays(n, m, Pp, Pi, Px, sigma, Ap, Ai, Ax, upper):
     return indptr, indices[:nz].copy(), data[:nz].copy(), slots
 
 
-@njit(cache=True, inline="always")
+@kernel(cache=True, inline="always")
 def _worse(m, v):
     """max(m, abs(v)) as ``np.max(np.abs(...))`` takes it: a NaN, once met, stays."""
     a = abs(v)
     return a if (a > m or a != a) else m
 
 
-@njit(cache=True)
+@kernel(cache=True)
 def kkt_inf_norms(Pp, Pi, Px, q, Ap, Ai, Ax, l, u, x, z, y):
     """(primal, infeasibility, dual, complementarity, sign) of :func:`admmkit.problems.qp.kkt.kkt_residuals`.
 
@@ -198,7 +198,7 @@ def kkt_inf_norms(Pp, Pi, Px, q, Ap, Ai, Ax, l, u, x, z, y):
     return primal, infeas, dual, comp, sign
 
 
-@njit(cache=True)
+@kernel(cache=True)
 def neutral_norms(Pp, Pi, Px, q, Ap, Ai, Ax, l, u, x, y):
     """(primal, dual, gap) of :func:`admmkit.problems.qp.residuals.neutral_residuals` in one pass.
 

@@ -11,6 +11,12 @@ from admmkit.segments import AVAILABLE as NUMBA      # numba installed (asked on
 
 from .convexity import check_convex
 from .scaling import _csc
+from .segment import compiled_pays
+
+#: the index dtype of the QP's matrices, whatever route they come by (the MAT loader and qpsolvers give int32,
+#: cvxpy int64): scipy builds every new CSC matrix (the scaled P and A, the KKT matrix) with int32 indices when
+#: they fit, and qdldl's factors are int32, so with int32 at the entry one compiled kernel serves every route
+INDEX = np.int32
 
 def _inf(v) -> float:
     return float(np.max(np.abs(v), initial=0.0))
@@ -34,8 +40,11 @@ def _real(name: str, value, sparse_ok: bool = False):
 
 
 def _canonical(M: sp.csc_matrix) -> sp.csc_matrix:
-    """``M`` in canonical CSC form (sorted row indices, no duplicates): ``M`` itself when it is, else a copy
-    (the user's matrix is never changed).  The compiled kernels read canonical arrays."""
+    """``M`` in canonical CSC form (sorted row indices, no duplicates) with :data:`INDEX` indices (int64 only
+    where int32 cannot hold them, as scipy): ``M`` itself when it is, else a copy (the user's matrix is never
+    changed).  The compiled kernels read canonical arrays."""
+    if (M.indices.dtype != INDEX or M.indptr.dtype != INDEX) and max(M.nnz, *M.shape) <= np.iinfo(INDEX).max:
+        M = sp.csc_matrix((M.data.copy(), M.indices.astype(INDEX), M.indptr.astype(INDEX)), shape=M.shape)
     if M.has_canonical_format:
         return M
     M = M.copy()
@@ -44,10 +53,11 @@ def _canonical(M: sp.csc_matrix) -> sp.csc_matrix:
 
 
 def _symmetry_defect(P: sp.csc_matrix) -> tuple[float, float]:
-    """(max |P - P'|, max |P|) of canonical CSC ``P``: one compiled pass where numba is installed."""
+    """(max |P - P'|, max |P|) of canonical CSC ``P``: one compiled pass where numba is installed and P is large
+    enough to pay for it (:func:`admmkit.problems.qp.segment.compiled_pays`), else scipy (the same values)."""
     if P.nnz == 0:
         return 0.0, 0.0
-    if NUMBA:
+    if NUMBA and compiled_pays(P.shape[0], 0, P.nnz):
         from .sparse_kernels import symmetry_defect
         defect, scale = symmetry_defect(P.indptr, P.indices, P.data)
         return float(defect), float(scale)

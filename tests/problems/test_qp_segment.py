@@ -40,7 +40,7 @@ def qdldl_or_skip():
 def test_compiled_iterates_are_the_python_ones_bit_for_bit(make):
     qdldl_or_skip()
     qp = make()
-    fast, slow = solve_qp(qp), solve_qp(qp, compiled=False)
+    fast, slow = solve_qp(qp, compiled=True), solve_qp(qp, compiled=False)
     same_run(fast, slow)
     assert fast.counters["compiled_iterations"] >= fast.iterations - 2 * (fast.iterations // 25 + 1)
     assert "compiled_iterations" not in slow.counters
@@ -51,7 +51,7 @@ def test_tight_tolerances_and_no_relaxation_bit_for_bit():
     qdldl_or_skip()
     qp = random_qp(50, 80, seed=7)
     for changes in (dict(eps_abs=1e-9, eps_rel=1e-9), dict(alpha=1.0, relax_x=False), dict(check_every=7)):
-        same_run(solve_qp(qp, **changes), solve_qp(qp, compiled=False, **changes))
+        same_run(solve_qp(qp, compiled=True, **changes), solve_qp(qp, compiled=False, **changes))
 
 
 @pytest.mark.skipif(not MM.is_dir(), reason="Maros-Meszaros data not present")
@@ -59,7 +59,7 @@ def test_tight_tolerances_and_no_relaxation_bit_for_bit():
 def test_maros_meszaros_bit_for_bit(name):
     qdldl_or_skip()
     qp = load_mat(MM / f"{name}.mat")
-    same_run(solve_qp(qp), solve_qp(qp, compiled=False))
+    same_run(solve_qp(qp, compiled=True), solve_qp(qp, compiled=False))
 
 
 def test_a_rule_that_reads_every_record_gets_every_record():
@@ -67,7 +67,7 @@ def test_a_rule_that_reads_every_record_gets_every_record():
     from the segment's numbers (admmkit.segments, read=True); the run is the Python path's, bit for bit."""
     qdldl_or_skip()
     qp = random_qp(30, 40, seed=8)
-    fast = solve_qp(qp, policy=Summable(), max_iter=200)
+    fast = solve_qp(qp, policy=Summable(), max_iter=200, compiled=True)
     assert fast.counters["compiled_iterations"] == fast.iterations - 1     # the first runs in Python (its steps checked)
     same_run(fast, solve_qp(qp, policy=Summable(), max_iter=200, compiled=False))
 
@@ -92,13 +92,13 @@ def test_the_read_iteration_from_the_segment_is_the_python_ones():
 def test_a_callback_or_the_full_history_sees_every_iteration():
     qp = random_qp(30, 40, seed=9)
     seen = []
-    res = solve_qp(qp, callback=lambda rec: seen.append(rec.k))
+    res = solve_qp(qp, callback=lambda rec: seen.append(rec.k), compiled=True)
     assert seen == list(range(res.iterations)) and "compiled_iterations" not in res.counters
 
 
 def test_history_rows_of_a_segment():
     qdldl_or_skip()
-    res = solve_qp(random_qp(30, 40, seed=10), eps_abs=1e-8, eps_rel=1e-8)
+    res = solve_qp(random_qp(30, 40, seed=10), eps_abs=1e-8, eps_rel=1e-8, compiled=True)
     h = res.history
     assert len(h) == res.iterations and np.array_equal(h["k"], np.arange(res.iterations))
     assert np.isnan(h["primal_residual"][0]) and np.isfinite(h["primal_residual"][24])   # unread / tested
@@ -138,7 +138,7 @@ def test_compiled_must_be_a_bool():
     qp = random_qp(10, 10, seed=13)
     with pytest.raises(TypeError, match="compiled must be True or False"):
         admmkit.solve(qp_for(qp, osqp_settings()), compiled="yes")
-    with pytest.raises(ValueError, match="compiled must be True or False"):
+    with pytest.raises(ValueError, match="compiled must be 'auto', True or False"):
         osqp_settings(compiled=1)
 
 
@@ -168,14 +168,14 @@ def test_a_progress_bar_lets_the_segments_run():
     from admmkit.cli_output import Progress
     qp = random_qp(30, 40, seed=15)
     with Progress(4000, delay=0.0, interval=0.0, file=open("/dev/null", "w")) as bar:
-        watched = solve_qp(qp, callback=bar)
-    same_run(watched, solve_qp(qp))
+        watched = solve_qp(qp, callback=bar, compiled=True)
+    same_run(watched, solve_qp(qp, compiled=True))
     assert watched.counters["compiled_iterations"] > 0
 
 
 def test_the_summary_shows_the_compiled_time():
     qdldl_or_skip()
-    res = solve_qp(random_qp(30, 40, seed=16))
+    res = solve_qp(random_qp(30, 40, seed=16), compiled=True)
     time_line = next(line for line in res.summary().splitlines() if line.startswith("time"))
     assert f"compiled segments {res.timings['segments']:.4f}" in time_line
     assert "compiled_iterations" in next(line for line in res.summary().splitlines() if line.startswith("work"))
@@ -185,6 +185,6 @@ def test_a_fixed_rho_without_a_policy_runs_in_segments():
     """policy=None keeps rho fixed and reads no record: its iterations between checks are compiled too."""
     from admmkit.problems.qp import random_qp, solve_qp
     qp = random_qp(20, 30, seed=4)
-    fast, slow = solve_qp(qp, policy=None), solve_qp(qp, policy=None, compiled=False)
+    fast, slow = solve_qp(qp, policy=None, compiled=True), solve_qp(qp, policy=None, compiled=False)
     assert fast.counters.get("compiled_iterations", 0) > 0 and "compiled_iterations" not in slow.counters
     assert fast.iterations == slow.iterations and np.array_equal(fast.x, slow.x)
