@@ -71,13 +71,16 @@ class Lasso(admmkit.SplitProblem):
     def kkt_relative(self, x, z, lam) -> dict[str, float]:
         """The LASSO's optimality at the ADMM iterate, relative (what ``converged`` is checked against).
 
-        primal:      ||x - z|| / max(||x||, ||z||)  (x and its sparse copy z agree);
-        subgradient: ||subgradient_residual(z)|| / max(||A'A z||, ||A'b||), at z, whose zeros are exact
-                     (x has entries of the size of the tolerance where the solution is 0).
-        0/0 counts as 0.
+        primal:      ||A'A (x - z)|| / scale: x and its sparse copy z agree, in the units of the gradient
+                     (||x - z|| / ||x|| would be 1 wherever the solution is x = 0, as above lam_max);
+        subgradient: ||subgradient_residual(z)|| / scale, at z, whose zeros are exact (x has entries of the
+                     size of the tolerance where the solution is 0);
+        scale = max(||A'A x||, ||A'A z||, ||A'b||), 0/0 counted as 0.  Their sum bounds the distance of 0 to
+        A'(A x - b) + lam d||z||_1: x solves the LASSO with the signs of z.
         """
-        scale = max(float(np.linalg.norm(self.A.T @ (self.A @ z))), float(np.linalg.norm(self.A.T @ self.b)))
-        return {"primal": _ratio(np.linalg.norm(x - z), max(np.linalg.norm(x), np.linalg.norm(z))),
+        AtAx, AtAz = self.A.T @ (self.A @ x), self.A.T @ (self.A @ z)
+        scale = max(np.linalg.norm(AtAx), np.linalg.norm(AtAz), np.linalg.norm(self.A.T @ self.b))
+        return {"primal": _ratio(np.linalg.norm(AtAx - AtAz), scale),
                 "subgradient": _ratio(np.linalg.norm(self.subgradient_residual(z)), scale)}
 
     def kkt(self, x, z, lam) -> dict[str, float]:
