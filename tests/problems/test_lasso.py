@@ -72,6 +72,9 @@ def test_constructor_refuses_bad_input_naming_the_parameter(args, parameter):
         Lasso(*args)
     with pytest.raises(ValueError, match=parameter):
         solve_with_cvxpy(*args)
+    if not parameter.startswith("lam"):
+        with pytest.raises(ValueError, match=parameter):
+            lam_max(*args[:2])
 
 
 def test_a_sparse_A_gives_the_dense_solution():
