@@ -1,1 +1,1 @@
-"""Plug-ins for admmkit: one subpackage per problem (qp, contact, obstacle)."""
+"""Plug-ins for admmkit: one subpackage per problem (qp, contact, obstacle, lasso)."""

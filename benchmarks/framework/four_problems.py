@@ -1,7 +1,7 @@
 """``admmkit bench four-problems``: the four problems of issue #14, written with the building blocks.
 
 Each problem is a few lines (see the ``lasso``, ``box_ls``, ``consensus`` and
-``tv_denoise`` functions) and is checked against cvxpy (Clarabel, tolerances
+``tv_denoise`` functions; the LASSO is the plug-in :mod:`admmkit.problems.lasso`) and is checked against cvxpy (Clarabel, tolerances
 1e-12).  For every registered penalty rule, both orders and rho_0 in
 {1e-3, 1, 1e3} the command runs
 
@@ -37,13 +37,12 @@ ORDERS = ("xz", "zx")
 
 # ---------------------------------------------------------------- the four problems (building blocks)
 def lasso(seed=0, m=60, n=40):
-    """min 1/2 ||D x - b||^2 + mu ||x||_1  (x-step: D'D + rho I; z-step: soft-thresholding)."""
-    import admmkit
+    """min 1/2 ||A x - b||^2 + lam ||x||_1, the plug-in admmkit.problems.lasso (x-step: A'A + rho I; z-step: soft-thresholding)."""
+    from admmkit.problems.lasso import Lasso, lam_max
     r = np.random.default_rng(seed)
-    D, b = r.standard_normal((m, n)), r.standard_normal(m)
-    mu = 0.1 * np.abs(D.T @ b).max()
-    problem = admmkit.SplitProblem(admmkit.QuadraticXStep(D.T @ D, -D.T @ b), admmkit.prox.L1(mu))
-    return problem, lambda cp, x: 0.5 * cp.sum_squares(D @ x - b) + mu * cp.norm1(x), []
+    A, b = r.standard_normal((m, n)), r.standard_normal(m)
+    problem = Lasso(A, b, 0.1 * lam_max(A, b))
+    return problem, lambda cp, x: 0.5 * cp.sum_squares(A @ x - b) + problem.lam * cp.norm1(x), []
 
 
 def box_ls(seed=1, m=50, n=30):

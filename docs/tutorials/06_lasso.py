@@ -16,40 +16,53 @@
 # The LASSO fits a sparse linear model,
 #
 # $$
-# \min_x\; \tfrac12\|Dx - b\|^2 + \mu\|x\|_1 .
+# \min_x\; \tfrac12\|Ax - b\|^2 + \lambda\|x\|_1 .
 # $$
 #
-# Split as $x - z = 0$ with $f(x) = \frac12 x^TD^TDx - (D^Tb)^Tx$ (up to a
-# constant) and $g(z) = \mu\|z\|_1$, ADMM needs two steps:
+# Split as $x - z = 0$ with $f(x) = \frac12 x^TA^TAx - (A^Tb)^Tx$ (up to a
+# constant) and $g(z) = \lambda\|z\|_1$, ADMM needs two steps (with the
+# multiplier written $y$, to keep $\lambda$ for the LASSO's weight):
 #
-# - **x-step:** $(D^TD + \rho I)\,x = D^Tb + \rho z - \lambda$, one
+# - **x-step:** $(A^TA + \rho I)\,x = A^Tb + \rho z - y$, one
 #   factorisation per value of $\rho$;
-# - **z-step:** $z = \mathrm{soft}(x + \lambda/\rho,\ \mu/\rho)$, the proximal
-#   operator of $g/\rho$.
+# - **z-step:** $z = \mathrm{soft}(x + y/\rho,\ \lambda/\rho)$, the proximal
+#   operator of $g/\rho$;
 #
-# With the building blocks both are one line each:
+# and the dual update $y \leftarrow y + \rho\,(x - z)$, which the loop does.
+# With the building blocks both steps are one line each:
 # {class}`admmkit.QuadraticXStep` is the x-step of any quadratic $f$ with a
-# constraint map $A$ (here the identity), cached per $\rho$, and
-# {mod}`admmkit.prox` has the soft-thresholding. {class}`admmkit.SplitProblem`
-# derives the rest, including the adjoint norm that Boyd's dual residual
-# needs in the order xz, and relative KKT residuals that every result is
-# checked against.
+# constraint map (here the identity), cached per $\rho$, and
+# {mod}`admmkit.prox` has the soft-thresholding:
+#
+# ```python
+# x_step = admmkit.QuadraticXStep(A.T @ A, -A.T @ b)          # (A'A + rho I) x = A'b + rho z - y
+# lasso = admmkit.SplitProblem(x_step, admmkit.prox.L1(lam))  # z = soft(x + y/rho, lam/rho)
+# ```
+#
+# {class}`admmkit.SplitProblem` derives the rest, including the adjoint norm
+# that Boyd's dual residual needs in the order xz. The plug-in
+# `admmkit.problems.lasso` (the folder `problems/lasso/`, about a hundred
+# lines) wraps these two lines with what a plug-in should have: input checks
+# that name the parameter, the LASSO's own objective, a measure of its
+# optimality, $\lambda_{\max}$ and a cvxpy reference. It is the plug-in to
+# copy for a new problem.
 
 # %%
 import numpy as np
 
 import admmkit
 from admmkit import policies  # noqa: F401  (registers the penalty rules by name)
+from admmkit.problems.lasso import Lasso, lam_max, solve_with_cvxpy
 
 rng = np.random.default_rng(0)
 m, n = 80, 200                                     # more unknowns than data: the l1 term picks a sparse x
 truth = np.zeros(n)
 truth[rng.choice(n, 8, replace=False)] = rng.choice([-2.0, 2.0], 8)
-D = rng.standard_normal((m, n)) / np.sqrt(m)
-b = D @ truth + 0.05 * rng.standard_normal(m)
-mu = 0.1 * np.abs(D.T @ b).max()
+A = rng.standard_normal((m, n)) / np.sqrt(m)
+b = A @ truth + 0.05 * rng.standard_normal(m)
+lam = 0.1 * lam_max(A, b)                          # lam_max = ||A'b||_inf: above it, x = 0
 
-lasso = admmkit.SplitProblem(admmkit.QuadraticXStep(D.T @ D, -D.T @ b), admmkit.prox.L1(mu))
+lasso = Lasso(A, b, lam)
 result = admmkit.solve(lasso, policy="summable", order="zx")   # default stop: Boyd's residuals
 print(result.summary())
 
@@ -59,25 +72,40 @@ print(result.summary())
 #
 # The default stop is Boyd's residual test (`ResidualTolerance(1e-6, 1e-5)`,
 # {func}`admmkit.default_stop`). When it fires, the result compares the
-# problem's relative KKT residuals with the tolerance and would say
-# `converged_inaccurate` if they were more than ten times larger.
+# problem's relative KKT measures with the tolerance and would say
+# `converged_inaccurate` if they were more than ten times larger. The
+# plug-in's measures are those of the LASSO itself: `primal`,
+# $\|x - z\| / \max(\|x\|, \|z\|)$, and `subgradient`, the distance of 0 to
+# $A^T(Az - b) + \lambda\,\partial\|z\|_1$ relative to
+# $\max(\|A^TAz\|, \|A^Tb\|)$ (at z, whose zeros are exact).
 #
 # ## Check it with cvxpy
 
 # %%
-import cvxpy as cp
-
-x = cp.Variable(n)
-reference = cp.Problem(cp.Minimize(0.5 * cp.sum_squares(D @ x - b) + mu * cp.norm1(x)))
-reference.solve(solver=cp.CLARABEL, tol_gap_abs=1e-12, tol_gap_rel=1e-12, tol_feas=1e-12)
-x_star = x.value
+x_star = solve_with_cvxpy(A, b, lam)               # Clarabel to 1e-12
 
 error = lambda r: np.linalg.norm(r.x - x_star) / np.linalg.norm(x_star)  # noqa: E731
 print(f"default stop: {result.status}, {result.iterations} iterations, relative error {error(result):.1e}")
+print(f"KKT measures: {', '.join(f'{k} {v:.1e}' for k, v in result.accuracy.items())}")
 support = lambda v, eps: [int(i) for i in np.flatnonzero(np.abs(v) > eps)]  # noqa: E731
 print(f"support: admmkit z {support(result.z, 0.0)}\n         cvxpy x   {support(x_star, 1e-6)}")
 assert result.status is admmkit.Status.CONVERGED and error(result) < 1e-3
+assert max(result.accuracy.values()) < 1e-5            # below the tolerance asked
 assert support(result.z, 0.0) == support(x_star, 1e-6)
+assert abs(result.objective - lasso.objective(x_star)) < 1e-5 * lasso.objective(x_star)
+
+# %% [markdown]
+# At $\lambda \ge \lambda_{\max} = \|A^Tb\|_\infty$ the solution is $x = 0$:
+# $-A^Tb$ is then in $\lambda\,\partial\|0\|_1$. z is exactly 0; x is 0 to
+# the absolute tolerance of Boyd's primal residual, $\sqrt{n}\,\epsilon_{abs}
+# = 1.4 \cdot 10^{-5}$ (a relative measure of $\|x - z\|$ would be 1 here, so
+# the plug-in's `primal` measures $x - z$ through the gradient $A^TA(x - z)$).
+
+# %%
+zero = admmkit.solve(Lasso(A, b, lam_max(A, b)))
+print(f"lam = lam_max: {zero.status}, {zero.iterations} iterations, nonzeros of z: {np.count_nonzero(zero.z)}, "
+      f"||x|| = {np.linalg.norm(zero.x):.1e}")
+assert zero.converged and not np.any(zero.z) and np.linalg.norm(zero.x) < 2 * np.sqrt(n) * 1e-6
 
 # %% [markdown]
 # To 1e-8, with every registered rule in both orders, from a small, a
@@ -119,10 +147,10 @@ for alpha in (1.0, 1.6):
 # `result.x` is the solution and `result.x_iterate` the ADMM iterate it came
 # from (the same here; a condensed plug-in maps one to the other). Passing a
 # result as `warm_start` continues from its iterate, multiplier and $\rho$,
-# here for a slightly larger $\mu$:
+# here for a slightly larger $\lambda$:
 
 # %%
-lasso2 = admmkit.SplitProblem(admmkit.QuadraticXStep(D.T @ D, -D.T @ b), admmkit.prox.L1(1.05 * mu))
+lasso2 = Lasso(A, b, 1.05 * lam)
 cold = admmkit.solve(lasso2, policy="summable", order="zx", stop=tight, max_iter=20_000)
 warm = admmkit.solve(lasso2, policy="summable", order="zx", stop=tight, max_iter=20_000,
                      warm_start=admmkit.solve(lasso, policy="summable", order="zx", stop=tight, max_iter=20_000))
@@ -134,3 +162,11 @@ assert warm.iterations <= cold.iterations
 # The saving is small here (a few iterations of about 130): at a tolerance
 # of 1e-12 most of ADMM's iterations are its linear tail, which a nearby
 # start does not shorten.
+#
+# ## Writing your own
+#
+# Copy `problems/lasso/` and change the two lines: the x-step (any quadratic
+# $f$ and map $A$, {class}`admmkit.QuadraticXStep`) and the z-step (any
+# {mod}`admmkit.prox` operator); then the checks, the objective and the
+# optimality measure of the new problem. [The layout](../layout.md) says
+# where the rest goes.
