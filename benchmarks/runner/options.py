@@ -11,15 +11,40 @@ import argparse
 import functools
 import importlib
 import sys
+from pathlib import Path
 
 from admmkit.cli import positive_float, positive_int  # noqa: F401  (positive_float: for the studies' own options)
+from admmkit.benchmarks.runner.costs import announce
 from admmkit.benchmarks.runner.harness import HarnessFailed, require, require_executor
 
 #: the exit code of a study some of whose cases failed in the harness (docs/cli.md, "Studies")
 EXIT_HARNESS = 1
 
 def add_out(p, study: str) -> None:
+    """``--out FOLDER``: where the study writes its files (default ``out/STUDY``)."""
     p.add_argument("--out", default=f"out/{study}", help=f"output folder (default out/{study})")
+
+
+def add_out_file(p, default: str) -> None:
+    """``--out FILE``: the one Markdown file a study writes, under that name; its folder is created.
+
+    Its own dest, ``out_file``, so that the host's check of an ``--out`` folder leaves it alone (it refused
+    an existing file); :func:`study` checks it before any work (:func:`check_out_file`).
+    """
+    p.add_argument("--out", dest="out_file", metavar="FILE", default=default,
+                   help=f"the Markdown file to write, the only file written; its folder is created (default {default})")
+
+
+def check_out_file(value: str) -> Path:
+    """A file a study may write: not a folder, in a folder that exists writable or can be created; ValueError
+    naming ``--out`` otherwise."""
+    from admmkit.cli_output import check_output_folder
+    from admmkit.io import check_writable
+    path = Path(value)
+    check_output_folder(path.parent, "--out")
+    if path.parent.is_dir():
+        check_writable(path, "--out")
+    return path
 
 
 def add_executor_options(p, workers: int = 2) -> None:
@@ -62,6 +87,15 @@ def command_name(args) -> str:
     return f"{top} {target}" if isinstance(target, str) else top
 
 
+#: the studies known by a second name: {alias: name}
+ALIASES = {"bench maros-meszaros": "bench qp"}
+
+
+def canonical_name(name: str) -> str:
+    """``bench qp`` for ``bench maros-meszaros``: the name a study's cost is filed under."""
+    return ALIASES.get(name, name)
+
+
 def needs(args, *modules: str) -> None:
     """Refuse before any work if a module the study needs (or Dask, when asked for) is missing.
 
@@ -76,13 +110,20 @@ def needs(args, *modules: str) -> None:
 
 
 def study(run):
-    """A study command's function, with the harness's verdict: some cases failed in the harness -> exit 1.
+    """A study command's function: its cost announced first, and the harness's verdict at the end.
 
-    The study has written its files without those cases (:class:`HarnessFailed` holds them): they are
-    listed, then one line ``admmkit: error: N of M cases failed in the harness (...)`` on stderr.
+    A study whose default run takes more than about 30 s says so in one line on stderr before any work
+    (:func:`admmkit.benchmarks.runner.costs.announce`; not with ``--report-only``, which runs nothing).
+    Some cases failed in the harness -> exit 1: the study has written its files without those cases
+    (:class:`HarnessFailed` holds them); they are listed, then one line ``admmkit: error: N of M cases
+    failed in the harness (...)`` on stderr.
     """
     @functools.wraps(run)
     def command(args):
+        if getattr(args, "out_file", None) is not None:
+            check_out_file(args.out_file)
+        if not getattr(args, "report_only", False):
+            announce(canonical_name(command_name(args)))
         try:
             return run(args)
         except HarnessFailed as failed:
@@ -121,7 +162,12 @@ def own_parser(name: str, module: str, help_text: str):
 
 
 def run_own(module: str, argv: list[str], prog: str) -> int:
-    """``module.main(argv, prog)``, with its parser's exit (--help: 0, a bad option: 2) as the exit code."""
+    """``module.main(argv, prog)``, with its parser's exit (--help: 0, a bad option: 2) as the exit code.
+
+    The study's cost is announced first, as :func:`study` does (not for ``--help``).
+    """
+    if not {"-h", "--help"} & set(argv):
+        announce(prog.removeprefix("admmkit "))
     try:
         return int(importlib.import_module(module).main(argv, prog=prog) or 0)
     except SystemExit as exit_:
