@@ -67,6 +67,7 @@ def contact_speed(targets) -> None:
 
 
 def _contact_speed(args) -> int:
+    needs(args)
     from admmkit.benchmarks.contact.contact_speed import DEFAULT_HS, run_bench
     run_bench(out=args.out_file, hs=tuple(args.hs) if args.hs else DEFAULT_HS, repeats=args.repeats,
               command=args.command_line)
@@ -88,6 +89,7 @@ def contact_schur(targets) -> None:
 
 
 def _contact_schur(args) -> int:
+    needs(args)
     from admmkit.benchmarks.contact.schur_study import DEFAULT_HS, run_study
     run_study(out=args.out_file, hs=tuple(args.hs) if args.hs else DEFAULT_HS, repeats=args.repeats, block=args.block,
               command=args.command_line)
@@ -108,6 +110,7 @@ def hertz(targets) -> None:
 
 
 def _hertz(args) -> int:
+    needs(args)
     from admmkit.benchmarks.contact.hertz import DEFAULT_KS, run_hertz_study
     run_hertz_study(out=args.out, ks=tuple(args.ks) if args.ks else DEFAULT_KS, command=args.command_line)
     return 0
@@ -153,6 +156,7 @@ def amg_crossover(targets) -> None:
 
 
 def _amg_crossover(args) -> int:
+    needs(args)
     from admmkit.benchmarks.contact.amg_crossover import DEFAULT_HS, run_crossover
     hs = tuple(args.hs) if args.hs else ((1 / 10,) if args.quick else DEFAULT_HS)
     run_crossover(out=args.out, hs=hs, reuse_h=1 / 10 if args.quick else args.reuse_h, command=args.command_line,
@@ -178,6 +182,7 @@ def contact3d(targets) -> None:
 
 
 def _contact3d(args) -> int:
+    needs(args)
     from admmkit.benchmarks.contact.contact3d import PROBE_HS, SADMM_HS, run_contact3d
     run_contact3d(out=args.out, h=1 / 4 if args.quick else args.h,
                   probe_hs=tuple(args.probe_hs) if args.probe_hs else ((1 / 4,) if args.quick else PROBE_HS),

@@ -97,23 +97,26 @@ def canonical_name(name: str) -> str:
 
 
 def needs(args, *modules: str) -> None:
-    """Refuse before any work if a module the study needs (or Dask, when asked for) is missing.
+    """Refuse before any work if a module the study needs (or Dask, when asked for) is missing; else announce
+    what the run costs. Every study calls it first.
 
-    One line naming the command and the pip command (:func:`admmkit.benchmarks.runner.harness.require`).
-    ``--report-only`` runs nothing, so it needs nothing.
+    A refusal is one line naming the command and the pip command
+    (:func:`admmkit.benchmarks.runner.harness.require`).  Then a study whose default run takes more than about
+    30 s says so in one line on stderr (:func:`admmkit.benchmarks.runner.costs.announce`).  ``--report-only``
+    runs nothing, so it needs nothing and costs nothing.
     """
     if getattr(args, "report_only", False):
         return
     name = command_name(args)
     require(name, *modules)
     require_executor(name, args)
+    announce(canonical_name(name))
 
 
 def study(run):
-    """A study command's function: its cost announced first, and the harness's verdict at the end.
+    """A study command's function: its ``--out FILE`` checked first, and the harness's verdict at the end.
 
-    A study whose default run takes more than about 30 s says so in one line on stderr before any work
-    (:func:`admmkit.benchmarks.runner.costs.announce`; not with ``--report-only``, which runs nothing).
+    (The study itself calls :func:`needs` before any work: the packages checked, its cost announced.)
     Some cases failed in the harness -> exit 1: the study has written its files without those cases
     (:class:`HarnessFailed` holds them); they are listed, then one line ``admmkit: error: N of M cases
     failed in the harness (...)`` on stderr.
@@ -122,8 +125,6 @@ def study(run):
     def command(args):
         if getattr(args, "out_file", None) is not None:
             check_out_file(args.out_file)
-        if not getattr(args, "report_only", False):
-            announce(canonical_name(command_name(args)))
         try:
             return run(args)
         except HarnessFailed as failed:
@@ -164,7 +165,8 @@ def own_parser(name: str, module: str, help_text: str):
 def run_own(module: str, argv: list[str], prog: str) -> int:
     """``module.main(argv, prog)``, with its parser's exit (--help: 0, a bad option: 2) as the exit code.
 
-    The study's cost is announced first, as :func:`study` does (not for ``--help``).
+    The study's cost is announced first, as :func:`needs` does (not for ``--help``): before its own parser
+    reads the options, since the check of its packages is its own.
     """
     if not {"-h", "--help"} & set(argv):
         announce(prog.removeprefix("admmkit "))

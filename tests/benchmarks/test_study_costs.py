@@ -55,16 +55,37 @@ def test_a_short_study_is_not_announced(capsys):
     assert capsys.readouterr().err == ""
 
 
-def test_the_announcement_comes_before_the_refusal(monkeypatch, capsys):
-    """bench scale without clarabel: the cost line first, then the one-line refusal, nothing run."""
+def test_a_refusal_stays_one_line_without_the_announcement(monkeypatch, capsys):
+    """bench scale without clarabel: the one-line refusal alone (the packages are checked before the cost is
+    announced), nothing run."""
     from admmkit.benchmarks.contact import scale
     monkeypatch.setitem(sys.modules, "clarabel", None)
     monkeypatch.setattr(scale, "run_scale_bench", lambda **kw: pytest.fail("bench scale ran without clarabel"))
     code, out, err = run(["bench", "scale"], capsys)
     assert code == 2 and out == ""
-    assert err.splitlines() == [f"bench scale: {COSTS['bench scale'].text}",
-                                'admmkit: error: bench scale needs clarabel: pip install "clarabel>=0.6"']
+    assert err.splitlines() == ['admmkit: error: bench scale needs clarabel: pip install "clarabel>=0.6"']
+
+
+def test_the_announcement_of_bench_scale(monkeypatch, capsys):
+    from admmkit.benchmarks.contact import scale
+
+    def run_scale_bench(**kwargs):
+        print("working", file=sys.stderr)
+        return []
+    monkeypatch.setattr(scale, "run_scale_bench", run_scale_bench)
+    code, out, err = run(["bench", "scale"], capsys)
+    assert err.splitlines() == [f"bench scale: {COSTS['bench scale'].text}", "working"]
     assert "2.4 GB peak" in err and "on 2 cores" in err
+
+
+@pytest.mark.parametrize("command", [c for c in REGISTERED_IN_CLI if c != "reproduce paper"])
+def test_every_registered_study_checks_and_announces_before_its_work(command):
+    """Each study's function begins with needs(args, ...), which checks its packages and then announces it."""
+    import inspect
+    top = subparsers(build_parser())
+    func = inspect.unwrap(subparsers(top["bench"])[command.split()[1]].get_default("func"))
+    body = inspect.getsource(func).split("\n", 1)[1].lstrip()
+    assert body.startswith("needs(args"), body[:80]
 
 
 def test_the_announcement_comes_before_any_work(tmp_path, monkeypatch, capsys):
