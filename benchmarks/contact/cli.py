@@ -192,7 +192,8 @@ def _contact3d(args) -> int:
 
 
 friction = own_parser("friction", "admmkit.benchmarks.contact.friction_validation",
-                       "Cattaneo-Mindlin partial slip under refinement, and every rule on frictional contact")
+                       "Cattaneo-Mindlin partial slip under refinement, and every rule on frictional contact",
+                       needs=("cvxpy", "clarabel"))
 
 
 linsolve = own_parser("linsolve", "admmkit.benchmarks.contact.linsolve_backends",
