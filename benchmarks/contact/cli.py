@@ -193,7 +193,7 @@ def _contact3d(args) -> int:
 
 friction = own_parser("friction", "admmkit.benchmarks.contact.friction_validation",
                        "Cattaneo-Mindlin partial slip under refinement, and every rule on frictional contact",
-                       needs=("cvxpy", "clarabel"))
+                       modules=("cvxpy", "clarabel"))
 
 
 linsolve = own_parser("linsolve", "admmkit.benchmarks.contact.linsolve_backends",

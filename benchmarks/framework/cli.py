@@ -41,7 +41,7 @@ loop_overhead = own_parser("loop-overhead", "admmkit.benchmarks.framework.loop_o
 
 four_problems = own_parser("four-problems", "admmkit.benchmarks.framework.four_problems",
                             "LASSO, weighted box LS, consensus and 2-D TV with the building blocks, against cvxpy",
-                            needs=("cvxpy",))
+                            modules=("cvxpy",))
 
 
 split_speed = own_parser("split-speed", "admmkit.benchmarks.framework.split_segment_speed",

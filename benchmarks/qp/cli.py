@@ -54,13 +54,13 @@ def _maros_meszaros(args) -> int:
 
 qp_fidelity = own_parser("qp-fidelity", "admmkit.benchmarks.qp.qp_fidelity",
                           "admmkit's OSQP preset against OSQP 1.x, problem by problem (Maros-Meszaros)",
-                          needs=("osqp",))
+                          modules=("osqp",))
 
 
 qp_agreement = own_parser("qp-agreement", "admmkit.benchmarks.qp.qp_agreement",
-                           "random feasible QPs against cvxpy + Clarabel", needs=("cvxpy", "clarabel"))
+                           "random feasible QPs against cvxpy + Clarabel", modules=("cvxpy", "clarabel"))
 
 
 qp_speed = own_parser("qp-speed", "admmkit.benchmarks.qp.qp_speed",
                       "a whole QP solve (compiled and Python) against OSQP 1.x's C, problem by problem",
-                      needs=("osqp",))
+                      modules=("osqp",))

@@ -149,29 +149,29 @@ def print_files(files) -> None:
         print(f"wrote {f}")
 
 
-def own_parser(name: str, module: str, help_text: str, needs: tuple[str, ...] = ()):
+def own_parser(name: str, module: str, help_text: str, modules: tuple[str, ...] = ()):
     """Register ``admmkit bench NAME``, handing every argument to ``module.main(argv, prog)`` unparsed.
 
     For the studies that define their options themselves (``admmkit bench NAME --help`` prints them).
-    ``needs``: the modules the study requires (it checks them itself too), checked before its cost is
+    ``modules``: the modules the study needs (it checks them itself too), checked before its cost is
     announced, so that a refusal stays one line.
     """
     def register(targets) -> None:
         p = targets.add_parser(name, help=help_text, add_help=False, prefix_chars="\0")
         p.add_argument("argv", nargs=argparse.REMAINDER)
-        p.set_defaults(func=lambda args: run_own(module, args.argv, f"admmkit bench {name}", needs))
+        p.set_defaults(func=lambda args: run_own(module, args.argv, f"admmkit bench {name}", modules))
     register.__doc__ = f"``admmkit bench {name}``: {help_text} ({module})."
     return register
 
 
-def run_own(module: str, argv: list[str], prog: str, needs: tuple[str, ...] = ()) -> int:
+def run_own(module: str, argv: list[str], prog: str, modules: tuple[str, ...] = ()) -> int:
     """``module.main(argv, prog)``, with its parser's exit (--help: 0, a bad option: 2) as the exit code.
 
-    Unless asked for ``--help``: the modules ``needs`` checked, then the study's cost announced, as
-    :func:`needs` does, before the study's own parser reads the options.
+    Unless asked for ``--help``: ``modules`` checked, then the study's cost announced, as :func:`needs`
+    does, before the study's own parser reads the options.
     """
     if not {"-h", "--help"} & set(argv):
-        require(prog.removeprefix("admmkit "), *needs)
+        require(prog.removeprefix("admmkit "), *modules)
         announce(prog.removeprefix("admmkit "))
     try:
         return int(importlib.import_module(module).main(argv, prog=prog) or 0)
