@@ -33,6 +33,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import difflib
+import os
 import re
 import shlex
 import shutil
@@ -612,13 +613,91 @@ def main(argv: list[str] | None = None) -> int:
     args.command_line = command_line(argv)
     try:
         check_options(args)
-        return int(args.func(args) or 0)
+        with text_to_stderr(writes_stdout(args)):
+            code = run_command(args)
+        sys.stdout.flush()                      # a closed pipe shows here, not in Python's shutdown
+        return code
+    except BrokenPipeError:                     # the reader of stdout left (| head): end quietly, as Unix tools do
+        quiet_stdout()
+        return EXIT_CLOSED_PIPE
     except (ValueError, OSError) as err:
         print(f"admmkit: error: {_one_line(err)}", file=sys.stderr)
         return EXIT_BAD_INPUT
     except KeyboardInterrupt:
         print("admmkit: interrupted", file=sys.stderr)
         return 130
+
+
+#: the exit code of a run whose standard output was closed by its reader (128 + SIGPIPE, as ``yes | head``)
+EXIT_CLOSED_PIPE = 141
+
+
+def run_command(args) -> int:
+    """``args.func(args)`` as an exit code; a ``sys.exit(CODE)`` in user code (a rule's ``update``) is bad input.
+
+    The command's own ``SystemExit`` would end the program silently with the code user code chose (0 after
+    a rule called ``sys.exit(0)``); here it becomes a ValueError, one line and exit 2.
+    """
+    try:
+        return int(args.func(args) or 0)
+    except SystemExit as stop:
+        raise ValueError(f"user code called sys.exit({stop.code!r}) during the run") from None
+
+
+def writes_stdout(args) -> bool:
+    """True if an output option names ``-`` (standard output): then the text lines go to stderr."""
+    from .io import STDOUT
+    return any(value == STDOUT for _, value, _ in output_options(args))
+
+
+class StdoutForData:
+    """Standard output while a file is written to ``-``: text goes to stderr, the file to stdout.
+
+    :mod:`admmkit.io` writes ``-`` through ``sys.stdout.buffer``, the bytes of the real standard output;
+    ``print`` (the summary, the plug-in's lines) writes text, which goes to stderr.  So ``--json - | jq``
+    reads the JSON alone.
+    """
+
+    def __init__(self, stdout, stderr) -> None:
+        self.buffer, self._stdout, self._stderr = stdout.buffer, stdout, stderr
+
+    def write(self, text: str) -> int:
+        """Write ``text`` to stderr."""
+        return self._stderr.write(text)
+
+    def flush(self) -> None:
+        """Flush both streams."""
+        self._stderr.flush()
+        self._stdout.flush()
+
+    def __getattr__(self, name):
+        return getattr(self._stderr, name)
+
+
+@contextlib.contextmanager
+def text_to_stderr(enabled: bool):
+    """While ``enabled``: ``sys.stdout`` is a :class:`StdoutForData` (a stdout without bytes keeps it all)."""
+    if not enabled or getattr(sys.stdout, "buffer", None) is None:
+        yield
+        return
+    stdout = sys.stdout
+    sys.stdout = StdoutForData(stdout, sys.stderr)
+    try:
+        yield
+    finally:
+        sys.stdout = stdout
+
+
+def quiet_stdout() -> None:
+    """Point standard output at the null device: Python's last flush into a closed pipe then prints nothing."""
+    try:
+        fd = sys.stdout.fileno()
+    except (AttributeError, OSError, ValueError):       # not a file descriptor (a notebook, a test's capture)
+        sys.stdout = open(os.devnull, "w")
+        return
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    os.dup2(devnull, fd)
+    os.close(devnull)
 
 
 def _one_line(err: BaseException) -> str:

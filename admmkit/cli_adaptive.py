@@ -1,7 +1,8 @@
 """The options of an FE plug-in with error estimates: the balanced stop and adaptive refinement.
 
 ``admmkit solve obstacle`` and ``admmkit solve contact`` register them with
-:func:`add_adaptive_options` and read them with :func:`adaptive_options`.
+:func:`add_adaptive_options`, refuse the loop's options without ``--target-error``
+with :func:`check_adaptive_flags` and read them with :func:`adaptive_options`.
 """
 from __future__ import annotations
 
@@ -24,12 +25,14 @@ def add_adaptive_options(parser: argparse.ArgumentParser, *, max_levels: int = 2
     parser.add_argument("--target-error", type=positive_float, default=None, metavar="E",
                         help="refine adaptively from --h until the estimated relative energy error is <= E, "
                              "0 < E < 1 (--estimator, Doerfler marking, each level warm-started, stopped balanced)")
-    parser.add_argument("--theta", type=positive_float, default=0.5,
+    parser.add_argument("--theta", type=positive_float, default=None,
                         help="Doerfler marking share with --target-error, 0 < theta < 1 (default 0.5)")
-    parser.add_argument("--max-levels", type=int, default=max_levels,
+    parser.add_argument("--max-levels", type=int, default=None,
                         help=f"level cap of --target-error (default {max_levels})")
-    parser.add_argument("--max-unknowns", type=int, default=2_000_000,
+    parser.add_argument("--max-unknowns", type=int, default=None,
                         help="unknowns cap of --target-error (default 2e6)")
+    # left None when not given, so that check_adaptive_flags sees them given without --target-error
+    parser.set_defaults(loop_defaults={"theta": 0.5, "max_levels": max_levels, "max_unknowns": 2_000_000})
     parser.add_argument("--estimator", default="zz", metavar="zz|residual",
                         help="the discretisation error estimate that --target-error marks by and the balanced stop "
                              "compares with: zz (gradient recovery, default) or residual (residual-type)")
@@ -68,10 +71,29 @@ def balance_line(stop, norm: str) -> str:
             f"discretisation error ~ {stop.discretisation:.3e} ({which} estimate)   gamma {stop.gamma:g}")
 
 
+#: the adaptive loop's options, which only --target-error reads
+LOOP_FLAGS = {"theta": "--theta", "max_levels": "--max-levels", "max_unknowns": "--max-unknowns"}
+
+
+def check_adaptive_flags(args) -> None:
+    """Refuse --theta, --max-levels and --max-unknowns without --target-error (they would be ignored)."""
+    if getattr(args, "target_error", None) is not None:
+        return
+    given = [flag for dest, flag in LOOP_FLAGS.items() if getattr(args, dest, None) is not None]
+    if given:
+        raise ValueError(f"{', '.join(given)} {'needs' if len(given) == 1 else 'need'} --target-error (the adaptive "
+                         f"loop's options; a uniform solve has no levels to mark or cap)")
+
+
 def adaptive_options(args, gamma: float = GAMMA) -> dict:
     """The adaptive loop's keywords from :func:`add_adaptive_options` (gamma: the plug-in's default ``gamma``,
-    admmkit.balanced_stop.GAMMA unless given, or --balance; the estimator);
-    ValueError naming the option and its range, and refusing --tol / --eps-abs beside them."""
+    admmkit.balanced_stop.GAMMA unless given, or --balance; the estimator; the loop's options not given take
+    the plug-in's defaults); ValueError naming the option and its range, and refusing --tol / --eps-abs
+    beside them."""
+    defaults = getattr(args, "loop_defaults", None) or {"theta": 0.5, "max_levels": 20, "max_unknowns": 2_000_000}
+    for dest, value in defaults.items():
+        if getattr(args, dest, None) is None:
+            setattr(args, dest, value)
     if args.tol is not None or args.eps_abs is not None:
         raise ValueError("--target-error stops every level balanced (--balance); it cannot be combined with "
                          "--tol or --eps-abs")

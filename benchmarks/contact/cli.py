@@ -8,14 +8,15 @@ is imported only when its command runs.  The shared options live in
 from __future__ import annotations
 
 from admmkit.cli import positive_float, positive_int  # noqa: F401
-from admmkit.benchmarks.runner.options import add_out, add_sweep_options, executor_of, needs, own_parser, print_files, study
+from admmkit.benchmarks.runner.options import add_out, add_out_file, add_sweep_options, executor_of, needs, own_parser, print_files, study
+from admmkit.benchmarks.runner.costs import typical
 
 
 def reproduce(commands) -> None:
     """``admmkit reproduce paper``: the paper's Tables 1-2 and Figs 1-4 (admmkit.benchmarks.contact.paper)."""
     r = commands.add_parser("reproduce", help="reproduce a paper's tables and figures",
                             description="Reproduce the paper's section 4: both examples x ADMM1/ADMM2/SADMM x rho x h."
-                                       "\n\ntypical: ~15 s on 2 cores (docs/results/paper), 0.4 GB. needs: ngsolve, matplotlib (installed with admmkit)")
+                                       + typical("reproduce paper") + " needs: ngsolve, matplotlib (installed with admmkit)")
     r.add_argument("target", choices=["paper"], help="paper: Tables 1-2 and Figs 1-4 of Yuan & Zhang (2023)")
     add_out(r, "paper")
     r.add_argument("--quick", action="store_true", help="h = 1/10 and 1/20 only (CI smoke test)")
@@ -28,7 +29,9 @@ def _reproduce(args) -> int:
     needs(args, "cvxpy", "clarabel")               # the paper's reference solver: nothing weaker replaces it
     from admmkit.benchmarks.contact.paper import PAPER_HS, run_reproduction
     hs = (1 / 10, 1 / 20) if args.quick else PAPER_HS
-    run_reproduction(out=args.out, hs=hs, repeats=args.repeats, progress=not args.quiet, command=args.command_line)
+    done = run_reproduction(out=args.out, hs=hs, repeats=args.repeats, progress=not args.quiet,
+                            command=args.command_line)
+    print_files(done["files"])
     return 0
 
 
@@ -36,7 +39,7 @@ def paper_compare(targets) -> None:
     """``admmkit bench paper-compare``: our times and iterations beside the paper's tables."""
     c = targets.add_parser("paper-compare", help="our ADMM1/ADMM2/SADMM times and iterations beside the paper's tables",
                            description="The paper's Tables 1-2 beside this machine's times, with ratios."
-                                       "\n\ntypical: ~7 min with --workers 1 --repeats 5 (docs/benchmarks.md); --quick a minute. needs: ngsolve")
+                                       + typical("bench paper-compare") + " needs: ngsolve")
     add_sweep_options(c, "paper-compare")
     c.add_argument("--repeats", type=positive_int, default=3, help="repeats, median time (default 3)")
     c.set_defaults(func=study(_paper_compare))
@@ -55,19 +58,20 @@ def contact_speed(targets) -> None:
     """``admmkit bench contact``: SADMM time against one factorisation + solve of K."""
     b = targets.add_parser("contact", help="SADMM time / (one factorisation + solve of K), Ex. 1-2",
                            description="SADMM time against one sparse factorisation + solve of K."
-                                       "\n\ntypical: ~4 min (245 s, docs/results/contact_speed.md). needs: ngsolve")
-    b.add_argument("--out", default="out/contact/contact_speed.md",
-                   help="Markdown file to write (default out/contact/contact_speed.md)")
+                                       + typical("bench contact") + " needs: ngsolve")
+    add_out_file(b, "out/contact/contact_speed.md")
     b.add_argument("--h", type=positive_float, action="append", default=None, dest="hs",
                    help="mesh size (repeatable; default 1/40 and 1/200)")
     b.add_argument("--repeats", type=positive_int, default=3, help="repeats, median reported (default 3)")
-    b.set_defaults(func=_contact_speed)
+    b.set_defaults(func=study(_contact_speed))
 
 
 def _contact_speed(args) -> int:
+    needs(args)
     from admmkit.benchmarks.contact.contact_speed import DEFAULT_HS, run_bench
-    run_bench(out=args.out, hs=tuple(args.hs) if args.hs else DEFAULT_HS, repeats=args.repeats,
+    run_bench(out=args.out_file, hs=tuple(args.hs) if args.hs else DEFAULT_HS, repeats=args.repeats,
               command=args.command_line)
+    print_files([args.out_file])
     return 0
 
 
@@ -75,23 +79,21 @@ def contact_schur(targets) -> None:
     """``admmkit bench contact-schur``: the condensed set-up (Schur complement on Gamma_C) by backend."""
     b = targets.add_parser("contact-schur", help="the Schur complement's set-up by backend, Ex. 1-2, and SADMM / (factor + solve)",
                            description="Time the candidate ways to build the contact-boundary Schur complement of K."
-                                       "\n\ntypical: ~9 min with --repeats 5 (542 s, docs/results/contact_schur), less with the default 3. needs: ngsolve")
-    # a file, not a folder: its own dest, so that the generic check of a folder --out leaves it alone (it refused
-    # the README's own regeneration command once the README existed); checked as an output file instead
-    b.add_argument("--out", dest="out_file", metavar="FILE", default="out/contact/contact_schur.md",
-                   help="Markdown file to write (default out/contact/contact_schur.md)")
-    b.set_defaults(output_files={**(b.get_default("output_files") or {}), "out_file": ("--out", "")})
+                                       + typical("bench contact-schur") + " needs: ngsolve")
+    add_out_file(b, "out/contact/contact_schur.md")
     b.add_argument("--h", type=positive_float, action="append", default=None, dest="hs",
                    help="mesh size (repeatable; default 1/40, 1/100 and 1/200)")
     b.add_argument("--repeats", type=positive_int, default=3, help="repeats, the best reported (default 3)")
     b.add_argument("--block", type=positive_int, default=64, help="columns per block of the block solves (default 64)")
-    b.set_defaults(func=_contact_schur)
+    b.set_defaults(func=study(_contact_schur))
 
 
 def _contact_schur(args) -> int:
+    needs(args)
     from admmkit.benchmarks.contact.schur_study import DEFAULT_HS, run_study
     run_study(out=args.out_file, hs=tuple(args.hs) if args.hs else DEFAULT_HS, repeats=args.repeats, block=args.block,
               command=args.command_line)
+    print_files([args.out_file])
     return 0
 
 
@@ -100,14 +102,15 @@ def hertz(targets) -> None:
     h = targets.add_parser("hertz", help="Hertz validation: half-cylinder on a rigid plane, a and p0 vs Hertz",
                            description="Contact half-width and peak pressure against Hertz on meshes refined near "
                                        "the contact (problems/contact/validation/hertz.py)."
-                                       "\n\ntypical: minutes. needs: ngsolve (netgen meshes), matplotlib")
+                                       + typical("bench hertz") + " needs: ngsolve (netgen meshes), matplotlib")
     add_out(h, "scale")
     h.add_argument("--k", type=positive_int, action="append", default=None, dest="ks",
                    help="refinement a_target/h_c (repeatable; default 10 20 40 80)")
-    h.set_defaults(func=_hertz)
+    h.set_defaults(func=study(_hertz))
 
 
 def _hertz(args) -> int:
+    needs(args)
     from admmkit.benchmarks.contact.hertz import DEFAULT_KS, run_hertz_study
     run_hertz_study(out=args.out, ks=tuple(args.ks) if args.ks else DEFAULT_KS, command=args.command_line)
     return 0
@@ -118,7 +121,7 @@ def scale(targets) -> None:
     s = targets.add_parser("scale", help="Example 1 with the iterative x-step from 1e3 to 1e6 unknowns: time, memory",
                            description="SADMM on Example 1 with the AMG-CG x-step at growing sizes, each in its own "
                                        "process: wall time, iterations, peak memory, the 60 s / 8 GB target at 1e6."
-                                       "\n\ntypical: ~2 min and 2.4 GB at the largest size, 1e6 unknowns (104 s, docs/results/scale); --quick seconds. needs: ngsolve, pyamg")
+                                       + typical("bench scale") + " needs: ngsolve, pyamg, cvxpy, clarabel (the reference of the accuracy column up to 2e5 unknowns)")
     add_out(s, "scale")
     s.add_argument("--h", type=positive_float, action="append", default=None, dest="hs",
                    help="mesh size (repeatable; default 1/20 1/40 1/80 1/160 1/320 1/500)")
@@ -126,10 +129,11 @@ def scale(targets) -> None:
                    help="x-step mode (default iterative)")
     s.add_argument("--quick", action="store_true", help="h = 1/10 and 1/20 only (smoke test)")
     s.add_argument("--timeout", type=positive_float, default=1800.0, help="seconds per size (default 1800)")
-    s.set_defaults(func=_scale)
+    s.set_defaults(func=study(_scale))
 
 
 def _scale(args) -> int:
+    needs(args, "cvxpy", "clarabel")               # the reference of the accuracy column: no silent weaker one
     from admmkit.benchmarks.contact.scale import DEFAULT_HS, QUICK_HS, run_scale_bench
     hs = tuple(args.hs) if args.hs else (QUICK_HS if args.quick else DEFAULT_HS)
     rows = run_scale_bench(out=args.out, hs=hs, mode=args.mode, command=args.command_line, timeout=args.timeout)
@@ -141,17 +145,18 @@ def amg_crossover(targets) -> None:
     c = targets.add_parser("amg-crossover", help="full / condensed / iterative x-steps against size; AMG reuse across rho",
                            description="When the iterative x-step beats the direct ones (Example 1), and when reusing "
                                        "the AMG hierarchy of an earlier rho is cheaper than rebuilding it."
-                                       "\n\ntypical: tens of minutes (one run at 1e6 unknowns takes ~1.5 min and 2.5 GB, docs/scale.md); --quick a minute. needs: ngsolve, pyamg")
+                                       + typical("bench amg-crossover") + " needs: ngsolve, pyamg")
     add_out(c, "scale")
     c.add_argument("--h", type=positive_float, action="append", default=None, dest="hs",
                    help="mesh size (repeatable; default 1/20 ... 1/500)")
     c.add_argument("--reuse-h", type=positive_float, default=1 / 160, help="mesh size of the reuse table (default 1/160)")
     c.add_argument("--quick", action="store_true", help="h = 1/10 only, reuse table at h = 1/10 (smoke test)")
     c.add_argument("--timeout", type=positive_float, default=1800.0, help="seconds per run (default 1800)")
-    c.set_defaults(func=_amg_crossover)
+    c.set_defaults(func=study(_amg_crossover))
 
 
 def _amg_crossover(args) -> int:
+    needs(args)
     from admmkit.benchmarks.contact.amg_crossover import DEFAULT_HS, run_crossover
     hs = tuple(args.hs) if args.hs else ((1 / 10,) if args.quick else DEFAULT_HS)
     run_crossover(out=args.out, hs=hs, reuse_h=1 / 10 if args.quick else args.reuse_h, command=args.command_line,
@@ -164,7 +169,7 @@ def contact3d(targets) -> None:
     d = targets.add_parser("contact3d", help="3D block on a curved foundation with the AMG x-step; direct vs AMG",
                            description="The 3D analogue of Example 2: direct factorisation vs AMG by size, then SADMM "
                                        "with the iterative x-step, a figure and VTK output."
-                                       "\n\ntypical: several minutes (the SADMM run at h = 1/32 alone ~80 s and 1.9 GB, docs/results/scale/contact3d.md); --quick a minute. needs: ngsolve, pyamg, matplotlib, meshio")
+                                       + typical("bench contact3d") + " needs: ngsolve, pyamg, matplotlib, meshio")
     add_out(d, "scale")
     d.add_argument("--h", type=positive_float, default=1 / 32, help="mesh size of the SADMM run (default 1/32)")
     d.add_argument("--probe-h", type=positive_float, action="append", default=None, dest="probe_hs",
@@ -173,10 +178,11 @@ def contact3d(targets) -> None:
     d.add_argument("--timeout", type=positive_float, default=600.0, help="seconds per probe (default 600)")
     d.add_argument("--vtk", default="out/contact3d/contact3d", metavar="BASENAME",
                    help="VTK file of the SADMM run, .vtu added (default out/contact3d/contact3d)")
-    d.set_defaults(func=_contact3d)
+    d.set_defaults(func=study(_contact3d))
 
 
 def _contact3d(args) -> int:
+    needs(args)
     from admmkit.benchmarks.contact.contact3d import PROBE_HS, SADMM_HS, run_contact3d
     run_contact3d(out=args.out, h=1 / 4 if args.quick else args.h,
                   probe_hs=tuple(args.probe_hs) if args.probe_hs else ((1 / 4,) if args.quick else PROBE_HS),
@@ -186,7 +192,8 @@ def _contact3d(args) -> int:
 
 
 friction = own_parser("friction", "admmkit.benchmarks.contact.friction_validation",
-                       "Cattaneo-Mindlin partial slip under refinement, and every rule on frictional contact")
+                       "Cattaneo-Mindlin partial slip under refinement, and every rule on frictional contact",
+                       modules=("cvxpy", "clarabel"))
 
 
 linsolve = own_parser("linsolve", "admmkit.benchmarks.contact.linsolve_backends",

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from admmkit.cli import positive_float, positive_int  # noqa: F401
 from admmkit.benchmarks.runner.options import add_out, needs, own_parser, print_files, study
+from admmkit.benchmarks.runner.costs import typical
 
 
 def executors(targets) -> None:
@@ -17,7 +18,7 @@ def executors(targets) -> None:
                                              "LocalCluster: iterations identical?, wall-time ratio",
                            description="Runs the cases of `admmkit bench policies` on both executors, one after "
                                        "the other, and compares iteration counts and wall times (needs dask)."
-                                       "\n\ntypical: ~10 min: two rounds of three executors, ~90 s each (docs/benchmarks.md). needs: ngsolve, dask[distributed] (pip install 'admmkit[sweep]')")
+                                       + typical("bench executors") + " needs: ngsolve, dask[distributed] (pip install 'admmkit[sweep]')")
     add_out(e, "executors")
     e.add_argument("--quick", action="store_true", help="the coarse smoke grid of bench policies")
     e.add_argument("--rounds", type=positive_int, default=2,
@@ -39,7 +40,8 @@ loop_overhead = own_parser("loop-overhead", "admmkit.benchmarks.framework.loop_o
 
 
 four_problems = own_parser("four-problems", "admmkit.benchmarks.framework.four_problems",
-                            "LASSO, weighted box LS, consensus and 2-D TV with the building blocks, against cvxpy")
+                            "LASSO, weighted box LS, consensus and 2-D TV with the building blocks, against cvxpy",
+                            modules=("cvxpy",))
 
 
 split_speed = own_parser("split-speed", "admmkit.benchmarks.framework.split_segment_speed",

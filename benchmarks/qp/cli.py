@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from admmkit.cli import positive_float, positive_int  # noqa: F401
 from admmkit.benchmarks.runner.options import add_executor_options, add_out, executor_of, needs, own_parser, split_list, study
+from admmkit.benchmarks.runner.costs import typical
 
 
 def maros_meszaros(targets) -> None:
@@ -20,7 +21,7 @@ def maros_meszaros(targets) -> None:
                                        "one-off ablations, and OSQP 1.x, at absolute accuracies 1e-3 and 1e-6, judged "
                                        "by the neutral criteria; writes results.csv, summary.csv, README.md and "
                                        "performance profiles (PNG, SVG) to --out."
-                                       "\n\ntypical: hours for the whole Maros-Meszaros set (5440 cases; resumable with --resume), less with --problems. needs: osqp, the Maros-Meszaros MAT files (--data)")
+                                       + typical("bench qp") + " needs: osqp, the Maros-Meszaros MAT files (--data)")
     b.add_argument("--data", required=True, metavar="DIR", help="folder of MAT files, e.g. ../shared/data/maros_meszaros")
     add_out(b, "maros_meszaros")
     b.add_argument("--policies", default=None, help="comma-separated rules (default: every registered rule)")
@@ -52,12 +53,14 @@ def _maros_meszaros(args) -> int:
 
 
 qp_fidelity = own_parser("qp-fidelity", "admmkit.benchmarks.qp.qp_fidelity",
-                          "admmkit's OSQP preset against OSQP 1.x, problem by problem (Maros-Meszaros)")
+                          "admmkit's OSQP preset against OSQP 1.x, problem by problem (Maros-Meszaros)",
+                          modules=("osqp",))
 
 
 qp_agreement = own_parser("qp-agreement", "admmkit.benchmarks.qp.qp_agreement",
-                           "random feasible QPs against cvxpy + Clarabel")
+                           "random feasible QPs against cvxpy + Clarabel", modules=("cvxpy", "clarabel"))
 
 
 qp_speed = own_parser("qp-speed", "admmkit.benchmarks.qp.qp_speed",
-                      "a whole QP solve (compiled and Python) against OSQP 1.x's C, problem by problem")
+                      "a whole QP solve (compiled and Python) against OSQP 1.x's C, problem by problem",
+                      modules=("osqp",))

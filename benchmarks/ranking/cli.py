@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 from admmkit.benchmarks.runner.options import add_sweep_options, executor_of, needs, print_files, split_list, study
+from admmkit.benchmarks.runner.costs import typical
 
 
 def rules(targets) -> None:
@@ -11,7 +12,7 @@ def rules(targets) -> None:
                            description="Runs the rules through the QP (Maros-Meszaros under OSQP's machinery), "
                                        "contact, obstacle, friction, framework and stability families and ranks "
                                        "them by performance profiles (benchmarks/ranking/study.py)."
-                                       "\n\ntypical: ~13 min (757 s, docs/results/rules_full), --quick ~90 s (docs/results/rules_quick). needs: ngsolve; the qp family the Maros-Meszaros MAT files (--data)")
+                                       + typical("bench rules") + " needs: ngsolve; the qp family the Maros-Meszaros MAT files (--data)")
     add_sweep_options(r, "rules")
     r.add_argument("--rules", default=None,
                    help="comma-separated rules: names, module:Class or path/to/file.py:Class (default: all registered)")

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from admmkit.cli import positive_float, positive_int  # noqa: F401
 from admmkit.benchmarks.runner.options import add_sweep_options, executor_of, needs, print_files, split_list, study
+from admmkit.benchmarks.runner.costs import typical
 
 
 def precision(targets) -> None:
@@ -16,7 +17,7 @@ def precision(targets) -> None:
     p = targets.add_parser("precision", help="work-precision: true error against time, every method and peer",
                            description="Error against time for every ADMM method and the peers (PDAS, "
                                        "cvxpy+Clarabel, cvxpy+OSQP, OSQP) on contact, obstacle and QP problems."
-                                       "\n\ntypical: ~70 min (316 cases, docs/benchmarks.md); --quick minutes. needs: ngsolve, cvxpy, clarabel, osqp (pip install 'admmkit[test]')")
+                                       + typical("bench precision") + " needs: ngsolve, cvxpy, clarabel, osqp (pip install 'admmkit[test]')")
     add_sweep_options(p, "precision")
     p.add_argument("--repeats", type=positive_int, default=3, help="repeats, median time (default 3)")
     p.add_argument("--scene", action="append", default=None, dest="scenes",
@@ -46,7 +47,7 @@ def stability(targets) -> None:
     s = targets.add_parser("stability", help="rho_0 over 13 decades, mesh, nu, P1/P2: iterations and failures",
                            description="Where each method converges and how it fails on the paper's contact "
                                        "examples (rho_0/E = 1e-6..1e6; h, nu, P1/P2)."
-                                       "\n\ntypical: ~45 min (1376 cases, docs/benchmarks.md); --quick minutes. needs: ngsolve")
+                                       + typical("bench stability") + " needs: ngsolve")
     add_sweep_options(s, "stability")
     s.add_argument("--methods", default=None, help="comma-separated ADMM methods (default: every policy, both orders)")
     s.set_defaults(func=study(_stability))
@@ -67,7 +68,7 @@ def policies_fe(targets) -> None:
     b = targets.add_parser("policies", help="penalty rules on contact Ex.1 and the radial obstacle, rho_0 over 12 decades",
                            description="Iterations, factorisations and the error at the stop of the penalty rules "
                                        "on contact Example 1 (h = 1/20) and the radial obstacle (h = 1/16)."
-                                       "\n\ntypical: minutes (126 cases of a sparser grid took ~90 s, docs/benchmarks.md). needs: ngsolve")
+                                       + typical("bench policies") + " needs: ngsolve")
     add_sweep_options(b, "policies")
     b.add_argument("--rules", default=",".join(RULES), help=f"comma-separated rules (default {','.join(RULES)})")
     b.set_defaults(func=study(_policies_fe))
@@ -99,7 +100,7 @@ def obstacle_rates(targets) -> None:
     o = targets.add_parser("obstacle", help="obstacle problem: convergence rates against the exact solution, rho sweep",
                            description="Errors against the radial exact solution under refinement and the "
                                        "iterations of every rule across rho_0 (benchmarks/rules/obstacle_rates.py)."
-                                       "\n\ntypical: minutes. needs: ngsolve")
+                                       + typical("bench obstacle") + " needs: ngsolve")
     add_sweep_options(o, "obstacle")
     o.set_defaults(func=study(_obstacle_rates))
 

@@ -11,15 +11,40 @@ import argparse
 import functools
 import importlib
 import sys
+from pathlib import Path
 
 from admmkit.cli import positive_float, positive_int  # noqa: F401  (positive_float: for the studies' own options)
+from admmkit.benchmarks.runner.costs import announce
 from admmkit.benchmarks.runner.harness import HarnessFailed, require, require_executor
 
 #: the exit code of a study some of whose cases failed in the harness (docs/cli.md, "Studies")
 EXIT_HARNESS = 1
 
 def add_out(p, study: str) -> None:
+    """``--out FOLDER``: where the study writes its files (default ``out/STUDY``)."""
     p.add_argument("--out", default=f"out/{study}", help=f"output folder (default out/{study})")
+
+
+def add_out_file(p, default: str) -> None:
+    """``--out FILE``: the one Markdown file a study writes, under that name; its folder is created.
+
+    Its own dest, ``out_file``, so that the host's check of an ``--out`` folder leaves it alone (it refused
+    an existing file); :func:`study` checks it before any work (:func:`check_out_file`).
+    """
+    p.add_argument("--out", dest="out_file", metavar="FILE", default=default,
+                   help=f"the Markdown file to write, the only file written; its folder is created (default {default})")
+
+
+def check_out_file(value: str) -> Path:
+    """A file a study may write: not a folder, in a folder that exists writable or can be created; ValueError
+    naming ``--out`` otherwise."""
+    from admmkit.cli_output import check_output_folder
+    from admmkit.io import check_writable
+    path = Path(value)
+    check_output_folder(path.parent, "--out")
+    if path.parent.is_dir():
+        check_writable(path, "--out")
+    return path
 
 
 def add_executor_options(p, workers: int = 2) -> None:
@@ -62,27 +87,44 @@ def command_name(args) -> str:
     return f"{top} {target}" if isinstance(target, str) else top
 
 
-def needs(args, *modules: str) -> None:
-    """Refuse before any work if a module the study needs (or Dask, when asked for) is missing.
+#: the studies known by a second name: {alias: name}
+ALIASES = {"bench maros-meszaros": "bench qp"}
 
-    One line naming the command and the pip command (:func:`admmkit.benchmarks.runner.harness.require`).
-    ``--report-only`` runs nothing, so it needs nothing.
+
+def canonical_name(name: str) -> str:
+    """``bench qp`` for ``bench maros-meszaros``: the name a study's cost is filed under."""
+    return ALIASES.get(name, name)
+
+
+def needs(args, *modules: str) -> None:
+    """Refuse before any work if a module the study needs (or Dask, when asked for) is missing; else announce
+    what the run costs. Every study calls it first.
+
+    A refusal is one line naming the command and the pip command
+    (:func:`admmkit.benchmarks.runner.harness.require`).  Then a study whose default run takes more than about
+    30 s says so in one line on stderr (:func:`admmkit.benchmarks.runner.costs.announce`).  ``--report-only``
+    runs nothing, so it needs nothing and costs nothing.
     """
     if getattr(args, "report_only", False):
         return
     name = command_name(args)
     require(name, *modules)
     require_executor(name, args)
+    announce(canonical_name(name))
 
 
 def study(run):
-    """A study command's function, with the harness's verdict: some cases failed in the harness -> exit 1.
+    """A study command's function: its ``--out FILE`` checked first, and the harness's verdict at the end.
 
-    The study has written its files without those cases (:class:`HarnessFailed` holds them): they are
-    listed, then one line ``admmkit: error: N of M cases failed in the harness (...)`` on stderr.
+    (The study itself calls :func:`needs` before any work: the packages checked, its cost announced.)
+    Some cases failed in the harness -> exit 1: the study has written its files without those cases
+    (:class:`HarnessFailed` holds them); they are listed, then one line ``admmkit: error: N of M cases
+    failed in the harness (...)`` on stderr.
     """
     @functools.wraps(run)
     def command(args):
+        if getattr(args, "out_file", None) is not None:
+            check_out_file(args.out_file)
         try:
             return run(args)
         except HarnessFailed as failed:
@@ -107,21 +149,30 @@ def print_files(files) -> None:
         print(f"wrote {f}")
 
 
-def own_parser(name: str, module: str, help_text: str):
+def own_parser(name: str, module: str, help_text: str, modules: tuple[str, ...] = ()):
     """Register ``admmkit bench NAME``, handing every argument to ``module.main(argv, prog)`` unparsed.
 
     For the studies that define their options themselves (``admmkit bench NAME --help`` prints them).
+    ``modules``: the modules the study needs (it checks them itself too), checked before its cost is
+    announced, so that a refusal stays one line.
     """
     def register(targets) -> None:
         p = targets.add_parser(name, help=help_text, add_help=False, prefix_chars="\0")
         p.add_argument("argv", nargs=argparse.REMAINDER)
-        p.set_defaults(func=lambda args: run_own(module, args.argv, f"admmkit bench {name}"))
+        p.set_defaults(func=lambda args: run_own(module, args.argv, f"admmkit bench {name}", modules))
     register.__doc__ = f"``admmkit bench {name}``: {help_text} ({module})."
     return register
 
 
-def run_own(module: str, argv: list[str], prog: str) -> int:
-    """``module.main(argv, prog)``, with its parser's exit (--help: 0, a bad option: 2) as the exit code."""
+def run_own(module: str, argv: list[str], prog: str, modules: tuple[str, ...] = ()) -> int:
+    """``module.main(argv, prog)``, with its parser's exit (--help: 0, a bad option: 2) as the exit code.
+
+    Unless asked for ``--help``: ``modules`` checked, then the study's cost announced, as :func:`needs`
+    does, before the study's own parser reads the options.
+    """
+    if not {"-h", "--help"} & set(argv):
+        require(prog.removeprefix("admmkit "), *modules)
+        announce(prog.removeprefix("admmkit "))
     try:
         return int(importlib.import_module(module).main(argv, prog=prog) or 0)
     except SystemExit as exit_:

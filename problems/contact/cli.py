@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from admmkit.cli_adaptive import add_adaptive_options, balance_gamma, balance_line, estimator_name
+from admmkit.cli_adaptive import add_adaptive_options, balance_gamma, balance_line, check_adaptive_flags, estimator_name
 from admmkit.cli import (add_common_options, add_output_file, add_result_outputs, exit_code, positive_float,
                          print_summary, progress, resolve_policy, stop_rule, write_history, write_result_csv)
 
@@ -161,6 +161,7 @@ def run(args) -> int:
 
     order, _, name = resolve_policy(args)          # refuses an unknown --policy before anything is built
     estimator = estimator_name(args)               # and an unknown --estimator
+    check_adaptive_flags(args)                     # and --theta, --max-levels, --max-unknowns without --target-error
     stop = stop_rule(args)
     if args.target_error is not None:
         from admmkit.problems.contact.output.adaptive_cli import run_adaptive

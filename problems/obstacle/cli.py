@@ -2,7 +2,8 @@
 from __future__ import annotations
 
 from admmkit import policies  # noqa: F401  (registers the rules the --policy option offers)
-from admmkit.cli_adaptive import adaptive_options, add_adaptive_options, balance_gamma, balance_line, estimator_name
+from admmkit.cli_adaptive import (adaptive_options, add_adaptive_options, balance_gamma, balance_line,
+                                  check_adaptive_flags, estimator_name)
 from admmkit.cli import (add_common_options, add_output_file, add_result_outputs, exit_code, level_file,
                          positive_float, run_solve, set_help, write_result_csv, write_result_json)
 from admmkit.sparse_backends import AUTO_ORDER, available_backends
@@ -90,17 +91,6 @@ def scene_of(args, h_default=None):
         return scene.with_h(h)
     except ValueError as err:
         raise ValueError(f"--h: h = {h:g}: {err}") from None
-
-
-def check_adaptive_flags(args) -> None:
-    """Refuse --theta, --max-levels and --max-unknowns without --target-error (they would be ignored)."""
-    if args.target_error is not None:
-        return
-    given = [flag for flag, value in (("--theta", args.theta), ("--max-levels", args.max_levels),
-                                      ("--max-unknowns", args.max_unknowns)) if value is not None]
-    if given:
-        raise ValueError(f"{', '.join(given)} {'needs' if len(given) == 1 else 'need'} --target-error (the adaptive "
-                         f"loop's options; a uniform solve has no levels to mark or cap)")
 
 
 def run(args) -> int:

@@ -86,6 +86,8 @@ def test_a_broken_scene_file_is_named_by_its_path(capsys, tmp_path):
 
 def test_a_study_with_its_own_options_gives_one_line_too(capsys):
     code, _, err = run(["bench", "friction", "--qick"], capsys)
+    cost, _, err = err.partition("\n")            # its cost, announced before its own parser reads the options
+    assert cost.startswith("bench friction: about 90 s")
     line = one_error_line(err)
     assert code == 2 and "unknown option --qick" in line and "did you mean --quick?" in line
 

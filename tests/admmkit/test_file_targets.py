@@ -128,9 +128,9 @@ def test_a_fifo_takes_a_plot_and_a_vtu_under_any_name(tmp_path, capsys):
 
 def test_dash_writes_to_standard_output(tmp_path, capsys, monkeypatch):
     monkeypatch.chdir(tmp_path)
-    code, out, _ = run([*QP, "--json", "-"], capsys)
-    assert code == 0 and json_in(out)["result"]["status"] == "converged"
-    assert out.rstrip().endswith("json         -") and list(tmp_path.iterdir()) == []    # no file named '-'
+    code, out, err = run([*QP, "--json", "-"], capsys)
+    assert code == 0 and json.loads(out)["result"]["status"] == "converged"          # stdout: the JSON alone
+    assert err.rstrip().endswith("json         -") and list(tmp_path.iterdir()) == []    # no file named '-'
 
 
 def test_a_figure_in_one_format_goes_into_a_stream(tmp_path):

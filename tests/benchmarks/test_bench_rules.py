@@ -137,6 +137,7 @@ def test_the_ranking_is_the_same_on_a_dask_local_cluster(rule_file, tmp_path):
 def test_bad_input_is_one_line_before_any_case(args, names, rule_file, tmp_path, capsys):
     args = [a.format(file=rule_file, dir=tmp_path) for a in args]
     code = main(["bench", "rules", "--quick", "--out", str(tmp_path / "o"), "-q", *args])
-    err = capsys.readouterr().err.strip().splitlines()
+    cost, *err = capsys.readouterr().err.strip().splitlines()
+    assert cost.startswith("bench rules: about 13 min")          # announced once its packages were checked
     assert code == 2 and len(err) == 1 and names.format(file=rule_file) in err[0]
     assert not (tmp_path / "o" / "results.jsonl").exists()

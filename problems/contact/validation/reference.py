@@ -2,12 +2,16 @@
 
 The discrete problem is the QP min 1/2 u'Ku - f'u s.t. B u <= g.  The
 reference is an interior-point solve (cvxpy + Clarabel), cross-checked by an
-independent SADMM run to Boyd residuals below 1e-12.
+independent SADMM run to Boyd residuals below 1e-12.  Without Clarabel (or
+when it fails) the SADMM run is the reference, and says so: a
+``RuntimeWarning`` naming why, and ``Reference.info``.
 """
 from __future__ import annotations
 
+import importlib.util
 import math
 import time
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -19,9 +23,16 @@ from admmkit.problems.contact.solvers.methods import solve_scene
 from admmkit.problems.contact.solvers.problem import contact_problem
 
 
+#: the solver of the fallback reference
+TIGHT_SADMM = "sadmm, ResidualTolerance(1e-12, 1e-12)"
+
+
 @dataclass
 class Reference:
-    """A tight solution of the discrete problem min 1/2 u'Ku - f'u s.t. Bu <= g."""
+    """A tight solution of the discrete problem min 1/2 u'Ku - f'u s.t. Bu <= g.
+
+    ``info``: ``{"solver": who made it, "fallback": why Clarabel did not (None if it did)}``.
+    """
 
     u: np.ndarray
     lam: np.ndarray
@@ -29,6 +40,7 @@ class Reference:
     kkt: dict
     seconds: float
     cross_check: dict = field(default_factory=dict)
+    info: dict = field(default_factory=dict)
 
 
 def energy_norm(ops: ContactOperators, v: np.ndarray) -> float:
@@ -46,8 +58,9 @@ def reference_solution(ops: ContactOperators, tol: float = 1e-10) -> Reference:
 
     Primary: cvxpy + Clarabel (interior point) at gap/feasibility tolerance ``tol``;
     lam = (dual of Bu <= g) / M_c.  Cross-check: SADMM (rho = 1e3) run until Boyd's
-    residuals are below 1e-12.  If Clarabel is unavailable or does not report
-    "optimal", the SADMM solution is the reference.  ``cross_check`` holds the
+    residuals are below 1e-12.  If cvxpy or Clarabel is missing, or Clarabel fails or does
+    not report "optimal", the SADMM solution is the reference: a ``RuntimeWarning`` says
+    why, and ``info`` names the solver and the reason.  ``cross_check`` holds the
     relative energy-norm and pressure differences between the two.
     """
     t0 = time.perf_counter()
@@ -55,7 +68,31 @@ def reference_solution(ops: ContactOperators, tol: float = 1e-10) -> Reference:
     t_admm = time.perf_counter() - t0
     admm = (tight.result.x, tight.result.lam)
     checker = contact_problem(ops, mode="full")
-    primary = None
+    primary, why = clarabel_solution(ops, tol)
+    kkt_of = lambda uu, ll: checker.kkt(uu, np.minimum(ops.g, ops.B @ uu), ll)  # noqa: E731
+    if primary is None:
+        warnings.warn(f"reference_solution: {why}; the reference is the tight SADMM run instead ({TIGHT_SADMM}), "
+                      f"not an interior-point solve", RuntimeWarning, stacklevel=2)
+        return Reference(admm[0], admm[1], TIGHT_SADMM, kkt_of(*admm), t_admm,
+                         info={"solver": TIGHT_SADMM, "fallback": why})
+    u_ref, lam_ref, t_ipm = primary
+    lam_norm = math.sqrt(max(float(ops.mc @ lam_ref**2), 1e-300))
+    cross = {
+        "other": TIGHT_SADMM,
+        "u_energy_rel_diff": energy_norm(ops, admm[0] - u_ref) / energy_norm(ops, u_ref),
+        "lam_rel_diff": math.sqrt(float(ops.mc @ (admm[1] - lam_ref) ** 2)) / lam_norm,
+    }
+    solver = f"cvxpy + Clarabel, tol {tol:g}"
+    return Reference(u_ref, lam_ref, solver, kkt_of(u_ref, lam_ref), t_ipm, cross,
+                     info={"solver": solver, "fallback": None})
+
+
+def clarabel_solution(ops: ContactOperators, tol: float):
+    """((u, lam, seconds), None) from cvxpy + Clarabel, or (None, why not): a module missing, Clarabel failing or
+    ending otherwise than "optimal"."""
+    for module, name in (("cvxpy", "cvxpy"), ("clarabel", "Clarabel")):
+        if _missing(module):
+            return None, f"{name} is not installed"
     try:
         import cvxpy as cp
         t0 = time.perf_counter()
@@ -63,22 +100,20 @@ def reference_solution(ops: ContactOperators, tol: float = 1e-10) -> Reference:
         constraint = ops.B @ u <= ops.g
         prob = cp.Problem(cp.Minimize(0.5 * cp.quad_form(u, cp.psd_wrap(ops.K)) - ops.f @ u), [constraint])
         prob.solve(solver=cp.CLARABEL, tol_gap_abs=tol, tol_gap_rel=tol, tol_feas=tol, max_iter=500)
-        t_ipm = time.perf_counter() - t0
-        if prob.status == "optimal":
-            primary = (np.asarray(u.value), np.asarray(constraint.dual_value) / ops.mc, t_ipm)
-    except Exception:  # cvxpy/clarabel missing or failing: fall back to the tight ADMM run
-        primary = None
-    kkt_of = lambda uu, ll: checker.kkt(uu, np.minimum(ops.g, ops.B @ uu), ll)  # noqa: E731
-    if primary is None:
-        return Reference(admm[0], admm[1], "sadmm, ResidualTolerance(1e-12, 1e-12)", kkt_of(*admm), t_admm)
-    u_ref, lam_ref, t_ipm = primary
-    lam_norm = math.sqrt(max(float(ops.mc @ lam_ref**2), 1e-300))
-    cross = {
-        "other": "sadmm, ResidualTolerance(1e-12, 1e-12)",
-        "u_energy_rel_diff": energy_norm(ops, admm[0] - u_ref) / energy_norm(ops, u_ref),
-        "lam_rel_diff": math.sqrt(float(ops.mc @ (admm[1] - lam_ref) ** 2)) / lam_norm,
-    }
-    return Reference(u_ref, lam_ref, f"cvxpy + Clarabel, tol {tol:g}", kkt_of(u_ref, lam_ref), t_ipm, cross)
+        seconds = time.perf_counter() - t0
+    except Exception as err:  # noqa: BLE001  (any failure of the external solver: the fallback says which)
+        return None, f"Clarabel failed ({type(err).__name__}: {' '.join(str(err).split())})"
+    if prob.status != "optimal":
+        return None, f"Clarabel ended with status {prob.status!r}, not 'optimal'"
+    return (np.asarray(u.value), np.asarray(constraint.dual_value) / ops.mc, seconds), None
+
+
+def _missing(module: str) -> bool:
+    """True if ``module`` cannot be imported (not installed, or blocked as ``sys.modules[name] = None``)."""
+    try:
+        return importlib.util.find_spec(module) is None
+    except (ImportError, ValueError):
+        return True
 
 
 def errors_against(ops: ContactOperators, ref: Reference, u: np.ndarray, lam: np.ndarray) -> dict:
