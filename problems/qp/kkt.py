@@ -77,13 +77,15 @@ def kkt_relative(qp, x: np.ndarray, z: np.ndarray, lam: np.ndarray) -> dict:
     """The relative KKT measures of a QP answer, for :func:`admmkit.solve`'s check of a stop (``converged`` or
     ``converged_inaccurate``): OSQP's (R1)-(R3) in the user's problem, each divided by its own scale,
 
-        primal  ||A x - z||_inf / max(||A x||_inf, ||z||_inf),
-        dual    ||P x + q + A'y||_inf / max(||P x||_inf, ||q||_inf, ||A'y||_inf),
-        gap     |x'Px + q'x + S(y)| / max(|x'Px|, |q'x|, |S(y)|),
+        primal  ||A x - z||_inf / max(||A x||_inf, ||z||_inf, 1),
+        dual    ||P x + q + A'y||_inf / max(||P x||_inf, ||q||_inf, ||A'y||_inf, 1),
+        gap     |x'Px + q'x + S(y)| / max(|x'Px|, |q'x|, |S(y)|, 1),
 
     at the user's x and the loop's (z, lam) (unscaled here: z = E^-1 zb, y = E M lam / c).  Each scale is
-    floored at 1e-30 (0/0 counts as 0).  Without it the check fell back on the ADMM residuals of the last
-    record, which a relative-change stop can meet far from the QP's solution.
+    floored at 1, as OSQP's test eps_abs + eps_rel scale is with eps_abs = eps_rel: where every term of a
+    condition vanishes at the solution (TAME: P x = q = A'y = 0), a round-off residual of 1e-17 over a scale
+    of 1e-17 is no error of 100 %.  Without these measures the check fell back on the ADMM residuals of the
+    last record, which a relative-change stop can meet far from the QP's solution.
     """
     if qp.scaled:
         z = qp.scaling.unscale_z(z)
@@ -92,5 +94,5 @@ def kkt_relative(qp, x: np.ndarray, z: np.ndarray, lam: np.ndarray) -> dict:
 
 
 def _relative(residual: float, scale: float) -> float:
-    """residual / scale with the scale floored at 1e-30 (0 / 0 counts as 0)."""
-    return 0.0 if residual == 0 else residual / max(scale, 1e-30)
+    """residual / max(scale, 1): relative where the scale exceeds 1, absolute below it."""
+    return residual / max(scale, 1.0)
