@@ -28,11 +28,13 @@ UNRECORDED = "peak memory not recorded"
 
 #: {command: Cost} of every study (``admmkit bench NAME``, ``admmkit reproduce paper``)
 COSTS = {
-    "reproduce paper": Cost("about 15 s (14.6 s) and 0.4 GB peak on 2 cores (docs/results/paper)", long=False),
+    "reproduce paper": Cost("about 15-40 s (14.6 s in docs/results/paper, 37 s measured from outside on 28 Nov) and "
+                            "0.4 GB peak on 2 cores", long=True),
     # benchmarks/contact
     "bench paper-compare": Cost(f"about 7 min with --workers 1 --repeats 5, {UNRECORDED}, on 2 cores "
                                 "(docs/benchmarks.md); --quick a minute"),
-    "bench contact": Cost(f"about 4 min (245 s), {UNRECORDED}, on 2 cores (docs/results/contact_speed.md)"),
+    "bench contact": Cost("about 4-7 min (245 s in docs/results/contact_speed.md, 7 min 14 s measured from outside on "
+                          "28 Nov) and 10.2 GB peak (28 Nov) on 2 cores"),
     "bench contact-schur": Cost(f"about 9 min with --repeats 5 (542 s), less with the default 3, {UNRECORDED}, "
                                 "on 2 cores (docs/results/contact_schur)"),
     "bench hertz": Cost(f"minutes, {UNRECORDED}"),
