@@ -65,6 +65,7 @@ def test_documented_command_parses(where, command, comment):
         build_parser().parse_args(args)
 
 
+@pytest.mark.study                     # every documented command in a fresh process: minutes (pytest -m study)
 @pytest.mark.parametrize("where,command,comment", COMMANDS, ids=[w for w, _, _ in COMMANDS])
 def test_documented_command_ends_as_documented(where, command, comment, tmp_path):
     words = shlex.split(command)

@@ -74,6 +74,7 @@ def test_there_are_tutorials():
     assert len(TUTORIALS) >= 1
 
 
+@pytest.mark.study                     # every tutorial executed as a notebook: minutes (python -m pytest -m study)
 @pytest.mark.parametrize("path", TUTORIALS, ids=lambda p: p.stem)
 def test_tutorial_runs(path: Path, executed):
     import nbformat
