@@ -8,11 +8,11 @@ or inside one ``[scene]`` table.
 """
 from __future__ import annotations
 
-import tomllib
 from pathlib import Path
 
 from .fields import field
 from .scene import SCENES, Scene
+from admmkit.problems.scene_toml import scene_table
 
 #: the scenes shipped as files: problems/obstacle/scenes/NAME.toml, read by their bare NAME
 SCENES_DIR = Path(__file__).resolve().parent / "scenes"
@@ -71,19 +71,7 @@ def read_scene_file(path) -> dict:
     """The keys of a TOML scene file, checked by name and type (ValueError naming the file and the key); the
     expressions read into callables (a bad one names its key), the values left to :class:`Scene` to check."""
     path = Path(path)
-    try:
-        data = tomllib.loads(path.read_bytes().decode("utf-8"))
-    except UnicodeDecodeError as err:
-        raise ValueError(f"{path}: not a TOML text file (not UTF-8: {err.reason} at byte {err.start})") from None
-    except tomllib.TOMLDecodeError as err:
-        raise ValueError(f"{path}: malformed TOML: {err}") from None
-    if "scene" in data:
-        if not isinstance(data["scene"], dict):
-            raise ValueError(f"{path}: key 'scene' must be a table [scene] holding the scene's keys, "
-                             f"got {data['scene']!r}")
-        if len(data) > 1:
-            raise ValueError(f"{path}: keys {', '.join(sorted(set(data) - {'scene'}))} outside the [scene] table")
-        data = data["scene"]
+    data = scene_table(path)                   # the [scene] table, or one error naming the file
     for key, value in data.items():
         if key not in TOML_KEYS:
             raise ValueError(f"{path}: unknown key {key!r}; known keys: {', '.join(TOML_KEYS)}")

@@ -6,12 +6,12 @@ this module reads both, so neither scene module imports the other's.
 """
 from __future__ import annotations
 
-import tomllib
 from pathlib import Path
 
 from admmkit.problems.contact.solvers.friction import TANGENTIAL
 from admmkit.problems.contact.model.scene import SCENES_DIR, Scene
 from admmkit.problems.contact.model.scene3d import Scene3D
+from admmkit.problems.scene_toml import scene_table
 
 
 TOML_KEYS = {  # key: (accepted types, description); every key is optional, defaults are Scene's (docs/scenes.md)
@@ -64,19 +64,7 @@ def load_scene(path, **changes):
     if not path.is_file():
         known = ", ".join(sorted(p.stem for p in SCENES_DIR.glob("*.toml")))
         raise ValueError(f"{path}: no such scene file; give the path of a TOML file or one of {known}")
-    try:
-        data = tomllib.loads(path.read_bytes().decode("utf-8"))
-    except UnicodeDecodeError as err:
-        raise ValueError(f"{path}: not a TOML text file (not UTF-8: {err.reason} at byte {err.start})") from None
-    except tomllib.TOMLDecodeError as err:
-        raise ValueError(f"{path}: malformed TOML: {err}") from None
-    if "scene" in data:
-        if not isinstance(data["scene"], dict):
-            raise ValueError(f"{path}: key 'scene' must be a table [scene] holding the scene's keys, "
-                             f"got {data['scene']!r}")
-        if len(data) > 1:
-            raise ValueError(f"{path}: keys {', '.join(sorted(set(data) - {'scene'}))} outside the [scene] table")
-        data = data["scene"]
+    data = scene_table(path)                   # the [scene] table, or one error naming the file
     dim = data.get("dim", 2)
     if dim not in (2, 3) or isinstance(dim, bool):
         raise ValueError(f"{path}: key 'dim' must be 2 or 3, got {dim!r}")
