@@ -181,7 +181,7 @@ def chart(rows: list[dict], path: Path) -> None:
     ax.invert_yaxis()
     ax.set_xlabel("wall time of a fresh process (s, median)")
     ax.set_title("What a user waits for in a fresh process")
-    ax.legend(loc="lower right")
+    ax.legend(loc="upper right")
     ax.grid(axis="x", alpha=0.3)
     fig.tight_layout()
     with atomic_path(path) as tmp:
