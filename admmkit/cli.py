@@ -527,7 +527,7 @@ class _Commands(argparse._SubParsersAction):
         self._choices_actions = [a for a in self._choices_actions if a.dest != name]
         try:
             register = entry_point.load()
-        except (ImportError, AttributeError) as err:    # a broken plug-in: its command says so, the others work
+        except Exception as err:     # a broken plug-in (ImportError, SyntaxError, ...): its command says so, the others work
             register = _unloadable(name, entry_point.value, err)
         register(self)
         rank = {key: i for i, key in enumerate(order)}
