@@ -36,6 +36,7 @@ from pathlib import Path
 import numpy as np
 
 from admmkit.io import atomic_open, atomic_path, write_text
+from admmkit.benchmarks.runner.costs import typical
 
 HC_FACTORS = (5, 10, 20)       # h_c = a_target / factor
 RHO_SCALES = tuple(10.0 ** k for k in range(-4, 5))
@@ -243,7 +244,7 @@ def _readme(out: Path, argv: list[str], rows, stab, seconds: float, args) -> Non
 def main(argv=None, prog: str = "admmkit bench friction") -> int:
     """Run both studies, print the tables, write CSV, PNG and README.md to --out."""
     parser = Parser(prog=prog, description=__doc__.split("\n\n")[0] +   # one-line usage errors (admmkit.cli)
-                    "\n\ntypical: ~90 s (92 s, docs/results/friction). needs: ngsolve, matplotlib")
+                    typical("bench friction") + " needs: ngsolve, matplotlib")
     parser.add_argument("--out", default="out/friction_validation", help="output folder (default out/friction_validation)")
     parser.add_argument("--mu", type=float, default=0.3, help="Coulomb coefficient of the Cattaneo case (default 0.3)")
     parser.add_argument("--nu", type=float, default=0.49, help="Poisson ratio of the Cattaneo case (default 0.49)")

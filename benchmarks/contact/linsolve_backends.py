@@ -28,6 +28,7 @@ sys.path.insert(0, str(ROOT))
 
 from admmkit.cli import Parser  # noqa: E402
 from admmkit.io import write_text  # noqa: E402  (after the path, for `python benchmarks/contact/linsolve_backends.py`)
+from admmkit.benchmarks.runner.costs import typical
 
 GRIDS = [22, 70, 223, 707]  # n = 2 N (N + 1) free DOFs: ~1e3, 1e4, 1e5, 1e6
 THREADS = [1, 2]
@@ -184,8 +185,7 @@ def report(results, args):
 def main(argv=None, prog: str = "admmkit bench linsolve") -> int:
     """Command-line entry point (``admmkit bench linsolve``)."""
     parser = Parser(prog=prog, description=__doc__.split("\n")[0] +   # one-line usage errors (admmkit.cli)
-                    "\n\ntypical: minutes to tens of minutes up to 1e6 unknowns (--max-n for less). "
-                    "needs: scipy; it also times the optional backends that are installed: qdldl, "
+                    typical("bench linsolve") + " needs: scipy; it also times the optional backends that are installed: qdldl, "
                     "scikit-sparse (cholmod), pypardiso, ngsolve")
     parser.add_argument("--max-n", type=int, default=1_100_000, help="largest system size")
     parser.add_argument("--repeats", type=int, default=3, help="factorisations per median")

@@ -30,6 +30,7 @@ from admmkit.cli import Parser
 from admmkit.io import write_text
 
 from admmkit.benchmarks.runner.report import write_csv
+from admmkit.benchmarks.runner.costs import typical
 TIGHT = dict(solver="CLARABEL", tol_gap_abs=1e-12, tol_gap_rel=1e-12, tol_feas=1e-12, max_iter=500)
 RHO0 = (1e-3, 1.0, 1e3)
 ORDERS = ("xz", "zx")
@@ -166,7 +167,7 @@ def summarise(rows: list[dict], command: str) -> str:
 def main(argv=None, prog: str = "admmkit bench four-problems") -> int:
     """Run the study, print the summary, write four_problems.csv and four_problems.md under --out."""
     parser = Parser(prog=prog, description=__doc__.splitlines()[0] +   # one-line usage errors (admmkit.cli)
-                    "\n\ntypical: minutes. needs: cvxpy (pip install 'admmkit[test]')")
+                    typical("bench four-problems") + " needs: cvxpy (installed with admmkit)")
     parser.add_argument("--out", default="out/four_problems", help="output folder (default ./out/four_problems/)")
     parser.add_argument("--problems", default=",".join(PROBLEMS), help=f"comma-separated subset of {', '.join(PROBLEMS)}")
     parser.add_argument("--rules", default="all", help="comma-separated rules (default: every registered rule)")

@@ -50,6 +50,7 @@ from admmkit.io import write_text
 
 from admmkit.benchmarks.runner.report import write_csv
 from admmkit.benchmarks.framework.loop_hand import bare, hand_residual, hand_sadmm, inline
+from admmkit.benchmarks.runner.costs import typical
 
 class Obstacle1D:
     """The README's problem, written against admmkit.Problem (no adjoint_norm, Euclidean norms)."""
@@ -161,7 +162,7 @@ def steady_allocator() -> bool:
 def main(argv=None, prog: str = "admmkit bench loop-overhead") -> int:
     """Run the benchmark, print the table and write loop_overhead.csv and loop_overhead.md under --out."""
     parser = Parser(prog=prog, description=__doc__.splitlines()[0] +   # one-line usage errors (admmkit.cli)
-                    "\n\ntypical: minutes. needs: numpy (nothing beyond admmkit)")
+                    typical("bench loop-overhead") + " needs: numpy (nothing beyond admmkit)")
     parser.add_argument("--out", default="out/loop_overhead", help="output folder (default ./out/loop_overhead/)")
     parser.add_argument("--sizes", default="10,100000,1000000", help="comma-separated n (default 10,1e5,1e6)")
     parser.add_argument("--iterations", default="3000,3000,300",

@@ -16,6 +16,7 @@ from __future__ import annotations
 from admmkit.cli import Parser
 
 import numpy as np
+from admmkit.benchmarks.runner.costs import typical
 
 
 def problems(tv_side: int):
@@ -53,8 +54,7 @@ def main(argv=None, prog: str = "admmkit bench split-speed") -> int:
     import time
     from pathlib import Path
     parser = Parser(prog=prog, description=__doc__.splitlines()[0] +   # one-line usage errors (admmkit.cli)
-                    "\n\ntypical: ~10 s plus start-up (the timings took 7 s, docs/results/split_speed). "
-                    "needs: numba (installed with admmkit)")
+                    typical("bench split-speed") + " needs: numba (installed with admmkit)")
     parser.add_argument("--out", default="out/split_speed", help="output folder (default ./out/split_speed/)")
     parser.add_argument("--iterations", type=int, default=2000, help="iterations per run (default 2000)")
     parser.add_argument("--repeats", type=int, default=5, help="runs of each; the minimum counts (default 5)")

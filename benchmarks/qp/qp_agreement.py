@@ -25,6 +25,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from admmkit.benchmarks.runner.costs import typical
 
 KINDS = ("inequality", "equality", "mixed", "lp", "psd")
 UNIQUE = ("inequality", "equality", "mixed")
@@ -97,8 +98,7 @@ def summary(rows: list[dict], eps: float) -> list[str]:
 def main(argv=None, prog: str = "admmkit bench qp-agreement") -> int:
     """Run the comparison, print the table and write qp_agreement.csv and README.md under --out."""
     parser = Parser(prog=prog, description=__doc__.splitlines()[0] +   # one-line usage errors (admmkit.cli)
-                    "\n\ntypical: ~11 min (658 s, docs/results/qp_agreement). needs: cvxpy, clarabel (pip"
-                    " install 'admmkit[test]')")
+                    typical("bench qp-agreement") + " needs: cvxpy, clarabel (installed with admmkit)")
     parser.add_argument("--out", default="out/qp_agreement", help="output folder (default ./out/qp_agreement/)")
     parser.add_argument("--count", type=int, default=1000, help="number of random QPs (default 1000)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the generator of the QPs (default 0)")

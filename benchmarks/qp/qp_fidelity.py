@@ -38,6 +38,7 @@ from pathlib import Path
 import numpy as np
 import scipy.io
 import scipy.sparse as sp
+from admmkit.benchmarks.runner.costs import typical
 
 #: the README runs every command from the repository root, with the shared data beside the clone
 DEFAULT_DATA = Path("../shared/data/maros_meszaros")
@@ -223,8 +224,7 @@ def summarise(rows: list[dict], eps_list, max_iter: int = MAX_ITER, time_limit: 
 def main(argv=None, prog: str = "admmkit bench qp-fidelity") -> int:
     """Run the study, print the summary and write qp_fidelity.csv and README.md under --out."""
     parser = Parser(prog=prog, description=__doc__.splitlines()[0] +   # one-line usage errors (admmkit.cli)
-                    "\n\ntypical: ~1 min (50 s, docs/results/qp_fidelity), up to ~8 min with every rule. "
-                    "needs: osqp, the Maros-Meszaros MAT files (--data)")
+                    typical("bench qp-fidelity") + " needs: osqp, the Maros-Meszaros MAT files (--data)")
     parser.add_argument("--data", default=str(DEFAULT_DATA), help="folder of Maros-Meszaros MAT files")
     parser.add_argument("--out", default="out/qp_fidelity", help="output folder (default ./out/qp_fidelity/)")
     parser.add_argument("--max-nnz", type=float, default=MAX_NNZ, help=f"largest nnz(P) + nnz(A) (default {MAX_NNZ})")

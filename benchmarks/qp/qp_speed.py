@@ -35,6 +35,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from .qp_fidelity import DEFAULT_DATA, check_problems, select
+from admmkit.benchmarks.runner.costs import typical
 
 CONFIGS = ("osqp", "admmkit", "admmkit-python")
 COLUMNS = ("problem", "n", "m", "eps", "solver", "status", "iterations", "whole_ms", "loop_ms", "ratio_whole",
@@ -162,8 +163,7 @@ def plot(rows: list[dict], path: Path) -> None:
 def main(argv=None, prog: str = "admmkit bench qp-speed") -> int:
     """Run the study, print the summary and write qp_speed.csv, qp_speed.png and README.md under --out."""
     parser = Parser(prog=prog, description=__doc__.splitlines()[0] +   # one-line usage errors (admmkit.cli)
-                    "\n\ntypical: tens of minutes (77 problems, two accuracies, best of 3; "
-                    "docs/results/qp_speed). needs: osqp, the Maros-Meszaros MAT files (--data)")
+                    typical("bench qp-speed") + " needs: osqp, the Maros-Meszaros MAT files (--data)")
     parser.add_argument("--data", default=str(DEFAULT_DATA), help="folder of Maros-Meszaros MAT files")
     parser.add_argument("--out", default="out/qp_speed", help="output folder (default ./out/qp_speed/)")
     parser.add_argument("--max-size", type=int, default=3000, help="largest n + m (default 3000)")
