@@ -12,22 +12,9 @@ from admmkit.cli import build_parser, main, plain
 from admmkit.cli_output import Progress
 from admmkit.sparse_backends import AUTO_ORDER
 
+from tests.cli_run import one_error_line, run
+
 QP = ["solve", "qp", "--random", "20", "12"]
-
-
-def run(argv, capsys):
-    """(exit code, stdout, stderr) of ``admmkit ARGV``."""
-    code = main(argv)
-    out, err = capsys.readouterr()
-    return code, out, err
-
-
-def one_error_line(err: str) -> str:
-    """The single line of a usage error (and that it is one, with no usage block)."""
-    lines = err.strip().splitlines()
-    assert len(lines) == 1, err
-    assert lines[0].startswith("admmkit: error: ") and "usage:" not in err and "Traceback" not in err
-    return lines[0]
 
 
 # ---------------------------------------------------------------- 1. errors: one line, a suggestion, exit 2

@@ -13,23 +13,10 @@ import pytest
 
 from admmkit.cli import EXIT_BAD_INPUT, EXIT_CLOSED_PIPE, main
 
+from tests.cli_run import one_error_line, run
+
 ROOT = Path(__file__).resolve().parents[2]
 QP = ["solve", "qp", "--random", "20", "12"]
-
-
-def run(argv, capsys):
-    """(exit code, stdout, stderr) of ``admmkit ARGV``."""
-    code = main(argv)
-    out, err = capsys.readouterr()
-    return code, out, err
-
-
-def one_error_line(err: str) -> str:
-    """The single line of an error (and that it is one: no traceback, nothing else)."""
-    lines = err.strip().splitlines()
-    assert len(lines) == 1, err
-    assert lines[0].startswith("admmkit: error: ") and "Traceback" not in err
-    return lines[0]
 
 
 # ---------------------------------------------------------------- the adaptive loop's options need --target-error
