@@ -17,9 +17,6 @@ from .xstep import ADAPTIVE_BACKEND
 from .scene import A_STAR, SCENES, has_radial_exact, max_h
 from .scene_file import known_scenes, load_scene
 
-#: the defaults of the adaptive loop's options, which need --target-error (the parser leaves them None)
-ADAPTIVE_DEFAULTS = {"theta": 0.5, "max_levels": 30, "max_unknowns": 2_000_000}
-
 #: ``--backend``: the sparse factorisations of admmkit.linsolve, and the two CG x-steps (problems/obstacle/xstep.py)
 SPARSE = ("auto", *AUTO_ORDER)
 BACKENDS = (*SPARSE, "iterative", "jacobi")
@@ -51,9 +48,7 @@ def register(subparsers) -> None:
     add_output_file(p, "--plot", "FILE.png", "write a plot of u, psi and the contact set (PNG)", extensions=(".png",))
     add_output_file(p, "--vtk", "FILE.vtu", "write u, psi, the contact set and the --estimator's indicator per triangle as VTU "
                     "(with --target-error one file per level, FILE_level<k>.vtu)", extensions=(".vtu",))
-    add_adaptive_options(p, max_levels=ADAPTIVE_DEFAULTS["max_levels"], gamma=OBSTACLE_GAMMA,
-                         default_stop=True)                                            # --balance, --target-error
-    p.set_defaults(theta=None, max_levels=None, max_unknowns=None)      # given or not: they need --target-error
+    add_adaptive_options(p, max_levels=30, gamma=OBSTACLE_GAMMA, default_stop=True)   # --balance, --target-error
     add_common_options(p, policy="summable", order="zx", methods=PAPER_METHODS)
     add_result_outputs(p, json_help="write the run (provenance, scene, summary, errors, u on the free nodes) as JSON",
                        csv_help="write one row per free node: x, y, u, psi, in_contact")
@@ -151,9 +146,7 @@ def run_adaptive(args) -> int:
     from admmkit.cli import resolve_policy
     from .adaptive import solve_adaptive
     from .plot import plot_adapted
-    for key, value in ADAPTIVE_DEFAULTS.items():
-        setattr(args, key, value if getattr(args, key) is None else getattr(args, key))
-    options = adaptive_options(args, OBSTACLE_GAMMA)
+    options = adaptive_options(args, OBSTACLE_GAMMA)      # the loop's options not given: their defaults
     order, policy, name = resolve_policy(args)
     chosen = []
     if args.fe_order is None:           # accuracy in, cheapest model out: P2 (docs/obstacle.md)
