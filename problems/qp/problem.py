@@ -151,9 +151,7 @@ class QP(Problem):
         """
         if float(rho) in self._solver:
             return 0
-        size = self.n if self.xstep == "reduced" else self.n + self.m
-        self._solver.solve(rho, np.zeros(size))
-        self._solver.solves -= 1
+        self._solver.prepare(rho)
         return 1
 
     def update_rho(self, rho: float) -> None:
