@@ -5,7 +5,7 @@ The framework core: the problem protocol (:class:`Problem`), one loop
 composable stopping rules, the per-iteration history and the result; and
 building blocks for new problems: :class:`LinearMap` (A, M and the derived
 adjoint), :class:`QuadraticXStep` (the x-step of a quadratic f, cached per
-rho), :mod:`admmkit.prox` (z-steps from proximal operators) and
+rho), ``admmkit.prox`` (:mod:`admmkit.blocks.prox`: z-steps from proximal operators) and
 :class:`SplitProblem` (a problem assembled from them).  Penalty rules live in
 :mod:`admmkit.policies`, plug-ins in ``admmkit.problems`` and the studies in
 :mod:`admmkit.benchmarks`; the core imports none of them (a rule named by a
@@ -14,19 +14,19 @@ string is found through the entry-point group ``admmkit.policies``).
 from ._layout import map_source_tree
 
 map_source_tree(__path__[0])   # a source checkout resolves admmkit.policies etc. as the installed package does
-from .history import History
+from .loop.history import History
 from .policy import Policy, make_policy, policy_names, register_policy
 from .problem import Problem
-from .record import IterationRecord
-from .result import Result, Status
-from .solver import solve
-from .balanced_stop import BalancedStop
-from .stopping import AllOf, AnyOf, RelativeChange, ResidualTolerance, Stop, StoppingRule, default_stop
+from .loop.record import IterationRecord
+from .loop.result import Result, Status
+from .loop.solver import solve
+from .fe.balanced_stop import BalancedStop
+from .loop.stopping import AllOf, AnyOf, RelativeChange, ResidualTolerance, Stop, StoppingRule, default_stop
 
 #: the building blocks, imported on first use: they bring scipy.sparse, which the loop does not need
 #: (``import admmkit`` then costs numpy and the loop only; issue #49)
-_ON_DEMAND = {"LinearMap": ("operators", "LinearMap"), "QuadraticXStep": ("xstep", "QuadraticXStep"),
-              "SplitProblem": ("split", "SplitProblem"), "prox": ("prox", None)}
+_ON_DEMAND = {"LinearMap": ("blocks.operators", "LinearMap"), "QuadraticXStep": ("blocks.xstep", "QuadraticXStep"),
+              "SplitProblem": ("blocks.split", "SplitProblem"), "prox": ("blocks.prox", None)}
 
 
 def __getattr__(name: str):

@@ -26,7 +26,7 @@ from importlib.metadata import entry_points
 from pathlib import Path
 from typing import Callable
 
-from .record import IterationRecord
+from .loop.record import IterationRecord
 
 _REGISTRY: dict[str, Callable[..., "Policy"]] = {}
 #: the entry-point group in which an installed package names its rules (admmkit's own are in pyproject.toml)
@@ -53,7 +53,7 @@ class Policy(ABC):
 
         At iterations k .. j - 1 it would return rho unchanged without
         reading their records (nor keeping anything of them), so the loop
-        may run them without records (:mod:`admmkit.segments`).  The default,
+        may run them without records (:mod:`admmkit.loop.segments`).  The default,
         k, says the rule reads every record; a rule that acts every
         ``interval`` iterations, or never, says so here.
         """

@@ -3,7 +3,7 @@
 For finite element problems every new rho costs a sparse factorisation of
 K + rho B'MB (the x-step matrix), while a rho seen before costs nothing: the
 plug-ins cache one factorisation per rho value
-(``admmkit.linsolve.CachedFactorization``, 32 most recent values; the
+(``admmkit.linalg.linsolve.CachedFactorization``, 32 most recent values; the
 condensed contact mode keeps all).  A rule that wants rho = 3.7 rho_0, then
 4.1 rho_0, then 3.9 rho_0 factorises three times; on a grid it factorises once.
 

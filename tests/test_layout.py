@@ -178,7 +178,82 @@ def test_every_builtin_rule_is_declared_by_entry_point():
 
 
 def test_host_imports_no_plug_in():
-    assert {layer_of(n) for n in imported_modules(ROOT / "admmkit" / "cli.py")} <= {"admmkit", None}
+    for path in (ROOT / "admmkit" / "cli").glob("*.py"):
+        assert {layer_of(n) for n in imported_modules(path)} <= {"admmkit", None}, path.name
+
+
+#: the core's subpackages, by job (docs/layout.md)
+CORE_JOBS = ["loop", "blocks", "linalg", "fe", "cli"]
+
+
+def test_core_holds_a_dozen_modules_and_the_rest_by_job():
+    """admmkit/ holds at most a dozen modules directly; every folder in it is one of the jobs."""
+    direct = sorted(p.name for p in (ROOT / "admmkit").glob("*.py"))
+    assert len(direct) <= 12, direct
+    folders = sorted(p.name for p in (ROOT / "admmkit").iterdir() if p.is_dir() and not p.name.startswith("__"))
+    assert folders == sorted(CORE_JOBS)
+
+
+def reached(graph: dict[str, set[str]], start: set[str]) -> set[str]:
+    """Every module imported from ``start``, directly or through others."""
+    seen, todo = set(), list(start)
+    while todo:
+        for w in graph.get(todo.pop(), ()):
+            if w not in seen:
+                seen.add(w)
+                todo.append(w)
+    return seen
+
+
+def test_the_loop_imports_no_linear_algebra():
+    """admmkit.loop reaches neither admmkit.linalg nor the building blocks, not even through another module
+    (a problem brings its own linear algebra; the loop only calls its steps)."""
+    graph = import_graph()
+    loop = {name for name in graph if name.startswith("admmkit.loop")}
+    assert loop
+    bad = sorted(n for n in reached(graph, loop) if n.split(".")[1] in ("linalg", "blocks"))
+    assert bad == []
+
+
+def unit(name: str) -> str:
+    """The unit of docs/layout.md's arrows a module belongs to (a core job, a layer, or a layer's folder)."""
+    parts = name.split(".")
+    if len(parts) > 1 and parts[1] in CORE_JOBS:
+        return f"admmkit.{parts[1]}"
+    if len(parts) > 1 and parts[1] in SUBPACKAGES:
+        return ".".join(parts[1:3]) if len(parts) > 2 and (ROOT / parts[1] / parts[2]).is_dir() else parts[1]
+    return "admmkit"
+
+
+def arrows() -> str:
+    """The block of docs/layout.md between its ``arrows`` markers, drawn from the import graph."""
+    graph = import_graph()
+    edges: dict[str, set[str]] = {}
+    for name, deps in graph.items():
+        edges.setdefault(unit(name), set())
+        edges[unit(name)] |= {unit(d) for d in deps} - {unit(name)}
+    order = ["admmkit", *[f"admmkit.{j}" for j in CORE_JOBS]]
+    units = order + sorted(set(edges) - set(order))
+    width = max(map(len, units)) + 2
+    lines = [f"{u:<{width}}-> {', '.join(sorted(edges.get(u, ()), key=units.index)) or '(nothing of admmkit)'}"
+             for u in units if u in edges]
+    return "\n".join(["```", *lines, "```"])
+
+
+def test_a_plug_in_imports_no_other_plug_in():
+    """problems.X never imports problems.Y: what two plug-ins share lives in problems/ itself (fe.py, expressions.py)."""
+    graph = import_graph()
+    wrong = {name: sorted({unit(d) for d in deps} - {unit(name)}) for name, deps in graph.items()
+             if unit(name).startswith("problems.")}
+    assert {n: [u for u in us if u.startswith("problems.")] for n, us in wrong.items()
+            if any(u.startswith("problems.") for u in us)} == {}
+
+
+def test_layout_page_draws_the_current_arrows():
+    """docs/layout.md's arrows are those of the code (``python tests/test_layout.py`` prints the block)."""
+    text = (ROOT / "docs" / "layout.md").read_text()
+    block = text.split("<!-- arrows: begin -->\n", 1)[1].split("\n<!-- arrows: end -->", 1)[0]
+    assert block == arrows()
 
 
 @pytest.mark.parametrize("study", ["loop-overhead", "four-problems", "qp-fidelity", "qp-agreement", "friction",
@@ -188,3 +263,7 @@ def test_studies_with_their_own_options_answer_help_and_bad_options(study, capsy
     assert main(["bench", study, "--help"]) == 0
     assert "--out" in capsys.readouterr().out
     assert main(["bench", study, "--no-such-option"]) == 2
+
+
+if __name__ == "__main__":
+    print(arrows())

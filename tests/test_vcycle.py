@@ -1,4 +1,4 @@
-"""The compiled V-cycle and CG products (admmkit.vcycle) against pyamg's and scipy's."""
+"""The compiled V-cycle and CG products (admmkit.linalg.vcycle) against pyamg's and scipy's."""
 import numpy as np
 import pytest
 import scipy.sparse as sp
@@ -6,8 +6,8 @@ import scipy.sparse as sp
 pytest.importorskip("numba")
 pyamg = pytest.importorskip("pyamg")
 
-from admmkit.amg import AMGPreconditioner, short_spectral_radius  # noqa: E402
-from admmkit.vcycle import THREADS_VARIABLE, VCycle, csr_product  # noqa: E402
+from admmkit.linalg.amg import AMGPreconditioner, short_spectral_radius  # noqa: E402
+from admmkit.linalg.vcycle import THREADS_VARIABLE, VCycle, csr_product  # noqa: E402
 
 
 def _elasticity():
@@ -67,7 +67,7 @@ def test_short_spectral_radius_is_scoped():
 
 
 def test_symmetric_product_from_upper_triangle():
-    from admmkit.symmetric import SymmetricPattern
+    from admmkit.linalg.symmetric import SymmetricPattern
     A, _ = _elasticity()
     A = sp.csr_matrix(A + 3 * sp.eye(A.shape[0]))
     A.sort_indices()
@@ -82,7 +82,7 @@ def test_symmetric_product_from_upper_triangle():
 def test_forward_restrict_is_sweep_residual_and_restriction(lag_shift):
     """The fused descent equals its three passes: a forward sweep from zero, r = b - A x, P' r."""
     from pyamg.relaxation.relaxation import gauss_seidel
-    from admmkit.vcycle import _bandwidth, _diagonal_positions, _forward_restrict
+    from admmkit.linalg.vcycle import _bandwidth, _diagonal_positions, _forward_restrict
     A, B = _elasticity()
     A = sp.csr_matrix(A)
     A.sort_indices()
@@ -108,7 +108,7 @@ def test_forward_restrict_is_sweep_residual_and_restriction(lag_shift):
 @pytest.mark.parametrize("fmt", ["bsr", "csr"])
 def test_arnoldi_spectral_radius_is_pyamgs_number(fmt):
     from pyamg.util.linalg import approximate_spectral_radius
-    from admmkit.arnoldi import arnoldi_spectral_radius
+    from admmkit.linalg.arnoldi import arnoldi_spectral_radius
     A, _ = pyamg.gallery.linear_elasticity((30, 30), format=fmt)
     A1, A2 = A.copy(), A.copy()
     np.random.seed(5)
@@ -123,8 +123,8 @@ def test_arnoldi_spectral_radius_is_pyamgs_number(fmt):
 
 
 def test_pencil_products_are_the_products_of_the_pencil_matrices():
-    from admmkit.amg import PencilMatrix
-    from admmkit.symmetric import SymmetricPattern
+    from admmkit.linalg.amg import PencilMatrix
+    from admmkit.linalg.symmetric import SymmetricPattern
     A, _ = _elasticity()
     K = sp.csr_matrix(A + sp.eye(A.shape[0]))
     K.sort_indices()
@@ -143,11 +143,11 @@ def test_pencil_products_are_the_products_of_the_pencil_matrices():
 
 @pytest.mark.parametrize("values", [np.float64, np.float32])
 def test_block_finest_level_gives_the_csr_cycle_bit_for_bit(values, monkeypatch):
-    from admmkit.vcycle_blocks import BlockLevel
+    from admmkit.linalg.vcycle_blocks import BlockLevel
     A, B = _elasticity()
     amg = AMGPreconditioner(A, B, blocksize=2, max_coarse=50)
     r = np.random.default_rng(7).standard_normal(A.shape[0])
-    from admmkit.vcycle_blocks3 import BlockLevel3
+    from admmkit.linalg.vcycle_blocks3 import BlockLevel3
     blocks = VCycle(amg.ml, values=values)
     assert blocks.first is not None                        # 2 x 2 blocks of A, 2 x 3 of P: the block path
     assert isinstance(blocks.block[1], BlockLevel3)         # below it 3 x 3 blocks (three rigid modes)
@@ -161,7 +161,7 @@ def test_block_finest_level_gives_the_csr_cycle_bit_for_bit(values, monkeypatch)
 
 
 def test_block_level_is_used_only_where_it_applies():
-    from admmkit.vcycle_blocks import BlockLevel
+    from admmkit.linalg.vcycle_blocks import BlockLevel
     A, B = _elasticity()
     P3 = sp.bsr_matrix(sp.random(A.shape[0], 30, density=0.1, random_state=0), blocksize=(2, 3))
     assert BlockLevel.eligible(A, P3)
@@ -176,7 +176,7 @@ def test_refreshed_cycle_reuses_kept_patterns_and_equals_a_new_one():
     A = sp.csr_matrix(A)
     rows = np.arange(0, A.shape[0], 11)
     D = sp.csr_matrix((np.ones(rows.size), (rows, rows)), shape=A.shape)
-    from admmkit.amg import PencilMatrix
+    from admmkit.linalg.amg import PencilMatrix
     pencil = PencilMatrix(A, D)
     amg = AMGPreconditioner(pencil.at(1.0), B, blocksize=2, max_coarse=50, D=D, rho=1.0)
     r = np.random.default_rng(8).standard_normal(A.shape[0])
@@ -190,7 +190,7 @@ def test_refreshed_cycle_reuses_kept_patterns_and_equals_a_new_one():
 
 
 def test_node_pair_products_equal_the_upper_triangle_products():
-    from admmkit.symmetric import NodePairPattern, SymmetricPattern
+    from admmkit.linalg.symmetric import NodePairPattern, SymmetricPattern
     A, _ = _elasticity()
     A = sp.csr_matrix(A + 2 * sp.eye(A.shape[0]))
     A.sort_indices()

@@ -42,7 +42,7 @@ def reuse_table(h: float = 1 / 160, rho0: float = 1e3, ratios=RATIOS, tol: float
     import scipy.sparse as sp
     from threadpoolctl import threadpool_limits
 
-    from admmkit.iterative import AMGPreconditioner, PencilMatrix, pcg
+    from admmkit.blocks.iterative import AMGPreconditioner, PencilMatrix, pcg
 
     from admmkit.problems.contact.model.assembly import assemble
     from admmkit.problems.contact.solvers.iterative import near_null_space

@@ -1,7 +1,7 @@
 """``admmkit bench contact3d``: the 3D block on a curved foundation, solved with the AMG x-step.
 
 1. **Where the direct solver struggles.**  For a sequence of meshes, one sparse
-   factorisation of the x-step matrix K + rho B'M_c B (``admmkit.linsolve``,
+   factorisation of the x-step matrix K + rho B'M_c B (``admmkit.linalg.linsolve``,
    backend "auto") against one AMG setup and one CG solve to a relative energy
    error of 1e-8, each in its own process with a time limit; time and peak
    memory.  SADMM needs a new factorisation at every change of rho (5-6 in
@@ -44,8 +44,8 @@ def probe(h: float, rho: float = 1e3) -> dict:
     import scipy.sparse as sp
     from threadpoolctl import threadpool_limits
 
-    from admmkit.iterative import IterativeXSolver
-    from admmkit.linsolve import available_backends, factorize
+    from admmkit.blocks.iterative import IterativeXSolver
+    from admmkit.linalg.linsolve import available_backends, factorize
 
     from admmkit.problems.contact.solvers.iterative import near_null_space
     from admmkit.problems.contact.model.assembly3d import assemble3d
@@ -247,7 +247,7 @@ def _write_md(path, probes, run, command, figs, vtu, sadmm=()) -> None:
              "x = 3, frictionless contact on z = 0 with g = 0.003 (x-1.5)^2 + 0.003 (y-0.5)^2 + 0.001, E = 5000, "
              "nu = 0.49.", "",
              "## Where the direct solver struggles", "",
-             "One factorisation of K + rho B'M_c B (rho = 1e3, `admmkit.linsolve`, backend auto) against one AMG "
+             "One factorisation of K + rho B'M_c B (rho = 1e3, `admmkit.linalg.linsolve`, backend auto) against one AMG "
              "setup + CG solve to 1e-8 (relative energy error), each in its own process (BLAS on one thread); "
              "peak = the process's ru_maxrss. In the full mode SADMM refactorises at every change of rho.",
              "", "| h | unknowns | factorisation (s) | peak direct (GB) | AMG setup + CG (s) | CG it. | peak AMG (GB) |",

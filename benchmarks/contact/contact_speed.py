@@ -9,7 +9,7 @@ the same run:
   and the condensed set-up both use CHOLMOD;
 * ``superlu`` (what a fresh machine with only pip has): both use SuperLU;
 
-the benchmark times ``admmkit.linsolve.factorize(K, backend)`` followed by one
+the benchmark times ``admmkit.linalg.linsolve.factorize(K, backend)`` followed by one
 ``solve(f)`` (what one linear elastic solve without contact costs), and SADMM
 (rho_0 = 1e3, the paper's stopping rule): contact-problem set-up +
 ``admmkit.solve``, median of ``repeats`` runs each building a fresh contact
@@ -28,8 +28,8 @@ from pathlib import Path
 import admmkit
 from admmkit import policies
 from admmkit import RelativeChange
-from admmkit.blas import limit_blas
-from admmkit.linsolve import available_backends, factorize
+from admmkit.loop.blas import limit_blas
+from admmkit.linalg.linsolve import available_backends, factorize
 from admmkit.io import write_text
 
 from admmkit.problems.contact.model.assembly import assemble
@@ -137,7 +137,7 @@ def write_markdown(path: Path, rows, repeats, rho, wall, command, blas_threads=1
     modes = list(rows[0]["worlds"][worlds[0]]["modes"]) if worlds else []
     lines = ["# Contact speed: SADMM against one factorisation + solve of K", "",
              f"Produced by `{command}` on {datetime.date.today().isoformat()} (total {wall:.1f} s).", "",
-             "`factor+solve`: `admmkit.linsolve.factorize(K, backend)` then one `solve(f)`, median of "
+             "`factor+solve`: `admmkit.linalg.linsolve.factorize(K, backend)` then one `solve(f)`, median of "
              f"{repeats} after a warm-up. `SADMM`: contact-problem set-up + `admmkit.solve` with rho_0 = {rho:g}, "
              "tau = 2, c_max = 100 and the paper's stop (||u^{k+1}-u^k||_K <= 1e-5 ||u^{k+1}||_K), median of "
              f"{repeats}, a fresh contact problem each repeat. `ratio` = SADMM / (factor+solve), both with the "

@@ -262,7 +262,7 @@ def main(argv=None, prog: str = "admmkit bench friction") -> int:
         parser.error(f"--max-iter must be >= 1, got {args.max_iter}")
     from admmkit.benchmarks.runner.harness import require
     require(prog.removeprefix("admmkit "), "cvxpy", "clarabel")     # the Tresca references
-    from admmkit.blas import limit_blas
+    from admmkit.loop.blas import limit_blas
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     factors = HC_FACTORS[:2] if args.quick else HC_FACTORS

@@ -1,11 +1,11 @@
-"""Benchmark the sparse direct solvers of admmkit.linsolve on this machine.
+"""Benchmark the sparse direct solvers of admmkit.linalg.linsolve on this machine.
 
     python benchmarks/contact/linsolve_backends.py [--max-n N] [--out docs/results/linsolve.md]
 
 Matrices: 2D plane-strain linear elasticity, P1 triangles on the unit square,
 clamped on the left side, assembled with NGSolve (free DOFs only), about 1e3,
 1e4, 1e5 and 1e6 unknowns.  For each installed backend we time
-``admmkit.linsolve.factorize`` (factorisation) and one solve, medians of a few
+``admmkit.linalg.linsolve.factorize`` (factorisation) and one solve, medians of a few
 repeats.  Everything is measured twice, in worker subprocesses with
 OMP/OPENBLAS/MKL_NUM_THREADS (and ngsolve.SetNumThreads) = 1 and = 2, together with a tiny numpy
 operation, to see whether pinning BLAS/OpenMP to one thread helps.
@@ -66,7 +66,7 @@ def median_time(fn, repeats):
 def worker(max_n, repeats, max_seconds):
     """Measure all backends/sizes in this process; return a JSON-able dict."""
     import ngsolve  # has its own thread pool (used inside sparsecholesky)
-    from admmkit.linsolve import available_backends, factorize
+    from admmkit.linalg.linsolve import available_backends, factorize
     ngsolve.SetNumThreads(int(os.environ["OMP_NUM_THREADS"]))
     x = np.random.default_rng(0).standard_normal(1000)
     y = np.random.default_rng(1).standard_normal(1000)
@@ -140,7 +140,7 @@ def report(results, args):
              "Produced by `python benchmarks/contact/linsolve_backends.py "
              + " ".join(sys.argv[1:]) + "`", "", *machine_info(), "",
              "Plane-strain P1 elasticity (E=1, nu=0.3) on the unit square, clamped on the "
-             "left side, free DOFs only. `factor` = `admmkit.linsolve.factorize` "
+             "left side, free DOFs only. `factor` = `admmkit.linalg.linsolve.factorize` "
              f"(median of {args.repeats}, or 1 if one takes > 5 s), `solve` = one 1-D solve "
              f"(median of {2 * args.repeats + 1}); seconds. `1 thr` / `2 thr`: "
              "OMP/OPENBLAS/MKL_NUM_THREADS and ngsolve.SetNumThreads = 1 / 2 (2 = the default on "
@@ -178,7 +178,7 @@ def report(results, args):
         gs = np.exp(np.mean([np.log(b["solve"] / a["solve"]) for a, b in pairs]))
         lines.append(f"- {name}: factor {gf:.2f}, solve {gs:.2f}")
     lines += ["", "The order used by `backend=\"auto\"` and the reasons for it are in the "
-              "comment above `AUTO_ORDER` in `admmkit/linsolve.py`."]
+              "comment above `AUTO_ORDER` in `admmkit/linalg/linsolve.py`."]
     return "\n".join(lines) + "\n"
 
 

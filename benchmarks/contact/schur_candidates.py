@@ -7,7 +7,7 @@ seconds of each step (``steps``) and their sum (``setup``):
 
 * :func:`ldl_contact_last`: :class:`admmkit.problems.contact.solvers.schur.BoundarySchur`
   with ``ldl`` given the dofs' coordinates (nested dissection of the inner
-  dofs, :mod:`admmkit.ldl` in that order with the contact dofs last, S read
+  dofs, :mod:`admmkit.linalg.ldl` in that order with the contact dofs last, S read
   off the last n_c columns of L);
 * :func:`superlu_contact_last`: the same with SuperLU (LU without pivoting,
   S read off the trailing block of a copy of U);
@@ -25,7 +25,7 @@ seconds of each step (``steps``) and their sum (``setup``):
 
 ``REFERENCES`` are the pip-only factor + solve of K the study divides by:
 SuperLU's (``admmkit bench contact``'s reference), qdldl's (its own AMD order)
-and :mod:`admmkit.ldl`'s in nested dissection order of all dofs.
+and :mod:`admmkit.linalg.ldl`'s in nested dissection order of all dofs.
 
 Block-solve candidates time the first ``max_blocks`` blocks and extrapolate to
 all n_c columns (``extrapolated`` is then True); S is compared with the
@@ -41,8 +41,8 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from admmkit.ldl import ldl_factor
-from admmkit.linsolve import factorize
+from admmkit.linalg.ldl import ldl_factor
+from admmkit.linalg.linsolve import factorize
 
 from admmkit.problems.contact.solvers.dissection import nested_dissection
 from admmkit.problems.contact.solvers.schur import BoundarySchur
@@ -179,7 +179,7 @@ def pardiso_schur(K, B, inner, contact, block=64, max_blocks=None) -> dict:
 
 
 def _ldl_nested_dissection(K, f, coordinates):
-    """admmkit.ldl's factor + solve of K, all dofs in nested dissection order (no contact dofs last)."""
+    """admmkit.linalg.ldl's factor + solve of K, all dofs in nested dissection order (no contact dofs last)."""
     order = nested_dissection(K, np.arange(K.shape[0]), coordinates)
     return ldl_factor(K, order).solve(f)
 
@@ -188,7 +188,7 @@ def _ldl_nested_dissection(K, f, coordinates):
 REFERENCES = {
     "superlu": (lambda K, f, X: factorize(K, "superlu")(f), "scipy"),
     "qdldl (AMD)": (lambda K, f, X: factorize(K, "qdldl")(f), "qdldl"),
-    "admmkit.ldl (nested dissection)": (_ldl_nested_dissection, "numba"),
+    "admmkit.linalg.ldl (nested dissection)": (_ldl_nested_dissection, "numba"),
 }
 
 CANDIDATES = {

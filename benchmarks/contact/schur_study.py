@@ -4,11 +4,11 @@
 
 For Examples 1 and 2 at each h, in one process with BLAS on one thread:
 
-* ``factor+solve``: ``admmkit.linsolve.factorize(K, "superlu")`` and one solve
+* ``factor+solve``: ``admmkit.linalg.linsolve.factorize(K, "superlu")`` and one solve
   (the pip-only reference of ``admmkit bench contact``), after a warm-up;
 * ``fastest``: the fastest pip-only factor + solve of K among
   ``REFERENCES`` of :mod:`admmkit.benchmarks.contact.schur_candidates` (SuperLU,
-  qdldl in its AMD order, admmkit.ldl in nested dissection order);
+  qdldl in its AMD order, admmkit.linalg.ldl in nested dissection order);
 * ``SADMM``: the condensed contact problem's set-up + ``admmkit.solve`` (SADMM,
   rho_0 = 1e3, the paper's stop), with the Schur backend ``"auto"`` picks
   (without CHOLMOD: ``ldl`` or ``superlu``, named in the table); its set-up
@@ -38,7 +38,7 @@ from admmkit import RelativeChange, policies
 from admmkit.benchmarks.contact.schur_candidates import CANDIDATES, REFERENCES, installed_candidates
 from admmkit.benchmarks.runner.machine import machine_info
 from admmkit.benchmarks.runner.report import h_label
-from admmkit.blas import limit_blas
+from admmkit.loop.blas import limit_blas
 from admmkit.io import write_text
 from admmkit.problems.contact.model.assembly import assemble
 from admmkit.problems.contact.model.scene import example1, example2

@@ -53,7 +53,7 @@ def box_ls(seed=1, m=50, n=30):
     C, d, weights = r.standard_normal((m, n)), 3 * r.standard_normal(m), r.uniform(0.1, 10.0, n)
     lower, upper = -np.ones(n), np.ones(n)
     problem = admmkit.SplitProblem(admmkit.QuadraticXStep(C.T @ C, -C.T @ d, None, M=weights),
-                                   admmkit.prox.Box(lower, upper))
+                                   admmkit.blocks.prox.Box(lower, upper))
     return problem, lambda cp, x: 0.5 * cp.sum_squares(C @ x - d), lambda x: [x >= lower, x <= upper]
 
 
@@ -65,7 +65,7 @@ def consensus(seed=2, blocks=8, k=10, rows=12):
     ds = [r.standard_normal(rows) for _ in range(blocks)]
     P = sp.block_diag([C.T @ C for C in Cs], format="csr")
     q = -np.concatenate([C.T @ d for C, d in zip(Cs, ds)])
-    problem = admmkit.SplitProblem(admmkit.QuadraticXStep(P, q, None), admmkit.prox.Consensus(blocks))
+    problem = admmkit.SplitProblem(admmkit.QuadraticXStep(P, q, None), admmkit.blocks.prox.Consensus(blocks))
 
     def objective(cp, x):          # in the consensus variable: x of R^k
         return sum(0.5 * cp.sum_squares(C @ x - d) for C, d in zip(Cs, ds))
@@ -83,7 +83,7 @@ def tv_denoise(seed=3, side=16):
     eye = sp.identity(side)
     D = sp.vstack([sp.kron(eye, diff), sp.kron(diff, eye)]).tocsr()
     mu = 0.15
-    problem = admmkit.SplitProblem(admmkit.QuadraticXStep(sp.identity(side * side), -y, D), admmkit.prox.L1(mu))
+    problem = admmkit.SplitProblem(admmkit.QuadraticXStep(sp.identity(side * side), -y, D), admmkit.blocks.prox.L1(mu))
     return problem, lambda cp, x: 0.5 * cp.sum_squares(x - y) + mu * cp.norm1(D @ x), []
 
 

@@ -10,7 +10,7 @@ line per group of kernels and the time it took:
   KKT matrix, the segment, the residuals, the infeasibility certificates, the
   symmetry test, the KKT and neutral residuals of the result);
 - the building blocks' segment (:class:`admmkit.SplitProblem`, a LASSO);
-- the sparse LDL' factorisation (:mod:`admmkit.ldl`).
+- the sparse LDL' factorisation (:mod:`admmkit.linalg.ldl`).
 
 The kernels are those every route uses: the QP's matrices have int32
 indices whatever route they come by (docs/qp.md, "First call").  Not
@@ -26,7 +26,7 @@ import numpy as np
 
 def qp_kernels() -> None:
     """Every QP kernel, through ``solve_qp(..., compiled=True)`` on QPs that reach each of them."""
-    from admmkit.compiled import compiled_code
+    from admmkit.linalg.compiled import compiled_code
     from admmkit.problems.qp import solve_qp
     from admmkit.problems.qp.generate import infeasible_qp, random_qp, unbounded_qp
     from admmkit.problems.qp.residuals import neutral_residuals
@@ -44,7 +44,8 @@ def qp_kernels() -> None:
 def split_kernels() -> None:
     """The building blocks' compiled segment, through a LASSO with the direct x-step."""
     import admmkit
-    from admmkit import QuadraticXStep, SplitProblem, prox
+    from admmkit import QuadraticXStep, SplitProblem
+    from admmkit.blocks import prox
     rng = np.random.default_rng(0)
     D, b = rng.standard_normal((50, 30)), rng.standard_normal(50)
     mu = 0.1 * np.abs(D.T @ b).max()
@@ -54,10 +55,10 @@ def split_kernels() -> None:
 
 
 def ldl_kernels() -> None:
-    """The sparse LDL' factorisation and its solve (:mod:`admmkit.ldl`)."""
+    """The sparse LDL' factorisation and its solve (:mod:`admmkit.linalg.ldl`)."""
     import scipy.sparse as sp
 
-    from admmkit.ldl import ldl_factor
+    from admmkit.linalg.ldl import ldl_factor
     A = sp.diags([-np.ones(29), 4 * np.ones(30), -np.ones(29)], [-1, 0, 1], format="csc")
     ldl_factor(A).solve(np.ones(30))
 
@@ -65,19 +66,19 @@ def ldl_kernels() -> None:
 #: (name, what it runs), in the order they are warmed
 GROUPS = (("QP plug-in (solve_qp, the cvxpy and qpsolvers routes)", qp_kernels),
           ("building blocks (SplitProblem's compiled segment)", split_kernels),
-          ("sparse LDL' (admmkit.ldl)", ldl_kernels))
+          ("sparse LDL' (admmkit.linalg.ldl)", ldl_kernels))
 
 
 def kernels_ready() -> int:
     """How many of admmkit's kernels are compiled or loaded in this process (those only other kernels call are
     compiled inside them, or loaded with them from the cache, and not counted)."""
-    from admmkit.compiled import KERNELS
+    from admmkit.linalg.compiled import KERNELS
     return sum(k._dispatcher is not None and bool(k._dispatcher.signatures) for ks in KERNELS.values() for k in ks)
 
 
 def run(args) -> int:
     """Warm every group, a line each; exit code 0."""
-    from admmkit import compiled
+    from admmkit.linalg import compiled
     if not compiled.AVAILABLE:
         print("admmkit warm-up: numba is not installed: every run takes the Python path, nothing to compile")
         return 0

@@ -74,7 +74,7 @@ def run_admmkit(qp: QP, variant: str, rule: str, order: str, eps, max_iter: int,
                 acceleration: str | None = None) -> list[dict]:
     """One admmkit run to the tightest eps (the polish variant: one run per eps); one row per eps.
 
-    ``acceleration``: None (plain ADMM), "anderson" or "fast" (:mod:`admmkit.acceleration`).
+    ``acceleration``: None (plain ADMM), "anderson" or "fast" (:mod:`admmkit.loop.acceleration`).
     """
     eps = sorted({float(e) for e in eps}, reverse=True)
     if variant == "polish":

@@ -8,7 +8,7 @@ convex Maros-Meszaros problem with n + m <= ``--max-size``:
 - ``osqp``: ``osqp.OSQP().setup(...)`` then ``solve()`` (OSQP 1.x, deterministic:
   rho every 50 iterations, the test every 25, the gap test on, no polishing);
 - ``admmkit``: ``QP(P, q, A, l, u)`` then ``solve_qp(qp)`` with the OSQP preset,
-  the iterations between checks in the compiled segment (:mod:`admmkit.segments`);
+  the iterations between checks in the compiled segment (:mod:`admmkit.loop.segments`);
 - ``admmkit-python``: the same with ``compiled=False`` (every iteration in Python).
 
 Each is timed whole (``perf_counter`` around construction and solve), the best

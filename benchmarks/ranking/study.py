@@ -33,7 +33,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import admmkit
-from admmkit.acceleration import ACCELERATORS
+from admmkit.loop.acceleration import ACCELERATORS
 from admmkit.benchmarks.rules import policies_fe, stability
 from admmkit.benchmarks.rules.methods import method_label, policy_version
 from admmkit.benchmarks.ranking.cases import DATA_ENV

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from admmkit.balanced_stop import GAMMA
+from admmkit.fe.balanced_stop import GAMMA
 from admmkit.problems.obstacle.estimate import OBSTACLE_GAMMA
 from admmkit.io import write_text
 

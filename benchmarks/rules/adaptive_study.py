@@ -4,7 +4,7 @@ Scenes: contact Example 1 in P1 and P2, Example 2 in P2, Hertz in P1 and P2
 and the radial obstacle in P1 and P2.  For each:
 
 - **adaptive**: every level of ``solve_adaptive`` (ZZ estimator, Dörfler
-  theta 0.5, balanced stop at each plug-in's default gamma (contact 0.3, ``admmkit.balanced_stop.GAMMA``;
+  theta 0.5, balanced stop at each plug-in's default gamma (contact 0.3, ``admmkit.fe.balanced_stop.GAMMA``;
   obstacle 0.5, ``admmkit.problems.obstacle.estimate.OBSTACLE_GAMMA``), warm start; the obstacle's P2 levels
   with restarted fast ADMM, its default, and their cold starts too), from the scene's coarse
   mesh to a target estimate; the wall time is cumulative over the levels

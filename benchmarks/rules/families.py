@@ -184,7 +184,7 @@ def _contact(case: dict) -> Discrete:
 
 # ---------------------------------------------------------------- obstacle
 def _obstacle(case: dict) -> Discrete:
-    from admmkit.linsolve import CachedFactorization
+    from admmkit.linalg.linsolve import CachedFactorization
     from admmkit.problems.obstacle import make_problem, radial
     from admmkit.problems.obstacle.problem import DEFAULT_BACKEND
 

@@ -130,7 +130,7 @@ def pdas(K, f, B, g, *, weights=None, method: str = "auto", max_iter: int = 100,
         skips its setup (e.g. the contact plug-in's boundary Schur complement).
     keep_iterates : keep u and mu of every step (for work-precision curves); the
         Schur variant recovers those u after the run, outside ``time``.
-    backend : sparse Cholesky backend of admmkit.linsolve for K.
+    backend : sparse Cholesky backend of admmkit.linalg.linsolve for K.
     """
     K, f, B, g, weights = _check(K, f, B, g, weights, max_iter, c, method)
     t_start, cpu_start = time.perf_counter(), time.process_time()

@@ -5,7 +5,7 @@ import numpy as np
 import scipy.linalg as sla
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
-from admmkit.linsolve import factorize
+from admmkit.linalg.linsolve import factorize
 
 
 # ---------------------------------------------------------------- the three Newton solves

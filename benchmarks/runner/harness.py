@@ -87,9 +87,9 @@ def require_executor(command: str, args) -> None:
 
 def _in_a_rule(tb) -> bool:
     """Whether the traceback passes through a method of a penalty rule (an ``admmkit.Policy``), or through the
-    step that calls the rule and checks what it returned (``admmkit.steps.PolicyStep``)."""
+    step that calls the rule and checks what it returned (``admmkit.loop.steps.PolicyStep``)."""
     from admmkit.policy import Policy
-    from admmkit.steps import PolicyStep
+    from admmkit.loop.steps import PolicyStep
     for frame, _ in traceback.walk_tb(tb):
         if isinstance(frame.f_locals.get("self"), (Policy, PolicyStep)):
             return True

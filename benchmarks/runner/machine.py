@@ -37,7 +37,7 @@ def machine_info() -> dict:
             info[module] = "not installed"
     try:
         from admmkit import __version__
-        from admmkit.linsolve import available_backends
+        from admmkit.linalg.linsolve import available_backends
         info["admmkit"] = __version__
         info["sparse backends (auto picks the first)"] = ", ".join(available_backends())
     except Exception:

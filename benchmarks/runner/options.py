@@ -38,7 +38,7 @@ def add_out_file(p, default: str) -> None:
 def check_out_file(value: str) -> Path:
     """A file a study may write: not a folder, in a folder that exists writable or can be created; ValueError
     naming ``--out`` otherwise."""
-    from admmkit.cli_output import check_output_folder
+    from admmkit.cli.output import check_output_folder
     from admmkit.io import check_writable
     path = Path(value)
     check_output_folder(path.parent, "--out")

@@ -30,7 +30,7 @@
 # The multiplier $\lambda$ is unscaled. This tutorial writes a problem the
 # package does not have, 1-D total-variation (TV) denoising, twice: first in
 # three lines with the building blocks ({class}`admmkit.QuadraticXStep`,
-# {mod}`admmkit.prox`, {class}`admmkit.SplitProblem`), then by hand against
+# {mod}`admmkit.blocks.prox`, {class}`admmkit.SplitProblem`), then by hand against
 # the protocol {class}`admmkit.Problem`, to show what the blocks do. Both are
 # checked against cvxpy. The table in [the framework page](../framework.md)
 # lists every method of the protocol and its default.
@@ -62,7 +62,7 @@
 # A quadratic $f = \frac12 x^TPx + q^Tx$ with its constraint map $A$ is a
 # {class}`admmkit.QuadraticXStep`: it solves $(P + \rho A^TMA)x = \dots$ and
 # keeps one factorisation per $\rho$. The z-step is a proximal operator from
-# {mod}`admmkit.prox`. {class}`admmkit.SplitProblem` derives the rest: the
+# {mod}`admmkit.blocks.prox`. {class}`admmkit.SplitProblem` derives the rest: the
 # z-step, $A x$, the adjoint norm that Boyd's dual residual needs, the
 # objective and relative KKT residuals.
 
@@ -74,13 +74,13 @@ import scipy.sparse as sp
 
 import admmkit
 from admmkit import policies  # noqa: F401  (registers the built-in penalty rules by name)
-from admmkit.linsolve import CachedFactorization
+from admmkit.linalg.linsolve import CachedFactorization
 
 
 def tv_problem(b, alpha):
     D = sp.diags([-np.ones(len(b) - 1), np.ones(len(b) - 1)], [0, 1], shape=(len(b) - 1, len(b)), format="csr")
     x_step = admmkit.QuadraticXStep(sp.identity(len(b)), -b, D)      # f = 1/2 x'x - b'x, A = D, M = I
-    return admmkit.SplitProblem(x_step, admmkit.prox.L1(alpha))      # g = alpha ||z||_1
+    return admmkit.SplitProblem(x_step, admmkit.blocks.prox.L1(alpha))      # g = alpha ||z||_1
 
 
 # %% [markdown]

@@ -32,11 +32,11 @@
 # With the building blocks both steps are one line each:
 # {class}`admmkit.QuadraticXStep` is the x-step of any quadratic $f$ with a
 # constraint map (here the identity), cached per $\rho$, and
-# {mod}`admmkit.prox` has the soft-thresholding:
+# {mod}`admmkit.blocks.prox` has the soft-thresholding:
 #
 # ```python
 # x_step = admmkit.QuadraticXStep(A.T @ A, -A.T @ b)          # (A'A + rho I) x = A'b + rho z - y
-# lasso = admmkit.SplitProblem(x_step, admmkit.prox.L1(lam))  # z = soft(x + y/rho, lam/rho)
+# lasso = admmkit.SplitProblem(x_step, admmkit.blocks.prox.L1(lam))  # z = soft(x + y/rho, lam/rho)
 # ```
 #
 # {class}`admmkit.SplitProblem` derives the rest, including the adjoint norm
@@ -167,6 +167,6 @@ assert warm.iterations <= cold.iterations
 #
 # Copy `problems/lasso/` and change the two lines: the x-step (any quadratic
 # $f$ and map $A$, {class}`admmkit.QuadraticXStep`) and the z-step (any
-# {mod}`admmkit.prox` operator); then the checks, the objective and the
+# {mod}`admmkit.blocks.prox` operator); then the checks, the objective and the
 # optimality measure of the new problem. [The layout](../layout.md) says
 # where the rest goes.

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from admmkit.cli_adaptive import add_adaptive_options, balance_gamma, balance_line, check_adaptive_flags, estimator_name
+from admmkit.cli.adaptive import add_adaptive_options, balance_gamma, balance_line, check_adaptive_flags, estimator_name
 from admmkit.cli import (add_common_options, add_output_file, add_result_outputs, exit_code, positive_float,
                          print_summary, progress, resolve_policy, stop_rule, write_history, write_result_csv)
 

@@ -21,7 +21,7 @@ Algorithm 1 (order "xz" the same three steps with x first):
 and the penalty rule gives rho_{k+1} (17).  soft(v, t) = sign(v) max(|v| - t, 0)
 is the proximal operator of t ||.||_1.  The building blocks do the work:
 :class:`admmkit.QuadraticXStep` is the x-step (one factorisation of
-A'A + rho I per value of rho, cached), :class:`admmkit.prox.L1` the z-step, and
+A'A + rho I per value of rho, cached), :class:`admmkit.blocks.prox.L1` the z-step, and
 :class:`admmkit.SplitProblem` derives the rest (the adjoint norm for Boyd's
 dual residual, the counters, the compiled segments).  This class adds the
 input checks, the LASSO's own objective and its optimality measure.
@@ -62,7 +62,7 @@ class Lasso(admmkit.SplitProblem):
     def __init__(self, A, b, lam: float):
         self.A, self.b, self.lam = _checked(A, b, lam)
         x_step = admmkit.QuadraticXStep(self.A.T @ self.A, -(self.A.T @ self.b))   # eq. (12): (A'A + rho I) x = ...
-        super().__init__(x_step, admmkit.prox.L1(self.lam))                         # eq. (11): soft-thresholding
+        super().__init__(x_step, admmkit.blocks.prox.L1(self.lam))                         # eq. (11): soft-thresholding
 
     def objective(self, x, z=None):
         """1/2 ||A x - b||^2 + lam ||x||_1 at x (the LASSO's objective; z is not used)."""

@@ -12,7 +12,7 @@ One level (:func:`solve_adaptive`):
    (``active_set_step``, :mod:`admmkit.problems.obstacle.warm_start`); rho
    kept within ``warm_rho`` x the new mesh's own scale (``WARM_RHO``), then
    held for the stop's longest test interval (``every``, 10 iterations;
-   :class:`admmkit.adaptive.HeldRho`), and on while the stop predicts it fires
+   :class:`admmkit.fe.adaptive.HeldRho`), and on while the stop predicts it fires
    within that interval (``acceleration`` accelerates the levels' iterations: restarted fast ADMM in
    P2, plain ADMM in P1, by default: ``ACCELERATION``),
    and the x-step is Jacobi-CG, factorising
@@ -40,8 +40,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from admmkit import Result, solve
-from admmkit.acceleration import make_accelerator
-from admmkit.adaptive import AdaptiveResult, HeldRho, check_adaptive, dorfler_mark, needed_unknowns
+from admmkit.loop.acceleration import make_accelerator
+from admmkit.fe.adaptive import AdaptiveResult, HeldRho, check_adaptive, dorfler_mark, needed_unknowns
 from admmkit.policies.summable import Summable
 
 from admmkit.problems.fe import p1_prolongation, refined_copy, vertex_parents
@@ -78,7 +78,7 @@ WARM_RHO = {1: (0.1, 1.0), 2: (0.3, 0.3)}
 #: without, one run each: P1 to 5e-3, 53 warm iterations against 92, levels of more than 5,000 unknowns 2-3
 #: iterations each.  P2 to 3e-4, the step taken whatever the energy: 183 warm iterations against 162 (one level
 #: started 2.5x the estimate from its solution, against 1.3x without); with the energy test and the stop's
-#: doubling intervals (admmkit.balanced_stop): 75 against 131 (bench adaptive, 543e53c against dcb01b7), every
+#: doubling intervals (admmkit.fe.balanced_stop): 75 against 131 (bench adaptive, 543e53c against dcb01b7), every
 #: level's algebraic error in [0.05, 0.5] of the estimate (docs/obstacle.md)
 ACTIVE_SET_STEP = {1: True, 2: True}
 
@@ -119,7 +119,7 @@ def solve_adaptive(scene: Scene, target: float, *, theta: float = 0.5, gamma: fl
     P1 (``ADAPTIVE_BACKEND``) and SuperLU in P2 (``solve obstacle --target-error 1e-3``, whole command: 6.6 s
     against 8.4 s for Jacobi-CG and 11.7 s for AMG-CG, one run each, the machine shared).
 
-    ``acceleration``: every level's ADMM (:mod:`admmkit.acceleration`: ``"fast"``, ``"anderson"``, an
+    ``acceleration``: every level's ADMM (:mod:`admmkit.loop.acceleration`: ``"fast"``, ``"anderson"``, an
     accelerator, None for plain ADMM, or ``"auto"``, the default: ``ACCELERATION``, restarted fast ADMM in
     P2 and plain ADMM in P1 with the summable rule, plain ADMM with any other ``policy``).
 
@@ -147,7 +147,7 @@ def solve_adaptive(scene: Scene, target: float, *, theta: float = 0.5, gamma: fl
         make_accelerator(acceleration)
     except ValueError:
         raise ValueError(f"acceleration must be None, 'anderson', 'fast', 'auto' or an "
-                         f"admmkit.acceleration.Accelerator, got {acceleration!r}") from None
+                         f"admmkit.loop.acceleration.Accelerator, got {acceleration!r}") from None
     if fe_order == 2 and estimator != "zz":
         raise ValueError(f"estimator = {estimator!r} is written for P1 elements; with fe_order = 2 use 'zz'")
     window = _warm_window(warm_rho, fe_order)

@@ -2,11 +2,11 @@
 from __future__ import annotations
 
 from admmkit import policies  # noqa: F401  (registers the rules the --policy option offers)
-from admmkit.cli_adaptive import (adaptive_options, add_adaptive_options, balance_gamma, balance_line,
+from admmkit.cli.adaptive import (adaptive_options, add_adaptive_options, balance_gamma, balance_line,
                                   check_adaptive_flags, estimator_name)
 from admmkit.cli import (add_common_options, add_output_file, add_result_outputs, exit_code, level_file,
                          positive_float, run_solve, set_help, write_result_csv, write_result_json)
-from admmkit.sparse_backends import AUTO_ORDER, available_backends
+from admmkit.linalg.sparse_backends import AUTO_ORDER, available_backends
 from admmkit.policies.paper_methods import PAPER_METHODS
 
 from .estimate import OBSTACLE_GAMMA, BalancedStop
@@ -17,7 +17,7 @@ from .xstep import ADAPTIVE_BACKEND
 from .scene import A_STAR, SCENES, has_radial_exact, max_h
 from .scene_file import known_scenes, load_scene
 
-#: ``--backend``: the sparse factorisations of admmkit.linsolve, and the two CG x-steps (problems/obstacle/xstep.py)
+#: ``--backend``: the sparse factorisations of admmkit.linalg.linsolve, and the two CG x-steps (problems/obstacle/xstep.py)
 SPARSE = ("auto", *AUTO_ORDER)
 BACKENDS = (*SPARSE, "iterative", "jacobi")
 

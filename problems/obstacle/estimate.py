@@ -48,9 +48,9 @@ import math
 import numpy as np
 
 from admmkit import BalancedStop as BaseBalancedStop
-from admmkit.amg import AMGPreconditioner
-from admmkit.cg import pcg
-from admmkit.linsolve import factorize
+from admmkit.linalg.amg import AMGPreconditioner
+from admmkit.linalg.cg import pcg
+from admmkit.linalg.linsolve import factorize
 
 from .estimate_residual import check_estimator, residual_estimator
 from .estimate_zz import ZZ, _zz, zz, zz_estimate, zz_indicators
@@ -80,7 +80,7 @@ DECIDE = 4.0
 #: EnergyGap's CG goes on until the Friedrichs correction is at most this share of r'y + e'y (bound sharp to 1 %)
 SHARP = 0.01
 
-#: the AMG's rho(D^-1 K) from 10 Arnoldi steps (``admmkit.amg.short_spectral_radius``), as the contact plug-in's:
+#: the AMG's rho(D^-1 K) from 10 Arnoldi steps (``admmkit.linalg.amg.short_spectral_radius``), as the contact plug-in's:
 #: the P1 adaptive radial run to 5e-3 took 7.0, 6.7 s against 8.3, 7.4 s with pyamg's default, paired runs,
 #: the same iterations on every level (the bound stays guaranteed: its residual is computed, not CG's)
 SPECTRAL_STEPS = 10
@@ -141,7 +141,7 @@ class EnergyGap:
         x0, x1, y0, y1 = problem.scene.box
         # K >= c M: lambda_1 times the consistent mass's bound against the lumped one (P1 1/4, P2: p2.py)
         self.c = math.pi ** 2 * (1.0 / (x1 - x0) ** 2 + 1.0 / (y1 - y0) ** 2) * getattr(problem, "mass_ratio", 0.25)
-        if solver == "direct":      # SuperLU's symmetric mode (admmkit.linsolve)
+        if solver == "direct":      # SuperLU's symmetric mode (admmkit.linalg.linsolve)
             self._K_solve = factorize(problem.K)
         else:
             self._amg = AMGPreconditioner(problem.K, np.ones((problem.n, 1)), spectral_steps=SPECTRAL_STEPS)
@@ -202,7 +202,7 @@ class BalancedStop(BaseBalancedStop):
 
     ``estimator``: ``"zz"`` (this module's ZZ estimate, the default) or ``"residual"``
     (:mod:`admmkit.problems.obstacle.estimate_residual`).  ``gamma``: ``OBSTACLE_GAMMA`` (0.5) by default.
-    Tested at most ``every`` iterations apart (:mod:`admmkit.balanced_stop`'s
+    Tested at most ``every`` iterations apart (:mod:`admmkit.fe.balanced_stop`'s
     schedule), first at iterations 1 and 2: a warm level that starts from the
     active-set step (P1) is often done at its first iterate, where (B) is tight
     (9 of 14 warm radial P1 levels to 3.8e-3 stopped there; the true error

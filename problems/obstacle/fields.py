@@ -1,7 +1,7 @@
 """Fields of an obstacle scene given as text: ``"sin(pi*x)*sin(pi*y)"``.
 
 An expression is read by the contact plug-in's reader
-(:func:`admmkit.problems.contact.model.expressions.expression`, docs/scenes.md): x, y, numbers,
+(:func:`admmkit.problems.expressions.expression`, docs/scenes.md): x, y, numbers,
 ``+ - * / **`` (``^`` read as ``**``) and the functions of its ``FUNCTIONS``; any other name is refused
 when the string is read.  The obstacle evaluates a field at many nodes at once, so :func:`field` adds
 the same string on numpy arrays (numpy's functions) beside its NGSolve coefficient function.
@@ -30,7 +30,7 @@ class Expression:
     """
 
     def __init__(self, text: str):
-        from admmkit.problems.contact.model.expressions import expression     # the reader and its checks
+        from admmkit.problems.expressions import expression     # the reader and its checks
         self.text = text
         self._on_coefficients = expression(text)
         self._code = compile(text.replace("^", "**"), "<expression>", "eval")    # checked by expression()

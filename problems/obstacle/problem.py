@@ -29,9 +29,9 @@ import scipy.sparse as sp
 from ngsolve.meshes import MakeStructured2DMesh
 
 from admmkit import Problem
-from admmkit.prox import Box, UpperBound
+from admmkit.blocks.prox import Box, UpperBound
 from admmkit.problems.fe import ADAPTIVE_TASKS_MIN_ELEMENTS, areas, ngsolve_tasks, p1_mass, triangles
-from admmkit.xstep import QuadraticXStep
+from admmkit.blocks.xstep import QuadraticXStep
 
 from .xstep import JacobiCG
 from .scene import A_STAR, Scene, check_boundary
@@ -131,7 +131,7 @@ class ObstacleProblem(Problem):
 
     # -- the splitting --------------------------------------------------------
     def x_step(self, z, lam, rho, x):
-        """Solve (K + rho M) u = F + M (rho z - lam) (admmkit.xstep.QuadraticXStep)."""
+        """Solve (K + rho M) u = F + M (rho z - lam) (admmkit.blocks.xstep.QuadraticXStep)."""
         return self._xstep(z, lam, rho, x)
 
     def update_rho(self, rho):

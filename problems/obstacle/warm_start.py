@@ -17,7 +17,7 @@ Where A is the discrete solution's contact set, u is that solution; where it
 is one ring of nodes off (as the prolongated contact set of a level that
 refined its free boundary), the error left is local to the free boundary,
 which ADMM removes in a few iterations.  The solve with K_II is the price:
-AMG-preconditioned CG in P1 (``admmkit.amg``), a factorisation in P2 (whose
+AMG-preconditioned CG in P1 (``admmkit.linalg.amg``), a factorisation in P2 (whose
 nodal K AMG-CG solves slowly, as in :class:`.estimate.EnergyGap`).
 
 **The step is kept only where it helps** (:func:`warm_start`).  Where u_0
@@ -37,9 +37,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from admmkit.amg import AMGPreconditioner
-from admmkit.cg import pcg
-from admmkit.linsolve import factorize
+from admmkit.linalg.amg import AMGPreconditioner
+from admmkit.linalg.cg import pcg
+from admmkit.linalg.linsolve import factorize
 
 #: the free problem's relative energy tolerance (AMG-CG, P1)
 TOL = 1e-8

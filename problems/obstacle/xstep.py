@@ -9,7 +9,7 @@ residual 1e-10 of the x-step written for x); where rho is small against the
 stiffness, hundreds.  The x-step is solved for its correction x - z, to a
 relative residual ``TOL`` of z's own residual (:meth:`JacobiCG.__call__`).  So, per
 value of rho, CG runs until it has cost ``price`` iterations in all (the
-rent), then K + rho M is factorised (:class:`admmkit.linsolve.CachedFactorization`,
+rent), then K + rho M is factorised (:class:`admmkit.linalg.linsolve.CachedFactorization`,
 the buy) and used for every later solve at that rho: never more than twice
 what the better of the two would have cost in hindsight (the rent-or-buy
 rule), counted in iterations, not seconds, so the iterates do not depend on
@@ -24,7 +24,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from admmkit.linsolve import CachedFactorization
+from admmkit.linalg.linsolve import CachedFactorization
 
 #: the x-step of the adaptive levels (admmkit.problems.obstacle.adaptive): this one
 ADAPTIVE_BACKEND = "jacobi"

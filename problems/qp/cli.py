@@ -14,7 +14,7 @@ from __future__ import annotations
 from admmkit import policies  # noqa: F401  (registers the rules the --policy option offers)
 from admmkit.cli import (add_common_options, add_result_outputs, positive_float, progress, resolve_policy, run_solve,
                          write_history)
-from admmkit.cli_output import print_summary
+from admmkit.cli.output import print_summary
 from admmkit.policies.paper_methods import PAPER_METHODS
 
 from .cli_output import certificate_summary, qp_lines, write_qp_csv, write_qp_json

@@ -1,5 +1,5 @@
 """What ``admmkit solve qp`` prints and writes beyond the common summary: the termination test, the
-infeasibility certificate, the neutral criteria, and JSON/CSV that carry them (admmkit/cli_output.py writes)."""
+infeasibility certificate, the neutral criteria, and JSON/CSV that carry them (admmkit/cli/output.py writes)."""
 from __future__ import annotations
 
 import dataclasses
@@ -7,7 +7,7 @@ import json
 
 import numpy as np
 
-from admmkit.cli_output import jsonable, number, provenance, result_record, write_result_csv
+from admmkit.cli.output import jsonable, number, provenance, result_record, write_result_csv
 from admmkit.io import write_text
 
 from .infeasibility import check_dual_certificate, check_primal_certificate
@@ -53,7 +53,7 @@ def qp_lines(result, certificate: dict | None, preset: str) -> list[str]:
 
 
 def qp_record(result, certificate: dict | None, preset: str) -> dict:
-    """:func:`admmkit.cli_output.result_record` plus termination, neutral, OSQP residuals, polish, certificate and
+    """:func:`admmkit.cli.output.result_record` plus termination, neutral, OSQP residuals, polish, certificate and
     warnings."""
     settings = getattr(result, "settings", None)
     return result_record(result) | jsonable({

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from admmkit.segments import AVAILABLE as NUMBA      # numba installed (asked once, without importing it)
+from admmkit.loop.segments import AVAILABLE as NUMBA      # numba installed (asked once, without importing it)
 
 
 def _inf(v) -> float:

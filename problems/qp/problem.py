@@ -203,7 +203,7 @@ class QP(Problem):
         return x_new
 
     def segment(self, x, z, lam, Ax, rho, alpha, order, count, read=False):
-        """``count`` iterations in one compiled call (:mod:`admmkit.segments`; ``read``: the last is a read one), or
+        """``count`` iterations in one compiled call (:mod:`admmkit.loop.segments`; ``read``: the last is a read one), or
         None where it does not apply."""
         from .segment import run_segment
         return run_segment(self, x, z, lam, Ax, rho, alpha, order, count, read)

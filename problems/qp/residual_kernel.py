@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from admmkit.compiled import csc_matvec, kernel
+from admmkit.linalg.compiled import csc_matvec, kernel
 
 from .residuals import ZERO_DEADZONE
 

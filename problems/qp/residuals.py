@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from admmkit.segments import AVAILABLE as NUMBA      # numba installed (asked once, without importing it)
+from admmkit.loop.segments import AVAILABLE as NUMBA      # numba installed (asked once, without importing it)
 
 from .kkt import ZERO_DEADZONE, osqp_residuals, support  # noqa: F401  (defined beside the KKT residuals; re-exported)
 from .problem import QP

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from admmkit.segments import AVAILABLE as NUMBA      # numba installed (asked once, without importing it)
+from admmkit.loop.segments import AVAILABLE as NUMBA      # numba installed (asked once, without importing it)
 
 #: OSQP_MIN_SCALING, OSQP_MAX_SCALING
 MIN_SCALING, MAX_SCALING = 1e-4, 1e4

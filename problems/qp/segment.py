@@ -1,10 +1,10 @@
-"""The QP's compiled segment: OSQP's iteration, ``count`` times in one call (:mod:`admmkit.segments`).
+"""The QP's compiled segment: OSQP's iteration, ``count`` times in one call (:mod:`admmkit.loop.segments`).
 
 Order "xz" with the KKT form of the x-step factorised by qdldl (OSQP's
 machinery: :func:`admmkit.problems.qp.solve_qp`'s default), with
 over-relaxation alpha and OSQP's relaxed x (Q4).  One iteration, as
 :meth:`admmkit.problems.qp.QP.x_step`, ``apply_A``,
-``z_step`` and :mod:`admmkit.steps` compute it::
+``z_step`` and :mod:`admmkit.loop.steps` compute it::
 
     [x~; v] = K(rho)^-1 [sigma x^k - q; z^k - lam^k / rho]      (Q1), free rows: z - w lam / 1e-6 (Q5)
     x^{k+1} = a x~ + (1 - a) x^k                                 (Q4, a = x_relaxation)
@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from admmkit.compiled import AVAILABLE, all_finite, compiled_now, csc_matvec, kernel, ldl_solve
+from admmkit.linalg.compiled import AVAILABLE, all_finite, compiled_now, csc_matvec, kernel, ldl_solve
 
 #: the size nnz(P) + nnz(A) + n + m from which a QP solve runs compiled code under ``compiled="auto"`` (the
 #: default): below it, importing numba and loading (or, on a fresh install, compiling) the kernels costs more
@@ -121,7 +121,7 @@ def _kkt_solve(rho, sigma, Lp, Li, Lx, Dinv, perm, q, free, w_free, xp, z, lam, 
 
 def kkt_x_step(qp, xp, z, lam, rho: float):
     """The KKT x-step's solution x~ in one compiled call with qdldl's factors (the same bits as qdldl's solve), or
-    None where it does not apply (compiled code not chosen, :func:`admmkit.compiled.compiled_now`; another
+    None where it does not apply (compiled code not chosen, :func:`admmkit.linalg.compiled.compiled_now`; another
     backend; a non-finite number: the Python path then meets it as it would anyway)."""
     if not compiled_now():
         return None
@@ -144,7 +144,7 @@ def run_segment(qp, x, z, lam, Ax, rho: float, alpha: float, order: str, count: 
 
     Returns (x, z, lam, Ax, done) in new arrays; the QP's relaxed-x bookkeeping (Q4) follows, and its
     solve counter grows by ``done``.  ``read``: the last iteration is one the loop reads
-    (:mod:`admmkit.segments`); a sixth item, (x, z, lam, A x) it started from and its relaxed vector (None
+    (:mod:`admmkit.loop.segments`); a sixth item, (x, z, lam, A x) it started from and its relaxed vector (None
     when alpha = 1), is returned, None unless all ``count`` iterations were done.
     """
     if order != "xz" or qp.xstep != "kkt" or not compiled_now():

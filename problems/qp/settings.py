@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from admmkit.checks import number          # float(value), or a TypeError naming the setting
+from admmkit.loop.checks import number          # float(value), or a TypeError naming the setting
 
 
 @dataclass(frozen=True)

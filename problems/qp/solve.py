@@ -29,8 +29,8 @@ import numpy as np
 
 import admmkit
 from admmkit import Result, Status
-from admmkit.checks import number
-from admmkit.compiled import compiled_code
+from admmkit.loop.checks import number
+from admmkit.linalg.compiled import compiled_code
 
 from .polish import polish as polish_solution
 from .problem import QP

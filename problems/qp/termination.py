@@ -26,7 +26,7 @@ import time
 import numpy as np
 
 from admmkit import IterationRecord, Status, Stop, StoppingRule
-from admmkit.segments import AVAILABLE as NUMBA
+from admmkit.loop.segments import AVAILABLE as NUMBA
 
 from .infeasibility import DIVISION_TOL, confirmed_certificate, dual_certificate, iterate_deltas, primal_certificate
 from .problem import QP

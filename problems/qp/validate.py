@@ -7,7 +7,7 @@ import warnings
 import numpy as np
 import scipy.sparse as sp
 
-from admmkit.segments import AVAILABLE as NUMBA      # numba installed (asked once, without importing it)
+from admmkit.loop.segments import AVAILABLE as NUMBA      # numba installed (asked once, without importing it)
 
 from .convexity import check_convex
 from .scaling import _csc

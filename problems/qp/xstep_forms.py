@@ -6,8 +6,8 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from admmkit.linsolve import CachedFactorization, available_backends
-from admmkit.segments import AVAILABLE as NUMBA      # numba installed (asked once, without importing it)
+from admmkit.linalg.linsolve import CachedFactorization, available_backends
+from admmkit.loop.segments import AVAILABLE as NUMBA      # numba installed (asked once, without importing it)
 
 from .rows import FREE_ROW_PENALTY
 

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 import admmkit
-from admmkit.acceleration import Anderson, FastADMM, make_accelerator, w_inner
+from admmkit.loop.acceleration import Anderson, FastADMM, make_accelerator, w_inner
 
 
 def lasso(seed=0, m=40, n=90):
@@ -16,7 +16,7 @@ def lasso(seed=0, m=40, n=90):
     D = rng.standard_normal((m, n)) / np.sqrt(m)
     b = D @ truth + 0.05 * rng.standard_normal(m)
     mu = 0.1 * np.abs(D.T @ b).max()
-    return admmkit.SplitProblem(admmkit.QuadraticXStep(D.T @ D, -D.T @ b), admmkit.prox.L1(mu))
+    return admmkit.SplitProblem(admmkit.QuadraticXStep(D.T @ D, -D.T @ b), admmkit.blocks.prox.L1(mu))
 
 
 TIGHT = admmkit.ResidualTolerance(1e-10, 1e-10)

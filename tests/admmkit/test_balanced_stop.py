@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from admmkit import BalancedStop, ResidualTolerance, solve
-from admmkit.norms import LAZY_FIELDS
+from admmkit.loop.norms import LAZY_FIELDS
 
 _NONE = (None,) * len(LAZY_FIELDS)          # a stub record's lazy norms, none computed yet (rec.computed())
 
@@ -104,7 +104,7 @@ def test_a_bound_near_its_threshold_is_tested_at_every_iteration():
     iteration there, flat or not; above it the doubling intervals stay."""
     from types import SimpleNamespace
 
-    from admmkit.balanced_stop import NEAR
+    from admmkit.fe.balanced_stop import NEAR
 
     moving = dict(primal_residual=1.0, x_change=1.0, z_change=1.0, computed=lambda: _NONE)
     for bound, tests in ((0.9 * NEAR * 0.3, list(range(1, 21))), (1.1 * NEAR * 0.3, [1, 2, 4, 8, 16])):
@@ -155,7 +155,7 @@ def test_needed_unknowns_extrapolates_the_last_levels():
     for a tenth of the error), and nothing when it cannot tell."""
     from types import SimpleNamespace as L
 
-    from admmkit.adaptive import needed_unknowns
+    from admmkit.fe.adaptive import needed_unknowns
     levels = [L(unknowns=n, relative_estimate=n ** -0.5) for n in (1e2, 1e3, 1e4)]
     text = needed_unknowns(levels, 1e-3)
     assert "N^-0.50" in text and "1.0e+06 unknowns" in text
@@ -188,7 +188,7 @@ def test_the_estimate_is_computed_only_near_firing():
 
 def test_a_warm_level_holds_rho_then_hands_over_to_the_rule():
     from admmkit import IterationRecord  # noqa: F401  (the records are built by the loop; a stand-in here)
-    from admmkit.adaptive import HeldRho
+    from admmkit.fe.adaptive import HeldRho
     from admmkit.policies import Summable
 
     class Record:
@@ -205,7 +205,7 @@ def test_a_warm_level_holds_rho_then_hands_over_to_the_rule():
 
 def test_keep_holds_rho_past_hold_while_it_says_so():
     """``keep`` (the balanced stop's ``converging``) holds rho after ``hold``; once it turns False the rule acts."""
-    from admmkit.adaptive import HeldRho
+    from admmkit.fe.adaptive import HeldRho
 
     class Record:
         def __init__(self, k, rho):

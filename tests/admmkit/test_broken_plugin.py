@@ -3,6 +3,7 @@ import sys
 from importlib.metadata import EntryPoint
 
 import admmkit.cli as cli
+import admmkit.cli.host as host
 
 
 def test_a_plug_in_with_a_syntax_error_breaks_only_its_own_command(tmp_path, monkeypatch, capsys):
@@ -11,7 +12,7 @@ def test_a_plug_in_with_a_syntax_error_breaks_only_its_own_command(tmp_path, mon
     sys.modules.pop("broken_plugin", None)
     found = dict(cli.commands())
     found["solve.broken"] = EntryPoint("solve.broken", "broken_plugin:register", cli.GROUP)
-    monkeypatch.setattr(cli, "commands", lambda: found)
+    monkeypatch.setattr(host, "commands", lambda: found)
     assert cli.main(["solve", "broken", "--x"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("admmkit: error: ") and "could not be loaded: SyntaxError" in err[0]

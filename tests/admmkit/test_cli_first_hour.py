@@ -9,8 +9,8 @@ import pytest
 
 import admmkit
 from admmkit.cli import build_parser, main, plain
-from admmkit.cli_output import Progress
-from admmkit.sparse_backends import AUTO_ORDER
+from admmkit.cli.output import Progress
+from admmkit.linalg.sparse_backends import AUTO_ORDER
 
 from tests.cli_run import one_error_line, run
 
@@ -146,7 +146,7 @@ class Record:
 
 def test_progress_on_a_non_terminal_writes_plain_lines_and_no_carriage_return(monkeypatch):
     clock = iter(range(0, 1000, 1))                          # one second per iteration
-    monkeypatch.setattr("admmkit.cli_output.time.perf_counter", lambda: float(next(clock)))
+    monkeypatch.setattr("admmkit.cli.output.time.perf_counter", lambda: float(next(clock)))
     log = io.StringIO()
     with Progress(10_000, file=log) as show:                 # the defaults: 2 s delay, a line every 10 s
         for k in range(60):
@@ -159,7 +159,7 @@ def test_progress_on_a_non_terminal_writes_plain_lines_and_no_carriage_return(mo
 
 def test_progress_on_a_terminal_still_draws_the_bar(monkeypatch):
     clock = iter(range(0, 1000, 1))
-    monkeypatch.setattr("admmkit.cli_output.time.perf_counter", lambda: float(next(clock)))
+    monkeypatch.setattr("admmkit.cli.output.time.perf_counter", lambda: float(next(clock)))
     tty = Terminal()
     with Progress(10_000, file=tty) as show:
         for k in range(20):

@@ -35,7 +35,7 @@ def test_adaptive_flags_without_target_error_are_refused(command, flags, needle,
 def test_adaptive_options_fill_the_plugins_defaults():
     """Not given, the loop's options take the plug-in's defaults (contact 20 levels, obstacle 30)."""
     from admmkit.cli import build_parser
-    from admmkit.cli_adaptive import adaptive_options
+    from admmkit.cli.adaptive import adaptive_options
     for command, levels in (("contact", 20), ("obstacle", 30)):
         args = build_parser().parse_args(["solve", command, "--target-error", "0.1"])
         assert (args.theta, args.max_levels, args.max_unknowns) == (None, None, None)

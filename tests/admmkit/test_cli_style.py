@@ -8,10 +8,11 @@ import numpy as np
 import pytest
 
 import admmkit
+from admmkit.cli import run as cli_run
 import admmkit.cli as cli
 from admmkit import Status
 from admmkit.cli import main
-from admmkit.cli_output import Progress, exit_code
+from admmkit.cli.output import Progress, exit_code
 
 QP = ["solve", "qp", "--random", "20", "12"]
 OBSTACLE = ["solve", "obstacle", "--scene", "radial", "--h", "1/8", "--rho", "1"]
@@ -51,7 +52,7 @@ def test_a_diverged_run_exits_1(argv, capsys, monkeypatch):
         result = real(*args, **kwargs)
         result.status = Status.DIVERGED
         return result
-    monkeypatch.setattr(cli, "solve", diverging)          # solve qp / obstacle (admmkit.cli.run_solve)
+    monkeypatch.setattr(cli_run, "solve", diverging)      # solve qp / obstacle (admmkit.cli.run_solve)
     monkeypatch.setattr(admmkit, "solve", diverging)      # solve contact (admmkit.problems.contact.solvers.methods.solve_scene)
     code, out, _ = run(argv, capsys)
     assert code == 1 and "status       diverged" in out
@@ -203,8 +204,8 @@ def test_progress_lines_every_n_iterations(capsys):
 
 
 def test_progress_bar_after_the_delay_and_quiet_silences_it(capsys, monkeypatch):
-    monkeypatch.setattr("admmkit.cli_output.PROGRESS_DELAY", 0.0)
-    monkeypatch.setattr("admmkit.cli_output.PROGRESS_INTERVAL", 0.0)
+    monkeypatch.setattr("admmkit.cli.output.PROGRESS_DELAY", 0.0)
+    monkeypatch.setattr("admmkit.cli.output.PROGRESS_INTERVAL", 0.0)
     _, _, err = run(QP, capsys)
     assert "ADMM: iteration" in err and "\r" not in err    # stderr is no terminal here: plain lines, no bar
     _, _, err = run([*QP, "-q"], capsys)
@@ -217,7 +218,7 @@ def test_the_summary_begins_its_own_line_when_stdout_and_stderr_share_a_log(tmp_
     """#27 item 5: with ``> log 2>&1`` the bar's last frame must not run into the summary's ``status`` line."""
     import subprocess
     import sys
-    script = ("import sys, admmkit.cli_output as o; o.PROGRESS_DELAY = o.PROGRESS_INTERVAL = 0.0; "
+    script = ("import sys, admmkit.cli.output as o; o.PROGRESS_DELAY = o.PROGRESS_INTERVAL = 0.0; "
               "from admmkit.cli import main; sys.exit(main(sys.argv[1:]))")
     log = tmp_path / "log"
     with open(log, "w") as fh:                             # one file for both streams, as `> log 2>&1`

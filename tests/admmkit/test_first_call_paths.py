@@ -12,7 +12,7 @@ import pytest
 import scipy.sparse as sp
 
 import admmkit
-from admmkit import compiled
+from admmkit.linalg import compiled
 from admmkit.cli import COMMAND_HELP, build_parser, commands, main
 from admmkit.problems.qp import QP, osqp_settings, random_qp, solve_qp
 from admmkit.problems.qp.segment import COMPILED_MIN_SIZE, choose_compiled, compiled_pays
@@ -141,12 +141,12 @@ def test_one_index_dtype_for_every_route():
 
 
 def test_import_admmkit_loads_no_numba():
-    assert fresh("import admmkit, admmkit.compiled, admmkit.problems.qp.segment\n" + MODULES)["loaded"] == []
+    assert fresh("import admmkit, admmkit.linalg.compiled, admmkit.problems.qp.segment\n" + MODULES)["loaded"] == []
 
 
 @needs_numba
 def test_a_cold_compile_says_so_once_and_a_cached_one_does_not(tmp_path):
-    code = ("import numpy as np\nfrom admmkit import compiled\n"
+    code = ("import numpy as np\nfrom admmkit.linalg import compiled\n"
             "with compiled.compiled_code(True):\n"
             "    ok = compiled.all_finite(np.ones(3), 0, 3)\n"
             "import json; print(json.dumps({'ok': bool(ok)}))")

@@ -271,7 +271,7 @@ def test_a_norm_the_loop_took_counts_only_when_read(vector_problem):
 @pytest.mark.parametrize("dtype", [np.float64, np.float32])
 @pytest.mark.parametrize("c", [0.0, 0.25])
 def test_dual_update_and_residual_is_the_plain_update(dtype, c):
-    from admmkit.steps import dual_update, dual_update_and_residual
+    from admmkit.loop.steps import dual_update, dual_update_and_residual
     rng = np.random.default_rng(2)
     lam, Ax, z = (rng.standard_normal(50).astype(dtype) for _ in range(3))
     before = [a.copy() for a in (lam, Ax, z)]

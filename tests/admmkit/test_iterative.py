@@ -1,4 +1,4 @@
-"""admmkit.iterative: AMG-preconditioned CG x-steps, checked against sparse direct solves."""
+"""admmkit.blocks.iterative: AMG-preconditioned CG x-steps, checked against sparse direct solves."""
 import math
 
 import ngsolve as ng
@@ -11,7 +11,7 @@ from ngsolve.meshes import MakeStructured2DMesh, MakeStructured3DMesh
 import admmkit
 from admmkit import policies
 from admmkit import RelativeChange
-from admmkit.iterative import IterativeXSolver, PencilMatrix, SolutionSpace, node_blocks
+from admmkit.blocks.iterative import IterativeXSolver, PencilMatrix, SolutionSpace, node_blocks
 from admmkit.problems.contact.solvers.iterative import rigid_body_modes
 from admmkit.problems.contact import assemble, example1, example2, solve_scene
 from admmkit.problems.contact.solvers.problem import contact_problem
@@ -306,7 +306,7 @@ def test_known_kx_is_k_times_the_returned_solution():
 
 def test_axpy_refresh_equals_the_galerkin_product_for_the_new_rho():
     """A_l(rho) = A_l(rho_0) + (rho - rho_0) D_l with D_l = R D P, so the axpy refresh is R A(rho) P exactly."""
-    from admmkit.iterative import AMGPreconditioner
+    from admmkit.blocks.iterative import AMGPreconditioner
     K, D = _poisson_pair(30)
     M = AMGPreconditioner(K + 2.0 * D, None, D=D, rho=2.0)
     M.refresh((K + 700.0 * D).tocsr(), 700.0)
@@ -332,7 +332,7 @@ def test_auto_mode_follows_the_measured_crossovers():
 
 
 def test_iterative_mode_is_bitwise_repeatable_and_leaves_numpy_random_alone():
-    # pyamg starts spectral-radius estimates from np.random.rand: admmkit.amg seeds it locally (issue #16)
+    # pyamg starts spectral-radius estimates from np.random.rand: admmkit.linalg.amg seeds it locally (issue #16)
     ops = assemble(example1(h=1 / 20))
     np.random.seed(123)
     expected_next = np.random.rand()
@@ -350,16 +350,16 @@ def test_auto_reuse_does_not_depend_on_the_clock(monkeypatch):
     import itertools
     import time as time_module
 
-    import admmkit.amg
-    import admmkit.iterative
+    import admmkit.linalg.amg
+    import admmkit.blocks.iterative
     ops = assemble(example1(h=1 / 20))
     calm = solve_scene(ops, "sadmm", 1e3, mode="iterative").result
     rng = np.random.default_rng(0)
     ticks = itertools.accumulate(rng.exponential(0.05, 10**6))
     jumpy = type("Clock", (), {"perf_counter": staticmethod(lambda: next(ticks)),
                                "process_time": staticmethod(time_module.process_time)})
-    monkeypatch.setattr(admmkit.iterative, "time", jumpy)
-    monkeypatch.setattr(admmkit.amg, "time", jumpy)
+    monkeypatch.setattr(admmkit.blocks.iterative, "time", jumpy)
+    monkeypatch.setattr(admmkit.linalg.amg, "time", jumpy)
     loaded = solve_scene(ops, "sadmm", 1e3, mode="iterative").result
     assert calm.iterations == loaded.iterations and np.array_equal(calm.x, loaded.x)
     assert np.array_equal(calm.lam, loaded.lam) and calm.counters == loaded.counters

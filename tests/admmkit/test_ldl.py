@@ -1,10 +1,10 @@
-"""The compiled sparse LDL' (admmkit.ldl) against scipy on a contact stiffness matrix."""
+"""The compiled sparse LDL' (admmkit.linalg.ldl) against scipy on a contact stiffness matrix."""
 import numpy as np
 import pytest
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from admmkit.ldl import ldl_analyse, ldl_factor
+from admmkit.linalg.ldl import ldl_analyse, ldl_factor
 from admmkit.problems.contact.model.assembly import assemble
 from admmkit.problems.contact.model.scene import example1
 

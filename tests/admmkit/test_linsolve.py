@@ -1,10 +1,10 @@
-"""Tests of admmkit.linsolve: each installed backend, the rho cache, bad inputs."""
+"""Tests of admmkit.linalg.linsolve: each installed backend, the rho cache, bad inputs."""
 import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from admmkit import linsolve
-from admmkit.linsolve import CachedFactorization, available_backends, factorize
+from admmkit.linalg import linsolve
+from admmkit.linalg.linsolve import CachedFactorization, available_backends, factorize
 
 BACKENDS = available_backends()
 

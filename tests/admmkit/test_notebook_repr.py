@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import admmkit
-from admmkit.history import COLUMNS
+from admmkit.loop.history import COLUMNS
 from admmkit.problems.contact import example1, solve_scene
 
 

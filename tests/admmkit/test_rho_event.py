@@ -4,8 +4,8 @@ import pytest
 import scipy.sparse as sp
 
 import admmkit
-from admmkit.acceleration import Anderson
-from admmkit.linsolve import CachedFactorization
+from admmkit.loop.acceleration import Anderson
+from admmkit.linalg.linsolve import CachedFactorization
 
 from tests.conftest import Obstacle1D
 
@@ -54,13 +54,13 @@ def test_no_event_without_a_change():
 
 
 def test_a_plug_in_without_the_hook_runs_as_before():
-    from admmkit.steps import RhoEvent
+    from admmkit.loop.steps import RhoEvent
     event = RhoEvent(object())                 # a plug-in of the protocol that lacks update_rho
     assert event.change(2) == 2.0 and event.seconds == 0.0
 
 
 def test_the_accelerator_restarts_on_the_event(monkeypatch):
-    from admmkit.acceleration import Acceleration
+    from admmkit.loop.acceleration import Acceleration
     resets = []
     original = Acceleration.reset
     monkeypatch.setattr(Acceleration, "reset", lambda self: (resets.append(1), original(self)))

@@ -5,12 +5,14 @@ import pytest
 import scipy.sparse as sp
 
 import admmkit
-from admmkit import QuadraticXStep, SplitProblem, compiled, prox
+from admmkit import QuadraticXStep, SplitProblem
+from admmkit.linalg import compiled
+from admmkit.blocks import prox
 from admmkit import policies  # noqa: F401  (registers the rules)
-from admmkit.split_segment import run_segment
+from admmkit.blocks.split_segment import run_segment
 
 pytestmark = pytest.mark.skipif(not compiled.AVAILABLE, reason="numba is not installed: no compiled segment")
-HAS_QDLDL = "qdldl" in admmkit.linsolve.available_backends()
+HAS_QDLDL = "qdldl" in admmkit.linalg.linsolve.available_backends()
 rng = np.random.default_rng(25)
 N, P_ROWS = 30, 40
 

@@ -1,9 +1,9 @@
-"""admmkit.submatrix.principal_submatrix against scipy's A[index][:, index]."""
+"""admmkit.linalg.submatrix.principal_submatrix against scipy's A[index][:, index]."""
 import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from admmkit.submatrix import principal_submatrix
+from admmkit.linalg.submatrix import principal_submatrix
 
 
 def _matrix(n, seed=0, sorted_rows=True):

@@ -179,7 +179,7 @@ def test_a_wrong_apply_A_at_the_start_is_named():
         solve(problem)
 
 
-@pytest.mark.skipif(not admmkit.segments.AVAILABLE, reason="segments need numba")
+@pytest.mark.skipif(not admmkit.loop.segments.AVAILABLE, reason="segments need numba")
 def test_the_first_iteration_runs_in_python_before_any_segment():
     class Compiled(Obstacle5):
         """A plug-in with a compiled segment, whose own x-step is wrong."""

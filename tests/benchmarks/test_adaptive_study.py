@@ -6,7 +6,7 @@ import sys
 
 import pytest
 
-from admmkit.balanced_stop import GAMMA
+from admmkit.fe.balanced_stop import GAMMA
 from admmkit.problems.obstacle.estimate import OBSTACLE_GAMMA
 from admmkit.benchmarks.rules.adaptive_compare import at_error, common_error, comparison, rate
 from admmkit.benchmarks.rules.adaptive_hertz import penetration_term
@@ -74,7 +74,7 @@ def test_errors_fall_with_refinement_and_the_estimates_are_effective(quick):
             # (nu = 0.49), whose finer levels need more iterations than its first, warm or cold (28, 30 against 26)
             if key[0] not in ("obstacle", "ex2"):
                 assert all(r["iterations"] <= s[0]["iterations"] for r in s[1:]), key     # the warm start
-            # against a cold start there; each run schedules its tests by its own bounds (admmkit.balanced_stop),
+            # against a cold start there; each run schedules its tests by its own bounds (admmkit.fe.balanced_stop),
             # so a warm level may stop a few iterations after a cold one (obstacle P1, 89 unknowns: 13 against 11)
             assert all(r["iterations"] <= r["cold_iterations"] + 3 for r in s[1:]), key
             # the balanced stop's guarantee, checked against the exact discrete solution of each level

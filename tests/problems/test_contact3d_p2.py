@@ -17,7 +17,7 @@ from admmkit.problems.contact.solvers.estimate_residual import residual_estimato
 from admmkit.problems.contact.solvers.tresca_qp import tresca_cvxpy
 
 try:
-    from admmkit.balanced_stop import GAMMA
+    from admmkit.fe.balanced_stop import GAMMA
 except ImportError:      # the module of the balanced stop's default (0.3) not there yet
     GAMMA = 0.3
 

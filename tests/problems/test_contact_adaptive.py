@@ -4,7 +4,7 @@ import json
 import numpy as np
 import pytest
 
-from admmkit.balanced_stop import GAMMA
+from admmkit.fe.balanced_stop import GAMMA
 from admmkit.cli import main
 from admmkit.problems.contact import assemble, example1
 from admmkit.problems.contact.solvers.adaptive import solve_adaptive

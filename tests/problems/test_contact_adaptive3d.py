@@ -4,7 +4,7 @@ import json
 import numpy as np
 import pytest
 
-from admmkit.balanced_stop import GAMMA
+from admmkit.fe.balanced_stop import GAMMA
 import admmkit
 from admmkit.cli import main
 from admmkit.problems.contact.model.assembly3d import assemble3d

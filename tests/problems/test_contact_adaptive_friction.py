@@ -3,7 +3,7 @@ scenes, the command line and its refusals."""
 import numpy as np
 import pytest
 
-from admmkit.balanced_stop import GAMMA
+from admmkit.fe.balanced_stop import GAMMA
 import admmkit
 from admmkit import ResidualTolerance
 from admmkit.cli import main

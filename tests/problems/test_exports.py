@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from admmkit.cli import main
-from admmkit.cli_output import write_result_csv
+from admmkit.cli.output import write_result_csv
 from admmkit.io import write_text
 from admmkit.problems.contact import example1, example2, solve_scene
 from admmkit.problems.contact.output.export import boundary_fields, contact_status, write_vtu
@@ -124,7 +124,7 @@ def test_vtu_writer_failing_halfway_keeps_the_old_file(tmp_path, monkeypatch):
 
 def test_history_csv_failing_halfway_keeps_the_old_file(tmp_path, monkeypatch, vector_problem):
     import admmkit
-    from admmkit.history import History
+    from admmkit.loop.history import History
     hist = admmkit.solve(vector_problem, max_iter=50).history
     path = hist.to_csv(tmp_path / "h.csv")
     good = path.read_text()

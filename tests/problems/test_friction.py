@@ -41,9 +41,9 @@ def case(request):
 def test_tresca_matches_clarabel(case, mode):
     name, ops, (u_ref, p_ref, q_ref) = case
     if mode == "full" and "P2" in name:
-        # admmkit.linsolve's superlu (MMD on A'+A) fills this P2 matrix to 1.3e7 nonzeros (20 s a
+        # admmkit.linalg.linsolve's superlu (MMD on A'+A) fills this P2 matrix to 1.3e7 nonzeros (20 s a
         # factorisation, frictionless too); the full and condensed modes' agreement is checked in 3D below
-        pytest.skip("full mode on P2: superlu MMD fill (admmkit.linsolve), not a friction matter")
+        pytest.skip("full mode on P2: superlu MMD fill (admmkit.linalg.linsolve), not a friction matter")
     sol = solve_scene(ops, "sadmm", rho=1e3, mode=mode, stop=TIGHT)
     assert sol.result.converged and sol.mode == mode
     rel = lambda a, b: np.linalg.norm(a - b) / np.linalg.norm(b)  # noqa: E731

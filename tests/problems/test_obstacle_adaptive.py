@@ -8,7 +8,7 @@ import pytest
 
 from admmkit.cli import main
 from admmkit.problems.obstacle import radial
-from admmkit.adaptive import dorfler_mark
+from admmkit.fe.adaptive import dorfler_mark
 from admmkit.problems.obstacle.adaptive import WARM_RHO, solve_adaptive
 
 

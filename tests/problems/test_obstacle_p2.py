@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 import scipy.linalg as la
 
-from admmkit.balanced_stop import GAMMA
+from admmkit.fe.balanced_stop import GAMMA
 import admmkit
 from admmkit.cli import main
 from admmkit.problems.obstacle import ObstacleProblem, ObstacleProblemP2, make_problem, radial, solve_with_cvxpy

@@ -10,7 +10,7 @@ import pytest
 from admmkit import policies  # noqa: F401  (registers the rules by name)
 import admmkit
 from admmkit.cli import build_parser, main
-from admmkit.stopping import RelativeChange
+from admmkit.loop.stopping import RelativeChange
 from admmkit.problems.qp import load_mat, random_qp, solve_qp, osqp_settings
 from admmkit.problems.qp.generate import infeasible_qp, unbounded_qp
 from admmkit.problems.qp.reference import solve_with_cvxpy

@@ -5,7 +5,8 @@ import numpy as np
 import pytest
 
 import admmkit
-from admmkit import Policy, compiled
+from admmkit import Policy
+from admmkit.linalg import compiled
 from admmkit.policies import Fixed, OSQPRule, Summable
 from admmkit.problems.qp import load_mat, osqp_settings, random_qp, solve_qp
 from admmkit.problems.qp.generate import infeasible_qp, unbounded_qp
@@ -26,7 +27,7 @@ def same_run(a, b):
 
 
 def qdldl_or_skip():
-    if "qdldl" not in admmkit.linsolve.available_backends():
+    if "qdldl" not in admmkit.linalg.linsolve.available_backends():
         pytest.skip("the segment reads qdldl's factors; qdldl is not installed")
 
 
@@ -64,7 +65,7 @@ def test_maros_meszaros_bit_for_bit(name):
 
 def test_a_rule_that_reads_every_record_gets_every_record():
     """Each iteration after the first is then a read one: the segment runs it alone and the loop builds its record
-    from the segment's numbers (admmkit.segments, read=True); the run is the Python path's, bit for bit."""
+    from the segment's numbers (admmkit.loop.segments, read=True); the run is the Python path's, bit for bit."""
     qdldl_or_skip()
     qp = random_qp(30, 40, seed=8)
     fast = solve_qp(qp, policy=Summable(), max_iter=200, compiled=True)
@@ -165,7 +166,7 @@ def test_compiled_residuals_are_numpys(settings):
 def test_a_progress_bar_lets_the_segments_run():
     """The command line's progress bar (every_record = False) is fed the tested iterations; the rest run compiled."""
     qdldl_or_skip()
-    from admmkit.cli_output import Progress
+    from admmkit.cli.output import Progress
     qp = random_qp(30, 40, seed=15)
     with Progress(4000, delay=0.0, interval=0.0, file=open("/dev/null", "w")) as bar:
         watched = solve_qp(qp, callback=bar, compiled=True)

@@ -153,7 +153,7 @@ def test_a_small_dense_p_is_judged_by_dense_cholesky_as_by_its_eigenvalues(seed)
 @pytest.mark.parametrize("seed", range(30))
 @pytest.mark.parametrize("scaling", [0, 10])
 def test_the_loops_products_are_scipys_bit_for_bit(seed, scaling):
-    from admmkit.compiled import compiled_code
+    from admmkit.linalg.compiled import compiled_code
     qp = awkward_qp(seed, scaling=scaling, row_weights="osqp")
     rng = np.random.default_rng(seed)
     x, y = rng.standard_normal(qp.n), rng.standard_normal(qp.m)
@@ -166,7 +166,7 @@ def test_the_loops_products_are_scipys_bit_for_bit(seed, scaling):
 
 
 def test_a_factorised_matrix_is_left_as_the_caller_gave_it():
-    from admmkit.linsolve import factorize
+    from admmkit.linalg.linsolve import factorize
     M = sp.csc_matrix((np.array([1.0, 1.0, 3.0]), np.array([0, 0, 1]), np.array([0, 2, 3])), shape=(2, 2))
     x = factorize(M, "superlu")(np.array([2.0, 3.0]))
     assert np.allclose(x, [1.0, 1.0]) and M.nnz == 3       # the duplicate summed in a copy, not in M

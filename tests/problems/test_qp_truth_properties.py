@@ -164,7 +164,7 @@ def textbook(qp: QP, tol: float = 1e-5):
     """The textbook preset's loop: rho_0 = 1, residual balancing, the relative-change stop."""
     import admmkit
     from admmkit.policies import ResidualBalancing
-    from admmkit.stopping import RelativeChange
+    from admmkit.loop.stopping import RelativeChange
     return admmkit.solve(qp, rho=1.0, policy=ResidualBalancing(), order="xz", stop=RelativeChange(tol),
                          max_iter=10_000)
 

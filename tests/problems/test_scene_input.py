@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from admmkit.problems.contact import Scene, assemble, example1, load_scene
-from admmkit.problems.contact.model.expressions import FUNCTIONS, expression
+from admmkit.problems.expressions import FUNCTIONS, expression
 from admmkit.problems.contact.model.scene_file import TOML_KEYS
 
 # (expression, the same in Python) for every documented function

@@ -4,7 +4,7 @@ Every registered rule in both orders, from rho_0 = 1e-12 to 1e12, with the
 paper's relative-change stop and with the default residual stop, on contact
 Example 1 and the radial obstacle.  A run the stopping rule ended is
 ``converged`` only if its relative KKT measures are within 10x the rule's
-tolerance (``admmkit.solver.INACCURATE_FACTOR``); this checks that no such run
+tolerance (``admmkit.loop.solver.INACCURATE_FACTOR``); this checks that no such run
 is more than 1e-3 away from an independent solve (Clarabel) of the same
 discrete problem.
 """

@@ -15,7 +15,7 @@ import ngsolve as ng
 import numpy as np
 import scipy.sparse as sp
 
-from admmkit.submatrix import principal_submatrix
+from admmkit.linalg.submatrix import principal_submatrix
 
 from admmkit.problems.contact.model.fastpaths import component_map, free_dofs
 from admmkit.problems.fe import ngsolve_tasks

@@ -34,7 +34,7 @@ import ngsolve as ng
 import numpy as np
 
 from admmkit.problems.contact.model.assembly import ContactOperators, boundary_nodes, free_system, normal_tangential_maps
-from admmkit.problems.contact.model.expressions import as_function
+from admmkit.problems.expressions import as_function
 from admmkit.problems.contact.solvers.friction import TANGENTIAL, check_friction_fields, friction_of
 from admmkit.problems.contact.model.scene import _unit_pair, check_slide
 

@@ -35,7 +35,7 @@ def estimate_memory(area: float, perimeter: float, h: float, order: int, kind: s
     Vertices ~ area/h^2 (structured) or ~1.2 area/h^2 (netgen), dofs = 2 * order^2 *
     vertices; ~14 (P1) / ~26 (P2) nonzeros per row, 12 bytes each, 3 copies; fill of a
     nested-dissection factor of a 2D problem ~ 8 n log2 n nonzeros.  With
-    ``solver="iterative"`` (the AMG-CG x-step, admmkit.iterative) the factor is
+    ``solver="iterative"`` (the AMG-CG x-step, admmkit.blocks.iterative) the factor is
     replaced by what that solver holds, linear in n (:func:`iterative_solver_bytes`).
     """
     if solver not in SOLVERS:

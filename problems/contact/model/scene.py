@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Mapping
 
-from admmkit.problems.contact.model.expressions import as_function as _as_func, expression, finite_positive as _finite_positive
+from admmkit.problems.expressions import as_function as _as_func, expression, finite_positive as _finite_positive
 from admmkit.problems.contact.solvers.friction import TANGENTIAL, check_friction_fields
 from admmkit.problems.contact.model.memory import InsufficientMemory, available_memory, estimate_memory, rectangle_measure
 from admmkit.problems.contact.model.mesh import BOUNDARY_NAMES

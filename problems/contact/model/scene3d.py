@@ -31,7 +31,7 @@ from typing import Any, Mapping
 import ngsolve as ng
 import numpy as np
 
-from admmkit.problems.contact.model.expressions import as_function, expression, finite_positive
+from admmkit.problems.expressions import as_function, expression, finite_positive
 from admmkit.problems.contact.model.memory import InsufficientMemory, available_memory, dofs3d, estimate_memory3d, memory_need3d  # noqa: F401  (memory_need3d: this scene's)
 from admmkit.problems.contact.solvers.friction import check_friction_fields
 from admmkit.problems.contact.model.scene import MAX_CELLS, FrozenDict, check_slide

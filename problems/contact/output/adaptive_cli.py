@@ -7,7 +7,7 @@ from dataclasses import asdict
 
 def run_adaptive(args, scene, method_name: str) -> int:
     """Refine until the estimated relative energy error is <= --target-error; 0 only if it was reached."""
-    from admmkit.cli_adaptive import adaptive_options
+    from admmkit.cli.adaptive import adaptive_options
     from admmkit.io import write_text
     from admmkit.problems.contact.model.scene import Scene
     from admmkit.problems.contact.model.scene3d import Scene3D

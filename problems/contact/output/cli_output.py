@@ -3,7 +3,7 @@ lines, the CSV table of Gamma_C, and the checks of the friction options (``--tan
 ``--slip-bound``) against the scene.
 
 The files themselves are written by :mod:`admmkit.problems.contact.output.export` (VTU, JSON) and
-:func:`admmkit.cli_output.write_result_csv`, whole or not at all.
+:func:`admmkit.cli.output.write_result_csv`, whole or not at all.
 """
 from __future__ import annotations
 
@@ -29,7 +29,7 @@ def parse_mu(text: str) -> float:
 
 def parse_slip_bound(text: str):
     """``--slip-bound``: a number >= 0 or an expression in x, y (its values are checked by the scene)."""
-    from admmkit.problems.contact.model.expressions import expression
+    from admmkit.problems.expressions import expression
     try:
         value = float(text)
     except ValueError:

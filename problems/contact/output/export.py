@@ -28,7 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
-from admmkit.cli_output import jsonable, provenance, result_record
+from admmkit.cli.output import jsonable, provenance, result_record
 from admmkit.io import atomic_path, is_stream, write_text
 
 #: VTU cell types by (dimension, polynomial order); order 2 uses the points at the edge midpoints

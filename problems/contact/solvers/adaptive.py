@@ -39,8 +39,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-from admmkit.adaptive import AdaptiveResult, check_adaptive, dorfler_mark, needed_unknowns
-from admmkit.balanced_stop import GAMMA
+from admmkit.fe.adaptive import AdaptiveResult, check_adaptive, dorfler_mark, needed_unknowns
+from admmkit.fe.balanced_stop import GAMMA
 
 from admmkit.problems.contact.model.assembly import ContactOperators, assemble, build_mesh
 from admmkit.problems.contact.model.scene import Scene

@@ -86,7 +86,7 @@ import numpy as np
 import scipy.linalg as sla
 
 from admmkit import BalancedStop as BaseBalancedStop
-from admmkit.balanced_stop import GAMMA
+from admmkit.fe.balanced_stop import GAMMA
 
 from admmkit.problems.contact.model.assembly import lame
 from admmkit.problems.contact.solvers.estimate_friction import TrescaGap
@@ -185,7 +185,7 @@ class BalancedStop(BaseBalancedStop):
     ``estimator``: ``"zz"`` (this module's, the default) or ``"residual"``
     (:mod:`admmkit.problems.contact.solvers.estimate_residual`, with the pressure
     that balances the iterate, -w / m_c).  Tested at most ``every`` iterations
-    apart, first at iterations 1 and 2 (:mod:`admmkit.balanced_stop`'s
+    apart, first at iterations 1 and 2 (:mod:`admmkit.fe.balanced_stop`'s
     schedule): the bound costs O(n_c^2) on the condensed boundary, the estimate
     (one solve with K's factorisation) is taken only near firing, and a
     warm-started adaptive level can end after 1-6 iterations where a test every

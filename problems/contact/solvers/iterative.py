@@ -1,7 +1,7 @@
 """What the contact plug-in's iterative mode needs from the mesh: the AMG's near-null space.
 
 The iterative mode (:class:`admmkit.problems.contact.solvers.problem.IterativeContact`) solves
-the x-step (12) with :class:`admmkit.iterative.IterativeXSolver`, whose
+the x-step (12) with :class:`admmkit.blocks.iterative.IterativeXSolver`, whose
 smoothed-aggregation AMG wants the rigid body modes of the body and the dofs
 of each node.  Works in 2D and 3D, P1 and P2.
 """
@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from admmkit.iterative import node_blocks
+from admmkit.blocks.iterative import node_blocks
 
 from admmkit.problems.contact.model.assembly import ContactOperators
 

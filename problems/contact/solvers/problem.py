@@ -31,7 +31,7 @@ Two modes give the same iterates (to round-off):
 
   so an iteration costs O(n_c^2); u itself is recovered once, at the end.
 - ``"iterative"``: the x-step of the full mode solved inexactly by CG with a
-  smoothed-aggregation AMG preconditioner (:mod:`admmkit.iterative`; memory
+  smoothed-aggregation AMG preconditioner (:mod:`admmkit.blocks.iterative`; memory
   linear in the unknowns, for meshes too large to factorise).  Its iterates
   match the other modes to the inner tolerance, not to round-off.
 """
@@ -44,10 +44,10 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 from scipy.linalg.lapack import dpotrs
 
-from admmkit.iterative import IterativeXSolver
-from admmkit.linsolve import CachedFactorization
-from admmkit.operators import LinearMap
-from admmkit.xstep import QuadraticXStep
+from admmkit.blocks.iterative import IterativeXSolver
+from admmkit.linalg.linsolve import CachedFactorization
+from admmkit.blocks.operators import LinearMap
+from admmkit.blocks.xstep import QuadraticXStep
 
 from admmkit.problems.contact.model.assembly import ContactOperators
 from admmkit.problems.contact.solvers.base import _ContactBase
@@ -61,7 +61,7 @@ CONDENSED_MAX_NC = 3000
 #: direct modes in 3D (measured crossovers: docs/results/scale/amg_crossover.md, contact3d.md)
 ITERATIVE_MIN_N_2D = 100_000
 ITERATIVE_MIN_N_3D = 30_000
-#: the iterative mode's AMG (admmkit.amg.AMGPreconditioner): rho(D^-1 A) from 10 Arnoldi steps and the
+#: the iterative mode's AMG (admmkit.linalg.amg.AMGPreconditioner): rho(D^-1 A) from 10 Arnoldi steps and the
 #: V-cycle on single-precision values.  Example 1 at 1e6 unknowns (one thread): AMG set-up 5.3 -> 2.8 s,
 #: V-cycle 0.111 -> 0.078 s (with the compiled cycle), 83 -> 82 CG iterations in SADMM's 35 (issue #25)
 FAST_AMG = {"spectral_steps": 10, "cycle_values": "float32"}
@@ -75,7 +75,7 @@ class DenseCholesky:
     """
 
     __slots__ = ("factor", "lower")
-    ldl = refactor = None        # what admmkit.linsolve.CachedFactorization asks of a solve
+    ldl = refactor = None        # what admmkit.linalg.linsolve.CachedFactorization asks of a solve
 
     def __init__(self, matrix: np.ndarray):
         self.factor, self.lower = sla.cho_factor(matrix)
@@ -189,7 +189,7 @@ class CondensedContact(_ContactBase):
 
 
 class IterativeContact(_ContactBase):
-    """Iterative mode: x = u, the x-step (12) by AMG-preconditioned CG (admmkit.iterative)."""
+    """Iterative mode: x = u, the x-step (12) by AMG-preconditioned CG (admmkit.blocks.iterative)."""
 
     mode = "iterative"
 
@@ -240,7 +240,7 @@ def _coordinates(ops) -> np.ndarray | None:
 def contact_problem(ops: ContactOperators, mode: str = "auto", backend: str = "auto") -> _ContactBase:
     """The contact plug-in for assembled operators, in the requested mode.
 
-    ``backend`` names the sparse solver: any of :mod:`admmkit.linsolve`'s in
+    ``backend`` names the sparse solver: any of :mod:`admmkit.linalg.linsolve`'s in
     the full mode, "cholmod", "ldl" or "superlu" (or "auto") in the condensed mode.
     ``mode="auto"`` picks the condensed mode when the contact boundary has at
     most CONDENSED_MAX_NC nodes (the dense n_c x n_c compliance then fits and

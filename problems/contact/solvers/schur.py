@@ -18,7 +18,7 @@ Three backends:
 
 * ``"cholmod"`` (scikit-sparse, when installed): AMD on K_ii, then CHOLMOD's
   L L' in that order; S from the last n_c columns of L.
-* ``"ldl"`` (:mod:`admmkit.ldl`, compiled with numba): P K P' = (I + L) D
+* ``"ldl"`` (:mod:`admmkit.linalg.ldl`, compiled with numba): P K P' = (I + L) D
   (I + L)' in our order; the last n_c columns of L hold only their trailing
   block, so S = L_cc D_c L_cc' and R = D_c^{1/2} L_cc' are read without
   touching the rest of the factor.  Not supernodal: fastest on small bodies.
@@ -35,7 +35,7 @@ degree 0.33 s and 1.99 s.
 
 ``"auto"`` takes CHOLMOD when installed.  Otherwise, up to ``LDL_MAX_DOFS``
 dofs, it orders, computes the elimination tree and L's column counts c_j
-(:func:`admmkit.ldl.ldl_analyse`, 1-4 % of a factorisation), and takes
+(:func:`admmkit.linalg.ldl.ldl_analyse`, 1-4 % of a factorisation), and takes
 ``ldl`` when the mean column length sum c_j^2 / sum c_j is at most
 ``LDL_MAX_COLUMN_LENGTH``, else ``superlu``: the longer the columns, the more
 SuperLU's dense supernodal blocks gain over the compiled scalar loop.  On the
@@ -54,8 +54,8 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from admmkit.blas import limit_blas
-from admmkit.ldl import ldl_analyse, ldl_factor
+from admmkit.loop.blas import limit_blas
+from admmkit.linalg.ldl import ldl_analyse, ldl_factor
 
 from admmkit.problems.contact.solvers.dissection import (contact_last_order, minimum_degree_ordering,  # noqa: F401
                                                          permute_symmetric)
@@ -81,7 +81,7 @@ def available_schur_backends() -> tuple[str, ...]:
         out.append("cholmod")
     except ImportError:
         pass
-    from admmkit.compiled import AVAILABLE
+    from admmkit.linalg.compiled import AVAILABLE
     return tuple(out + (["ldl"] if AVAILABLE else []) + ["superlu"])
 
 
@@ -134,7 +134,7 @@ class _SuperLUSchur:
 
 
 class _LDLSchur:
-    """P K P' = (I + L) D (I + L)' by :func:`admmkit.ldl.ldl_factor` in the given order (contact dofs last)."""
+    """P K P' = (I + L) D (I + L)' by :func:`admmkit.linalg.ldl.ldl_factor` in the given order (contact dofs last)."""
 
     def __init__(self, K: sp.csc_matrix, order: np.ndarray, m: int, timings: dict, analysis=None):
         t1 = time.perf_counter()

@@ -1,0 +1,297 @@
+"""Smoothed-aggregation AMG as a preconditioner for the x-step matrices K + rho D (pyamg).
+
+Used by :class:`admmkit.blocks.iterative.IterativeXSolver`; generic: the plug-in gives
+the near-null space and, for a vector problem, the dofs of each node.
+"""
+from __future__ import annotations
+
+import math
+import time
+from contextlib import contextmanager
+
+import numpy as np
+import scipy.sparse as sp
+
+from .compiled import hand_written
+
+
+@contextmanager
+def _seeded(seed: int = 0):
+    """numpy's global random state seeded for the block and restored after it.
+
+    pyamg starts its spectral-radius estimates (Jacobi smoothing of the
+    prolongator, the smoothers' weights) from ``np.random.rand``: seeding it
+    here makes every AMG set-up, and so every run of an iterative x-step,
+    bitwise repeatable, without touching the caller's random stream.
+    """
+    state = np.random.get_state()
+    np.random.seed(seed)
+    try:
+        yield
+    finally:
+        np.random.set_state(state)
+
+
+# ---------------------------------------------------------------- node blocks of the AMG
+def node_blocks(node: np.ndarray, component: np.ndarray, d: int) -> np.ndarray | None:
+    """(n_nodes, d) dof indices grouped by node, or None if some node misses a component.
+
+    With blocks, the AMG works on the node graph (BSR matrices with d x d
+    blocks), which is how smoothed aggregation is meant to treat a vector
+    problem; without them it works dof by dof.
+    """
+    node, component = np.asarray(node), np.asarray(component)
+    order = np.lexsort((component, node))
+    n_nodes = np.count_nonzero(np.bincount(node)) if node.size and node.min() >= 0 else np.unique(node).size
+    if n_nodes * d != node.size:
+        return None
+    blocks = order.reshape(n_nodes, d)
+    if not (np.all(component[blocks] == np.arange(d)) and np.all(node[blocks] == node[blocks[:, :1]])):
+        return None
+    return blocks
+
+
+# ---------------------------------------------------------------- the AMG preconditioner
+class AMGPreconditioner:
+    """One V-cycle of a pyamg smoothed-aggregation hierarchy for an SPD matrix.
+
+    With ``blocksize`` d > 1 the hierarchy is built from the BSR form of A (d x d
+    node blocks: aggregation on the node graph), then every level is stored in
+    CSR and smoothed by pointwise Gauss-Seidel: one forward sweep before and one
+    backward sweep after the coarse-grid correction, so the V-cycle is a
+    symmetric positive definite operator (needed by CG) at half the cost of
+    pyamg's default symmetric sweeps.  pyamg's block Gauss-Seidel on BSR took
+    2-3 times as long per V-cycle for the same CG iterations (Example 1,
+    4.1e5 unknowns: 310-340 ms against 100-155 ms, 23 iterations each).  The
+    coarsest level is solved by sparse LU.
+
+    Options for speed (the defaults keep pyamg's set-up): ``spectral_steps``
+    (:func:`short_spectral_radius`) and ``cycle_values="float32"`` (the V-cycle
+    on single-precision values, :class:`admmkit.linalg.vcycle.VCycle`).
+    """
+
+    SMOOTHERS = (("gauss_seidel", {"sweep": "forward"}), ("gauss_seidel", {"sweep": "backward"}))
+    #: sparse LU on the coarsest level: pyamg's default, a dense pseudo-inverse (SVD), took
+    #: 0.1 s for 500 x 500 on one thread and 0.6-2.3 s on two threads of this loaded machine
+    COARSE = "splu"
+    #: no relaxation of the near-null space before fitting the prolongators: the rigid body modes are
+    #: exact null vectors of K already.  pyamg's default (4 block Gauss-Seidel sweeps) took 40 % of the
+    #: setup (Example 1, 4.1e5 unknowns: 2.9-3.3 s against 1.7-1.8 s) for the same 23 CG iterations
+    IMPROVE = None
+
+    def __init__(self, A: sp.spmatrix, near_null: np.ndarray | None, *, blocksize: int = 1, max_coarse: int = 500,
+                 D: sp.spmatrix | None = None, rho: float | None = None, spectral_steps: int | None = None,
+                 cycle_values: str = "float64"):
+        import pyamg
+        from pyamg.relaxation.smoothing import change_smoothers
+        start = time.perf_counter()
+        A = sp.csr_matrix(A)
+        An = A.tobsr(blocksize=(blocksize, blocksize)) if blocksize > 1 else A
+        with _seeded(), short_spectral_radius(spectral_steps):
+            self.ml = pyamg.smoothed_aggregation_solver(
+                An, B=near_null, symmetry="symmetric", max_coarse=max_coarse,
+                presmoother=self.SMOOTHERS[0], postsmoother=self.SMOOTHERS[1], keep=False,
+                coarse_solver=self.COARSE, improve_candidates=self.IMPROVE)
+            if blocksize > 1:         # the finest level is A itself, not a CSR copy of its BSR form
+                for level, M in zip(self.ml.levels, [A] + [level.A for level in self.ml.levels[1:]]):
+                    level.A = _symmetric_csr(M)
+                change_smoothers(self.ml, self.SMOOTHERS[0], self.SMOOTHERS[1])
+        # A = K + rho D gives A_l = K_l + rho D_l on every level with D_l = R D_{l-1} P: keep the coarse
+        # D_l on the coarse patterns, so that a Galerkin refresh for another rho is one axpy per level
+        self._rho, self._pencils = rho, None
+        if D is not None and rho is not None:
+            pencils, Dl = [], sp.csr_matrix(D)
+            for fine, coarse in zip(self.ml.levels[:-1], self.ml.levels[1:]):
+                Dl = sp.csr_matrix(fine.R @ Dl @ fine.P)
+                pencils.append(PencilMatrix(coarse.A, Dl))
+                # the same values on the pencil's pattern, which every refresh keeps (the V-cycle then reuses
+                # what it found on it)
+                coarse.A = _symmetric_csr(pencils[-1].K_matrix())
+            self._pencils = pencils
+        self._cycle = None        # the compiled V-cycle (admmkit.linalg.vcycle), built at the first application
+        self.cycle_values = np.dtype(cycle_values)
+        self.setup_time = time.perf_counter() - start
+        self.refresh_time = math.nan
+
+    @property
+    def levels(self) -> int:
+        """Number of levels of the hierarchy."""
+        return len(self.ml.levels)
+
+    def operator_complexity(self) -> float:
+        """Sum of the nonzeros of all levels over those of the finest."""
+        return float(self.ml.operator_complexity())
+
+    def refresh(self, A: sp.spmatrix, rho: float | None = None) -> None:
+        """Galerkin refresh: keep the prolongators, make every level R A P for the new A and the smoothers.
+
+        With the D and rho of the construction and the new ``rho``, the coarse
+        operators are updated as A_l + (rho - rho_0) D_l (exact, one axpy per
+        level); otherwise R A P is recomputed level by level.
+        """
+        from pyamg.multilevel import coarse_grid_solver
+        from pyamg.relaxation.smoothing import change_smoothers
+        start = time.perf_counter()
+        levels = self.ml.levels
+        levels[0].A = _symmetric_csr(A)
+        if self._pencils is not None and rho is not None:
+            for coarse, pencil in zip(levels[1:], self._pencils):
+                coarse.A = _symmetric_csr(pencil.at(rho - self._rho))
+        else:
+            for fine, coarse in zip(levels[:-1], levels[1:]):
+                coarse.A = _symmetric_csr(fine.R @ fine.A @ fine.P)
+        with _seeded():
+            change_smoothers(self.ml, self.SMOOTHERS[0], self.SMOOTHERS[1])
+        self.ml.coarse_solver = coarse_grid_solver(self.COARSE)  # its cached factors belonged to the old A
+        if self._cycle is not None:
+            self._cycle = self._cycle.refreshed(self.ml)
+        self.refresh_time = time.perf_counter() - start
+
+    def __call__(self, r: np.ndarray) -> np.ndarray:
+        """z = V-cycle(r), starting from zero (no residual norms, unlike ml.solve).
+
+        With numba, :class:`admmkit.linalg.vcycle.VCycle` (the same values, its products row-parallel);
+        without, or under :func:`admmkit.linalg.compiled.library_kernels`, pyamg's own cycle.
+        """
+        if hand_written():
+            if self._cycle is None:
+                from .vcycle import VCycle
+                self._cycle = VCycle(self.ml, values=self.cycle_values)
+            return self._cycle(r)
+        z = np.zeros_like(r)
+        if len(self.ml.levels) == 1:
+            return self.ml.coarse_solver(self.ml.levels[0].A, r)
+        self.ml._MultilevelSolver__solve(0, z, r, "V")  # pyamg's cycle, without ml.solve's two residual norms
+        return z
+
+
+@contextmanager
+def short_spectral_radius(steps: int | None):
+    """pyamg's prolongation smoothing estimates rho(D^-1 A) with ``steps`` Arnoldi steps and no restart.
+
+    pyamg's default (15 steps, up to 5 restarts: two passes here) took 3.2 s of a 5.3 s set-up
+    at 1e6 unknowns (Example 1); 10 steps gave rho 1.2 % lower on the finest level (3.067 against
+    3.105) and 82 CG iterations instead of 83 in the whole SADMM run, with a 2.8 s set-up.  The
+    steps run in :func:`admmkit.linalg.arnoldi.arnoldi_spectral_radius` (pyamg's values, fewer temporaries).
+    ``None`` keeps pyamg's default.  Scoped: pyamg's module attribute is restored on exit.
+    """
+    if steps is None:
+        yield
+        return
+    import functools
+    from pyamg.aggregation import smooth
+    from .arnoldi import arnoldi_spectral_radius
+    original = smooth.approximate_spectral_radius
+    smooth.approximate_spectral_radius = functools.partial(arnoldi_spectral_radius, steps=int(steps))
+    try:
+        yield
+    finally:
+        smooth.approximate_spectral_radius = original
+
+
+def _symmetric_csr(A) -> sp.csr_matrix:
+    """A as CSR, flagged symmetric for pyamg."""
+    A = sp.csr_matrix(A)
+    A.symmetry = "symmetric"
+    return A
+
+
+# ---------------------------------------------------------------- K + rho D on one pattern
+class PencilMatrix:
+    """K + rho D for any rho without sparse additions: both on the union of their patterns.
+
+    The union pattern is stored once in CSR (blocksize 1) or BSR (d x d blocks,
+    what the smoothed aggregation of a vector problem wants); ``at(rho)``
+    returns the matrix with data K_data + rho D_data, one axpy of the values.
+    """
+
+    def __init__(self, K: sp.csr_matrix, D: sp.csr_matrix, blocksize: int = 1, copy: bool = True):
+        self.shape = K.shape
+        self.blocksize = blocksize
+        if blocksize == 1:     # fast path: D's entries all inside K's pattern (the usual case: D couples
+            K = sp.csr_matrix(K, copy=copy)   # dofs of one contact node or edge, which K couples too)
+            K.sum_duplicates()
+            K.sort_indices()
+            self.pattern = K
+            D = sp.csr_matrix(D)
+            D.sum_duplicates()
+            positions = self._positions(D)
+            if positions is not None:
+                self.K_data = K.data          # the pattern's own values: K (never written)
+                self.D_data = np.zeros_like(K.data)
+                self.D_data[positions] = D.data
+                self._D_entries = np.sort(positions[D.data != 0])   # where D_data is nonzero, from D's own entries
+                return
+        ones = lambda M: sp.csr_matrix((np.ones_like(M.data), M.indices, M.indptr), shape=M.shape)  # noqa: E731
+        pattern = (ones(K) + ones(D)).tocsr()     # positive values: no entry of the union cancels
+        if blocksize > 1:
+            pattern = pattern.tobsr(blocksize=(blocksize, blocksize))
+        pattern.sort_indices()
+        self.pattern = pattern
+        self.K_data = self._aligned(K)
+        self.D_data = self._aligned(D)
+
+    def K_matrix(self):
+        """K on the pattern (the pattern itself on the fast path: no copy)."""
+        if self.pattern.data is self.K_data:
+            return self.pattern
+        return self.at(0.0)
+
+    def _positions(self, M: sp.csr_matrix) -> np.ndarray | None:
+        """Where M's stored entries sit in the (CSR) pattern's values, or None if one lies outside it.
+
+        Reads only the pattern rows M touches (D couples the few contact dofs: at 1e6 unknowns this
+        replaced keys for all 14e6 entries of K, twice, about 0.4 s).
+        """
+        if M.nnz == 0:
+            return np.empty(0, dtype=np.int64)
+        rows = np.repeat(np.arange(M.shape[0]), np.diff(M.indptr))
+        touched = np.unique(rows)
+        starts, lengths = self.pattern.indptr[touched], np.diff(self.pattern.indptr)[touched]
+        at = np.repeat(starts - np.concatenate(([0], np.cumsum(lengths)[:-1])), lengths) + np.arange(lengths.sum())
+        width = self.shape_blocks + 1
+        keys_union = np.repeat(touched, lengths).astype(np.int64) * width + self.pattern.indices[at]
+        keys = rows.astype(np.int64) * width + M.indices
+        pos = np.minimum(np.searchsorted(keys_union, keys), keys_union.size - 1)
+        if keys_union.size == 0 or not np.array_equal(keys_union[pos], keys):
+            return None
+        return at[pos]
+
+    def _keys(self, M) -> np.ndarray:
+        rows = np.repeat(np.arange(M.indptr.size - 1), np.diff(M.indptr))
+        return rows.astype(np.int64) * (self.shape_blocks + 1) + M.indices
+
+    @property
+    def shape_blocks(self) -> int:
+        """Number of block columns."""
+        return self.pattern.shape[1] // self.blocksize
+
+    def _aligned(self, M: sp.csr_matrix) -> np.ndarray:
+        """M's values placed on the union pattern (zeros elsewhere)."""
+        bs = self.blocksize
+        M = M.tobsr(blocksize=(bs, bs)) if bs > 1 else sp.csr_matrix(M)
+        M.sort_indices()
+        M.sum_duplicates()
+        keys_union, keys = self._keys(self.pattern), self._keys(M)
+        pos = np.searchsorted(keys_union, keys)
+        if keys.size and not np.array_equal(keys_union[np.minimum(pos, keys_union.size - 1)], keys):
+            raise AssertionError("pattern of a term is not inside the union pattern")  # by construction
+        data = np.zeros_like(self.pattern.data)
+        data[pos] = M.data
+        return data
+
+    def at(self, rho: float):
+        """The sparse matrix K + rho D (CSR or BSR); where D is sparse in the pattern (contact: 4e3 of 14e6
+        entries), K's values are copied and only D's entries updated (the same values, a third of the work)."""
+        if getattr(self, "_D_entries", None) is None:
+            self._D_entries = np.flatnonzero(self.D_data) if self.D_data.ndim == 1 else np.empty(0, dtype=int)
+        if 0 < self._D_entries.size < self.D_data.size // 8:
+            data = self.K_data.copy()
+            data[self._D_entries] += rho * self.D_data[self._D_entries]
+        else:
+            data = self.K_data + rho * self.D_data
+        if self.blocksize > 1:
+            return sp.bsr_matrix((data, self.pattern.indices, self.pattern.indptr), shape=self.shape)
+        A = sp.csr_matrix((data, self.pattern.indices, self.pattern.indptr), shape=self.shape)
+        A.has_sorted_indices = True          # the pattern's rows are sorted (__init__): no scan of its indices
+        return A

@@ -1,0 +1,256 @@
+"""Acceleration of the ADMM fixed-point iteration: safeguarded Anderson and restarted fast ADMM.
+
+One ADMM iteration at a fixed rho is a map T of the *state* it starts from,
+
+    s = (u, lam),   u = z^k (order "xz": the x-step reads z and lam)
+                    u = A x^k (order "zx": the z-step reads A x and lam),
+
+and a solution is a fixed point s = T(s).  An accelerator sees, after each
+iteration, the state s_k it started from and its image f_k = T(s_k), and
+proposes the state s_{k+1} the next iteration starts from (plain ADMM:
+s_{k+1} = f_k).  Residuals and distances are measured in the norm::
+
+    ||(u, lam)||_W^2 = rho ||u||_M^2 + ||lam||_M^2 / rho,               (A1)
+
+in which T is firmly nonexpansive for convex problems (the Douglas-Rachford
+form of ADMM; M is the problem's inner product).  The fixed-point residual is
+g_k = f_k - s_k.
+
+* :class:`Anderson`: type-II Anderson acceleration with memory m (Walker &
+  Ni 2011; Zhang, O'Donoghue & Boyd 2020, as in SCS 3)::
+
+      gamma   = argmin_gamma ||g_k - dG gamma||_W                       (A2)
+      s_{k+1} = f_k - dF gamma                                          (A3)
+
+  with dG, dF the last m differences of g and f.  Safeguard (SCS 3): when
+  the residual at an extrapolated state exceeds ``safeguard`` times the
+  residual before it, the extrapolation is rejected, the memory cleared and
+  the run goes on from the plain image f of the state before it.
+* :class:`FastADMM`: the restarted fast ADMM of Goldstein, O'Donoghue,
+  Setzer & Baraniuk (2014, Algorithm 8): Nesterov momentum on the state::
+
+      c_k = ||g_k||_W^2;  if c_k < eta c_{k-1}:                          (A4)
+          a_{k+1} = (1 + sqrt(1 + 4 a_k^2)) / 2
+          s_{k+1} = f_k + (a_k - 1) / a_{k+1} (f_k - f_{k-1})           (A5)
+      else (restart): a_{k+1} = 1, s_{k+1} = f_{k-1}, c_k = c_{k-1} / eta.
+
+A fixed point of T is a fixed point of both accelerated maps (g = 0 gives
+gamma = 0 in (A2), and f_k = f_{k-1} = s_k in (A5)).  A change of rho changes
+T and the norm (A1): the loop then calls :meth:`Accelerator.reset`, so no
+rule has to know about acceleration.  The proposals are deterministic
+functions of the iterates.
+"""
+from __future__ import annotations
+
+import math
+from abc import ABC, abstractmethod
+
+import numpy as np
+
+State = tuple  # (u, lam): two arrays of the constraint space
+
+
+class Accelerator(ABC):
+    """Proposes the state of the next ADMM iteration from the last state and its image."""
+
+    #: a short name for results and reports
+    name = "accelerator"
+
+    def __init__(self):
+        self.stats = {"extrapolated": 0, "rejected": 0, "restarts": 0}
+
+    def reset(self) -> None:
+        """Forget the past (at the start of a run and at every change of rho)."""
+
+    def start(self) -> None:
+        """Start a run: clear the memory and the counts."""
+        self.reset()
+        self.stats = {k: 0 for k in self.stats}
+
+    @abstractmethod
+    def propose(self, s: State, f: State, rho: float, inner) -> State:
+        """s_{k+1} from s_k, f_k = T(s_k) and rho; ``inner(a, b)`` is the problem's M inner product."""
+
+    def __repr__(self) -> str:
+        params = ", ".join(f"{k}={v!r}" for k, v in vars(self).items() if not k.startswith("_") and k != "stats")
+        return f"{type(self).__name__}({params})"
+
+
+def w_inner(a: State, b: State, rho: float, inner) -> float:
+    """<a, b>_W = rho <u_a, u_b>_M + <lam_a, lam_b>_M / rho (A1)."""
+    return rho * inner(a[0], b[0]) + inner(a[1], b[1]) / rho
+
+
+def _diff(a: State, b: State) -> State:
+    return a[0] - b[0], a[1] - b[1]
+
+
+class Anderson(Accelerator):
+    """Safeguarded type-II Anderson acceleration, memory ``m`` (eqs. (A2)-(A3)).
+
+    Parameters
+    ----------
+    m : int
+        Memory, an integer >= 1 (SCS's default is 10).
+    safeguard : float
+        Reject an extrapolated state whose residual exceeds ``safeguard``
+        times the residual of the state before it (>= 1; SCS uses 1).
+    regularization : float
+        Tikhonov term of the least-squares problem (A2), relative to the
+        largest diagonal entry of its Gram matrix (>= 0).
+    """
+
+    name = "anderson"
+
+    def __init__(self, m: int = 10, safeguard: float = 1.0, regularization: float = 1e-10):
+        if isinstance(m, bool) or not isinstance(m, (int, np.integer)) or m < 1:
+            raise ValueError(f"Anderson: m (the memory) must be an integer >= 1, got {m!r}")
+        if not (isinstance(safeguard, (int, float)) and math.isfinite(safeguard) and safeguard >= 1):
+            raise ValueError(f"Anderson: safeguard must be a finite number >= 1, got {safeguard!r}")
+        if not (isinstance(regularization, (int, float)) and math.isfinite(regularization) and regularization >= 0):
+            raise ValueError(f"Anderson: regularization must be a finite number >= 0, got {regularization!r}")
+        super().__init__()
+        self.m, self.safeguard, self.regularization = int(m), float(safeguard), float(regularization)
+        self.reset()
+
+    def reset(self) -> None:
+        """Clear the memory (the differences and the last plain image)."""
+        self._f = self._g = None          # f_{k-1}, g_{k-1}
+        self._dF, self._dG = [], []        # differences, oldest first
+        self._gram = np.zeros((0, 0))     # <dG_i, dG_j>_W
+        self._fallback = None             # (f of the state before an extrapolation, its residual norm)
+
+    def propose(self, s: State, f: State, rho: float, inner) -> State:
+        """The next state: an Anderson extrapolation, f itself, or the fallback after a rejection."""
+        g = _diff(f, s)
+        g_norm = math.sqrt(max(w_inner(g, g, rho, inner), 0.0))
+        if self._fallback is not None:                        # s was extrapolated: the safeguard looks at it
+            plain, before = self._fallback
+            self._fallback = None
+            if not g_norm <= self.safeguard * before:         # NaN counts as a rejection
+                self.stats["rejected"] += 1
+                self.reset()
+                return plain
+        if self._f is not None:
+            self._push(_diff(f, self._f), _diff(g, self._g), rho, inner)
+        self._f, self._g = f, g
+        if not self._dG:
+            return f
+        gamma = self._least_squares(g, rho, inner)                                      # (A2)
+        if gamma is None:
+            return f
+        u = f[0] - sum(c * d[0] for c, d in zip(gamma, self._dF))                        # (A3)
+        lam = f[1] - sum(c * d[1] for c, d in zip(gamma, self._dF))
+        self._fallback = (f, g_norm)
+        self.stats["extrapolated"] += 1
+        return u, lam
+
+    def _push(self, df: State, dg: State, rho: float, inner) -> None:
+        """Append a difference pair and update the Gram matrix (dropping the oldest beyond m)."""
+        if len(self._dG) == self.m:
+            self._dF.pop(0)
+            self._dG.pop(0)
+            self._gram = self._gram[1:, 1:]
+        row = np.array([w_inner(dg, d, rho, inner) for d in self._dG] + [w_inner(dg, dg, rho, inner)])
+        n = row.size
+        gram = np.empty((n, n))
+        gram[:n - 1, :n - 1] = self._gram
+        gram[n - 1, :] = gram[:, n - 1] = row
+        self._gram = gram
+        self._dF.append(df)
+        self._dG.append(dg)
+
+    def _least_squares(self, g: State, rho: float, inner):
+        """gamma of (A2) from the normal equations (Tikhonov-regularised); None if they are not finite."""
+        rhs = np.array([w_inner(d, g, rho, inner) for d in self._dG])
+        gram = self._gram + self.regularization * max(float(np.max(np.diag(self._gram))), 0.0) * np.eye(rhs.size)
+        try:
+            gamma = np.linalg.lstsq(gram, rhs, rcond=None)[0]
+        except np.linalg.LinAlgError:
+            return None
+        return gamma if np.all(np.isfinite(gamma)) else None
+
+
+class FastADMM(Accelerator):
+    """Restarted fast ADMM (Goldstein et al. 2014, Algorithm 8; eqs. (A4)-(A5)).
+
+    Parameters
+    ----------
+    eta : float
+        Restart when the combined residual c_k is not below ``eta`` c_{k-1};
+        in (0, 1) (the paper uses 0.999).
+    """
+
+    name = "fast"
+
+    def __init__(self, eta: float = 0.999):
+        if not (isinstance(eta, (int, float)) and 0 < eta < 1):
+            raise ValueError(f"FastADMM: eta must be a number in (0, 1), got {eta!r}")
+        super().__init__()
+        self.eta = float(eta)
+        self.reset()
+
+    def reset(self) -> None:
+        """Restart: no momentum, no previous image."""
+        self._a, self._c, self._f = 1.0, math.inf, None
+
+    def propose(self, s: State, f: State, rho: float, inner) -> State:
+        """The momentum step (A5), or a restart from the previous image."""
+        g = _diff(f, s)
+        c = w_inner(g, g, rho, inner)                                                    # (A4)
+        previous = self._f
+        if previous is None or c < self.eta * self._c:
+            a_next = (1 + math.sqrt(1 + 4 * self._a ** 2)) / 2
+            beta = (self._a - 1) / a_next
+            self._a, self._c, self._f = a_next, c, f
+            if previous is None or beta == 0:
+                return f
+            self.stats["extrapolated"] += 1
+            return f[0] + beta * (f[0] - previous[0]), f[1] + beta * (f[1] - previous[1])   # (A5)
+        self.stats["restarts"] += 1
+        self._a, self._c = 1.0, self._c / self.eta
+        return previous
+
+
+ACCELERATORS = {"anderson": Anderson, "fast": FastADMM}
+
+
+def make_accelerator(acceleration) -> Accelerator | None:
+    """None, an :class:`Accelerator`, or a name (``"anderson"``, ``"fast"``) -> an accelerator or None."""
+    if acceleration is None or isinstance(acceleration, Accelerator):
+        return acceleration
+    if isinstance(acceleration, str) and acceleration.strip().lower() in ACCELERATORS:
+        return ACCELERATORS[acceleration.strip().lower()]()
+    raise ValueError(f"acceleration must be None, 'anderson', 'fast' or an admmkit.loop.acceleration.Accelerator, "
+                     f"got {acceleration!r}")
+
+
+class Acceleration:
+    """The loop's side of an accelerator: which vectors are the state, and what a change of rho implies.
+
+    Order "xz" starts an iteration from (z, lam), order "zx" from (A x, lam).
+    :meth:`step` takes the vectors before and after an iteration and returns
+    the (z, lam, A x) the next iteration starts from.  A change of rho
+    changes the map T: the rho event (:class:`admmkit.loop.steps.RhoEvent`) resets
+    the accelerator through :meth:`reset` and the plain iterate is kept.
+    """
+
+    def __init__(self, accelerator: Accelerator, order: str, inner):
+        self.accelerator, self.inner = accelerator, inner
+        self._u = 0 if order == "xz" else 2        # the index of u in (z, lam, Ax)
+        accelerator.start()
+
+    def step(self, old: tuple, new: tuple, rho: float) -> tuple:
+        """(z, lam, Ax) for the next iteration from those before (``old``) and after (``new``) it, at an
+        unchanged rho (a change of rho restarts the accelerator instead: :meth:`reset`)."""
+        i = self._u
+        u, lam = self.accelerator.propose((old[i], old[1]), (new[i], new[1]), rho, self.inner)
+        return (u, lam, new[2]) if i == 0 else (new[0], lam, u)
+
+    def reset(self) -> None:
+        """Restart: part of the event of a change of rho (:class:`admmkit.loop.steps.RhoEvent`)."""
+        self.accelerator.reset()
+
+    def summary(self) -> dict:
+        """The accelerator and its counts (extrapolated, rejected, restarts) for the result."""
+        return {"accelerator": repr(self.accelerator), **self.accelerator.stats}

@@ -1,0 +1,157 @@
+"""Per-iteration history of a run: columns of numbers, exportable to arrays and CSV.
+
+Two modes (``admmkit.solve(..., history=...)``):
+
+- ``"lean"`` (default) keeps, for each iteration, the norms that were computed
+  anyway (those the stopping rule, the policy and the callback read) and NaN
+  for the others; the last row is always complete.  It costs nothing beyond
+  storing a few numbers.
+- ``"full"`` computes every norm of every record, as the eager loop did: all
+  columns are filled, at the price of about nine extra vector norms per iteration.
+
+Where a lean row has a number, it is bitwise the number a full row holds.
+"""
+from __future__ import annotations
+
+import csv
+import math
+from pathlib import Path
+
+import numpy as np
+
+from ..io import atomic_open
+from .record import LAZY_FIELDS, SCALAR_FIELDS, IterationRecord, ratio, relative_change
+
+#: columns of the history, in CSV order
+COLUMNS = SCALAR_FIELDS + ("rel_change", "primal_residual_rel", "dual_residual_rel", "rho_next", "rho_changed")
+MODES = ("lean", "full")
+_NAN = math.nan
+
+
+class History:
+    """One row per iteration: the record's scalars, the next rho and whether it changed."""
+
+    def __init__(self, mode: str = "full") -> None:
+        if mode not in MODES:
+            raise ValueError(f"history must be 'lean' or 'full', got {mode!r}")
+        self.mode = mode
+        self._rows: list[tuple] = []     # (k, rho, primal_unit, dual_unit, time, lazy values, rho_next)
+
+    def append(self, rec: IterationRecord, rho_next: float) -> None:
+        """Add the row of iteration ``rec.k``; ``rho_next`` is the rho the policy chose."""
+        if self.mode == "full":
+            rec.complete()
+        d, ctx = rec._d, rec._ctx
+        self._rows.append((d[0], d[1], ctx.primal_unit, ctx.dual_unit, d[2], rec._vals, rho_next))
+
+    def append_unread(self, k: int, count: int, rho: float, ctx, t: float) -> None:
+        """Add the rows of iterations k .. k + count - 1 that ran without records (:mod:`admmkit.loop.segments`):
+        rho unchanged, no norm computed, ``t`` (seconds since the start) at the segment's end."""
+        vals = [None] * len(LAZY_FIELDS)
+        pu, du = ctx.primal_unit, ctx.dual_unit
+        self._rows.extend((i, rho, pu, du, t, vals, rho) for i in range(k, k + count))
+
+    def replace_last(self, rec: IterationRecord) -> None:
+        """Refresh the last row from ``rec`` (the loop completes the last record of a run)."""
+        k, rho, pu, du, t, _, rho_next = self._rows[-1]
+        self._rows[-1] = (k, rho, pu, du, t, rec._vals, rho_next)
+
+    def __len__(self) -> int:
+        return len(self._rows)
+
+    def _row(self, row: tuple) -> tuple:
+        k, rho, primal_unit, dual_unit, t, vals, rho_next = row
+        v = dict(zip(LAZY_FIELDS, (_NAN if a is None else a for a in vals)))
+        scalars = dict(v, k=k, rho=rho, primal_unit=primal_unit, dual_unit=dual_unit, time=t)
+        out = tuple(scalars[name] for name in SCALAR_FIELDS)
+        return out + (relative_change(v["x_change"], v["x_norm"]) if vals[4] is not None and vals[5] is not None else _NAN,
+                      ratio(v["primal_residual"], v["primal_scale"]) if vals[0] is not None and vals[7] is not None else _NAN,
+                      ratio(v["dual_residual"], v["dual_scale"]) if vals[1] is not None and vals[8] is not None else _NAN,
+                      rho_next, rho_next != rho)
+
+    def __getitem__(self, column: str) -> np.ndarray:
+        """The column ``column`` as an array, e.g. ``history["rho"]`` (NaN where a lean row did not compute it)."""
+        try:
+            j = COLUMNS.index(column)
+        except ValueError:
+            raise KeyError(f"unknown history column {column!r}; columns are {', '.join(COLUMNS)}") from None
+        dtype = bool if column == "rho_changed" else (int if column == "k" else float)
+        return np.array([self._row(row)[j] for row in self._rows], dtype=dtype)
+
+    def as_dict(self) -> dict[str, np.ndarray]:
+        """All columns as a dict of arrays."""
+        rows = [self._row(row) for row in self._rows]
+        out = {}
+        for j, name in enumerate(COLUMNS):
+            dtype = bool if name == "rho_changed" else (int if name == "k" else float)
+            out[name] = np.array([row[j] for row in rows], dtype=dtype)
+        return out
+
+    def complete_rows(self) -> list[int]:
+        """Positions of the rows with every norm computed (a lean history: the iterations whose record was
+        completed, e.g. the tested ones when the command line asks for ``--history``, and always the last)."""
+        return [i for i, row in enumerate(self._rows) if all(v is not None for v in row[5])]
+
+    def to_csv(self, path: str | Path, rows: str = "all") -> Path:
+        """Write the history as CSV (header row, then one row per iteration) and return the path.
+
+        ``rows``: ``"all"`` (default) every iteration, NaN where a lean row did not compute a norm;
+        ``"complete"`` only the rows with every norm computed (:meth:`complete_rows`), so no cell is NaN
+        for want of a computation.  Written by :mod:`admmkit.io`: whole or not at all, a symbolic link's
+        target replaced, a FIFO or ``-`` (standard output) written into (docs/cli.md, "Output files").
+        """
+        if rows not in ("all", "complete"):
+            raise ValueError(f"rows must be 'all' or 'complete', got {rows!r}")
+        path = Path(path)
+        picked = self._rows if rows == "all" else [self._rows[i] for i in self.complete_rows()]
+        with atomic_open(path, "w", newline="") as fh:     # whole or not at all (admmkit/io.py)
+            writer = csv.writer(fh)
+            writer.writerow(COLUMNS)
+            for row in picked:
+                writer.writerow([int(v) if isinstance(v, (bool, np.bool_)) else repr(float(v)) if isinstance(v, float) else v
+                                 for v in self._row(row)])
+        return path
+
+    def to_pandas(self):
+        """The history as a ``pandas.DataFrame`` indexed by the iteration ``k`` (pandas is optional).
+
+        Columns as in ``admmkit.loop.history.COLUMNS``; NaN where a lean row did not compute a norm.
+        """
+        try:
+            import pandas as pd
+        except ImportError:
+            raise ImportError("History.to_pandas() needs pandas: pip install pandas "
+                              "(or use History.as_dict() / History.to_csv())") from None
+        return pd.DataFrame(self.as_dict()).set_index("k")
+
+    def __repr__(self) -> str:
+        if not self._rows:
+            return f"History(mode={self.mode!r}, 0 iterations)"
+        last = self._row(self._rows[-1])
+        rho = self["rho"]
+        return (f"History(mode={self.mode!r}, {len(self)} iterations, rho {rho.min():.3g}..{rho.max():.3g}, "
+                f"last primal_residual {last[COLUMNS.index('primal_residual')]:.3e}, "
+                f"rel_change {last[COLUMNS.index('rel_change')]:.3e})")
+
+    def _repr_html_(self) -> str:
+        """Jupyter: the first and last three rows of the main columns in a table."""
+        import html
+        cols = ("k", "rho", "primal_residual", "dual_residual", "rel_change", "rho_changed")
+        n = len(self._rows)
+        picked = list(range(min(n, 3))) + (list(range(max(3, n - 3), n)) if n > 3 else [])
+        head = "".join(f"<th>{c}</th>" for c in cols)
+        body = []
+        for i, j in enumerate(picked):
+            if i and j != picked[i - 1] + 1:
+                body.append(f"<tr><td colspan='{len(cols)}'>... {j - picked[i - 1] - 1} rows ...</td></tr>")
+            row = dict(zip(COLUMNS, self._row(self._rows[j])))
+            body.append("<tr>" + "".join(f"<td>{_cell(row[c])}</td>" for c in cols) + "</tr>")
+        return (f"<div><b>History</b> ({html.escape(self.mode)}, {n} iterations; columns: "
+                f"{', '.join(COLUMNS)})<table><tr>{head}</tr>{''.join(body)}</table></div>")
+
+
+def _cell(value) -> str:
+    """One table cell: integers and booleans as such, other numbers with 4 significant digits."""
+    if isinstance(value, (bool, np.bool_, int, np.integer)):
+        return str(value)
+    return f"{float(value):.4g}"

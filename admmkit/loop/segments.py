@@ -1,0 +1,126 @@
+"""Segments: the iterations whose records nobody reads, run by the plug-in in one compiled call.
+
+The loop reads a record at a tested iteration (every ``check_every``-th and
+the last), where the policy asks for one
+(:meth:`admmkit.Policy.unchanged_until`), and at every iteration when a
+callback, an accelerator or the full history is set (a callback with
+``every_record = False``, such as the command line's progress bar, is given
+only the records of the iterations that run in Python, every tested one
+among them).  In between, an iteration only moves the state (x, z, lam, A x)
+to the next one, with rho fixed.  A plug-in that can run such iterations of
+the run's order in one call implements
+
+    problem.segment(x, z, lam, Ax, rho, alpha, order, count) -> (x, z, lam, Ax, done) or None
+
+returning new arrays after ``done`` <= ``count`` iterations (fewer where a
+step would meet a non-finite number: the loop's own iteration then meets the
+failure where it would have anyway), or None where it cannot (another order,
+another solver).  Its iterates must be those of the Python steps bit for
+bit; the QP plug-in's (``admmkit.problems.qp.segment``) is built from
+:mod:`admmkit.linalg.compiled`.  With OSQP's settings (the test every 25
+iterations, rho every 50) the loop's Python runs once in 25 iterations.
+
+A plug-in whose ``segment`` also takes ``read=True`` runs the read
+iteration itself too: ``count`` iterations, the last of them the read one,
+returning ``(x, z, lam, Ax, done, last)`` with ``last = (x_j, z_j, lam_j,
+Ax_j, hat)``, the read iteration's inputs and its relaxed vector (None when
+alpha = 1), when ``done == count``.  The loop then builds that iteration's
+record from the segment's numbers instead of running its steps in Python
+(:meth:`FastForward.serve`): the same bits, about 25 us less per test on a
+small QP.
+
+The first iteration of a run always runs in Python, so that what the
+plug-in's own steps return is checked (``admmkit.loop.checks.check_step``)
+before a segment, which bypasses them, runs.
+
+What a segment changes, and nothing else: its iterations get history rows
+with rho and the time at the segment's end, and NaN for every norm (a lean
+history computes none there either); a time limit is tested at its end.
+"""
+from __future__ import annotations
+
+import functools
+import importlib.util
+import inspect
+import time
+
+perf = time.perf_counter
+#: True when numba is installed, asked without importing it so that ``import admmkit`` stays light
+#: (a plug-in's kernel imports :mod:`admmkit.linalg.compiled` at its first segment)
+AVAILABLE = importlib.util.find_spec("numba") is not None
+#: a segment shorter than this is not worth the call
+MIN_SEGMENT = 2
+
+
+class FastForward:
+    """Runs ``problem.segment`` up to the next iteration whose record is read (or does nothing, when it cannot).
+
+    ``segments`` and ``iterations`` count the calls and the iterations they ran, ``seconds`` their time.
+    """
+
+    __slots__ = ("problem", "run", "enabled", "reads", "pending", "segments", "iterations", "seconds")
+
+    def __init__(self, run, enabled: bool = True) -> None:
+        problem = run.problem
+        self.problem, self.run = problem, run
+        watcher = run.callback is None or not getattr(run.callback, "every_record", True)   # e.g. a progress bar
+        self.enabled = (enabled and AVAILABLE and callable(getattr(problem, "segment", None))
+                        and watcher and run.history.mode == "lean")
+        self.reads = self.enabled and _takes_read(type(problem))
+        self.pending = None             # (x_j, the read iteration's outputs) when the segment ran it
+        self.segments = self.iterations = 0
+        self.seconds = 0.0
+
+    def next_read(self, k: int) -> int:
+        """The first iteration >= k whose record is read: a tested one, or one the policy reads."""
+        every, last = self.run.check_every, self.run.max_iter - 1
+        tested = min(k + (-(k + 1)) % every, last)
+        return min(tested, self.run.policy.unchanged_until(k))
+
+    def __call__(self, k: int, x, z, lam, Ax, rho: float):
+        """(x, z, lam, Ax, k) after the iterations k .. j - 1 that nobody reads (j: :meth:`next_read`); where the
+        plug-in runs the read iteration j too, its outputs wait for :meth:`serve`."""
+        if not self.enabled or k == 0:      # the first iteration runs in Python: its steps' returns are checked
+            return x, z, lam, Ax, k
+        count = self.next_read(k) - k + self.reads          # with the read iteration, if the plug-in runs it
+        if count < (1 if self.reads else MIN_SEGMENT):
+            return x, z, lam, Ax, k
+        t0 = perf()
+        if self.reads:
+            out = self.problem.segment(x, z, lam, Ax, rho, self.run.alpha, self.run.order, count, read=True)
+        else:
+            out = self.problem.segment(x, z, lam, Ax, rho, self.run.alpha, self.run.order, count)
+        t1 = perf()
+        self.seconds += t1 - t0
+        if out is None:
+            self.enabled = False
+            return x, z, lam, Ax, k
+        x, z, lam, Ax, done = out[:5]
+        if self.reads and done == count:               # the read iteration ran: its inputs go to the loop
+            x_j, z_j, lam_j, Ax_j, hat = out[5]
+            self.pending = (x_j, (x, z, lam, Ax, hat))
+            x, z, lam, Ax, done = x_j, z_j, lam_j, Ax_j, done - 1
+        self.run.history.append_unread(k, done, rho, self.run.ctx, t1 - self.run.ctx.start)
+        self.segments += 1
+        self.iterations += done
+        return x, z, lam, Ax, k + done
+
+    def serve(self, iterate):
+        """``iterate`` (of :mod:`admmkit.loop.steps`), answering from the segment when it ran this very iteration."""
+        def served(x, z, lam, Ax, rho, take_r):
+            pending, self.pending = self.pending, None
+            if pending is not None and pending[0] is x:
+                self.iterations += 1
+                return (*pending[1], None, perf())     # ||r|| not taken: the record computes it if read
+            return iterate(x, z, lam, Ax, rho, take_r)
+        served.seconds = iterate.seconds
+        return served
+
+
+@functools.lru_cache(maxsize=None)
+def _takes_read(kind: type) -> bool:
+    """Whether ``kind.segment`` takes ``read`` (asked once per class)."""
+    try:
+        return "read" in inspect.signature(kind.segment).parameters
+    except (TypeError, ValueError):
+        return False
