@@ -37,7 +37,6 @@ def run_case(case: dict) -> dict:
     ``{"kind": "contact", "h", "method", "rho"}``; returns the iterations and the status."""
     import admmkit
     if case["kind"] == "qp":
-        from admmkit import policies  # noqa: F401  (registers the rules)
         from admmkit.problems.qp import random_qp
         qp = random_qp(case["n"], case["m"], kind="mixed", seed=case["seed"])
         res = admmkit.solve(qp, rho=case["rho"], policy=case["policy"], order=case["order"], max_iter=5000)

@@ -251,7 +251,6 @@ def main(argv=None, prog: str = "admmkit bench qp-fidelity") -> int:
     for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
         os.environ.setdefault(var, "1")
     import admmkit
-    from admmkit import policies  # noqa: F401  (registers the rules)
     from threadpoolctl import threadpool_limits
     from admmkit.io import write_text
 

@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import admmkit
 from admmkit.policy import canonical_spec, is_spec
-from admmkit import policies  # noqa: F401  (registers the built-in rules)
 from admmkit.policies.paper_methods import PAPER_NAMES
 
 ORDERS = ("xz", "zx")

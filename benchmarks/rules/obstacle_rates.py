@@ -27,7 +27,6 @@ from pathlib import Path
 import numpy as np
 
 import admmkit
-from admmkit import policies  # noqa: F401  (registers the rules)
 from admmkit import RelativeChange, ResidualTolerance, solve
 
 from admmkit.figures import pyplot, save_figure

@@ -30,7 +30,6 @@ from pathlib import Path
 import numpy as np
 
 import admmkit
-from admmkit import policies  # noqa: F401  (registers the rules)
 from admmkit import RelativeChange
 
 from admmkit.benchmarks.rules.methods import method_label, policy_version

@@ -5,7 +5,6 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 import admmkit
-from admmkit import policies  # noqa: F401
 from admmkit import LinearMap, QuadraticXStep, ResidualTolerance, SplitProblem, prox
 
 cp = pytest.importorskip("cvxpy")

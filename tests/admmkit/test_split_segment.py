@@ -6,7 +6,6 @@ import scipy.sparse as sp
 
 import admmkit
 from admmkit import QuadraticXStep, SplitProblem, compiled, prox
-from admmkit import policies  # noqa: F401  (registers the rules)
 from admmkit.split_segment import run_segment
 
 pytestmark = pytest.mark.skipif(not compiled.AVAILABLE, reason="numba is not installed: no compiled segment")

@@ -46,7 +46,7 @@ import math
 
 import numpy as np
 
-from admmkit import IterationRecord, Policy, register_policy
+from admmkit import IterationRecord, Policy
 
 from ._checks import check_int, check_number
 
@@ -73,8 +73,7 @@ def curvature(d_grad: np.ndarray, d_lam: np.ndarray, dot, eps_cor: float) -> flo
     return hybrid_step(norm_lam ** 2 / prod, prod / norm_grad ** 2)
 
 
-@register_policy("aadmm")
-class Spectral(Policy):
+class AADMM(Policy):
     """AADMM: rho = sqrt(alpha beta) from spectral (Barzilai-Borwein) curvature estimates of the dual."""
 
     def __init__(self, eps_cor: float = 0.2, period: int = 2, freeze: int | None = 1000):
