@@ -14,7 +14,7 @@ import sys
 from pathlib import Path
 
 from admmkit.cli import positive_float, positive_int  # noqa: F401  (positive_float: for the studies' own options)
-from admmkit.benchmarks.runner.costs import announce
+from admmkit.benchmarks.runner.costs import announce, typical
 from admmkit.benchmarks.runner.harness import HarnessFailed, require, require_executor
 
 #: the exit code of a study some of whose cases failed in the harness (docs/cli.md, "Studies")
@@ -130,6 +130,42 @@ def study(run):
         except HarnessFailed as failed:
             return harness_exit(failed)
     return command
+
+
+def add_study(targets, name: str, run, *, help: str, description: str, needs_line: str,
+              modules=(), sweep: bool = True, out: str | None = None, **parser_options):
+    """Make a study a command, ``admmkit bench NAME``: the one way a study becomes a command.
+
+    A study is a module with its grid (``build_cases``), its case runner
+    (``run_case``) and its summary (``run(out, ...)`` writes the files from the
+    records); its folder's ``cli.py`` calls this from a registrar named in
+    ``pyproject.toml`` (``"bench.NAME" = "admmkit.benchmarks.<folder>.cli:<registrar>"``).
+    This gives the command
+
+    - its description, ending with what a run costs (``typical: ...`` from
+      :mod:`admmkit.benchmarks.runner.costs`) and ``needs: NEEDS_LINE``;
+    - the shared options: those of the resumable sweeps (``--out``, ``--workers``,
+      ``--dask-workers``, ``--scheduler``, ``--case-timeout``, ``--chunk``,
+      ``--quick``, ``-q``, ``--report-only``) if ``sweep``, else ``--out`` alone;
+      ``--out`` defaults to ``out/OUT`` (``OUT``: ``name`` unless given);
+    - before ``run(args)``: ``modules`` (a tuple, or a function of the parsed
+      options giving one) checked and the cost announced (:func:`needs`); after
+      it, the harness's verdict (:func:`study`).
+
+    Returns the parser, for the study's own options.
+    """
+    p = targets.add_parser(name, help=help, description=description + typical(f"bench {name}")
+                           + f" needs: {needs_line}", **parser_options)
+    (add_sweep_options if sweep else add_out)(p, out or name)
+
+    @functools.wraps(run)
+    def command(args):
+        needs(args, *(modules(args) if callable(modules) else modules))
+        return run(args)
+
+    command.needs = modules          # said for the tests: this command checks and announces before its work
+    p.set_defaults(func=study(command))
+    return p
 
 
 def harness_exit(failed: HarnessFailed) -> int:

@@ -148,7 +148,7 @@ def penetration_term(case, ops, res) -> float:
 
 def hertz_rows(order: int, target: float, ref: dict, cut: int | None = None) -> list[dict]:
     """Adaptive, uniform and a priori rows of Hertz in P``order`` (``cut``: only the coarsest meshes)."""
-    from admmkit.benchmarks.rules.adaptive_contact import contact_rows
+    from admmkit.benchmarks.adaptive.contact import contact_rows
     from admmkit.problems.contact.validation.hertz import HertzCase
     case = HertzCase()
     return contact_rows("hertz", order, target, ref, start_scene(case, order),
@@ -160,7 +160,7 @@ def hertz_rows(order: int, target: float, ref: dict, cut: int | None = None) -> 
 
 def hertz_reference(target: float) -> dict:
     """J_ref of Hertz: P2 adaptive from the adaptive start to ``target`` (gamma 0.01), c_h included."""
-    from admmkit.benchmarks.rules.adaptive_contact import reference
+    from admmkit.benchmarks.adaptive.contact import reference
     from admmkit.problems.contact.validation.hertz import HertzCase
     case = HertzCase()
     return reference(target, "hertz", start_scene(case, 2), lambda ops, res: penetration_term(case, ops, res),

@@ -25,7 +25,6 @@ import admmkit
 from admmkit.figures import pyplot, save_figure
 from admmkit.io import write_text
 
-from admmkit.benchmarks.runner.options import needs, print_files
 from admmkit.benchmarks.runner.report import fmt, md_table, write_csv
 
 OBSTACLE_N = (8, 16, 32, 64, 128)                  # h = 4/N on (-2, 2)^2
@@ -129,21 +128,3 @@ def run(out: Path, command: str, quick: bool = False) -> list[Path]:
     write_text(out / "estimators.md", "# The ZZ and the residual estimators against the true error\n\n"
                + markdown(rows) + f"\n\nMade by `{command}`.\n")
     return [out / "estimators.csv", out / "estimators.md", plot(rows, out / "estimators.png")]
-
-
-def register(targets) -> None:
-    """``admmkit bench estimators``."""
-    b = targets.add_parser("estimators", help="ZZ and residual error estimators against the true error (obstacle, "
-                                              "contact Example 1)",
-                           description="Effectivity and convergence of both estimators under uniform refinement "
-                                       "(benchmarks/rules/estimators.py)."
-                                       "\n\ntypical: minutes; --quick less. needs: ngsolve, matplotlib")
-    b.add_argument("--out", default="docs/results/estimators", help="output folder (default docs/results/estimators)")
-    b.add_argument("--quick", action="store_true", help="the three coarsest meshes only")
-    b.set_defaults(func=_run)
-
-
-def _run(args) -> int:
-    needs(args, "cvxpy", "clarabel")               # the obstacle's u_h
-    print_files(run(Path(args.out), args.command_line, quick=args.quick))     # the command as typed, for the report
-    return 0

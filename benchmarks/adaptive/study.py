@@ -42,11 +42,10 @@ from dataclasses import replace
 from pathlib import Path
 
 import admmkit
-from admmkit.benchmarks.rules.adaptive_algebraic import obstacle_algebraic_error
-from admmkit.benchmarks.rules.adaptive_contact import contact_rows, contact_scene, reference
-from admmkit.benchmarks.rules.adaptive_hertz import hertz_reference, hertz_rows
-from admmkit.benchmarks.rules.adaptive_levels import Clock, level_row, uniform_level
-from admmkit.benchmarks.runner.options import print_files
+from admmkit.benchmarks.adaptive.algebraic import obstacle_algebraic_error
+from admmkit.benchmarks.adaptive.contact import contact_rows, contact_scene, reference
+from admmkit.benchmarks.adaptive.hertz import hertz_reference, hertz_rows
+from admmkit.benchmarks.adaptive.levels import Clock, level_row, uniform_level
 
 OBSTACLE_UNIFORM_N = {1: (16, 32, 64, 128, 256, 512), 2: (8, 16, 32, 64, 128)}    # h = 4/N on (-2, 2)^2
 #: the obstacle's uniform meshes with today's stop, by the x-step: the plug-in's default (a SuperLU
@@ -146,7 +145,7 @@ def _radial_norm(mesh) -> float:
 
 def run(out: Path, command: str, quick: bool = False, scenes=SCENES) -> list[Path]:
     """Run the study on ``scenes``; write adaptive.csv, adaptive.md and the charts to ``out``."""
-    from admmkit.benchmarks.rules.adaptive_report import write_report
+    from admmkit.benchmarks.adaptive.report import write_report
     setting = QUICK if quick else FULL
     cut = QUICK_CUT if quick else None
     print("adaptive against uniform refinement:", flush=True)
@@ -162,22 +161,3 @@ def run(out: Path, command: str, quick: bool = False, scenes=SCENES) -> list[Pat
             rows += contact_rows(name, order, target, refs[name], contact_scene(name, 1 / 5, order),
                                  [(1 / n, contact_scene(name, 1 / n, order)) for n in CONTACT_UNIFORM_H[order][:cut]])
     return write_report(Path(out), rows, list(refs.values()), command, quick)
-
-
-def register(targets) -> None:
-    """``admmkit bench adaptive``."""
-    b = targets.add_parser("adaptive", help="adaptive against uniform refinement at the same true error "
-                                            "(contact Examples 1 and 2, Hertz, radial obstacle)",
-                           description="Unknowns, wall time, rates, effectivity and iterations of adaptive and "
-                                       "uniform refinement (benchmarks/rules/adaptive_study.py)."
-                                       "\n\ntypical: tens of minutes; --quick minutes. needs: ngsolve, matplotlib")
-    b.add_argument("--out", default="out/adaptive_study", help="output folder (default out/adaptive_study)")
-    b.add_argument("--quick", action="store_true", help="coarse targets and the three coarsest uniform meshes")
-    b.add_argument("--scenes", nargs="+", choices=SCENES, default=list(SCENES),
-                   help="the scenes to run (default all; the report holds only these)")
-    b.set_defaults(func=_run)
-
-
-def _run(args) -> int:
-    print_files(run(Path(args.out), args.command_line, quick=args.quick, scenes=args.scenes))   # command as typed
-    return 0

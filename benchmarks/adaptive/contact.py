@@ -27,8 +27,8 @@ import admmkit
 
 from admmkit.problems.contact.validation.reference import energy, energy_norm
 
-from admmkit.benchmarks.rules.adaptive_algebraic import contact_algebraic_error, contact_exact
-from admmkit.benchmarks.rules.adaptive_levels import Clock, level_row, uniform_level
+from admmkit.benchmarks.adaptive.algebraic import contact_algebraic_error, contact_exact
+from admmkit.benchmarks.adaptive.levels import Clock, level_row, uniform_level
 
 CONTACT_NAMES = {"ex1": "Example 1", "ex2": "Example 2", "hertz": "Hertz"}
 #: a true error is reported where it is at least this times the reference's energy floor (its energy's rise

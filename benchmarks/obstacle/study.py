@@ -35,7 +35,7 @@ from admmkit.problems.obstacle.plot import plot_solution
 from admmkit.problems.obstacle import make_problem, solve_with_cvxpy
 from admmkit.problems.obstacle.scene import A_STAR, pyramid, radial
 
-from admmkit.benchmarks.rules import obstacle_stops
+from admmkit.benchmarks.obstacle import stops as obstacle_stops
 from admmkit.benchmarks.runner.report import write_csv
 
 MESHES = (16, 32, 64, 128, 256, 512)          # squares per side of (-2, 2)^2: h = 4/N
@@ -120,7 +120,7 @@ def sweep(N: int = SWEEP_N, rhos=RHOS, policy_names=None, max_iter: int = MAX_IT
     cases = sweep_cases(N, rhos, policy_names, max_iter)
     with tempfile.TemporaryDirectory() as scratch:
         folder = Path(out) if out is not None else Path(scratch)
-        records, _ = run_or_report(cases, "admmkit.benchmarks.rules.obstacle_rates:run_case", folder,
+        records, _ = run_or_report(cases, "admmkit.benchmarks.obstacle.study:run_case", folder,
                                    executor=executor or Executor(workers=1), progress=progress, table=False,
                                    report_only=report_only,
                                    label=lambda c: f"{c['policy']} {c['order']} rho0={c['rho0']:.0e}")

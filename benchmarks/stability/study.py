@@ -2,7 +2,7 @@
 
     admmkit bench stability [--out docs/results/bench/stability] [--quick] [--workers 2]
 
-Two sweeps, every ADMM method (:mod:`admmkit.benchmarks.rules.methods`), each run
+Two sweeps, every ADMM method (:mod:`admmkit.benchmarks.fixtures.methods`), each run
 stopped by the paper's rule ||u^{k+1} - u^k||_K <= 1e-5 ||u^{k+1}||_K or the cap
 of 20000 iterations:
 
@@ -13,7 +13,7 @@ Each run ends as one *outcome*: ``converged`` (the rule fired and the true
 error is at most 1e-3), ``false_convergence`` (the rule fired while the true
 error ||u - u*||_K / ||u*||_K was still above 1e-3), ``max_iter``,
 ``diverged``, ``stalled`` or ``time_limit``.  u* is the reference solution of
-the same discrete problem (:mod:`admmkit.benchmarks.rules.families`).
+the same discrete problem (:mod:`admmkit.benchmarks.fixtures.families`).
 
 Written to ``out``: ``results.jsonl`` (resumable raw records),
 ``stability.csv``, ``failures.md`` (which methods failed where),
@@ -29,11 +29,11 @@ from pathlib import Path
 
 import numpy as np
 
-from admmkit.benchmarks.rules import methods as methods_mod
-from admmkit.benchmarks.rules.families import CACHE_ENV, discrete, problem_key
+from admmkit.benchmarks.fixtures import methods as methods_mod
+from admmkit.benchmarks.fixtures.families import CACHE_ENV, discrete, problem_key
 from admmkit.benchmarks.runner.harness import check_harness, check_something_left, without_harness_failures
 from admmkit.benchmarks.runner.sweep import Executor, clean_float, run_or_report
-from admmkit.benchmarks.rules.stability_report import FALSE_CONVERGENCE_ERROR, MAX_ITER, OUTCOMES, _h_label, summarise
+from admmkit.benchmarks.stability.report import FALSE_CONVERGENCE_ERROR, MAX_ITER, OUTCOMES, _h_label, summarise
 
 RHO_SCALES = tuple(10.0 ** k for k in range(-6, 7))
 RHO_H = 1 / 40
@@ -82,7 +82,7 @@ _PROBLEMS: dict[str, object] = {}
 
 def run_case(case: dict) -> dict:
     """Worker entry point: one method, one rho_0, one discrete problem, the paper's stopping rule."""
-    from admmkit.benchmarks.rules.admm_runs import paper_rule_run
+    from admmkit.benchmarks.fixtures.admm_runs import paper_rule_run
     d = discrete(case, cache_dir=os.environ.get(CACHE_ENV), cross_check_max=CROSS_CHECK_MAX)
     if d.key not in _PROBLEMS:
         _PROBLEMS.clear()
@@ -126,7 +126,7 @@ def run(out="out/stability", *, quick: bool = False, workers: int = 2, methods=N
         grid = {"rho_scales": (1e-3, 1.0, 1e3), "rho_h": 1 / 10, "mesh_hs": (1 / 10,), "nus": (0.3,),
                 "orders": (1,), "max_iter": 2000} | grid
     cases = build_cases(admm, **grid)
-    records, wall = run_or_report(cases, "admmkit.benchmarks.rules.stability:run_case", out, report_only=report_only,
+    records, wall = run_or_report(cases, "admmkit.benchmarks.stability.study:run_case", out, report_only=report_only,
                                   env={CACHE_ENV: str(out / "cache")}, workers=workers, executor=executor,
                                   progress=progress, cost=case_cost,
                                   label=lambda c: (f"{c['sweep']} {c['scene']} h={_h_label(c['h'])} nu={c['nu']} "

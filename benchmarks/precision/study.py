@@ -4,12 +4,12 @@
 
 For each problem (contact Ex. 1 and Ex. 2 and the radial obstacle at h =
 1/20 ... 1/160, four QPs) every ADMM method (every registered policy in both
-orders, :mod:`admmkit.benchmarks.rules.methods`) runs from rho_0 = rho_scale *
+orders, :mod:`admmkit.benchmarks.fixtures.methods`) runs from rho_0 = rho_scale *
 rho_unit (rho_unit = E for contact, 1 otherwise) through a ladder of Boyd
-residual tolerances 1e-1 ... 1e-10 (:mod:`admmkit.benchmarks.rules.admm_runs`), and
-every peer (:mod:`admmkit.benchmarks.rules.peers`) through its own ladder.  Each
+residual tolerances 1e-1 ... 1e-10 (:mod:`admmkit.benchmarks.fixtures.admm_runs`), and
+every peer (:mod:`admmkit.benchmarks.fixtures.peers`) through its own ladder.  Each
 point is (median CPU time of the process, true relative error of the answer
-against the reference solution, in the norm of :mod:`admmkit.benchmarks.rules.families`).
+against the reference solution, in the norm of :mod:`admmkit.benchmarks.fixtures.families`).
 CPU time, not wall time: the machine is shared, and with one BLAS thread per
 process the CPU time is the work done whatever the load (the wall times are in
 precision.csv too).
@@ -27,13 +27,13 @@ import os
 from pathlib import Path
 
 
-from admmkit.benchmarks.rules import methods as methods_mod
-from admmkit.benchmarks.rules.peers import PEERS, applicable, run_peer
-from admmkit.benchmarks.rules.families import (CACHE_ENV, CONTACT_SCENES, OBSTACLE_SCENES, QP_SCENES, discrete, kind_of, mm_folder,
+from admmkit.benchmarks.fixtures import methods as methods_mod
+from admmkit.benchmarks.fixtures.peers import PEERS, applicable, run_peer
+from admmkit.benchmarks.fixtures.families import (CACHE_ENV, CONTACT_SCENES, OBSTACLE_SCENES, QP_SCENES, discrete, kind_of, mm_folder,
                        problem_key)
 from admmkit.benchmarks.runner.harness import check_harness, check_something_left, without_harness_failures
 from admmkit.benchmarks.runner.sweep import Executor, run_or_report
-from admmkit.benchmarks.rules.precision_report import _problem_label, summarise
+from admmkit.benchmarks.precision.report import _problem_label, summarise
 
 HS = (1 / 20, 1 / 40, 1 / 80, 1 / 160)
 QUICK_HS = (1 / 10,)
@@ -71,7 +71,7 @@ def case_cost(case: dict) -> float:
 
 def run_case(case: dict) -> dict:
     """Worker entry point: one solver on one problem."""
-    from admmkit.benchmarks.rules.admm_runs import ladder_run
+    from admmkit.benchmarks.fixtures.admm_runs import ladder_run
     d = discrete(case, cache_dir=os.environ.get(CACHE_ENV))
     info = {"n": d.n, "norm": d.norm_name, **{k: v for k, v in d.info.items() if k not in ("n",)}}
     if case["solver"] == "admm":
@@ -107,7 +107,7 @@ def run(out="out/precision", *, quick: bool = False, workers: int = 2, repeats: 
     if quick:
         cases = [c for c in cases if c["scene"] != "qp:random-mixed" or c["solver"] == "peer"
                  or c["method"] in ("admm1", "sadmm")]
-    records, wall = run_or_report(cases, "admmkit.benchmarks.rules.precision:run_case", out, report_only=report_only,
+    records, wall = run_or_report(cases, "admmkit.benchmarks.precision.study:run_case", out, report_only=report_only,
                                   env={CACHE_ENV: str(out / "cache")}, workers=workers, executor=executor,
                                   progress=progress, cost=case_cost, label=lambda c: f"{_problem_label(c)} {c['method']}")
     kept, failed = without_harness_failures(records)      # a harness failure is no outcome of a method

@@ -11,13 +11,13 @@ family's own truthful measure:
   the failure ``solved_not_neutral``);
 - ``contact``, ``obstacle``, ``friction``: contact Examples 1 and 2, the
   radial obstacle and Example 1 with Tresca friction from rho_0 over the
-  decades (``admmkit.benchmarks.rules.policies_fe``): solved when the
+  decades (``admmkit.benchmarks.policies.study``): solved when the
   relative error against an independent reference reaches 1e-6 before the cap;
 - ``framework``: the four problems written with the building blocks
   (``admmkit.benchmarks.framework.four_problems``) with the same stop
   against their cvxpy references;
 - ``stability``: the paper's contact examples with the paper's stop
-  (``admmkit.benchmarks.rules.stability``): solved when the stop fired
+  (``admmkit.benchmarks.stability.study``): solved when the stop fired
   with a true error of at most 1e-3 (a false convergence is a failure).
 """
 from __future__ import annotations
@@ -40,7 +40,7 @@ _CACHE: dict = {}
 
 def run_fe(case: dict) -> list[dict]:
     """contact / obstacle / friction: one policies_fe case, solved at the oracle's 1e-6."""
-    from admmkit.benchmarks.rules.policies_fe import run_case
+    from admmkit.benchmarks.policies.study import run_case
     r = run_case(case)
     status = "solved" if r["reached"] else ("max_iter" if r["status"] == "max_iter" else r["status"])
     return [{"solved": bool(r["reached"]), "status": status, "iterations": r["iterations"],
@@ -49,7 +49,7 @@ def run_fe(case: dict) -> list[dict]:
 
 def run_stability(case: dict) -> list[dict]:
     """stability: one run of the stability grid, solved when the paper's stop fired at a true error <= 1e-3."""
-    from admmkit.benchmarks.rules.stability import run_case
+    from admmkit.benchmarks.stability.study import run_case
     r = run_case(case)
     return [{"solved": r["outcome"] == "converged", "status": r["outcome"], "iterations": r["iterations"],
              "seconds": r["seconds"]}]

@@ -21,8 +21,8 @@ belongs, one family at a time:
 - ``stability``: the paper's examples, rho_0/E = 1e-6 ... 1e6 (h = 1/40), and
   h, nu, P1/P2 (quick: Ex. 1, h = 1/10, 3 rho_0).
 
-The case runner is :mod:`admmkit.benchmarks.ranking.cases` (each family's
-truthful "solved"), the summary :mod:`admmkit.benchmarks.ranking.report`
+The case runner is :mod:`admmkit.benchmarks.rules.cases` (each family's
+truthful "solved"), the summary :mod:`admmkit.benchmarks.rules.report`
 (performance profiles, solved counts, robustness across rho_0, what
 acceleration does, every failure).  The cases run on the one sweep runner
 (``admmkit.benchmarks.runner.sweep``: local processes or Dask, resumable),
@@ -34,9 +34,10 @@ from pathlib import Path
 
 import admmkit
 from admmkit.acceleration import ACCELERATORS
-from admmkit.benchmarks.rules import policies_fe, stability
-from admmkit.benchmarks.rules.methods import method_label, policy_version
-from admmkit.benchmarks.ranking.cases import DATA_ENV
+from admmkit.benchmarks.policies import study as policies_fe
+from admmkit.benchmarks.stability import study as stability
+from admmkit.benchmarks.fixtures.methods import method_label, policy_version
+from admmkit.benchmarks.rules.cases import DATA_ENV
 from admmkit.benchmarks.runner.sweep import Executor, run_or_report
 
 FAMILIES = ("qp", "contact", "obstacle", "friction", "framework", "stability")
@@ -151,7 +152,7 @@ def run(out="out/rules", *, rules=None, acceleration=("none", "anderson"), famil
         data=None, command: str = "admmkit bench rules", progress: bool = True, report_only: bool = False,
         executor: Executor | None = None) -> list[Path]:
     """Build the grid, run (or resume) it, and write the ranking (returns the files written)."""
-    from admmkit.benchmarks.ranking.report import summarise
+    from admmkit.benchmarks.rules.report import summarise
     out = Path(out)
     rules = check_rules(rules if rules is not None else admmkit.policy_names())
     accel = accelerations(acceleration)
@@ -169,7 +170,7 @@ def run(out="out/rules", *, rules=None, acceleration=("none", "anderson"), famil
         families.remove("qp")
         notes.append(f"qp left out: no Maros-Meszaros folder at {DEFAULT_DATA} (give --data DIR)")
     cases = build_cases(rules, accel, families, quick=quick, data=data_dir.resolve())
-    records, wall = run_or_report(cases, "admmkit.benchmarks.ranking.cases:run_case", out, report_only=report_only,
+    records, wall = run_or_report(cases, "admmkit.benchmarks.rules.cases:run_case", out, report_only=report_only,
                                   env={DATA_ENV: str(data_dir.resolve()), stability.CACHE_ENV: str(out / "cache")},
                                   executor=executor or Executor(), progress=progress, cost=case_cost, label=label)
     if not records:

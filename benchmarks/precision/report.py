@@ -3,11 +3,12 @@ from __future__ import annotations
 
 from pathlib import Path
 from admmkit.io import write_text
-from admmkit.benchmarks.rules import methods as methods_mod
-from admmkit.benchmarks.rules.peers import PEERS
-from admmkit.benchmarks.runner.report import (NOISE_NOTE, fmt, machine_info, machine_markdown, md_table, pyplot,
+from admmkit.benchmarks.fixtures import methods as methods_mod
+from admmkit.benchmarks.fixtures.peers import PEERS
+from admmkit.benchmarks.runner.machine import machine_info
+from admmkit.benchmarks.runner.report import (NOISE_NOTE, fmt, machine_markdown, md_table, pyplot,
                      save_figure, write_csv)
-from admmkit.benchmarks.rules.families import CONTACT_SCENES, OBSTACLE_SCENES, QP_SCENES, kind_of
+from admmkit.benchmarks.fixtures.families import CONTACT_SCENES, OBSTACLE_SCENES, QP_SCENES, kind_of
 
 TARGETS = (1e-4, 1e-8)
 #: errors below this (the reference itself, e.g. PDAS's last step) are drawn at it
@@ -268,7 +269,7 @@ def _readme(out: Path, per_problem, refs, failures, command, wall, skipped, file
               "- `time_to_error.{md,csv}`: time to a relative error of 1e-4 and 1e-8, and the ratio to the fastest",
               "- `precision_<scene>.{png,svg}`: the charts", "- `results.jsonl`: the raw sweep records (one JSON line "
               "per finished case; the sweep resumes from it)", ""]
-    lines.append(machine_markdown(machine_info()))
+    lines.append(machine_markdown(machine_info(pinned_blas=True)))
     path = out / "README.md"
     write_text(path, "\n".join(lines))
     return path

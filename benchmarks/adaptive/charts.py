@@ -7,7 +7,7 @@ from pathlib import Path
 
 from admmkit.figures import pyplot, save_figure
 
-from admmkit.benchmarks.rules.adaptive_compare import GROUPS, comparison, series
+from admmkit.benchmarks.adaptive.compare import GROUPS, comparison, series
 
 STYLE = {"adaptive": ("C3", "-", "o", "adaptive (balanced stop, warm start)"),
          "uniform": ("C0", "--", "s", "uniform (balanced stop)"),

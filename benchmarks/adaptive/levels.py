@@ -11,7 +11,7 @@ HERTZ_COLUMNS = ("a_error", "p0_error")
 def level_row(scene, order, method, level, h, unknowns, relative_estimate, estimate, true_error, absolute_error,
               iterations, seconds, wall, status, cold_iterations=None, algebraic_error=math.nan, **extra) -> dict:
     """One row of the study (printed as it is made); ``algebraic_error``: ||u - u_h*||_a at the stop (adaptive levels,
-    :mod:`admmkit.benchmarks.rules.adaptive_algebraic`); ``extra``: the Hertz columns, if any."""
+    :mod:`admmkit.benchmarks.adaptive.algebraic`); ``extra``: the Hertz columns, if any."""
     row = {"scene": scene, "order": order, "method": method, "level": level, "h": h, "unknowns": unknowns,
            "relative_estimate": relative_estimate, "true_error": true_error,
            "effectivity": estimate / absolute_error if not absolute_error <= 0 else math.inf,   # NaN: error NaN

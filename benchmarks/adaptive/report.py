@@ -15,9 +15,9 @@ from admmkit.balanced_stop import GAMMA
 from admmkit.problems.obstacle.estimate import OBSTACLE_GAMMA
 from admmkit.io import write_text
 
-from admmkit.benchmarks.rules.adaptive_charts import plot, plot_levels
-from admmkit.benchmarks.rules.adaptive_compare import TARGET_ERROR, TODAY, comparison
-from admmkit.benchmarks.rules.adaptive_contact import RESOLVED
+from admmkit.benchmarks.adaptive.charts import plot, plot_levels
+from admmkit.benchmarks.adaptive.compare import TARGET_ERROR, TODAY, comparison
+from admmkit.benchmarks.adaptive.contact import RESOLVED
 from admmkit.benchmarks.runner.report import fmt, md_table, write_csv
 
 
@@ -101,7 +101,7 @@ def markdown(rows: list[dict], refs: list[dict], command: str) -> str:
               "effectivity within a factor 3, never below 0.5; the obstacle "
               "never worse than uniform in unknowns, and at least 3x less time than uniform with today's stop; "
               "warm-started levels at most a third of a cold start's iterations; the algebraic error at the stop "
-              "(against the exact discrete solution of the level: `benchmarks/rules/adaptive_algebraic.py`) "
+              "(against the exact discrete solution of the level: `benchmarks/adaptive/algebraic.py`) "
               "within [0.05, 0.5] of the discretisation error (here: of its estimate).\n\n"
               "## Rates (slope of error against unknowns), effectivity (estimate / true error), iterations\n\n"
             + rates + "\n\n## Every level\n\n" + levels + f"\n\nMade by `{command}`.\n")

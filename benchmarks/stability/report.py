@@ -5,9 +5,10 @@ import math
 from pathlib import Path
 import numpy as np
 from admmkit.io import write_text
-from admmkit.benchmarks.rules import methods as methods_mod
-from admmkit.benchmarks.runner.report import NOISE_NOTE, fmt, machine_info, machine_markdown, md_table, pyplot, save_figure, write_csv
-from admmkit.benchmarks.rules.families import problem_key
+from admmkit.benchmarks.fixtures import methods as methods_mod
+from admmkit.benchmarks.runner.machine import machine_info
+from admmkit.benchmarks.runner.report import NOISE_NOTE, fmt, machine_markdown, md_table, pyplot, save_figure, write_csv
+from admmkit.benchmarks.fixtures.families import problem_key
 
 MAX_ITER = 20_000
 FALSE_CONVERGENCE_ERROR = 1e-3
@@ -264,7 +265,7 @@ def summarise(records, out: Path, *, command: str, wall: float, skipped, missing
     if missing:
         lines.insert(3, f"**{missing} cases of the sweep had not finished when these files were written "
                         "(--report-only); they are blank ('?') in the figures and missing from the tables.**\n")
-    lines.append(machine_markdown(machine_info()))
+    lines.append(machine_markdown(machine_info(pinned_blas=True)))
     write_text(out / "README.md", "\n".join(lines))
     files.append(out / "README.md")
     return files

@@ -16,7 +16,7 @@ bound lower still).  The exact discrete solution u_h* of a level:
   not an M-matrix), ADMM to residuals 1e-10 from the level's result.
 
 Both return ||u - u_h*||_a, the energy norm of the difference, which
-:func:`admmkit.benchmarks.rules.adaptive_levels.level_row` divides by the
+:func:`admmkit.benchmarks.adaptive.levels.level_row` divides by the
 level's (absolute) estimate eta.
 """
 from __future__ import annotations
@@ -52,7 +52,7 @@ def contact_algebraic_error(ops, u: np.ndarray, exact) -> float:
 
 def obstacle_algebraic_error(problem, result) -> float:
     """||z - u_h*||_K on an obstacle level (``problem``: the level's ObstacleProblem; ``result``: its run)."""
-    from admmkit.benchmarks.rules.pdas import pdas
+    from admmkit.benchmarks.fixtures.pdas import pdas
     s = problem.sign                                  # s (u - psi) >= 0  <=>  -s u <= -s psi
     exact = pdas(problem.K, problem.F, -s * sp.identity(problem.n, format="csr"), -s * problem.psi,
                  method="bounds", max_iter=200)

@@ -32,7 +32,7 @@ import numpy as np
 import admmkit
 from admmkit import RelativeChange
 
-from admmkit.benchmarks.rules.methods import method_label, policy_version
+from admmkit.benchmarks.fixtures.methods import method_label, policy_version
 from admmkit.benchmarks.runner.harness import check_harness, first_line, harness_failures, is_harness_failure
 from admmkit.benchmarks.runner.report import write_csv, write_text
 from admmkit.benchmarks.runner.sweep import Executor, run_sweep
@@ -266,7 +266,7 @@ def run(out="out/policies", rules=RULES, quick: bool = False, command: str = "",
     if report_only:
         records = finished(cases, out / "results.jsonl")
     else:
-        records = run_sweep(cases, "admmkit.benchmarks.rules.policies_fe:run_case", out / "results.jsonl", workers=workers,
+        records = run_sweep(cases, "admmkit.benchmarks.policies.study:run_case", out / "results.jsonl", workers=workers,
                             executor=executor, progress=progress, cost=case_cost,
                             label=lambda c: f"{c['problem']} {c['rule']}/{c['order']} rho0={c['rho0']:g}")
     norms = {"contact": "energy norm", "obstacle": "lumped L2 norm", "tresca": "energy norm"}
