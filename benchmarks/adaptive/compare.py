@@ -7,7 +7,7 @@ e*; their ratios uniform / adaptive (and a priori / adaptive for Hertz); the
 convergence rates (least-squares slope of log error against log unknowns
 over the finer half of the levels); the effectivity range; the iterations
 per level; Hertz's errors in a and p0.  Levels whose true error is NaN (not
-measurable by the energy, ``adaptive_contact.py``) are left out of all of it.
+measurable by the energy, ``contact.py``) are left out of all of it.
 """
 from __future__ import annotations
 

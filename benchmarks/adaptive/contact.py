@@ -7,7 +7,7 @@ feasible v), J_ref extrapolated from a P2 adaptive solve to a tight target
 the estimate's rate over its five finest levels (:func:`reference`).  c_h is
 0 where the obstacle is flat (Examples 1 and 2); Hertz's curved one adds back
 what the between-node penetration took off J(u_h)
-(``adaptive_hertz.penetration_term``).  Where J(u_h) + c_h < J_ref (Hertz's
+(``hertz.penetration_term``).  Where J(u_h) + c_h < J_ref (Hertz's
 coarsest meshes, the curved contact zone across a few nodes) the error is
 NaN: the energy cannot measure it.  Nor where it is below ``RESOLVED`` times
 the reference's energy floor: on Hertz's finest levels the energy rises by

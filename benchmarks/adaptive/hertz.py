@@ -13,7 +13,7 @@ delta; docs/scale.md), meshed
 - **a priori**: the Hertz validation's mesh (``HertzCase.scene``), size
   h_c = a_target / k on the contact arc and in the half-disk r <= 2 a_target.
 
-The true energy error needs a reference (``adaptive_contact.reference``,
+The true energy error needs a reference (``contact.reference``,
 started from the adaptive start in P2) and one correction,
 :func:`penetration_term`: the obstacle is curved and the constraint holds at
 the contact nodes only, so between two active nodes a P1 boundary cuts into

@@ -1,8 +1,8 @@
-"""The report of ``admmkit bench adaptive`` (``adaptive_study.py``): adaptive.csv, adaptive.md and the charts.
+"""The report of ``admmkit bench adaptive`` (``study.py``): adaptive.csv, adaptive.md and the charts.
 
 The numbers come from ``adaptive_compare.py`` (a method at a common true
 error, ratios, rates, effectivity, Hertz's a and p0), the charts from
-``adaptive_charts.py``.
+``charts.py``.
 """
 from __future__ import annotations
 

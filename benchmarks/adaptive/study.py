@@ -22,17 +22,17 @@ and the radial obstacle in P1 and P2.  For each:
   uniform cold solves keep SuperLU;
 - **a priori** (Hertz): the Hertz validation's meshes, refined near the
   contact by hand, each solved once, cold, as the uniform ones
-  (``adaptive_hertz.py``).
+  (``hertz.py``).
 
 The true relative energy error of every level and mesh:
 
 - **radial obstacle**: ``|u - u_h|_{H1} / |u|_{H1}`` against the exact
   solution;
 - **contact**: ``sqrt(2 (J(u_h) - J_ref + c_h)) / ||u||_a`` against a P2
-  adaptive reference, extrapolated (``adaptive_contact.py``); c_h = 0 but
+  adaptive reference, extrapolated (``contact.py``); c_h = 0 but
   for Hertz's curved obstacle.
 
-The report (tables, ratios, rates, charts): ``adaptive_report.py``.
+The report (tables, ratios, rates, charts): ``report.py``.
 """
 from __future__ import annotations
 

@@ -133,7 +133,8 @@ def study(run):
 
 
 def add_study(targets, name: str, run, *, help: str, description: str, needs_line: str,
-              modules=(), sweep: bool = True, out: str | None = None, **parser_options):
+              modules=(), sweep: bool = True, out: str | None = None, out_file: str | None = None,
+              **parser_options):
     """Make a study a command, ``admmkit bench NAME``: the one way a study becomes a command.
 
     A study is a module with its grid (``build_cases``), its case runner
@@ -147,7 +148,9 @@ def add_study(targets, name: str, run, *, help: str, description: str, needs_lin
     - the shared options: those of the resumable sweeps (``--out``, ``--workers``,
       ``--dask-workers``, ``--scheduler``, ``--case-timeout``, ``--chunk``,
       ``--quick``, ``-q``, ``--report-only``) if ``sweep``, else ``--out`` alone;
-      ``--out`` defaults to ``out/OUT`` (``OUT``: ``name`` unless given);
+      ``--out`` defaults to ``out/OUT`` (``OUT``: ``name`` unless given); a study
+      that writes one Markdown file takes ``--out FILE`` instead (``out_file``: its
+      default, :func:`add_out_file`);
     - before ``run(args)``: ``modules`` (a tuple, or a function of the parsed
       options giving one) checked and the cost announced (:func:`needs`); after
       it, the harness's verdict (:func:`study`).
@@ -156,7 +159,10 @@ def add_study(targets, name: str, run, *, help: str, description: str, needs_lin
     """
     p = targets.add_parser(name, help=help, description=description + typical(f"bench {name}")
                            + f" needs: {needs_line}", **parser_options)
-    (add_sweep_options if sweep else add_out)(p, out or name)
+    if out_file is not None:
+        add_out_file(p, out_file)
+    else:
+        (add_sweep_options if sweep else add_out)(p, out or name)
 
     @functools.wraps(run)
     def command(args):
