@@ -144,16 +144,16 @@ def add_study(targets, name: str, run, *, help: str, description: str, needs_lin
     This gives the command
 
     - its description, ending with what a run costs (``typical: ...`` from
-      :mod:`admmkit.benchmarks.runner.costs`) and ``needs: NEEDS_LINE``;
+      ``admmkit.benchmarks.runner.costs``) and ``needs: NEEDS_LINE``;
     - the shared options: those of the resumable sweeps (``--out``, ``--workers``,
       ``--dask-workers``, ``--scheduler``, ``--case-timeout``, ``--chunk``,
       ``--quick``, ``-q``, ``--report-only``) if ``sweep``, else ``--out`` alone;
       ``--out`` defaults to ``out/OUT`` (``OUT``: ``name`` unless given); a study
       that writes one Markdown file takes ``--out FILE`` instead (``out_file``: its
-      default, :func:`add_out_file`);
+      default, ``add_out_file``);
     - before ``run(args)``: ``modules`` (a tuple, or a function of the parsed
-      options giving one) checked and the cost announced (:func:`needs`); after
-      it, the harness's verdict (:func:`study`).
+      options giving one) checked and the cost announced (``needs``); after
+      it, the harness's verdict (``study``).
 
     Returns the parser, for the study's own options.
     """
@@ -201,7 +201,11 @@ def own_parser(name: str, module: str, help_text: str, modules: tuple[str, ...] 
     def register(targets) -> None:
         p = targets.add_parser(name, help=help_text, add_help=False, prefix_chars="\0")
         p.add_argument("argv", nargs=argparse.REMAINDER)
-        p.set_defaults(func=lambda args: run_own(module, args.argv, f"admmkit bench {name}", modules))
+
+        def command(args):
+            return run_own(module, args.argv, f"admmkit bench {name}", modules)
+        command.needs = modules      # said for the tests: this command checks and announces before its work
+        p.set_defaults(func=command)
     register.__doc__ = f"``admmkit bench {name}``: {help_text} ({module})."
     return register
 
