@@ -72,7 +72,11 @@ def _init_names(cls) -> tuple[str, ...]:
 
 
 def register_policy(name: str):
-    """Class decorator: make a policy constructible by name (``make_policy(name)``)."""
+    """Class decorator: make a rule of yours constructible by name in this process (``make_policy(name)``).
+
+    admmkit's own rules need no decorator: each is named once, by its line in the
+    entry-point group ``admmkit.policies`` of ``pyproject.toml``, and loaded on first use.
+    """
 
     def deco(cls):
         _REGISTRY[name] = cls
@@ -82,20 +86,24 @@ def register_policy(name: str):
     return deco
 
 
-def _declared() -> dict:
-    """The rules installed packages declare in the entry-point group ``admmkit.policies``, by name."""
+def declared_rules() -> dict:
+    """The rules installed packages declare in the entry-point group ``admmkit.policies``: ``{name: EntryPoint}``.
+
+    admmkit's own rules are declared there too (``pyproject.toml``): it is the
+    only place a built-in rule is named.
+    """
     return {ep.name.strip().lower().replace("-", "_"): ep for ep in entry_points(group=GROUP)}
 
 
 def policy_names() -> list[str]:
     """Names of the known policies: registered in this process, or declared by an installed package."""
-    return sorted(set(_REGISTRY) | set(_declared()))
+    return sorted(set(_REGISTRY) | set(declared_rules()))
 
 
 def _lookup(key: str):
     """The class registered or declared under ``key`` (loading its entry point on first use), or None."""
     if key not in _REGISTRY:
-        declared = _declared().get(key)
+        declared = declared_rules().get(key)
         if declared is None:
             return None
         try:

@@ -1,17 +1,51 @@
 """Penalty (rho) rules for admmkit, one module per rule.
 
-Importing this package registers every rule by name, so that
-``admmkit.solve(problem, policy="summable")`` and ``admmkit.make_policy`` find them.
+A built-in rule is named in one place only: its line in the entry-point group
+``admmkit.policies`` of ``pyproject.toml``, ``name = "admmkit.policies.<file>:<Class>"``
+(docs/policies.md lists them with their files, classes and papers).  From that
+line ``admmkit.make_policy(name)``, ``--policy name`` and the sweeps over
+:func:`admmkit.policy_names` find the rule, loading its module on first use;
+``from admmkit.policies import Summable`` loads the class the same way.  Nothing
+is imported for its side effect: no rule needs importing before it is named.
 """
-from .fixed import Fixed
-from .osqp_rule import OSQPRule
-from .quantized import Quantized
-from .residual_balancing import ResidualBalancing
-from .spectral import Spectral
-from .summable import Summable
-from .summable_steps import SummableSteps
-from .wohlberg import Wohlberg
-from .paper_methods import PAPER_METHODS, method  # noqa: E402  (after the rules it names)
+from __future__ import annotations
 
-__all__ = ["Fixed", "ResidualBalancing", "Summable", "Wohlberg", "OSQPRule", "Spectral", "SummableSteps",
-           "Quantized", "PAPER_METHODS", "method"]
+import importlib
+import warnings
+
+from admmkit.policy import declared_rules
+
+#: class names kept for a while after a rename: {old: new}; the old one still works, with a DeprecationWarning
+RENAMED = {"Spectral": "AADMM"}
+
+
+def builtin_rules() -> dict[str, tuple[str, str]]:
+    """The built-in rules: ``{name: (module, Class)}``, read from the entry-point group ``admmkit.policies``."""
+    rules = {}
+    for name, point in declared_rules().items():
+        module, _, cls = point.value.partition(":")
+        if module.startswith(__name__ + "."):
+            rules[name] = (module, cls.strip())
+    return rules
+
+
+def __getattr__(attr: str):
+    """The class ``attr`` of a built-in rule (``admmkit.policies.Summable``), imported on first use."""
+    if attr in RENAMED:
+        warnings.warn(f"admmkit.policies.{attr} is now admmkit.policies.{RENAMED[attr]}",
+                      DeprecationWarning, stacklevel=2)
+        return __getattr__(RENAMED[attr])
+    for module, cls in builtin_rules().values():
+        if cls == attr:
+            return getattr(importlib.import_module(module), cls)
+    if attr in ("PAPER_METHODS", "method"):
+        return getattr(importlib.import_module(f"{__name__}.paper_methods"), attr)
+    raise AttributeError(f"module {__name__!r} has no attribute {attr!r}")
+
+
+def __dir__() -> list[str]:
+    """The module's names with the rules' classes (for completion and the API reference)."""
+    return sorted(set(globals()) | set(__all__))
+
+
+__all__ = sorted({cls for _, cls in builtin_rules().values()}) + ["PAPER_METHODS", "method", "builtin_rules"]

@@ -3,10 +3,9 @@ from __future__ import annotations
 
 import sys
 
-from admmkit import IterationRecord, Policy, register_policy
+from admmkit import IterationRecord, Policy
 
 
-@register_policy("fixed")
 class Fixed(Policy):
     """Keep rho at its initial value."""
 

@@ -45,7 +45,7 @@ from __future__ import annotations
 
 import math
 
-from admmkit import IterationRecord, Policy, register_policy
+from admmkit import IterationRecord, Policy
 
 from ._checks import check_int, check_number
 
@@ -53,7 +53,6 @@ from ._checks import check_int, check_number
 DIVISION_TOL = 1e-10
 
 
-@register_policy("osqp")
 class OSQPRule(Policy):
     """rho <- rho sqrt(r_rel / s_rel) every ``interval`` iterations, if that changes rho by more than ``tolerance``."""
 

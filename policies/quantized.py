@@ -25,13 +25,12 @@ from __future__ import annotations
 
 import math
 
-from admmkit import IterationRecord, Policy, register_policy
+from admmkit import IterationRecord, Policy
 
 from ._checks import check_number
 from ._wrap import as_policy
 
 
-@register_policy("quantized")
 class Quantized(Policy):
     """Round a wrapped rule's rho (default: AADMM's) to the grid rho_0 10^(j/per_decade)."""
 

@@ -9,12 +9,11 @@ with r the primal and s Boyd's dual residual, both in the problem's norms
 """
 from __future__ import annotations
 
-from admmkit import IterationRecord, Policy, register_policy
+from admmkit import IterationRecord, Policy
 
 from ._checks import check_number
 
 
-@register_policy("residual_balancing")
 class ResidualBalancing(Policy):
     """Boyd's residual balancing: keep ||r|| and ||s|| within a factor mu of each other."""
 

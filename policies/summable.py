@@ -25,12 +25,11 @@ from __future__ import annotations
 
 import math
 
-from admmkit import IterationRecord, Policy, register_policy
+from admmkit import IterationRecord, Policy
 
 from ._checks import check_int, check_number
 
 
-@register_policy("summable")
 class Summable(Policy):
     """SADMM's rule: residual balancing on w_k with summable changes s_k."""
 

@@ -24,13 +24,12 @@ from __future__ import annotations
 
 import math
 
-from admmkit import IterationRecord, Policy, register_policy
+from admmkit import IterationRecord, Policy
 
 from ._checks import check_int, check_number
 from ._wrap import as_policy
 
 
-@register_policy("summable_steps")
 class SummableSteps(Policy):
     """Clip the changes of a wrapped rule (default: Wohlberg's) so that they are summable."""
 

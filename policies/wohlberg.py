@@ -31,12 +31,11 @@ from __future__ import annotations
 
 import math
 
-from admmkit import IterationRecord, Policy, register_policy
+from admmkit import IterationRecord, Policy
 
 from ._checks import check_int, check_number
 
 
-@register_policy("wohlberg")
 class Wohlberg(Policy):
     """Residual balancing on relative residuals with the adaptive factor tau_k <= tau_max."""
 

@@ -2,13 +2,15 @@
 
 One function per command, found by the host :mod:`admmkit.cli` through the
 entry-point group ``admmkit.commands`` in ``pyproject.toml``; the study itself
-is imported only when its command runs.  The shared options live in
-:mod:`admmkit.benchmarks.runner.options`.
+is imported only when its command runs.  A study becomes a command through
+:func:`admmkit.benchmarks.runner.options.add_study` (the shared options, its
+cost and needs), or :func:`~admmkit.benchmarks.runner.options.own_parser` when
+it parses its own options.
 """
 from __future__ import annotations
 
-from admmkit.cli import positive_float, positive_int  # noqa: F401
-from admmkit.benchmarks.runner.options import add_out, add_out_file, add_sweep_options, executor_of, needs, own_parser, print_files, study
+from admmkit.cli import positive_float, positive_int
+from admmkit.benchmarks.runner.options import add_out, add_study, executor_of, needs, own_parser, print_files, study
 from admmkit.benchmarks.runner.costs import typical
 
 
@@ -37,16 +39,13 @@ def _reproduce(args) -> int:
 
 def paper_compare(targets) -> None:
     """``admmkit bench paper-compare``: our times and iterations beside the paper's tables."""
-    c = targets.add_parser("paper-compare", help="our ADMM1/ADMM2/SADMM times and iterations beside the paper's tables",
-                           description="The paper's Tables 1-2 beside this machine's times, with ratios."
-                                       + typical("bench paper-compare") + " needs: ngsolve")
-    add_sweep_options(c, "paper-compare")
+    c = add_study(targets, "paper-compare", _paper_compare,
+                  help="our ADMM1/ADMM2/SADMM times and iterations beside the paper's tables",
+                  description="The paper's Tables 1-2 beside this machine's times, with ratios.", needs_line="ngsolve")
     c.add_argument("--repeats", type=positive_int, default=3, help="repeats, median time (default 3)")
-    c.set_defaults(func=study(_paper_compare))
 
 
 def _paper_compare(args) -> int:
-    needs(args)
     from admmkit.benchmarks.contact import paper_compare
     print_files(paper_compare.run(args.out, repeats=args.repeats, workers=args.workers, quick=args.quick,
                                    progress=args.progress, command=args.command_line, report_only=args.report_only,
@@ -56,18 +55,15 @@ def _paper_compare(args) -> int:
 
 def contact_speed(targets) -> None:
     """``admmkit bench contact``: SADMM time against one factorisation + solve of K."""
-    b = targets.add_parser("contact", help="SADMM time / (one factorisation + solve of K), Ex. 1-2",
-                           description="SADMM time against one sparse factorisation + solve of K."
-                                       + typical("bench contact") + " needs: ngsolve")
-    add_out_file(b, "out/contact/contact_speed.md")
+    b = add_study(targets, "contact", _contact_speed, out_file="out/contact/contact_speed.md",
+                  help="SADMM time / (one factorisation + solve of K), Ex. 1-2",
+                  description="SADMM time against one sparse factorisation + solve of K.", needs_line="ngsolve")
     b.add_argument("--h", type=positive_float, action="append", default=None, dest="hs",
                    help="mesh size (repeatable; default 1/40 and 1/200)")
     b.add_argument("--repeats", type=positive_int, default=3, help="repeats, median reported (default 3)")
-    b.set_defaults(func=study(_contact_speed))
 
 
 def _contact_speed(args) -> int:
-    needs(args)
     from admmkit.benchmarks.contact.contact_speed import DEFAULT_HS, run_bench
     run_bench(out=args.out_file, hs=tuple(args.hs) if args.hs else DEFAULT_HS, repeats=args.repeats,
               command=args.command_line)
@@ -77,19 +73,17 @@ def _contact_speed(args) -> int:
 
 def contact_schur(targets) -> None:
     """``admmkit bench contact-schur``: the condensed set-up (Schur complement on Gamma_C) by backend."""
-    b = targets.add_parser("contact-schur", help="the Schur complement's set-up by backend, Ex. 1-2, and SADMM / (factor + solve)",
-                           description="Time the candidate ways to build the contact-boundary Schur complement of K."
-                                       + typical("bench contact-schur") + " needs: ngsolve")
-    add_out_file(b, "out/contact/contact_schur.md")
+    b = add_study(targets, "contact-schur", _contact_schur, out_file="out/contact/contact_schur.md",
+                  help="the Schur complement's set-up by backend, Ex. 1-2, and SADMM / (factor + solve)",
+                  description="Time the candidate ways to build the contact-boundary Schur complement of K.",
+                  needs_line="ngsolve")
     b.add_argument("--h", type=positive_float, action="append", default=None, dest="hs",
                    help="mesh size (repeatable; default 1/40, 1/100 and 1/200)")
     b.add_argument("--repeats", type=positive_int, default=3, help="repeats, the best reported (default 3)")
     b.add_argument("--block", type=positive_int, default=64, help="columns per block of the block solves (default 64)")
-    b.set_defaults(func=study(_contact_schur))
 
 
 def _contact_schur(args) -> int:
-    needs(args)
     from admmkit.benchmarks.contact.schur_study import DEFAULT_HS, run_study
     run_study(out=args.out_file, hs=tuple(args.hs) if args.hs else DEFAULT_HS, repeats=args.repeats, block=args.block,
               command=args.command_line)
@@ -99,18 +93,16 @@ def _contact_schur(args) -> int:
 
 def hertz(targets) -> None:
     """``admmkit bench hertz``: contact half-width and peak pressure against Hertz."""
-    h = targets.add_parser("hertz", help="Hertz validation: half-cylinder on a rigid plane, a and p0 vs Hertz",
-                           description="Contact half-width and peak pressure against Hertz on meshes refined near "
-                                       "the contact (problems/contact/validation/hertz.py)."
-                                       + typical("bench hertz") + " needs: ngsolve (netgen meshes), matplotlib")
-    add_out(h, "scale")
+    h = add_study(targets, "hertz", _hertz, sweep=False, out="scale",
+                  help="Hertz validation: half-cylinder on a rigid plane, a and p0 vs Hertz",
+                  description="Contact half-width and peak pressure against Hertz on meshes refined near "
+                              "the contact (problems/contact/validation/hertz.py).",
+                  needs_line="ngsolve (netgen meshes), matplotlib")
     h.add_argument("--k", type=positive_int, action="append", default=None, dest="ks",
                    help="refinement a_target/h_c (repeatable; default 10 20 40 80)")
-    h.set_defaults(func=study(_hertz))
 
 
 def _hertz(args) -> int:
-    needs(args)
     from admmkit.benchmarks.contact.hertz import DEFAULT_KS, run_hertz_study
     run_hertz_study(out=args.out, ks=tuple(args.ks) if args.ks else DEFAULT_KS, command=args.command_line)
     return 0
@@ -118,22 +110,22 @@ def _hertz(args) -> int:
 
 def scale(targets) -> None:
     """``admmkit bench scale``: Example 1 with the iterative x-step from 1e3 to 1e6 unknowns."""
-    s = targets.add_parser("scale", help="Example 1 with the iterative x-step from 1e3 to 1e6 unknowns: time, memory",
-                           description="SADMM on Example 1 with the AMG-CG x-step at growing sizes, each in its own "
-                                       "process: wall time, iterations, peak memory, the 60 s / 8 GB target at 1e6."
-                                       + typical("bench scale") + " needs: ngsolve, pyamg, cvxpy, clarabel (the reference of the accuracy column up to 2e5 unknowns)")
-    add_out(s, "scale")
+    s = add_study(targets, "scale", _scale, sweep=False,
+                  help="Example 1 with the iterative x-step from 1e3 to 1e6 unknowns: time, memory",
+                  description="SADMM on Example 1 with the AMG-CG x-step at growing sizes, each in its own "
+                              "process: wall time, iterations, peak memory, the 60 s / 8 GB target at 1e6.",
+                  needs_line="ngsolve, pyamg, cvxpy, clarabel (the reference of the accuracy column up to 2e5 "
+                             "unknowns)",
+                  modules=("cvxpy", "clarabel"))   # the reference of the accuracy column: no silent weaker one
     s.add_argument("--h", type=positive_float, action="append", default=None, dest="hs",
                    help="mesh size (repeatable; default 1/20 1/40 1/80 1/160 1/320 1/500)")
     s.add_argument("--mode", choices=["iterative", "condensed", "full"], default="iterative",
                    help="x-step mode (default iterative)")
     s.add_argument("--quick", action="store_true", help="h = 1/10 and 1/20 only (smoke test)")
     s.add_argument("--timeout", type=positive_float, default=1800.0, help="seconds per size (default 1800)")
-    s.set_defaults(func=study(_scale))
 
 
 def _scale(args) -> int:
-    needs(args, "cvxpy", "clarabel")               # the reference of the accuracy column: no silent weaker one
     from admmkit.benchmarks.contact.scale import DEFAULT_HS, QUICK_HS, run_scale_bench
     hs = tuple(args.hs) if args.hs else (QUICK_HS if args.quick else DEFAULT_HS)
     rows = run_scale_bench(out=args.out, hs=hs, mode=args.mode, command=args.command_line, timeout=args.timeout)
@@ -142,21 +134,19 @@ def _scale(args) -> int:
 
 def amg_crossover(targets) -> None:
     """``admmkit bench amg-crossover``: direct against AMG x-steps by size; AMG reuse across rho."""
-    c = targets.add_parser("amg-crossover", help="full / condensed / iterative x-steps against size; AMG reuse across rho",
-                           description="When the iterative x-step beats the direct ones (Example 1), and when reusing "
-                                       "the AMG hierarchy of an earlier rho is cheaper than rebuilding it."
-                                       + typical("bench amg-crossover") + " needs: ngsolve, pyamg")
-    add_out(c, "scale")
+    c = add_study(targets, "amg-crossover", _amg_crossover, sweep=False, out="scale",
+                  help="full / condensed / iterative x-steps against size; AMG reuse across rho",
+                  description="When the iterative x-step beats the direct ones (Example 1), and when reusing "
+                              "the AMG hierarchy of an earlier rho is cheaper than rebuilding it.",
+                  needs_line="ngsolve, pyamg")
     c.add_argument("--h", type=positive_float, action="append", default=None, dest="hs",
                    help="mesh size (repeatable; default 1/20 ... 1/500)")
     c.add_argument("--reuse-h", type=positive_float, default=1 / 160, help="mesh size of the reuse table (default 1/160)")
     c.add_argument("--quick", action="store_true", help="h = 1/10 only, reuse table at h = 1/10 (smoke test)")
     c.add_argument("--timeout", type=positive_float, default=1800.0, help="seconds per run (default 1800)")
-    c.set_defaults(func=study(_amg_crossover))
 
 
 def _amg_crossover(args) -> int:
-    needs(args)
     from admmkit.benchmarks.contact.amg_crossover import DEFAULT_HS, run_crossover
     hs = tuple(args.hs) if args.hs else ((1 / 10,) if args.quick else DEFAULT_HS)
     run_crossover(out=args.out, hs=hs, reuse_h=1 / 10 if args.quick else args.reuse_h, command=args.command_line,
@@ -166,11 +156,11 @@ def _amg_crossover(args) -> int:
 
 def contact3d(targets) -> None:
     """``admmkit bench contact3d``: the 3D block on a curved foundation, direct against AMG."""
-    d = targets.add_parser("contact3d", help="3D block on a curved foundation with the AMG x-step; direct vs AMG",
-                           description="The 3D analogue of Example 2: direct factorisation vs AMG by size, then SADMM "
-                                       "with the iterative x-step, a figure and VTK output."
-                                       + typical("bench contact3d") + " needs: ngsolve, pyamg, matplotlib, meshio")
-    add_out(d, "scale")
+    d = add_study(targets, "contact3d", _contact3d, sweep=False, out="scale",
+                  help="3D block on a curved foundation with the AMG x-step; direct vs AMG",
+                  description="The 3D analogue of Example 2: direct factorisation vs AMG by size, then SADMM "
+                              "with the iterative x-step, a figure and VTK output.",
+                  needs_line="ngsolve, pyamg, matplotlib, meshio")
     d.add_argument("--h", type=positive_float, default=1 / 32, help="mesh size of the SADMM run (default 1/32)")
     d.add_argument("--probe-h", type=positive_float, action="append", default=None, dest="probe_hs",
                    help="mesh sizes of the direct-vs-AMG probe (repeatable; default 1/8 1/12 1/16 1/24 1/32)")
@@ -178,11 +168,9 @@ def contact3d(targets) -> None:
     d.add_argument("--timeout", type=positive_float, default=600.0, help="seconds per probe (default 600)")
     d.add_argument("--vtk", default="out/contact3d/contact3d", metavar="BASENAME",
                    help="VTK file of the SADMM run, .vtu added (default out/contact3d/contact3d)")
-    d.set_defaults(func=study(_contact3d))
 
 
 def _contact3d(args) -> int:
-    needs(args)
     from admmkit.benchmarks.contact.contact3d import PROBE_HS, SADMM_HS, run_contact3d
     run_contact3d(out=args.out, h=1 / 4 if args.quick else args.h,
                   probe_hs=tuple(args.probe_hs) if args.probe_hs else ((1 / 4,) if args.quick else PROBE_HS),

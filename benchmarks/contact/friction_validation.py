@@ -12,7 +12,7 @@
    a and p0 Hertz's at P).  The coupling left at nu = 0.49: the shift of the
    stick zone off the centre and the change of the peak pressure against the
    frictionless run.
-2. **Stability**: every ADMM method (:mod:`admmkit.benchmarks.rules.methods`) on Example 1
+2. **Stability**: every ADMM method (:mod:`admmkit.benchmarks.fixtures.methods`) on Example 1
    with Tresca friction (s = 2) and with Coulomb friction (mu = 0.3, pushed
    sideways by a traction (2, 0) on the right edge), h = 1/20, rho_0 = s E for
    s = 1e-4 ... 1e4, the paper's stop (relative change 1e-5 in the energy
@@ -86,7 +86,7 @@ def _scenes(h: float):
 def stability_study(h: float, scales, max_iter: int) -> list[dict]:
     """Every method x rho_0 on the two frictional examples."""
     from admmkit import ResidualTolerance
-    from admmkit.benchmarks.rules.methods import admm_methods, resolve
+    from admmkit.benchmarks.fixtures.methods import admm_methods, resolve
     from admmkit.problems.contact import assemble, solve_scene
     from admmkit.problems.contact.solvers.tresca_qp import tresca_cvxpy
 

@@ -15,7 +15,6 @@ time ~ n^1.5) to take more than --max-seconds is skipped.
 import argparse
 import json
 import os
-import platform
 import subprocess
 import sys
 import time
@@ -29,6 +28,7 @@ sys.path.insert(0, str(ROOT))
 from admmkit.cli import Parser  # noqa: E402
 from admmkit.io import write_text  # noqa: E402  (after the path, for `python benchmarks/contact/linsolve_backends.py`)
 from admmkit.benchmarks.runner.costs import typical
+from admmkit.benchmarks.runner.machine import machine_info
 
 GRIDS = [22, 70, 223, 707]  # n = 2 N (N + 1) free DOFs: ~1e3, 1e4, 1e5, 1e6
 THREADS = [1, 2]
@@ -116,19 +116,8 @@ def run_worker(threads, args):
     return json.loads(out.strip().splitlines()[-1])
 
 
-def machine_info():
-    """nproc, CPU model and library versions, as Markdown lines."""
-    cpu = next((line.split(":", 1)[1].strip() for line in open("/proc/cpuinfo")
-                if line.startswith("model name")), platform.processor())
-    lines = [f"- machine: {os.cpu_count()} cores (nproc), {cpu}, {platform.platform()}",
-             f"- python {platform.python_version()}"]
-    from importlib.metadata import PackageNotFoundError, version
-    for pkg in ["numpy", "scipy", "ngsolve", "qdldl", "scikit-sparse", "pypardiso", "mkl"]:
-        try:
-            lines.append(f"- {pkg} {version(pkg)}")
-        except PackageNotFoundError:
-            lines.append(f"- {pkg}: not installed")
-    return lines
+#: the versions this study reports: the sparse direct backends' besides the usual ones
+LIBRARIES = ("numpy", "scipy", "ngsolve", "qdldl", "scikit-sparse", "pypardiso", "mkl")
 
 
 def report(results, args):
@@ -138,7 +127,8 @@ def report(results, args):
     two = {key(r): r for r in t2["rows"]}
     lines = ["# Sparse direct solvers on this machine", "",
              "Produced by `python benchmarks/contact/linsolve_backends.py "
-             + " ".join(sys.argv[1:]) + "`", "", *machine_info(), "",
+             + " ".join(sys.argv[1:]) + "`", "",
+             *(f"- {k}: {v}" for k, v in machine_info(libraries=LIBRARIES).items()), "",
              "Plane-strain P1 elasticity (E=1, nu=0.3) on the unit square, clamped on the "
              "left side, free DOFs only. `factor` = `admmkit.linalg.linsolve.factorize` "
              f"(median of {args.repeats}, or 1 if one takes > 5 s), `solve` = one 1-D solve "

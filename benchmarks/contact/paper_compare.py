@@ -29,7 +29,8 @@ from pathlib import Path
 
 from admmkit.io import write_text
 
-from admmkit.benchmarks.runner.report import NOISE_NOTE, fmt, machine_info, machine_markdown, md_table, pyplot, save_figure, write_csv
+from admmkit.benchmarks.runner.machine import machine_info
+from admmkit.benchmarks.runner.report import NOISE_NOTE, fmt, machine_markdown, md_table, pyplot, save_figure, write_csv
 from admmkit.benchmarks.runner.harness import check_harness, check_something_left, without_harness_failures
 from admmkit.benchmarks.runner.sweep import Executor, finished, run_sweep
 
@@ -42,7 +43,7 @@ def build_cases(repeats: int = 3, hs=None, rhos=None, examples=("ex1", "ex2")) -
     """The paper's grid."""
     from admmkit.benchmarks.contact.paper_data import PAPER_HS, PAPER_RHOS
 
-    from admmkit.benchmarks.rules.methods import policy_version
+    from admmkit.benchmarks.fixtures.methods import policy_version
     versions = {m: policy_version(m) for m in METHODS}
     cases = []
     for ex in examples:
@@ -211,7 +212,7 @@ def summarise(records: dict, out: Path, *, command: str, wall: float, reproducti
               "- `times.{md,csv}`: our times beside the paper's Tables 1-2, with paper / ours",
               "- `speedups.{md,csv,png,svg}`: time(ADMM1 or ADMM2) / time(SADMM), paper against this run",
               "- `iterations.{md,csv}`: our iteration counts beside the committed reproduction", "",
-              "![speed-ups](speedups.png)", "", machine_markdown(machine_info())]
+              "![speed-ups](speedups.png)", "", machine_markdown(machine_info(pinned_blas=True))]
     write_text(out / "README.md", "\n".join(readme))
     files.append(out / "README.md")
     return files

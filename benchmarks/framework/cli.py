@@ -2,33 +2,33 @@
 
 One function per command, found by the host :mod:`admmkit.cli` through the
 entry-point group ``admmkit.commands`` in ``pyproject.toml``; the study itself
-is imported only when its command runs.  The shared options live in
-:mod:`admmkit.benchmarks.runner.options`.
+is imported only when its command runs.  A study becomes a command through
+:func:`admmkit.benchmarks.runner.options.add_study` (the shared options, its
+cost and needs), or :func:`~admmkit.benchmarks.runner.options.own_parser` when
+it parses its own options.
 """
 from __future__ import annotations
 
-from admmkit.cli import positive_float, positive_int  # noqa: F401
-from admmkit.benchmarks.runner.options import add_out, needs, own_parser, print_files, study
-from admmkit.benchmarks.runner.costs import typical
+from admmkit.cli import positive_int
+from admmkit.benchmarks.runner.options import add_study, own_parser, print_files
 
 
 def executors(targets) -> None:
     """``admmkit bench executors``: the same sweep on local processes and on a Dask LocalCluster."""
-    e = targets.add_parser("executors", help="the bench-policies sweep on 2 local processes and a 2-worker Dask "
-                                             "LocalCluster: iterations identical?, wall-time ratio",
-                           description="Runs the cases of `admmkit bench policies` on both executors, one after "
-                                       "the other, and compares iteration counts and wall times (needs dask)."
-                                       + typical("bench executors") + " needs: ngsolve, dask[distributed] (pip install 'admmkit[sweep]')")
-    add_out(e, "executors")
+    e = add_study(targets, "executors", _executors, sweep=False,
+                  help="the bench-policies sweep on 2 local processes and a 2-worker Dask "
+                       "LocalCluster: iterations identical?, wall-time ratio",
+                  description="Runs the cases of `admmkit bench policies` on both executors, one after "
+                              "the other, and compares iteration counts and wall times (needs dask).",
+                  needs_line="ngsolve, dask[distributed] (pip install 'admmkit[sweep]')",
+                  modules=("dask", "distributed", "cvxpy", "clarabel"))   # Dask; the references of bench policies
     e.add_argument("--quick", action="store_true", help="the coarse smoke grid of bench policies")
     e.add_argument("--rounds", type=positive_int, default=2,
                    help="rounds of the three executors, the order reversed every second round (default 2)")
     e.add_argument("-q", "--quiet", "--no-progress", dest="progress", action="store_false", help="no progress line")
-    e.set_defaults(func=study(_executors))
 
 
 def _executors(args) -> int:
-    needs(args, "dask", "distributed", "cvxpy", "clarabel")    # Dask itself; the references of bench policies
     from admmkit.benchmarks.framework.executors import run
     print_files(run(args.out, quick=args.quick, rounds=args.rounds, progress=args.progress,
                      command=args.command_line))

@@ -3,7 +3,7 @@
     admmkit bench executors [--out docs/results/executors] [--quick]
 
 Runs the cases of ``admmkit bench policies`` (every rule of
-:data:`admmkit.benchmarks.rules.policies_fe.RULES`, both orders, contact Example 1 at
+:data:`admmkit.benchmarks.policies.study.RULES`, both orders, contact Example 1 at
 h = 1/20 and the radial obstacle at h = 1/16, rho_0 every third decade;
 ``--quick``: the coarse smoke grid) three times from empty results files, one
 after the other in this run: on 2 local worker processes with a group per
@@ -25,7 +25,8 @@ import statistics
 import time
 from pathlib import Path
 
-from admmkit.benchmarks.runner.report import NOISE_NOTE, machine_info, machine_markdown, md_table, write_csv, write_text
+from admmkit.benchmarks.runner.machine import machine_info
+from admmkit.benchmarks.runner.report import NOISE_NOTE, machine_markdown, md_table, write_csv, write_text
 from admmkit.benchmarks.runner.sweep import Executor, case_id, run_sweep
 from admmkit.benchmarks.runner.harness import check_harness, harness_failures
 
@@ -37,7 +38,6 @@ def run_case(case: dict) -> dict:
     ``{"kind": "contact", "h", "method", "rho"}``; returns the iterations and the status."""
     import admmkit
     if case["kind"] == "qp":
-        from admmkit import policies  # noqa: F401  (registers the rules)
         from admmkit.problems.qp import random_qp
         qp = random_qp(case["n"], case["m"], kind="mixed", seed=case["seed"])
         res = admmkit.solve(qp, rho=case["rho"], policy=case["policy"], order=case["order"], max_iter=5000)
@@ -63,7 +63,7 @@ def tiny_cases(qp: int = 4, contact: int = 4) -> list[dict]:
 
 def policies_cases(quick: bool = False) -> list[dict]:
     """The cases of ``bench policies`` (rho_0 every third decade unless quick)."""
-    from admmkit.benchmarks.rules.policies_fe import build_cases
+    from admmkit.benchmarks.policies.study import build_cases
     cases = build_cases(quick=quick, max_iter=3000 if quick else 20_000)
     if not quick:
         cases = [c for c in cases if round(math.log10(c["rho0"])) % 3 == 0]
@@ -74,7 +74,7 @@ def _timed(cases, path: Path, executor: Executor, progress: bool) -> tuple[dict,
     if path.parent.exists():
         shutil.rmtree(path.parent)
     t0 = time.perf_counter()
-    records = run_sweep(cases, "admmkit.benchmarks.rules.policies_fe:run_case", path, executor=executor, progress=progress)
+    records = run_sweep(cases, "admmkit.benchmarks.policies.study:run_case", path, executor=executor, progress=progress)
     return records, time.perf_counter() - t0
 
 
@@ -139,7 +139,7 @@ def run(out="out/executors", *, quick: bool = False, rounds: int = 2, progress: 
         "case as its worker measured them: where it grows with the wall time, the cases themselves ran slower "
         "(the load of the shared machine), not the executor.  Per-case times of the last round are in "
         "executors.csv; its raw records in local/, local8/ and dask/ (results.jsonl, results.parquet).", "",
-        NOISE_NOTE, "", machine_markdown(machine_info())])
+        NOISE_NOTE, "", machine_markdown(machine_info(pinned_blas=True))])
     files.append(write_text(out / "README.md", text))
     if progress:
         print(text)

@@ -175,7 +175,6 @@ def main(argv=None, prog: str = "admmkit bench four-problems") -> int:
     from admmkit.benchmarks.runner.harness import require
     require(prog.removeprefix("admmkit "), "cvxpy")      # the references
     import admmkit
-    from admmkit import policies  # noqa: F401  (registers the rules)
     names = args.problems.split(",")
     unknown = [n for n in names if n not in PROBLEMS]
     if unknown:

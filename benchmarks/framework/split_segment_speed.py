@@ -64,7 +64,8 @@ def main(argv=None, prog: str = "admmkit bench split-speed") -> int:
         parser.error("--iterations must be >= 100, --repeats >= 1 and --tv-side >= 4")
     from threadpoolctl import threadpool_limits
     from admmkit.io import write_text
-    from admmkit.benchmarks.runner.report import machine_info, machine_markdown, write_csv
+    from admmkit.benchmarks.runner.machine import machine_info
+    from admmkit.benchmarks.runner.report import machine_markdown, write_csv
     command = prog + " " + " ".join(shlex.quote(a) for a in (argv if argv is not None else sys.argv[1:]))
     lines = ["| problem | n | us/iteration compiled | us/iteration Python | Python / compiled | compiled iterations |",
              "|---|---|---|---|---|---|"]
@@ -86,7 +87,7 @@ def main(argv=None, prog: str = "admmkit bench split-speed") -> int:
         f"OSQP's rule, the test every 25 iterations, alpha 1.6, {args.iterations} iterations per run, the minimum "
         f"of {args.repeats} interleaved runs, BLAS on one thread; the same iterates bit for bit in both paths "
         f"(checked in every run). Wall time {time.perf_counter() - start:.0f} s.", "", *lines, "",
-        machine_markdown(machine_info())]) + "\n")
+        machine_markdown(machine_info(pinned_blas=True))]) + "\n")
     return 0
 
 

@@ -2,28 +2,29 @@
 
 One function per command, found by the host :mod:`admmkit.cli` through the
 entry-point group ``admmkit.commands`` in ``pyproject.toml``; the study itself
-is imported only when its command runs.  The shared options live in
-:mod:`admmkit.benchmarks.runner.options`.
+is imported only when its command runs.  A study becomes a command through
+:func:`admmkit.benchmarks.runner.options.add_study` (the shared options, its
+cost and needs), or :func:`~admmkit.benchmarks.runner.options.own_parser` when
+it parses its own options.
 """
 from __future__ import annotations
 
-from admmkit.cli import positive_float, positive_int  # noqa: F401
-from admmkit.benchmarks.runner.options import add_executor_options, add_out, executor_of, needs, own_parser, split_list, study
-from admmkit.benchmarks.runner.costs import typical
+from admmkit.cli import positive_float, positive_int
+from admmkit.benchmarks.runner.options import add_executor_options, add_study, executor_of, own_parser, split_list
 
 
 def maros_meszaros(targets) -> None:
     """``admmkit bench qp``: every rule and OSQP on a folder of Maros-Meszaros QPs."""
     from admmkit.benchmarks.qp import maros_meszaros as mm
-    b = targets.add_parser("qp", aliases=["maros-meszaros"],
-                           help="every penalty rule, with and without OSQP's machinery, and OSQP on a folder of QPs",
-                           description="Penalty rules (both orders) in OSQP's machinery and in the textbook loop, "
-                                       "one-off ablations, and OSQP 1.x, at absolute accuracies 1e-3 and 1e-6, judged "
-                                       "by the neutral criteria; writes results.csv, summary.csv, README.md and "
-                                       "performance profiles (PNG, SVG) to --out."
-                                       + typical("bench qp") + " needs: osqp, the Maros-Meszaros MAT files (--data)")
+    b = add_study(targets, "qp", _maros_meszaros, sweep=False, out="maros_meszaros", aliases=["maros-meszaros"],
+                  help="every penalty rule, with and without OSQP's machinery, and OSQP on a folder of QPs",
+                  description="Penalty rules (both orders) in OSQP's machinery and in the textbook loop, "
+                              "one-off ablations, and OSQP 1.x, at absolute accuracies 1e-3 and 1e-6, judged "
+                              "by the neutral criteria; writes results.csv, summary.csv, README.md and "
+                              "performance profiles (PNG, SVG) to --out.",
+                  needs_line="osqp, the Maros-Meszaros MAT files (--data)",
+                  modules=lambda args: () if args.no_osqp else ("osqp",))
     b.add_argument("--data", required=True, metavar="DIR", help="folder of MAT files, e.g. ../shared/data/maros_meszaros")
-    add_out(b, "maros_meszaros")
     b.add_argument("--policies", default=None, help="comma-separated rules (default: every registered rule)")
     b.add_argument("--orders", default="xz,zx", help="comma-separated orders (default xz,zx)")
     b.add_argument("--variants", default=None, help=f"comma-separated settings variants (default {','.join(mm.VARIANTS)})")
@@ -38,11 +39,9 @@ def maros_meszaros(targets) -> None:
     b.add_argument("--resume", action="store_true",
                    help="keep the cases already in OUT/results.jsonl (without it the sweep starts afresh)")
     b.add_argument("-q", "--quiet", "--no-progress", dest="quiet", action="store_true", help="no progress lines")
-    b.set_defaults(func=study(_maros_meszaros))
 
 
 def _maros_meszaros(args) -> int:
-    needs(args, *([] if args.no_osqp else ["osqp"]))
     from admmkit.benchmarks.qp.maros_meszaros import EPS, run_benchmark
     run_benchmark(args.data, args.out, policy_names=split_list(args.policies), orders=split_list(args.orders) or (),
                   eps=tuple(args.eps) if args.eps else EPS, max_iter=args.max_iter, time_limit=args.time_limit,

@@ -47,7 +47,6 @@ import scipy.io
 import scipy.sparse as sp
 
 import admmkit
-from admmkit import policies  # noqa: F401  (registers the rules)
 
 from admmkit.benchmarks.runner.machine import machine_info
 from admmkit.benchmarks.qp.maros_meszaros_report import FIELDS, plot_profiles, read_rows, write_report, write_rows  # noqa: F401

@@ -113,7 +113,8 @@ def main(argv=None, prog: str = "admmkit bench qp-agreement") -> int:
         os.environ.setdefault(var, "1")
     from admmkit.io import write_text
 
-    from admmkit.benchmarks.runner.report import machine_info, machine_markdown, write_csv
+    from admmkit.benchmarks.runner.machine import machine_info
+    from admmkit.benchmarks.runner.report import machine_markdown, write_csv
     command = prog + " " + " ".join(shlex.quote(a) for a in (argv if argv is not None else sys.argv[1:]))
     rows, start = [], time.perf_counter()
     out = Path(args.out)
@@ -130,7 +131,7 @@ def main(argv=None, prog: str = "admmkit bench qp-agreement") -> int:
              f"objective error |f - f_ref| / max(1, |f_ref|); x error max|x - x_ref| / max(1, max|x_ref|); "
              f"Clarabel failed on {len(failed_ref)} QPs (left out); wall time {time.perf_counter() - start:.0f} s.", ""]
     lines += summary(rows, args.eps)
-    text = "\n".join(lines) + "\n\n" + machine_markdown(machine_info())
+    text = "\n".join(lines) + "\n\n" + machine_markdown(machine_info(pinned_blas=True))
     write_text(out / "README.md", text)
     print(text)
     return 0

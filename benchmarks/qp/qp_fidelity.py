@@ -251,11 +251,11 @@ def main(argv=None, prog: str = "admmkit bench qp-fidelity") -> int:
     for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
         os.environ.setdefault(var, "1")
     import admmkit
-    from admmkit import policies  # noqa: F401  (registers the rules)
     from threadpoolctl import threadpool_limits
     from admmkit.io import write_text
 
-    from admmkit.benchmarks.runner.report import machine_info, machine_markdown, write_csv
+    from admmkit.benchmarks.runner.machine import machine_info
+    from admmkit.benchmarks.runner.report import machine_markdown, write_csv
     data = Path(args.data)
     rules = [r for r in ((admmkit.policy_names() if args.rules == [] else args.rules) or [])
              if r != "osqp" or (args.preset, args.order) != ("osqp", "xz")]
@@ -282,7 +282,7 @@ def main(argv=None, prog: str = "admmkit bench qp-fidelity") -> int:
                       f"Iteration cap {args.max_iter}, time limit {args.time_limit:g} s per run, polishing "
                       f"{'on' if args.polish else 'off'}; wall time of the "
                       f"study {time.perf_counter() - start:.0f} s.", ""] + lines) + "\n"
-    text += "\n" + machine_markdown(machine_info())
+    text += "\n" + machine_markdown(machine_info(pinned_blas=True))
     write_text(out / "README.md", text)
     print(text)
     return 0

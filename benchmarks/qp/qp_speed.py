@@ -186,7 +186,8 @@ def main(argv=None, prog: str = "admmkit bench qp-speed") -> int:
     from admmkit.io import write_text
     from admmkit.problems.qp import random_qp
     from admmkit.problems.qp.mat import read_matrices
-    from admmkit.benchmarks.runner.report import machine_info, machine_markdown, write_csv
+    from admmkit.benchmarks.runner.machine import machine_info
+    from admmkit.benchmarks.runner.report import machine_markdown, write_csv
     data, out = Path(args.data), Path(args.out)
     command = prog + " " + " ".join(shlex.quote(a) for a in (argv if argv is not None else sys.argv[1:]))
     chosen = []
@@ -220,7 +221,7 @@ def main(argv=None, prog: str = "admmkit bench qp-speed") -> int:
         f"iteration cap {args.max_iter}, best of {args.repeat} runs taken in turn, BLAS on one thread; "
         f"the numba kernels were ready after {jit:.2f} s (compiled, or loaded from numba's cache) before the "
         f"first timing. Study wall time {time.perf_counter() - start:.0f} s.", "",
-        *summarise(rows), "", "![ratios](qp_speed.png)", "", machine_markdown(machine_info())]) + "\n"
+        *summarise(rows), "", "![ratios](qp_speed.png)", "", machine_markdown(machine_info(pinned_blas=True))]) + "\n"
     write_text(out / "README.md", text)
     print(text)
     return 0

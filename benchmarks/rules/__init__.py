@@ -1,1 +1,1 @@
-"""Sweeps of every penalty rule: work-precision, stability, the rules on the finite-element problems, the obstacle's rates."""
+"""`admmkit bench rules`: every rule (and yours) through every family, ranked: its grid (study.py), case runner (cases.py) and summary (report.py)."""

@@ -55,7 +55,7 @@ COSTS = {
     "bench split-speed": Cost(f"about 10 s plus start-up (the timings took 7 s), {UNRECORDED}, on 2 cores "
                               "(docs/results/split_speed)", long=False),
     "bench first-call": Cost(f"minutes, {UNRECORDED}"),
-    # benchmarks/rules and benchmarks/ranking
+    # benchmarks/rules, precision, stability, policies, obstacle, adaptive
     "bench precision": Cost(f"about 70 min (316 cases), {UNRECORDED}, on 2 cores (docs/benchmarks.md); "
                             "--quick minutes"),
     "bench stability": Cost(f"about 45 min (1376 cases), {UNRECORDED}, on 2 cores (docs/benchmarks.md); "

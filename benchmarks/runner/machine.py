@@ -13,8 +13,18 @@ from typing import Any, Callable, NamedTuple
 LIBRARIES = ("numpy", "scipy", "ngsolve", "pyamg", "cvxpy", "clarabel", "osqp", "matplotlib")
 
 
-def machine_info() -> dict:
-    """Date, nproc, CPU model, memory, platform, git commit, library versions, sparse backends, load."""
+#: what the sweeps' workers do to BLAS (said when ``pinned_blas``)
+PINNED_BLAS = "1 per worker process (OMP/OPENBLAS_NUM_THREADS=1, threadpoolctl)"
+
+
+def machine_info(*, pinned_blas: bool = False, libraries: tuple[str, ...] = LIBRARIES) -> dict:
+    """Date, nproc, CPU model, memory, platform, git commit, library versions, sparse backends, load.
+
+    The one description of the machine every study writes beside its figures.
+    ``pinned_blas``: the study's runs pin BLAS to one thread per worker (the
+    sweeps), said as ``BLAS threads``; ``libraries``: the versions reported
+    (by distribution name: ``scikit-sparse``, not ``sksparse``).
+    """
     cpu = platform.processor() or "?"
     try:
         for line in Path("/proc/cpuinfo").read_text().splitlines():
@@ -30,11 +40,8 @@ def machine_info() -> dict:
             info["memory"] = f"{int(fh.readline().split()[1]) / 2**20:.1f} GiB"
     except (OSError, ValueError, IndexError):
         pass
-    for module in LIBRARIES:
-        try:
-            info[module] = __import__(module).__version__
-        except Exception:
-            info[module] = "not installed"
+    for library in libraries:
+        info[library] = version_of(library)
     try:
         from admmkit import __version__
         from admmkit.linalg.linsolve import available_backends
@@ -58,7 +65,23 @@ def machine_info() -> dict:
         info["load average (1 min) at the end"] = f"{os.getloadavg()[0]:.2f}"
     except OSError:
         pass
+    if pinned_blas:
+        info["BLAS threads"] = PINNED_BLAS
     return info
+
+
+def version_of(library: str) -> str:
+    """The installed version of ``library`` (its module's ``__version__``, else its distribution's), or
+    ``not installed``."""
+    try:
+        return __import__(library).__version__
+    except Exception:
+        pass
+    try:
+        from importlib.metadata import version
+        return version(library)
+    except Exception:
+        return "not installed"
 
 
 class Timing(NamedTuple):

@@ -14,7 +14,7 @@ import sys
 from pathlib import Path
 
 from admmkit.cli import positive_float, positive_int  # noqa: F401  (positive_float: for the studies' own options)
-from admmkit.benchmarks.runner.costs import announce
+from admmkit.benchmarks.runner.costs import announce, typical
 from admmkit.benchmarks.runner.harness import HarnessFailed, require, require_executor
 
 #: the exit code of a study some of whose cases failed in the harness (docs/cli.md, "Studies")
@@ -132,6 +132,48 @@ def study(run):
     return command
 
 
+def add_study(targets, name: str, run, *, help: str, description: str, needs_line: str,
+              modules=(), sweep: bool = True, out: str | None = None, out_file: str | None = None,
+              **parser_options):
+    """Make a study a command, ``admmkit bench NAME``: the one way a study becomes a command.
+
+    A study is a module with its grid (``build_cases``), its case runner
+    (``run_case``) and its summary (``run(out, ...)`` writes the files from the
+    records); its folder's ``cli.py`` calls this from a registrar named in
+    ``pyproject.toml`` (``"bench.NAME" = "admmkit.benchmarks.<folder>.cli:<registrar>"``).
+    This gives the command
+
+    - its description, ending with what a run costs (``typical: ...`` from
+      ``admmkit.benchmarks.runner.costs``) and ``needs: NEEDS_LINE``;
+    - the shared options: those of the resumable sweeps (``--out``, ``--workers``,
+      ``--dask-workers``, ``--scheduler``, ``--case-timeout``, ``--chunk``,
+      ``--quick``, ``-q``, ``--report-only``) if ``sweep``, else ``--out`` alone;
+      ``--out`` defaults to ``out/OUT`` (``OUT``: ``name`` unless given); a study
+      that writes one Markdown file takes ``--out FILE`` instead (``out_file``: its
+      default, ``add_out_file``);
+    - before ``run(args)``: ``modules`` (a tuple, or a function of the parsed
+      options giving one) checked and the cost announced (``needs``); after
+      it, the harness's verdict (``study``).
+
+    Returns the parser, for the study's own options.
+    """
+    p = targets.add_parser(name, help=help, description=description + typical(f"bench {name}")
+                           + f" needs: {needs_line}", **parser_options)
+    if out_file is not None:
+        add_out_file(p, out_file)
+    else:
+        (add_sweep_options if sweep else add_out)(p, out or name)
+
+    @functools.wraps(run)
+    def command(args):
+        needs(args, *(modules(args) if callable(modules) else modules))
+        return run(args)
+
+    command.needs = modules          # said for the tests: this command checks and announces before its work
+    p.set_defaults(func=study(command))
+    return p
+
+
 def harness_exit(failed: HarnessFailed) -> int:
     """List the files a study wrote, say in one line how many cases failed in the harness; EXIT_HARNESS."""
     print_files(failed.files)
@@ -159,7 +201,11 @@ def own_parser(name: str, module: str, help_text: str, modules: tuple[str, ...] 
     def register(targets) -> None:
         p = targets.add_parser(name, help=help_text, add_help=False, prefix_chars="\0")
         p.add_argument("argv", nargs=argparse.REMAINDER)
-        p.set_defaults(func=lambda args: run_own(module, args.argv, f"admmkit bench {name}", modules))
+
+        def command(args):
+            return run_own(module, args.argv, f"admmkit bench {name}", modules)
+        command.needs = modules      # said for the tests: this command checks and announces before its work
+        p.set_defaults(func=command)
     register.__doc__ = f"``admmkit bench {name}``: {help_text} ({module})."
     return register
 

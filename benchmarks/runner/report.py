@@ -11,18 +11,10 @@ import numpy as np
 from admmkit.figures import pyplot, save_figure  # noqa: F401  (the one pyplot and save of every study)
 from admmkit.io import atomic_open, write_text  # noqa: F401  (every report is written whole or not at all)
 
-from admmkit.benchmarks.runner.machine import machine_info as _machine_info
 
 #: said in every benchmark README: the machine is shared
 NOISE_NOTE = ("The machine (2 cores) is shared with other engineers' jobs while the benchmark runs, so "
               "absolute times are noisy; compare methods by the ratios, which are computed within one run.")
-
-
-def machine_info() -> dict:
-    """:func:`admmkit.benchmarks.runner.machine.machine_info` and how the sweeps pin BLAS."""
-    info = _machine_info()
-    info["BLAS threads"] = "1 per worker process (OMP/OPENBLAS_NUM_THREADS=1, threadpoolctl)"
-    return info
 
 
 def machine_markdown(info: dict) -> str:

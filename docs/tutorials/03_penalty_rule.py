@@ -49,7 +49,6 @@
 import math
 
 import admmkit
-from admmkit import policies  # noqa: F401  (registers the built-in rules)
 
 
 @admmkit.register_policy("log_bisection")
@@ -220,6 +219,11 @@ plt.show()
 
 # %% [markdown]
 # To make the rule part of the package, put the class in its own module
-# under `policies/`, import it in `policies/__init__.py`, and give it a
-# test. The [framework page](../framework.md) lists the existing rules with
-# their formulas and sources.
+# under `policies/` (file, class and name alike: `policies/log_bisection.py`,
+# `LogBisection`), name it with one line in `pyproject.toml`'s entry-point
+# group `admmkit.policies` (`log_bisection =
+# "admmkit.policies.log_bisection:LogBisection"`, then reinstall), add its row
+# to the table of [the rules page](../policies.md), and give it a test. No
+# decorator and no import list: that line is the only place a built-in rule
+# is named. The [framework page](../framework.md) lists the existing rules
+# with their formulas and sources.

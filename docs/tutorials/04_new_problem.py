@@ -73,7 +73,6 @@ import numpy as np
 import scipy.sparse as sp
 
 import admmkit
-from admmkit import policies  # noqa: F401  (registers the built-in penalty rules by name)
 from admmkit.linalg.linsolve import CachedFactorization
 
 

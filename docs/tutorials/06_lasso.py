@@ -51,7 +51,6 @@
 import numpy as np
 
 import admmkit
-from admmkit import policies  # noqa: F401  (registers the penalty rules by name)
 from admmkit.problems.lasso import Lasso, lam_max, solve_with_cvxpy
 
 rng = np.random.default_rng(0)

@@ -23,7 +23,6 @@
 import numpy as np
 
 import admmkit
-from admmkit import policies  # noqa: F401  (registers the built-in rules)
 from admmkit.problems.contact import assemble, example1, solve_scene
 from admmkit.problems.contact.solvers.tresca_qp import tresca_cvxpy
 

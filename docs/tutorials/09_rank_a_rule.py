@@ -94,7 +94,7 @@ except ValueError as err:
 # Maros-Meszaros files from `--data`; without them it is left out, and the
 # report says so. We run the command as a user would (`python -m admmkit`
 # is the `admmkit` command); in Python,
-# {func}`admmkit.benchmarks.ranking.study.run` is the function behind it.
+# {func}`admmkit.benchmarks.rules.study.run` is the function behind it.
 
 # %%
 import subprocess

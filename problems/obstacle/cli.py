@@ -1,7 +1,6 @@
 """``admmkit solve obstacle``: a named obstacle scene, solved and checked."""
 from __future__ import annotations
 
-from admmkit import policies  # noqa: F401  (registers the rules the --policy option offers)
 from admmkit.cli.adaptive import (adaptive_options, add_adaptive_options, balance_gamma, balance_line,
                                   check_adaptive_flags, estimator_name)
 from admmkit.cli import (add_common_options, add_output_file, add_result_outputs, exit_code, level_file,

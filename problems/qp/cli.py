@@ -11,7 +11,6 @@ Two presets (docs/cli.md, docs/qp.md):
 """
 from __future__ import annotations
 
-from admmkit import policies  # noqa: F401  (registers the rules the --policy option offers)
 from admmkit.cli import (add_common_options, add_result_outputs, positive_float, progress, resolve_policy, run_solve,
                          write_history)
 from admmkit.cli.output import print_summary

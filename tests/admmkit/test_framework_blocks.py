@@ -5,9 +5,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 import admmkit
-from admmkit import policies  # noqa: F401
-from admmkit import LinearMap, QuadraticXStep, ResidualTolerance, SplitProblem
-from admmkit.blocks import prox
+from admmkit import LinearMap, QuadraticXStep, ResidualTolerance, SplitProblem, prox
 
 cp = pytest.importorskip("cvxpy")
 TIGHT = dict(solver="CLARABEL", tol_gap_abs=1e-12, tol_gap_rel=1e-12, tol_feas=1e-12)

@@ -5,7 +5,6 @@ import numpy as np
 import pytest
 
 import admmkit
-from admmkit import policies  # noqa: F401  (registers the rules)
 from admmkit import RelativeChange, ResidualTolerance, Status, solve
 
 

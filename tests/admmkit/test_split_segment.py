@@ -5,10 +5,8 @@ import pytest
 import scipy.sparse as sp
 
 import admmkit
-from admmkit import QuadraticXStep, SplitProblem
+from admmkit import QuadraticXStep, SplitProblem, prox
 from admmkit.linalg import compiled
-from admmkit.blocks import prox
-from admmkit import policies  # noqa: F401  (registers the rules)
 from admmkit.blocks.split_segment import run_segment
 
 pytestmark = pytest.mark.skipif(not compiled.AVAILABLE, reason="numba is not installed: no compiled segment")

@@ -8,8 +8,8 @@ import pytest
 
 from admmkit.fe.balanced_stop import GAMMA
 from admmkit.problems.obstacle.estimate import OBSTACLE_GAMMA
-from admmkit.benchmarks.rules.adaptive_compare import at_error, common_error, comparison, rate
-from admmkit.benchmarks.rules.adaptive_hertz import penetration_term
+from admmkit.benchmarks.adaptive.compare import at_error, common_error, comparison, rate
+from admmkit.benchmarks.adaptive.hertz import penetration_term
 
 pytestmark = pytest.mark.study      # the whole adaptive study's smoke run (its fixture runs the study)
 
@@ -153,7 +153,7 @@ def test_interpolation_at_a_common_error():
 
 def test_the_energy_floor_is_the_largest_rise_between_levels():
     """Energies that only fall leave every true error measurable; a rise r sets the floor sqrt(2 r) / ||u||_a."""
-    from admmkit.benchmarks.rules.adaptive_contact import energy_floor
+    from admmkit.benchmarks.adaptive.contact import energy_floor
     assert energy_floor([3.0, 2.0, 1.5, 1.25], 2.0) == 0.0
     assert energy_floor([3.0, 2.0, 2.5, 1.0, 1.08], 2.0) == pytest.approx(math.sqrt(2 * 0.5) / 2.0)
     assert energy_floor([1.0], 1.0) == 0.0

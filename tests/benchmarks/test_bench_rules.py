@@ -6,7 +6,7 @@ import textwrap
 import numpy as np
 import pytest
 
-from admmkit.benchmarks.ranking import report as rank_report, study as rank
+from admmkit.benchmarks.rules import report as rank_report, study as rank
 from admmkit.benchmarks.runner import profiles
 from admmkit.cli import main
 from admmkit.policy import canonical_spec

@@ -10,8 +10,8 @@ import json
 import pytest
 
 import admmkit
-from admmkit.benchmarks.rules import methods
-from admmkit.benchmarks.rules import stability
+from admmkit.benchmarks.fixtures import methods
+from admmkit.benchmarks.stability import study as stability
 from admmkit.benchmarks.runner.sweep import append_result, case_id, load_results, run_sweep
 from admmkit.cli import main
 
@@ -151,7 +151,7 @@ def test_bench_bad_input(tmp_path, capsys):
 def test_active_set_polish_sharpens_the_clarabel_reference():
     import numpy as np
 
-    from admmkit.benchmarks.rules import families as scenes
+    from admmkit.benchmarks.fixtures import families as scenes
     from admmkit.problems.qp import random_qp
 
     qp = random_qp(40, 60, kind="mixed", seed=3)

@@ -6,8 +6,8 @@ from pathlib import Path
 import matplotlib.pyplot as plt
 import numpy as np
 
-from admmkit.benchmarks.ranking import report as rank_report
-from admmkit.benchmarks.rules.adaptive_charts import error_figure, levels_figure, read_rows, redraw
+from admmkit.benchmarks.rules import report as rank_report
+from admmkit.benchmarks.adaptive.charts import error_figure, levels_figure, read_rows, redraw
 from admmkit.benchmarks.runner.report import write_csv
 
 STUDY = Path(__file__).resolve().parents[2] / "docs" / "results" / "adaptive_study" / "adaptive.csv"

@@ -3,7 +3,6 @@ import numpy as np
 import pytest
 
 import admmkit
-from admmkit import policies  # noqa: F401
 
 pytest.importorskip("cvxpy")
 from admmkit.benchmarks.framework.four_problems import PROBLEMS, build  # noqa: E402

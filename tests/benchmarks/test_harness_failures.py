@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 import admmkit
-from admmkit.benchmarks.ranking import cases as rank_cases, report as rank_report
+from admmkit.benchmarks.rules import cases as rank_cases, report as rank_report
 from admmkit.benchmarks.runner.harness import (HarnessFailed, MissingPackage, fault_of, is_harness_failure,
                                                require)
 from admmkit.benchmarks.runner.sweep import load_results, run_sweep
@@ -233,7 +233,7 @@ def test_bench_rules_writes_no_ranking_when_every_case_failed_in_the_harness(tmp
 
 # ---------------------------------------------------------------- bench policies
 def test_bench_policies_keeps_harness_failures_out_of_its_tables(tmp_path, monkeypatch):
-    from admmkit.benchmarks.rules import policies_fe
+    from admmkit.benchmarks.policies import study as policies_fe
 
     def no_reference(h):
         raise ModuleNotFoundError("No module named 'cvxpy'")

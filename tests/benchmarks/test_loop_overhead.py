@@ -7,7 +7,6 @@ import numpy as np
 import pytest
 
 import admmkit
-from admmkit import policies  # noqa: F401  (registers the rules)
 from admmkit.benchmarks.framework import loop_overhead as lo
 
 

@@ -3,7 +3,7 @@ import pytest
 import math
 
 from admmkit import RelativeChange, solve
-from admmkit.benchmarks.rules.obstacle_rates import sweep
+from admmkit.benchmarks.obstacle.study import sweep
 from admmkit.problems.obstacle import make_problem
 from admmkit.problems.obstacle.scene import radial
 

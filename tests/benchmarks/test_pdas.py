@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from admmkit.benchmarks.rules.pdas import pdas
+from admmkit.benchmarks.fixtures.pdas import pdas
 from admmkit.problems.contact import assemble, contact_problem, example1, example2
 
 

@@ -2,7 +2,7 @@
 import pytest
 import csv
 
-from admmkit.benchmarks.rules.policies_fe import run
+from admmkit.benchmarks.policies.study import run
 
 
 @pytest.mark.study

@@ -12,7 +12,6 @@ import scipy.io
 import scipy.sparse as sp
 
 import admmkit
-from admmkit import policies  # noqa: F401
 from admmkit.problems.qp import load_mat, random_qp
 from admmkit.benchmarks.qp.maros_meszaros import (kkt_form_reason, performance_profile, run_benchmark, shifted_geometric_mean,
                                        skip_reason, summarize)

@@ -49,7 +49,7 @@ def _full_cluster(request):
     if "cluster" in request.fixturenames:
         from distributed import Client
         with Client(request.getfixturevalue("cluster").scheduler_address) as client:
-            client.wait_for_workers(2, timeout=60)
+            client.wait_for_workers(2, timeout=180)   # a restarted worker imports numpy, scipy and admmkit: over 60 s at load 10
     yield
 
 

@@ -179,7 +179,7 @@ def _alive(pid: int) -> bool:
 
 # ---------------------------------------------------------------- bench policies resumes
 def test_bench_policies_resumes(tmp_path, ids_in_file):
-    from admmkit.benchmarks.rules.policies_fe import run
+    from admmkit.benchmarks.policies.study import run
     kwargs = dict(rules=("quantized",), quick=True, progress=False, max_iter=3000, workers=1,
                   problems=("obstacle",))
     run(tmp_path, **kwargs)

@@ -12,8 +12,8 @@ import pytest
 import admmkit
 from admmkit import policies
 from admmkit import IterationRecord, Policy, ResidualTolerance, solve
-from admmkit.policies import OSQPRule, Quantized, Spectral, SummableSteps, Wohlberg
-from admmkit.policies.spectral import curvature, hybrid_step
+from admmkit.policies import AADMM, OSQPRule, Quantized, SummableSteps, Wohlberg
+from admmkit.policies.aadmm import curvature, hybrid_step
 
 ONE = np.zeros(1)
 
@@ -142,7 +142,7 @@ def spectral_record(k, rho, Ax, z, lam_x, lam_z, order="xz"):
 def test_spectral_estimate_on_linear_duals(order):
     # dual of f: Dlam_x = a Dh with Dh = -A Dx; dual of g: Dlam_z = b Dz  ->  rho = sqrt(a b)
     a, b = 4.0, 9.0
-    p = Spectral()
+    p = AADMM()
     p.reset(1.0)
     assert p.update(spectral_record(0, 1.0, [0, 0], [0, 0], [0, 0], [0, 0], order)) == 1.0   # first: record only
     rho = p.update(spectral_record(1, 1.0, [1.0, 0.0], [0.0, 1.0], [-a, 0.0], [0.0, b], order))
@@ -153,7 +153,7 @@ def test_spectral_estimate_on_linear_duals(order):
 
 
 def test_spectral_safeguards():
-    p = Spectral()
+    p = AADMM()
     p.reset(2.0)
     p.update(spectral_record(0, 2.0, [0, 0], [0, 0], [0, 0], [0, 0]))
     # only g's pair is correlated: rho = beta
@@ -165,7 +165,7 @@ def test_spectral_safeguards():
 
 
 def test_spectral_freezes_after_a_fixed_number_of_iterations():
-    p = Spectral(freeze=1000)
+    p = AADMM(freeze=1000)
     p.reset(1.0)
     rho, changes = 1.0, []
     for k in range(1500):   # a long run: each update sees a new curvature
@@ -177,12 +177,12 @@ def test_spectral_freezes_after_a_fixed_number_of_iterations():
         rho = new
     assert changes and max(changes) < 1000 and min(changes) >= 1
     assert all(k % 2 == 1 for k in changes)
-    never = Spectral(freeze=None)
+    never = AADMM(freeze=None)
     never.reset(1.0)
     never.update(spectral_record(0, 1.0, [0, 0], [0, 0], [0, 0], [0, 0]))
     assert never.update(spectral_record(5001, 1.0, [1, 0], [0, 1], [-4, 0], [0, 9])) == pytest.approx(6.0)
     with pytest.raises(ValueError, match="eps_cor"):
-        Spectral(eps_cor=1.5)
+        AADMM(eps_cor=1.5)
 
 
 # ---------------------------------------------------------------- wrappers

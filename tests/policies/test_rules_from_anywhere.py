@@ -105,7 +105,7 @@ def test_the_command_line_names_a_bad_rule_in_one_line(rule_file, capsys):
 
 def test_a_rule_file_is_ranked_by_a_sweep_on_local_processes(rule_file, tmp_path):
     """The sweep's worker processes load the file by its absolute path; results as in one process."""
-    from admmkit.benchmarks.rules.policies_fe import run
+    from admmkit.benchmarks.policies.study import run
     spec = policy_module.canonical_spec(f"{rule_file}:Halve")
     kwargs = dict(rules=(spec, "summable"), quick=True, progress=False, max_iter=3000, problems=("obstacle",))
     two = run(tmp_path / "two", workers=2, **kwargs)
@@ -123,7 +123,7 @@ def test_bench_policies_refuses_a_bad_rule_before_any_case(rule_file, tmp_path, 
 
 def test_a_rule_file_gives_the_same_results_on_a_dask_local_cluster(rule_file, tmp_path):
     pytest.importorskip("distributed")
-    from admmkit.benchmarks.rules.policies_fe import run
+    from admmkit.benchmarks.policies.study import run
     from admmkit.benchmarks.runner.sweep import Executor
     spec = policy_module.canonical_spec(f"{rule_file}:Halve")
     kwargs = dict(rules=(spec,), quick=True, progress=False, max_iter=3000, problems=("obstacle",))

@@ -3,7 +3,6 @@ import numpy as np
 import pytest
 
 import admmkit
-from admmkit import policies  # noqa: F401  (registers the rules by name)
 from admmkit.problems.lasso import Lasso, lam_max, solve_with_cvxpy
 
 pytest.importorskip("cvxpy")

@@ -4,7 +4,6 @@ import math
 import numpy as np
 import pytest
 
-from admmkit import policies  # noqa: F401  (registers the rules by name)
 from admmkit import ResidualTolerance, Status, solve
 from admmkit.cli import main
 from admmkit.problems.obstacle import A_STAR, Scene, make_problem, pyramid, radial, radial_exact, radial_psi, scene, solve_with_cvxpy

@@ -93,7 +93,7 @@ def test_cli_estimator(capsys):
 
 
 def test_the_estimators_study_writes_its_table_and_figure(tmp_path):
-    from admmkit.benchmarks.rules.estimators import run
+    from admmkit.benchmarks.adaptive.estimators import run
     paths = run(tmp_path, "admmkit bench estimators --quick", quick=True)
     assert [p.name for p in paths] == ["estimators.csv", "estimators.md", "estimators.png"]
     text = (tmp_path / "estimators.md").read_text()

@@ -91,7 +91,7 @@ def test_the_active_set_multiplier_makes_the_p2_bound_exact_once_the_touched_set
     without it (``enough`` set so the candidate is tried)."""
     import scipy.sparse as sp
 
-    from admmkit.benchmarks.rules.pdas import pdas
+    from admmkit.benchmarks.fixtures.pdas import pdas
 
     p = make_problem(radial(h=1 / 2), fe_order=2)
     exact = pdas(p.K, p.F, -p.sign * sp.identity(p.n, format="csr"), -p.sign * p.psi, method="bounds")

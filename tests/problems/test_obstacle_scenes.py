@@ -10,7 +10,6 @@ import ngsolve as ng
 import pytest
 
 from admmkit import ResidualTolerance, solve
-from admmkit import policies  # noqa: F401  (registers the rules by name)
 from admmkit.cli import main
 from admmkit.problems.obstacle import Scene, known_scenes, load_scene, make_problem, pyramid, radial
 from admmkit.problems.obstacle.adaptive import solve_adaptive

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from admmkit.benchmarks.rules.pdas import pdas
+from admmkit.benchmarks.fixtures.pdas import pdas
 from admmkit.problems.obstacle import ObstacleProblem, radial
 from admmkit.problems.obstacle.adaptive import solve_adaptive
 from admmkit.problems.obstacle.warm_start import FreeProblem, active_set_multiplier, active_set_start, warm_start

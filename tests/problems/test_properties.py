@@ -15,7 +15,6 @@ hypothesis = pytest.importorskip("hypothesis")
 from hypothesis import HealthCheck, given, settings, strategies as st  # noqa: E402
 
 import admmkit  # noqa: E402
-from admmkit import policies  # noqa: E402,F401
 from admmkit import ResidualTolerance, Status  # noqa: E402
 
 STATUSES = {s.value for s in Status}

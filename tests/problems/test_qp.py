@@ -4,7 +4,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from admmkit import policies  # noqa: F401  (registers the rules by name)
 from admmkit import ResidualTolerance, Status, solve
 from admmkit.problems.qp import QP, list_problems, load_mat, random_qp
 from admmkit.problems.qp.reference import solve_with_cvxpy

@@ -7,7 +7,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from admmkit import policies  # noqa: F401  (registers the rules by name)
 import admmkit
 from admmkit.cli import build_parser, main
 from admmkit.loop.stopping import RelativeChange

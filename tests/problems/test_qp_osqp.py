@@ -10,7 +10,6 @@ import pytest
 import scipy.sparse as sp
 
 import admmkit
-from admmkit import policies  # noqa: F401  (registers the rules by name)
 from admmkit import Status
 from admmkit.problems.qp import QP, QPStatus, load_mat, osqp_settings, random_qp, solve_qp, textbook_settings
 from admmkit.problems.qp.generate import infeasible_qp, unbounded_qp

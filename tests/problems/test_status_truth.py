@@ -13,7 +13,7 @@ import pytest
 
 import admmkit
 from admmkit import RelativeChange, ResidualTolerance, Status
-from admmkit.benchmarks.rules.methods import admm_methods, make
+from admmkit.benchmarks.fixtures.methods import admm_methods, make
 
 RHOS = [10.0 ** e for e in range(-12, 13, 3)]
 STOPS = {"paper": lambda: RelativeChange(1e-5), "default": lambda: None}

@@ -1,0 +1,1 @@
+"""`admmkit bench adaptive` and `admmkit bench estimators`: adaptive against uniform refinement, and the error estimators."""

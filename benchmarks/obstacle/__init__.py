@@ -1,0 +1,1 @@
+"""`admmkit bench obstacle`: the obstacle's convergence rates against the radial exact solution, and its rho_0 sweep."""

@@ -1,0 +1,1 @@
+"""`admmkit bench precision`: work-precision, the true error against time of every rule and the peers."""
