@@ -35,7 +35,7 @@ from admmkit.problems.contact.validation.hertz3d import hertz_pressure, measure,
 from admmkit.benchmarks.runner.report import write_csv
 
 COLUMNS = ["level", "cells", "unknowns", "contact_nodes", "relative_estimate", "iterations", "seconds",
-           "F", "a_hertz", "stop_a_err", "stop_p0_err", "stop_p_max_err", "a_err", "p0_err", "p_max_err",
+           "F", "a_hertz", "stop_a_err", "stop_p0_err", "stop_p_max_err", "a_err", "a_area_err", "p0_err", "p_max_err",
            "edge_in", "edge_out", "active_nodes", "discrete_iterations"]
 #: the discrete solution of a level: SADMM to this relative change (energy norm)
 DISCRETE_TOL = 1e-8
@@ -70,7 +70,7 @@ def run_hertz3d(target: float = 0.1, order: int = 2, theta: float = 0.5, progres
                "stop_a_err": stop["a_err"] if stop else nan, "stop_p0_err": stop["p0_err"] if stop else nan,
                "stop_p_max_err": stop["p_max_err"] if stop else nan,
                "discrete_iterations": exact.result.iterations}
-        for key in ("a_err", "p0_err", "p_max_err", "edge_in", "edge_out", "active_nodes"):
+        for key in ("a_err", "a_area_err", "p0_err", "p_max_err", "edge_in", "edge_out", "active_nodes"):
             row[key] = disc[key] if disc else nan
         rows.append(row)
         if progress:
@@ -93,12 +93,12 @@ def write_report(out_dir, rows, out, last, target: float, order: int, command: s
              "a and p0 of the discrete solution of each level (solved to a relative change of "
              f"{DISCRETE_TOL:g}) and, in brackets, of the iterate where the level's balanced stop fired, "
              "against Hertz at the measured load F (problems/contact/validation/hertz3d.py).", "",
-             "| level | unknowns | contact nodes | rel. estimate | F | a Hertz | a error | p0 error | max p error | "
-             "edge in / out (/a) | at the stop: a, p0 error |",
-             "|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|---|"]
+             "| level | unknowns | contact nodes | rel. estimate | F | a Hertz | a error | a error (area) | p0 error | "
+             "max p error | edge in / out (/a) | at the stop: a, p0 error |",
+             "|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|---|"]
     for r in rows:
         lines.append(f"| {r['level']} | {r['unknowns']} | {r['contact_nodes']} | {r['relative_estimate']:.3f} | "
-                     f"{r['F']:.4e} | {r['a_hertz']:.5f} | {pct(r['a_err'])} | {pct(r['p0_err'])} | "
+                     f"{r['F']:.4e} | {r['a_hertz']:.5f} | {pct(r['a_err'])} | {pct(r['a_area_err'])} | {pct(r['p0_err'])} | "
                      f"{pct(r['p_max_err'])} | {r['edge_in']:.3f} / {r['edge_out']:.3f} | "
                      f"{pct(r['stop_a_err'])}, {pct(r['stop_p0_err'])} |")
     write_text(out_dir / "hertz3d.md", "\n".join(lines) + "\n")

@@ -40,8 +40,18 @@ the obstacle, p >= g):
   lumped vertex and midpoint pressures of one element alternate about the
   profile; the fit reads their mean), and ``p_max`` the largest nodal
   pressure is reported beside it;
+- ``a_area``, the radius of the disc of the contact set's area (the sum of
+  mc_i over the active nodes), a second reading of a that does not assume
+  Hertz's profile;
 - the outermost active radius and the innermost inactive one bracket the
   discrete edge.
+
+The nodal pressures of a lumped contact condition oscillate about the
+profile where the mesh is not uniform (a node's weight mc_i and its
+pressure go opposite ways, the force mc_i lam_i stays smooth): on an
+adapted P1 level of 10,248 unknowns neighbours at r = 0.22 a and 0.31 a
+read 1.04 p0 and 0.86 p0.  The fits read through the oscillation; the
+largest nodal pressure does not, and is reported only beside them.
 """
 from __future__ import annotations
 
@@ -114,7 +124,8 @@ def measure(ops, lam: np.ndarray, p: np.ndarray, *, R: float = R_SPHERE, centre=
     p0_h = math.sqrt(max(p0_squared, 0.0))
     a = hertz_radius(F, R, scene.E, scene.nu)
     p0 = hertz_peak_pressure(F, a)
-    return {"F": F, "a_h": a_h, "a_hertz": a, "a_err": a_h / a - 1.0, "p0_h": p0_h, "p0_hertz": p0,
+    a_area = math.sqrt(float(ops.mc[active].sum()) / math.pi)
+    return {"F": F, "a_h": a_h, "a_area": a_area, "a_area_err": a_area / a - 1.0, "a_hertz": a, "a_err": a_h / a - 1.0, "p0_h": p0_h, "p0_hertz": p0,
             "p0_err": p0_h / p0 - 1.0, "p_max": float(lam.max()), "p_max_err": float(lam.max()) / p0 - 1.0,
             "edge_in": r_in / a, "edge_out": r_out / a, "active_nodes": int(active.sum())}
 
