@@ -101,3 +101,22 @@ def test_adaptive_loop_refines_at_the_contact_and_measures_hertz():
     exact = solve_scene(ops, "sadmm", 1e3, mode="condensed", stop=RelativeChange(1e-8), max_iter=5000).result
     m = measure(ops, exact.lam, exact.z)
     assert abs(m["a_err"]) < 0.05 and m["F"] > 0
+
+
+def test_profile_fit_reads_pressure_through_the_nodal_forces():
+    """Hertz's pressures read back by the fit (to the scan's step), and on a P2-like pattern (every fourth node
+    near 0 with a small weight, the others raised to keep the force): p0 and a within 1 %, where the largest
+    nodal pressure is 15 % high."""
+    from admmkit.problems.contact.validation.hertz3d import profile_fit
+    a, F = 0.05, hertz_load(0.05, R_SPHERE, 1.0, 0.3)
+    p0 = hertz_peak_pressure(F, a)
+    r = np.linspace(0, 0.075, 301)
+    lam = hertz_pressure(r, F, R_SPHERE, 1.0, 0.3)
+    mc = np.full(r.size, 1.0)
+    a_fit, p0_fit = profile_fit(r, lam, mc, r_in=r[lam > 0].max())
+    assert abs(a_fit / a - 1) < 1e-3 and abs(p0_fit / p0 - 1) < 1e-3
+    vertex = np.arange(r.size) % 4 == 0
+    mc2 = np.where(vertex, 0.3, 0.56)
+    lam2 = np.where(vertex, 0.0, lam * (0.3 + 3 * 0.56) / (3 * 0.56))
+    a_fit, p0_fit = profile_fit(r, lam2, mc2, r_in=r[lam > 0].max())
+    assert abs(a_fit / a - 1) < 0.01 and abs(p0_fit / p0 - 1) < 0.01 and lam2.max() / p0 > 1.15
