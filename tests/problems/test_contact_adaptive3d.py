@@ -93,7 +93,8 @@ def test_surface_interpolation():
 
 def test_cli_target_error_3d(tmp_path, capsys):
     out = tmp_path / "levels.json"
-    args = ["solve", "contact", "--scene", "block3d_coulomb", "--tangential", "frictionless", "--h", "1/4"]
+    args = ["solve", "contact", "--scene", "block3d_coulomb", "--tangential", "frictionless", "--h", "1/4",
+            "--fe-order", "1"]
     assert main(args + ["--target-error", "0.3", "--json", str(out), "--vtk", str(tmp_path / "lv.vtu")]) == 0
     assert "status       target_reached" in capsys.readouterr().out
     body = json.loads(out.read_text())
@@ -101,7 +102,36 @@ def test_cli_target_error_3d(tmp_path, capsys):
     assert len(list(tmp_path.glob("lv_level*.vtu"))) == len(body["levels"]) >= 2
     assert main(args + ["--target-error", "0.1", "--max-levels", "1"]) == 1
     assert "level_cap" in capsys.readouterr().out
-    assert main(["solve", "contact", "--scene", "block3d_coulomb", "--h", "1/4", "--target-error", "0.3"]) == 0
+    assert main(["solve", "contact", "--scene", "block3d_coulomb", "--h", "1/4", "--fe-order", "1",
+                 "--target-error", "0.3"]) == 0
     assert "coulomb" in (text := capsys.readouterr().out) and "status       target_reached" in text   # 3D Coulomb
     assert main(args + ["--target-error", "0.3", "--plot", str(tmp_path / "m.png")]) == 2
     assert "2D scenes only" in capsys.readouterr().err
+
+
+def test_cli_target_error_3d_defaults_to_p2_from_two_cells_across(tmp_path, capsys):
+    """Without --fe-order and --h, 3D --target-error takes P2 from h = min(Lx, Ly, Lz) / 2 (as 2D takes P2 from
+    min(L, H) / 5) and says so; --fe-order and --h given are kept."""
+    out = tmp_path / "levels.json"
+    args = ["solve", "contact", "--scene", "block3d_coulomb", "--tangential", "frictionless", "--target-error",
+            "0.3", "--max-levels", "1", "--json", str(out)]
+    main(args)
+    text = capsys.readouterr().out
+    body = json.loads(out.read_text())
+    assert body["order"] == 2 and body["h0"] == 0.5 and body["levels"][0]["cells"] == 6 * 6 * 2 * 2
+    assert "the defaults of --target-error in 3D" in text and "min(Lx, Ly, Lz) / 2 = 0.5" in text
+    main(args + ["--fe-order", "1", "--h", "1/4"])
+    body = json.loads(out.read_text())
+    assert body["order"] == 1 and body["h0"] == 0.25
+    assert "defaults of --target-error" not in capsys.readouterr().out
+
+
+def test_condensed_mode_holds_dense_factors_within_a_memory_budget():
+    """A small boundary keeps 32 factors of M_c^-1 + rho C; a large one (a refined 3D Coulomb face) only those
+    that fit DENSE_FACTORS_BYTES, at least 2."""
+    from admmkit.problems.contact.solvers.problem import DENSE_FACTORS_BYTES, dense_factors_held
+    assert dense_factors_held(80) == dense_factors_held(1448) == 32
+    assert dense_factors_held(9000) == 2 and dense_factors_held(2048) == 16
+    assert all(dense_factors_held(m) * 8 * m * m <= DENSE_FACTORS_BYTES for m in (1449, 2048, 4096, 5792))
+    problem = contact_problem(assemble3d(example2_3d(h=1 / 2)), mode="condensed")
+    assert problem.factors.max_cached == 32

@@ -25,9 +25,11 @@ def run_adaptive(args, scene, method_name: str) -> int:
         raise ValueError(f"--target-error: {err}") from None
     chosen = getattr(args, "adaptive_defaults", {})
     said = (["P2 (cheaper than P1 at every accuracy measured; --fe-order 1 for P1)"] if "order" in chosen else []) \
-        + ([f"first mesh h = min(L, H) / 5 = {chosen['h']:.6g} (--h for another)"] if "h" in chosen else [])
+        + ([f"first mesh h = {'min(L, H) / 5' if hasattr(scene, 'L') else 'min(Lx, Ly, Lz) / 2'} = {chosen['h']:.6g} "
+            f"(--h for another)"] if "h" in chosen else [])
     if said:
-        print("model        " + ", ".join(said) + ": the defaults of --target-error in 2D")
+        where = "2D" if hasattr(scene, "L") else "3D"
+        print("model        " + ", ".join(said) + f": the defaults of --target-error in {where}")
     print(f"adaptive     contact/{scene.name}: from h = {scene.h:.6g}, P{scene.order}, target {options['target']:g}, "
           f"theta {options['theta']:g}, gamma {options['gamma']:g}, {options['estimator']} estimator, {method_name}"
           + ("" if scene.tangential == "frictionless" else f", {scene.tangential}"))

@@ -85,6 +85,20 @@ class DenseCholesky:
         return dpotrs(self.factor, rhs, lower=self.lower)[0]
 
 
+#: the memory the condensed mode's dense factors of M_c^{-1} + rho C may hold together (bytes)
+DENSE_FACTORS_BYTES = 2 ** 29
+
+
+def dense_factors_held(m: int) -> int:
+    """How many dense m x m factors (one per rho) the condensed mode keeps: those that fit DENSE_FACTORS_BYTES,
+    at least 2 (the rho of the run and the one before), at most 32 (the cache's default).
+
+    A factor dropped is refactorised when its rho comes back, the same factor: the iterates do not change.  A
+    2D boundary (m up to 1,448) keeps 32; the 3D block's Coulomb levels (m = 3 n_c, thousands) kept 32 factors
+    of 8 m^2 bytes each before (docs/contact.md)."""
+    return int(max(2, min(32, DENSE_FACTORS_BYTES // max(8 * m * m, 1))))
+
+
 class FullContact(_ContactBase):
     """Full-space mode: x = u, one cached sparse factorisation per rho."""
 
@@ -135,8 +149,10 @@ class CondensedContact(_ContactBase):
         self._A_c = sp.csr_matrix(self.A)[:, self.schur.contact_dofs]
         self.d0 = self._A_c @ u0_c                 # A K^{-1} f (A touches the contact dofs only)
         self.C = self.schur.compliance(self.A)     # A K^{-1} A'
-        # the dense n_c x n_c factors of M_c^{-1} + rho C, one per rho, at most 32 held (least recently used out)
-        self.factors = CachedFactorization(lambda rho: np.diag(1.0 / self.w) + rho * self.C, factor=DenseCholesky)
+        # the dense m x m factors of M_c^{-1} + rho C, one per rho, as many as fit DENSE_FACTORS_BYTES (at least 2,
+        # at most 32; least recently used out): a grown 3D contact boundary does not hold 32 of them
+        self.factors = CachedFactorization(lambda rho: np.diag(1.0 / self.w) + rho * self.C, factor=DenseCholesky,
+                                           max_cached=dense_factors_held(self.C.shape[0]))
         self._recent_Cw: deque = deque(maxlen=2)  # (x, C w) of the last x-steps: one C-matvec per iteration
 
     def update_rho(self, rho):

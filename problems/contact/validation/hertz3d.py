@@ -1,0 +1,168 @@
+"""Hertz in 3D: a body with a spherical cap pressed on a rigid plane (frictionless), the scene ``hertz3d``.
+
+The scene (problems/contact/scenes/hertz3d.toml) is the block
+(0, 1) x (0, 1) x (0, 0.5) whose bottom face z = 0 carries the profile of a
+sphere of radius R = 1 centred over c = (0.5, 0.5): its height above the
+rigid plane is R - sqrt(R^2 - r^2), r = |(x, y) - c|.  The top is clamped
+and the plane raised by delta = 0.0024 (as the 2D Hertz scene does,
+:mod:`admmkit.problems.contact.validation.hertz`), so the gap is
+
+    g(x, y) = R - sqrt(R^2 - r^2) - delta,
+
+and the load F is the reaction, sum_i mc_i lam_i.  E = 1, nu = 0.3.  This is
+Hertz's own model: a body whose surface is flat to first order, with the
+initial separation of a sphere, and u.n measured along the plane's normal.
+Hertz (K. L. Johnson, *Contact Mechanics*, 1985, section 4.2) for a sphere on
+a rigid plane, E* = E / (1 - nu^2):
+
+    a  = (3 F R / (4 E*))^(1/3)          contact radius
+    p0 = 3 F / (2 pi a^2)                peak pressure
+    p(r) = p0 sqrt(1 - r^2 / a^2)         pressure profile, r <= a,
+
+(and with a prescribed indentation d of a half-space, a = sqrt(R d)).  It
+assumes a half-space and a << R.  Here a is about 0.05: a/R ~ 0.05, so the
+sphere differs from Hertz's paraboloid r^2 / (2R) by at most (a/R)^2 / 4 ~
+6e-4 relatively inside the contact; a / (the block's half-width and height)
+~ 0.1, so the finite body changes the local field by about (a/H)^3 ~ 1e-3.
+The comparison is at the measured F, since the approach delta of a clamped
+finite block is not the half-space's d.
+
+**What is measured** (:func:`measure`), from the multiplier lam (the
+nodal pressure) and the contact set (the nodes whose z-iterate p sits on
+the obstacle, p >= g):
+
+- F = sum_i mc_i lam_i;
+- a_h and p0_h: Hertz's profile makes p^2 linear in r^2,
+  p^2 = p0^2 - (p0/a)^2 r^2; a least-squares line of lam_i^2 against r_i^2
+  over the active nodes with r_i >= ``band`` x the outermost active radius
+  (the outer ring, where the edge is decided) gives a_h where it reaches
+  zero; p0_h is the line through all active nodes at r = 0 (with P2 the
+  lumped vertex and midpoint pressures of one element alternate about the
+  profile; the fit reads their mean), and ``p_max`` the largest nodal
+  pressure is reported beside it;
+- ``a_fit`` and ``p0_fit``: Hertz's profile p0 sqrt(1 - r^2/a^2) fitted to
+  the nodal pressures in the norm of the lumped boundary mass,
+  min sum_i mc_i (lam_i - p(r_i))^2 over the nodes with r_i < 1.5 x the
+  outermost active radius (:func:`profile_fit`): for a given a, p0 is
+  sum_i mc_i lam_i s_i / sum_i mc_i s_i^2 with s_i = sqrt(1 - r_i^2/a^2)+, a
+  ratio of the nodal forces mc_i lam_i, and a is the best of a fine scan.  It
+  reads the pressure through its nodal forces, which is what P2 needs: its
+  HRZ-lumped vertices carry almost no force in 3D (the consistent P2 load of
+  a triangle vanishes at its vertices), so inside the contact the vertex
+  pressures are near 0 and the midpoint ones about 1.15 p0;
+- ``a_area``, the radius of the disc of the contact set's area (the sum of
+  mc_i over the active nodes), a second reading of a that does not assume
+  Hertz's profile;
+- the outermost active radius and the innermost inactive one bracket the
+  discrete edge.
+
+The nodal pressures of a lumped contact condition oscillate about the
+profile where the mesh is not uniform (a node's weight mc_i and its
+pressure go opposite ways, the force mc_i lam_i stays smooth): on an
+adapted P1 level of 10,248 unknowns neighbours at r = 0.22 a and 0.31 a
+read 1.04 p0 and 0.86 p0.  The fits read through the oscillation; the
+largest nodal pressure does not, and is reported only beside them.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+#: the scene's sphere radius, its centre over the plane, and the plane's rise (hertz3d.toml)
+R_SPHERE = 1.0
+CENTRE = (0.5, 0.5)
+DELTA = 0.0024
+#: the outer ring of the contact set whose pressures fix a_h: radii from this share of the outermost active one
+BAND = 0.5
+
+
+def e_star(E: float, nu: float) -> float:
+    """The contact modulus against a rigid plane, E* = E / (1 - nu^2)."""
+    return E / (1.0 - nu * nu)
+
+
+def hertz_radius(F: float, R: float, E: float, nu: float) -> float:
+    """Hertz's contact radius a = (3 F R / (4 E*))^(1/3) of a sphere of radius R under the load F."""
+    if not (F > 0 and R > 0):
+        raise ValueError(f"F = {F!r} and R = {R!r} must be > 0")
+    return (3.0 * F * R / (4.0 * e_star(E, nu))) ** (1.0 / 3.0)
+
+
+def hertz_peak_pressure(F: float, a: float) -> float:
+    """p0 = 3 F / (2 pi a^2)."""
+    return 3.0 * F / (2.0 * math.pi * a * a)
+
+
+def hertz_load(a: float, R: float, E: float, nu: float) -> float:
+    """The load that gives the contact radius a: F = 4 E* a^3 / (3 R)."""
+    return 4.0 * e_star(E, nu) * a ** 3 / (3.0 * R)
+
+
+def hertz_pressure(r: np.ndarray, F: float, R: float, E: float, nu: float) -> np.ndarray:
+    """Hertz's p(r) = p0 sqrt(1 - r^2/a^2), 0 outside the contact radius."""
+    a = hertz_radius(F, R, E, nu)
+    return hertz_peak_pressure(F, a) * np.sqrt(np.maximum(1.0 - (np.asarray(r) / a) ** 2, 0.0))
+
+
+def radii(ops, centre=CENTRE) -> np.ndarray:
+    """r = |(x, y) - centre| of every contact node."""
+    return np.hypot(ops.xc[:, 0] - centre[0], ops.xc[:, 1] - centre[1])
+
+
+def measure(ops, lam: np.ndarray, p: np.ndarray, *, R: float = R_SPHERE, centre=CENTRE, band: float = BAND) -> dict:
+    """F, a_h, p0_h (and the largest nodal pressure) against Hertz's a and p0 at the measured F (module
+    docstring); ValueError when the contact set is too small to measure (fewer than 3 nodes in its outer ring)."""
+    scene = ops.scene
+    lam = np.asarray(lam)[:ops.n_c]
+    r = radii(ops, centre)
+    F = float(ops.mc @ lam)
+    active = np.asarray(p)[:ops.n_c] >= ops.g
+    if F <= 0 or not active.any():
+        raise ValueError("no contact: raise the plane (a larger delta)")
+    r_in = float(r[active].max())
+    r_out = float(r[~active].min()) if (~active).any() else math.inf
+    ring = active & (r >= band * r_in)
+    if ring.sum() < 3:
+        raise ValueError(f"the contact set has {int(active.sum())} nodes, {int(ring.sum())} in its outer ring: too "
+                         f"few to measure a (refine further)")
+    slope, _ = np.polyfit(r[ring] ** 2, lam[ring] ** 2, 1)
+    _, p0_squared = np.polyfit(r[active] ** 2, lam[active] ** 2, 1) if active.sum() >= 3 else (0.0, lam.max() ** 2)
+    # the edge: the ring's line through the ring's mean, where it reaches zero
+    mean_r2, mean_p2 = float(np.mean(r[ring] ** 2)), float(np.mean(lam[ring] ** 2))
+    a_h = math.sqrt(mean_r2 - mean_p2 / slope) if slope < 0 else math.nan
+    p0_h = math.sqrt(max(p0_squared, 0.0))
+    a = hertz_radius(F, R, scene.E, scene.nu)
+    p0 = hertz_peak_pressure(F, a)
+    a_area = math.sqrt(float(ops.mc[active].sum()) / math.pi)
+    near = r < 1.5 * r_in
+    a_fit, p0_fit = profile_fit(r[near], lam[near], ops.mc[near], r_in)
+    return {"F": F, "a_h": a_h, "a_area": a_area, "a_area_err": a_area / a - 1.0, "a_hertz": a,
+            "a_err": a_h / a - 1.0, "p0_h": p0_h, "p0_hertz": p0,
+            "p0_err": p0_h / p0 - 1.0, "a_fit": a_fit, "a_fit_err": a_fit / a - 1.0, "p0_fit": p0_fit,
+            "p0_fit_err": p0_fit / p0 - 1.0, "p_max": float(lam.max()), "p_max_err": float(lam.max()) / p0 - 1.0,
+            "edge_in": r_in / a, "edge_out": r_out / a, "active_nodes": int(active.sum())}
+
+
+def profile_fit(r: np.ndarray, lam: np.ndarray, mc: np.ndarray, r_in: float, steps: int = 4001) -> tuple[float, float]:
+    """(a, p0) of Hertz's profile p0 sqrt(1 - r^2/a^2) closest to the nodal pressures lam in the lumped boundary
+    mass's norm, sum_i mc_i (lam_i - p(r_i))^2: p0 = (sum mc lam s) / (sum mc s^2) for each a (s_i =
+    sqrt(1 - r_i^2/a^2)+), a scanned over [r_in / 2, 1.5 r_in] in ``steps`` values (r_in: the outermost active
+    radius)."""
+    r, lam, mc = (np.asarray(v, dtype=float) for v in (r, lam, mc))
+    best = (math.inf, math.nan, math.nan)
+    for a in np.linspace(0.5 * r_in, 1.5 * r_in, steps):
+        s = np.sqrt(np.maximum(1.0 - (r / a) ** 2, 0.0))
+        weight = float(mc @ (s * s))
+        if weight <= 0:
+            continue
+        p0 = float((mc * lam) @ s) / weight
+        residual = float(mc @ (lam - p0 * s) ** 2)
+        if residual < best[0]:
+            best = (residual, float(a), p0)
+    return best[1], best[2]
+
+
+__all__ = ["profile_fit", "R_SPHERE", "CENTRE", "DELTA", "BAND", "e_star", "hertz_radius", "hertz_peak_pressure",
+           "hertz_load",
+           "hertz_pressure", "radii", "measure"]
