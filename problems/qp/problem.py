@@ -159,6 +159,14 @@ class QP(Problem):
         rho (a numeric refactorisation of the same pattern with qdldl)."""
         self._solver.prepare(rho)
 
+    def inverse_penalty(self, rho: float) -> np.ndarray:
+        """R^-1 = 1 / :meth:`penalty` (rho): the KKT matrix's last diagonal block is -R^-1 (the same numbers), held for
+        the last rho asked."""
+        held = self.__dict__.get("_inverse_penalty")
+        if held is None or held[0] != rho:
+            held = self._inverse_penalty = (rho, 1.0 / self.penalty(rho))
+        return held[1]
+
     def penalty(self, rho: float) -> np.ndarray:
         """OSQP's rho_vec: rho w_i, and RHO_MIN on free rows under row_weights "osqp" (Q5)."""
         R = rho * (np.ones(self.m) if self.w is None else self.w)
@@ -184,6 +192,7 @@ class QP(Problem):
         """Forget the iterates of a previous run (called by :func:`admmkit.solve` at the start)."""
         self._x_in = self._x_last = self._x_rel = self._x_rel_prev = None
         self._residuals_of = None                 # (record, OSQP's residuals at it): see termination._iterate
+        self._z_tilde = None                      # (x~, z~) of the last KKT x-step (Q6): see apply_A
 
     def x_step(self, z, lam, rho, x):
         """Solve (Q1), in either form (KKT: [P + sigma I, A'; A, -R^-1] [x; v] = [sigma x^k - q; z - R^-1 M lam],
@@ -196,7 +205,8 @@ class QP(Problem):
         self._x_in = x
         relax = self.x_relaxation != 1.0
         xp = self._x_rel if relax and self._x_rel is not None else x
-        x_new = x_step_solution(self, xp, z, lam, rho)                                      # (Q1), (Q5)
+        x_new, z_tilde = x_step_solution(self, xp, z, lam, rho)                            # (Q1), (Q5), (Q6)
+        self._z_tilde = None if z_tilde is None else (x_new, z_tilde)      # A x_new, for apply_A (KKT form)
         if relax:
             a = self.x_relaxation
             self._x_rel_prev, self._x_rel, self._x_last = xp, a * x_new + (1.0 - a) * xp, x_new      # (Q4)
@@ -239,7 +249,11 @@ class QP(Problem):
         return np.minimum(v, self.us, out=v)
 
     def apply_A(self, x):
-        """A x (the scaled A when scaling)."""
+        """A x (the scaled A when scaling); for the last KKT x-step's own output, z~ read off its solve (Q6), as OSQP
+        (the loop asks for A x^{k+1} right after the x-step)."""
+        held = self._z_tilde
+        if held is not None and held[0] is x:
+            return held[1]
         return products.apply_A(self.As, x)
 
     def inner(self, a, b):

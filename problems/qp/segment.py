@@ -6,9 +6,10 @@ over-relaxation alpha and OSQP's relaxed x (Q4).  One iteration, as
 :meth:`admmkit.problems.qp.QP.x_step`, ``apply_A``,
 ``z_step`` and :mod:`admmkit.steps` compute it::
 
-    [x~; v] = K(rho)^-1 [sigma x^k - q; z^k - lam^k / rho]      (Q1), free rows: z - w lam / 1e-6 (Q5)
+    [x~; v] = K(rho)^-1 b,  b = [sigma x^k - q; z^k - lam^k / rho]   (Q1), free rows: z - w lam / 1e-6 (Q5)
     x^{k+1} = a x~ + (1 - a) x^k                                 (Q4, a = x_relaxation)
-    Ax_hat  = alpha A x~ + (1 - alpha) z^k
+    z~      = b_z + R^-1 v   (= A x~, read off the solve as OSQP does, no product)   (Q6)
+    Ax_hat  = alpha z~ + (1 - alpha) z^k
     z^{k+1} = clip(Ax_hat + lam^k / rho, l, u)                   (Q2)
     lam^{k+1} = lam^k + rho (Ax_hat - z^{k+1})
 
@@ -22,7 +23,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from admmkit.compiled import AVAILABLE, all_finite, compiled_now, csc_matvec, kernel, ldl_solve
+from admmkit.compiled import AVAILABLE, all_finite, compiled_now, kernel, ldl_solve
 
 #: the size nnz(P) + nnz(A) + n + m from which a QP solve runs compiled code under ``compiled="auto"`` (the
 #: default): below it, importing numba and loading (or, on a fresh install, compiling) the kernels costs more
@@ -41,7 +42,7 @@ def compiled_pays(n: int, m: int, nnz: int) -> bool:
 def kernels_loaded() -> bool:
     """Whether this process has the QP's compiled segment (and with it numba and the other kernels) loaded."""
     dispatcher = _xz_kkt._dispatcher
-    return dispatcher is not None and bool(dispatcher.signatures)
+    return dispatcher is not None and bool(dispatcher.overloads)
 
 
 def choose_compiled(setting, qp) -> tuple[bool, bool]:
@@ -55,7 +56,7 @@ def choose_compiled(setting, qp) -> tuple[bool, bool]:
 
 
 @kernel(cache=True)
-def _xz_kkt(count, rho, alpha, a, sigma, Lp, Li, Lx, Dinv, perm, Ap, Ai, Ad, q, lo, up, free, w_free,
+def _xz_kkt(count, rho, alpha, a, sigma, Lp, Li, Lx, Dinv, perm, Rinv, q, lo, up, free, w_free,
             x, x_prev, x_rel, x_rel_prev, z, lam, Ax, rhs, sol, work, keep_last, z_last, lam_last, Ax_last, hat):
     """``count`` iterations on the state arrays (x, x_prev, x_rel, x_rel_prev, z, lam, Ax), in place;
     returns the number done (fewer if a step would meet a non-finite number).  With ``keep_last``, the
@@ -87,7 +88,8 @@ def _xz_kkt(count, rho, alpha, a, sigma, Lp, Li, Lx, Dinv, perm, Ap, Ai, Ad, q, 
             else:
                 x_rel_prev[i] = x_rel[i]
                 x_rel[i] = sol[i]
-        csc_matvec(Ap, Ai, Ad, x, Ax)
+        for i in range(m):                                                      # z~ = rhs + R^-1 v (Q6)
+            Ax[i] = rhs[n + i] + Rinv[i] * sol[n + i]
         for i in range(m):
             h = alpha * Ax[i] + (1.0 - alpha) * z[i] if relax else Ax[i]
             if last:
@@ -120,7 +122,7 @@ def _kkt_solve(rho, sigma, Lp, Li, Lx, Dinv, perm, q, free, w_free, xp, z, lam, 
 
 
 def kkt_x_step(qp, xp, z, lam, rho: float):
-    """The KKT x-step's solution x~ in one compiled call with qdldl's factors (the same bits as qdldl's solve), or
+    """The KKT x-step's (solution [x~; v], right-hand side) in one compiled call with qdldl's factors (the same bits as qdldl's solve), or
     None where it does not apply (compiled code not chosen, :func:`admmkit.compiled.compiled_now`; another
     backend; a non-finite number: the Python path then meets it as it would anyway)."""
     if not compiled_now():
@@ -135,7 +137,7 @@ def kkt_x_step(qp, xp, z, lam, rho: float):
                       np.asarray(lam, dtype=np.float64), rhs, work, sol):
         return None
     qp._solver.solves += 1
-    return sol[:qp.n]
+    return sol, rhs
 
 
 def run_segment(qp, x, z, lam, Ax, rho: float, alpha: float, order: str, count: int, read: bool = False):
@@ -158,10 +160,9 @@ def run_segment(qp, x, z, lam, Ax, rho: float, alpha: float, order: str, count: 
     x_prev, x_rel_prev = np.empty_like(x), np.empty_like(x)
     size = qp.n + qp.m
     rhs, sol, work = np.empty(size), np.empty(size), np.empty(size)
-    As = qp.As
     m = z.shape[0]
     kept = (np.empty(m), np.empty(m), np.empty(m), np.empty(m)) if read else (work[:0],) * 4
-    done = _xz_kkt(count, float(rho), float(alpha), a, qp.sigma, *factors, As.indptr, As.indices, As.data,
+    done = _xz_kkt(count, float(rho), float(alpha), a, qp.sigma, *factors, qp.inverse_penalty(rho),
                    qp.qs, qp.ls, qp.us, qp._free, qp._w_free_over_penalty,
                    x, x_prev, x_rel, x_rel_prev, z, lam, Ax, rhs, sol, work, read, *kept)
     if done:

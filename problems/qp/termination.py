@@ -43,7 +43,7 @@ def _iterate(qp: QP, rec: IterationRecord, scaled: bool = False) -> dict:
     if kept is not None and kept[0] is rec:
         return kept[1]
     x = qp.relaxed_x(rec.x)
-    Ax = rec.Ax if x is rec.x else None
+    Ax = rec.Ax if x is rec.x and qp.xstep != "kkt" else None      # the KKT form's is z~ (Q6): OSQP takes A x
     res = residuals_of_iterate()(qp, x, rec.z, rec.lam_z, Ax, scaled=True)
     qp._residuals_of = (rec, res)
     return res
@@ -197,6 +197,14 @@ class ScaleCheck:
         reach = self.nu * max(1.0, float(np.max(np.abs(x), initial=0.0)))
         return np.flatnonzero(self.live & (reach < eps_abs) & (self.bound < eps_abs))
 
+    def may_be_blind(self, eps_abs: float) -> bool:
+        """Whether some x makes a row blind: span rows, or rows that are tiny at x = 0 (nu_i max(1, ||x||_inf) only
+        grows with x, so a row not tiny there is tiny nowhere).  Asked once per tolerance."""
+        held = self.__dict__.setdefault("_may_be_blind", {})
+        if eps_abs not in held:
+            held[eps_abs] = bool(self.span_rows.size or self.tiny_rows(np.zeros(1), eps_abs).size)
+        return held[eps_abs]
+
     def blind_rows(self, x: np.ndarray, eps_abs: float) -> np.ndarray:
         """The span rows and the tiny rows at ``x``, in order."""
         return np.union1d(self.span_rows, self.tiny_rows(x, eps_abs))
@@ -312,12 +320,15 @@ class QPTermination(StoppingRule):
         """True unless the QP has rows OSQP's primal test cannot see (``ScaleCheck``) at this iterate and the
         row-normalised test (R1') fails there; ``row_test`` keeps the verdict (None: no such rows)."""
         qp, scale = self.qp, self.scale
+        if not scale.may_be_blind(self.eps_abs):           # no x makes a row blind: nothing to compute
+            self.row_test = None
+            return True
         x, Axb = qp.relaxed_x(rec.x), rec.Ax
         xu = qp.scaling.unscale_x(x) if qp.scaled else x
         if not scale.blind_rows(xu, self.eps_abs).size:
             self.row_test = None
             return True
-        Axb = Axb if x is rec.x else qp.As @ x
+        Axb = Axb if x is rec.x and qp.xstep != "kkt" else qp.As @ x
         Ax, z = (Axb / qp.scaling.E, rec.z / qp.scaling.E) if qp.scaled else (Axb, rec.z)
         self.row_test = scale.row_test(Ax, z, self.eps_abs, self.eps_rel)
         return self.row_test

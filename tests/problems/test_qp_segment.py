@@ -188,3 +188,35 @@ def test_a_fixed_rho_without_a_policy_runs_in_segments():
     fast, slow = solve_qp(qp, policy=None, compiled=True), solve_qp(qp, policy=None, compiled=False)
     assert fast.counters.get("compiled_iterations", 0) > 0 and "compiled_iterations" not in slow.counters
     assert fast.iterations == slow.iterations and np.array_equal(fast.x, slow.x)
+
+
+def test_the_kkt_x_step_reads_z_tilde_off_its_solve(monkeypatch):
+    """OSQP's z~ = b_z + R^-1 v (Q6): the KKT form's A x~ comes from the solve, no product with A, on both paths."""
+    from admmkit.problems.qp import products
+    qp = qp_for(random_qp(20, 30, seed=11), osqp_settings())
+
+    def no_product(*args):
+        raise AssertionError("A x computed by a product after a KKT x-step")
+    monkeypatch.setattr(products, "apply_A", no_product)
+    for flag in (False, True):
+        with compiled.compiled_code(flag):
+            qp.begin_run()
+            rng = np.random.default_rng(0)
+            x, z, lam = rng.standard_normal(qp.n), rng.standard_normal(qp.m), rng.standard_normal(qp.m)
+            x1 = qp.x_step(z, lam, 0.1, x)
+            z_tilde = qp.apply_A(x1)
+            # the second block row of the KKT system: A x~ - R^-1 v = z - R^-1 M lam
+            assert np.allclose(z_tilde, qp.As @ x1, rtol=1e-8, atol=1e-10)
+    monkeypatch.undo()
+    assert np.array_equal(qp.apply_A(np.ones(qp.n)), qp.As @ np.ones(qp.n))     # any other x: the product
+
+
+def test_a_warm_kernel_call_does_not_list_numba_signatures(monkeypatch):
+    """A kernel's call asks numba's dispatcher for its compiled overloads, not ``signatures`` (a list of hashed
+    types built anew at every call: 0.1 ms, 32 calls in a small QP's solve)."""
+    from admmkit.compiled import all_finite
+    with compiled.compiled_code(True):
+        all_finite(np.ones(3), 0, 3)
+        kind = type(all_finite._dispatcher)
+        monkeypatch.setattr(kind, "signatures", property(lambda self: pytest.fail("signatures listed")))
+        assert all_finite(np.ones(3), 0, 3)
