@@ -212,11 +212,11 @@ class QP(Problem):
             self._x_rel_prev, self._x_rel, self._x_last = xp, a * x_new + (1.0 - a) * xp, x_new      # (Q4)
         return x_new
 
-    def segment(self, x, z, lam, Ax, rho, alpha, order, count, read=False):
-        """``count`` iterations in one compiled call (:mod:`admmkit.segments`; ``read``: the last is a read one), or
-        None where it does not apply."""
+    def segment(self, x, z, lam, Ax, rho, alpha, order, count, read=False, accel=None):
+        """``count`` iterations in one compiled call (:mod:`admmkit.segments`; ``read``: the last is a read one;
+        ``accel``: Anderson's steps between them), or None where it does not apply."""
         from .segment import run_segment
-        return run_segment(self, x, z, lam, Ax, rho, alpha, order, count, read)
+        return run_segment(self, x, z, lam, Ax, rho, alpha, order, count, read, accel)
 
     def after_segment(self, x, x_prev, x_rel, x_rel_prev, done: int) -> None:
         """The x-step's bookkeeping after a segment of ``done`` iterations ended at x (its x-step's output)."""
@@ -259,6 +259,11 @@ class QP(Problem):
     def inner(self, a, b):
         """(a, b)_M = sum_i w_i a_i b_i."""
         return float(np.dot(a, b)) if self.w is None else float(np.dot(self.w * a, b))
+
+    def inner_weights(self):
+        """w of the inner product (a, b)_M = sum_i w_i a_i b_i (ones under uniform weights): an accelerator's steps
+        use it (:mod:`admmkit.anderson_kernel`), the same in the loop and in a segment."""
+        return self._ones[0] if self.w is None else self.w
 
     def norm(self, y):
         """||y||_M."""

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from admmkit.anderson_kernel import anderson_update
 from admmkit.compiled import AVAILABLE, all_finite, compiled_now, kernel, ldl_solve
 
 #: the size nnz(P) + nnz(A) + n + m from which a QP solve runs compiled code under ``compiled="auto"`` (the
@@ -57,14 +58,22 @@ def choose_compiled(setting, qp) -> tuple[bool, bool]:
 
 @kernel(cache=True)
 def _xz_kkt(count, rho, alpha, a, sigma, Lp, Li, Lx, Dinv, perm, Rinv, q, lo, up, free, w_free,
-            x, x_prev, x_rel, x_rel_prev, z, lam, Ax, rhs, sol, work, keep_last, z_last, lam_last, Ax_last, hat):
+            x, x_prev, x_rel, x_rel_prev, z, lam, Ax, rhs, sol, work, keep_last, z_last, lam_last, Ax_last, hat,
+            accelerate, w, safeguard, regularization, s_buf, f_buf, ist, before, F_prev, G_prev, plain, dF, dG,
+            gram, g, slots, a_rhs, chol, gamma):
     """``count`` iterations on the state arrays (x, x_prev, x_rel, x_rel_prev, z, lam, Ax), in place;
     returns the number done (fewer if a step would meet a non-finite number).  With ``keep_last``, the
-    last iteration's z, lam, A x in (its x is then x_prev) and its relaxed vector (``hat``) are kept."""
+    last iteration's z, lam, A x in (its x is then x_prev) and its relaxed vector (``hat``) are kept.
+    With ``accelerate``, Anderson's step (``admmkit.anderson_kernel``) follows every iteration but a kept
+    last one (the loop takes that one's), on the state (z, lam) stacked in ``s_buf`` and ``f_buf``."""
     n, m = x.shape[0], z.shape[0]
     relax_x, relax = a != 1.0, alpha != 1.0
     for it in range(count):
         last = keep_last and it == count - 1
+        step = accelerate and not last
+        if step:                                                                # s = (z^k, lam^k)
+            for i in range(m):
+                s_buf[i], s_buf[m + i] = z[i], lam[i]
         for i in range(n):
             rhs[i] = sigma * x_rel[i] - q[i]                                    # (Q1)
         for i in range(m):
@@ -101,6 +110,13 @@ def _xz_kkt(count, rho, alpha, a, sigma, Lp, Li, Lx, Dinv, perm, Rinv, q, lo, up
                 v = up[i]
             lam[i] = lam[i] + rho * (h - v)
             z[i] = v
+        if step:                                                                # (A2)-(A3)
+            for i in range(m):
+                f_buf[i], f_buf[m + i] = z[i], lam[i]
+            anderson_update(rho, w, safeguard, regularization, s_buf, f_buf, f_buf, ist, before, F_prev, G_prev,
+                            plain, dF, dG, gram, g, slots, a_rhs, chol, gamma)
+            for i in range(m):
+                z[i], lam[i] = f_buf[i], f_buf[m + i]
     return count
 
 
@@ -140,14 +156,20 @@ def kkt_x_step(qp, xp, z, lam, rho: float):
     return sol, rhs
 
 
-def run_segment(qp, x, z, lam, Ax, rho: float, alpha: float, order: str, count: int, read: bool = False):
+#: placeholders for the kernel's Anderson arrays when it takes no steps (one compiled signature)
+_NO_INTS, _NO_MATRIX = np.zeros(0, dtype=np.int64), np.zeros((0, 0))
+
+
+def run_segment(qp, x, z, lam, Ax, rho: float, alpha: float, order: str, count: int, read: bool = False,
+                accel=None):
     """``count`` iterations of ``qp`` from (x, z, lam, Ax) in one compiled call, or None where the kernel does
     not apply (order "zx", the reduced x-step, a backend other than qdldl, compiled code not chosen).
 
     Returns (x, z, lam, Ax, done) in new arrays; the QP's relaxed-x bookkeeping (Q4) follows, and its
     solve counter grows by ``done``.  ``read``: the last iteration is one the loop reads
     (:mod:`admmkit.segments`); a sixth item, (x, z, lam, A x) it started from and its relaxed vector (None
-    when alpha = 1), is returned, None unless all ``count`` iterations were done.
+    when alpha = 1), is returned, None unless all ``count`` iterations were done.  ``accel``: Anderson's
+    ``kernel_state()`` (:mod:`admmkit.segments`), whose steps follow the iterations (not a read last one's).
     """
     if order != "xz" or qp.xstep != "kkt" or not compiled_now():
         return None
@@ -162,9 +184,15 @@ def run_segment(qp, x, z, lam, Ax, rho: float, alpha: float, order: str, count: 
     rhs, sol, work = np.empty(size), np.empty(size), np.empty(size)
     m = z.shape[0]
     kept = (np.empty(m), np.empty(m), np.empty(m), np.empty(m)) if read else (work[:0],) * 4
+    if accel is None:
+        anderson = (False, work[:0], 1.0, 0.0, work[:0], work[:0], _NO_INTS, work[:0], work[:0], work[:0],
+                    work[:0], _NO_MATRIX, _NO_MATRIX, _NO_MATRIX, work[:0], _NO_INTS, work[:0], _NO_MATRIX, work[:0])
+    else:
+        w, safeguard, regularization, arrays = accel
+        anderson = (True, w, safeguard, regularization, np.empty(2 * m), np.empty(2 * m), *arrays.args())
     done = _xz_kkt(count, float(rho), float(alpha), a, qp.sigma, *factors, qp.inverse_penalty(rho),
                    qp.qs, qp.ls, qp.us, qp._free, qp._w_free_over_penalty,
-                   x, x_prev, x_rel, x_rel_prev, z, lam, Ax, rhs, sol, work, read, *kept)
+                   x, x_prev, x_rel, x_rel_prev, z, lam, Ax, rhs, sol, work, read, *kept, *anderson)
     if done:
         qp.after_segment(x, x_prev, x_rel, x_rel_prev, done)
     if not read:

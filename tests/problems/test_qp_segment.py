@@ -220,3 +220,41 @@ def test_a_warm_kernel_call_does_not_list_numba_signatures(monkeypatch):
         kind = type(all_finite._dispatcher)
         monkeypatch.setattr(kind, "signatures", property(lambda self: pytest.fail("signatures listed")))
         assert all_finite(np.ones(3), 0, 3)
+
+
+@pytest.mark.parametrize("make", [lambda: random_qp(40, 60, seed=1), lambda: random_qp(25, 40, kind="lp", seed=3)],
+                         ids=["mixed", "lp"])
+def test_anderson_runs_in_the_segment_bit_for_bit(make):
+    """Anderson's steps on the compiled path (issue #50): the segment takes them between its iterations, with the
+    loop's kernel, so a run is the Python loop's bit for bit and most of its iterations are compiled."""
+    qdldl_or_skip()
+    qp = make()
+    for eps in (1e-3, 1e-7):
+        fast = solve_qp(qp, compiled=True, acceleration="anderson", eps_abs=eps, eps_rel=eps)
+        slow = solve_qp(qp, compiled=False, acceleration="anderson", eps_abs=eps, eps_rel=eps)
+        same_run(fast, slow)
+        assert fast.acceleration == slow.acceleration and fast.acceleration["extrapolated"] > 0
+        assert fast.counters["compiled_iterations"] >= fast.iterations - 2 * (fast.iterations // 25 + 1)
+
+
+@pytest.mark.skipif(not MM.is_dir(), reason="Maros-Meszaros data not present")
+@pytest.mark.parametrize("name", ["HS268", "S268"])
+def test_anderson_does_not_lose_what_plain_admm_solves(name):
+    """HS268 and S268 at 1e-6: plain ADMM solves them in 250 iterations; Anderson stalled at the cap (1310 of 1376
+    extrapolations rejected).  The safeguard's back-off now makes it plain ADMM with rare probes: solved, the
+    safeguard having fired, on both paths alike."""
+    qdldl_or_skip()
+    qp = load_mat(MM / f"{name}.mat")
+    plain = solve_qp(qp, compiled=True, eps_abs=1e-6, eps_rel=1e-6)
+    fast = solve_qp(qp, compiled=True, acceleration="anderson", eps_abs=1e-6, eps_rel=1e-6)
+    assert plain.termination == "solved" and fast.termination == "solved"
+    assert fast.iterations <= 2 * plain.iterations
+    assert fast.acceleration["rejected"] > 0 and fast.acceleration["extrapolated"] > 0
+    same_run(fast, solve_qp(qp, compiled=False, acceleration="anderson", eps_abs=1e-6, eps_rel=1e-6))
+
+
+def test_fast_admm_still_runs_in_python():
+    """Restarted fast ADMM takes its steps in Python only: no segment runs with it."""
+    qdldl_or_skip()
+    res = solve_qp(random_qp(20, 30, seed=2), compiled=True, acceleration="fast")
+    assert "compiled_iterations" not in res.counters
