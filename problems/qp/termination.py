@@ -26,6 +26,7 @@ import time
 import numpy as np
 
 from admmkit import IterationRecord, Status, Stop, StoppingRule
+from admmkit.compiled import compiled_now
 from admmkit.segments import AVAILABLE as NUMBA
 
 from .infeasibility import DIVISION_TOL, confirmed_certificate, dual_certificate, iterate_deltas, primal_certificate
@@ -153,6 +154,15 @@ def _column_norms(M) -> np.ndarray:
     return out
 
 
+def _row_and_column_norms(M) -> tuple[np.ndarray, np.ndarray]:
+    """(the inf-norm of every row, of every column) of the CSC matrix ``M``: one compiled pass where numba is
+    chosen (``sparse_kernels.inf_norms``, no CSR copy), else :func:`_column_norms` of M' and of M."""
+    if NUMBA and compiled_now():
+        from .sparse_kernels import inf_norms
+        return inf_norms(M.indptr, M.indices, M.data, M.shape[0])
+    return _column_norms(M.tocsr()), _column_norms(M)
+
+
 def _indices(idx: np.ndarray, shown: int = 8) -> str:
     """'3, 7, 12' or '0, 1, ..., 29 (30 in all)'."""
     head = ", ".join(str(int(i)) for i in idx[:shown])
@@ -180,7 +190,7 @@ class ScaleCheck:
 
     def __init__(self, qp: QP):
         self.qp = qp
-        nu = _column_norms(qp.A.tocsr())
+        nu, col_A = _row_and_column_norms(qp.A)
         finite_l, finite_u = np.isfinite(qp.l), np.isfinite(qp.u)
         self.live = (finite_l | finite_u) & (nu > 0)
         self.nu = nu
@@ -188,7 +198,7 @@ class ScaleCheck:
         top = nu[self.live].max(initial=0.0)
         self.span_rows = np.flatnonzero(self.live & (nu < top / SCALE_SPAN))
         self.void_rows = np.flatnonzero((nu == 0) & ((qp.l > 0) | (qp.u < 0)))
-        kappa = np.maximum(_column_norms(qp.A), _column_norms(qp.P))
+        kappa = np.maximum(col_A, _row_and_column_norms(qp.P)[1])
         self.kappa = kappa
         self.span_columns = np.flatnonzero((kappa > 0) & (kappa < kappa.max(initial=0.0) / SCALE_SPAN))
 
