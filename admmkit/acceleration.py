@@ -199,12 +199,11 @@ class Anderson(Accelerator):
     def _propose_kernel(self, s: State, f: State, rho: float) -> State:
         """:meth:`propose` by :func:`admmkit.anderson_kernel.anderson_update` on the stacked states."""
         from .anderson_kernel import anderson_update
-        size = f[0].shape[0]
-        s_, f_, out = np.concatenate(s), np.concatenate(f), np.empty(2 * size)
-        anderson_update(float(rho), self._weights, self.safeguard, self.regularization, s_, f_, out,
+        out = np.empty_like(f[0]), np.empty_like(f[1])
+        anderson_update(float(rho), self._weights, self.safeguard, self.regularization, *s, *f, *out,
                         *self._arrays.args())
         self.sync_stats()
-        return out[:size], out[size:]
+        return out
 
     def _push(self, df: State, dg: State, rho: float, inner) -> None:
         """Append a difference pair and update the Gram matrix (dropping the oldest beyond m)."""

@@ -9,7 +9,8 @@ the same bit for bit whether its iterations run in Python or in a segment
 (:mod:`admmkit.segments`).  Without numba the kernel runs as Python (the same
 bits, slower).
 
-The state s = (u, lam) is held as one vector [u; lam] of length 2 m; the
+The state s = (u, lam) comes as its two arrays (a segment's z and lam,
+updated in place); the memory holds stacked rows [u; lam] of length 2 m; the
 norm (A1) is ||s||_W^2 = rho sum_i w_i u_i^2 + sum_i w_i lam_i^2 / rho.  The
 memory is a ring of ``m`` difference pairs (dF, dG) with their Gram matrix;
 (A2) is solved by a Cholesky factorisation of the Gram matrix plus
@@ -40,9 +41,9 @@ STORED, NEXT, HAVE_PREV, PENDING, EXTRAPOLATED, REJECTED, SKIP, BACKOFF = range(
 INT_SLOTS = 8
 
 
-@kernel(cache=True)
-def _w_dot(rho, w, a, b):
-    """<a, b>_W of two stacked states [u; lam] (A1), summed in order."""
+@kernel(cache=True, inline="always")
+def _wsum(w, a, b, rho):
+    """rho sum_i w_i a_i b_i over the first half of the stacked vectors a, b plus the second half's over rho."""
     m = w.shape[0]
     su = 0.0
     for i in range(m):
@@ -54,28 +55,15 @@ def _w_dot(rho, w, a, b):
 
 
 @kernel(cache=True)
-def _w_dot_rows(rho, w, A, p, b):
-    """<A[p], b>_W (a row of a memory array against a vector), summed in order."""
-    m = w.shape[0]
-    su = 0.0
-    for i in range(m):
-        su += w[i] * A[p, i] * b[i]
-    sl = 0.0
-    for i in range(m):
-        sl += w[i] * A[p, m + i] * b[m + i]
-    return rho * su + sl / rho
-
-
-@kernel(cache=True)
-def _solve_gram(gram, slots, count, regularization, rhs, chol, gamma):
+def _solve_gram(gram, count, regularization, rhs, chol, gamma):
     """gamma = (G + reg max diag(G) I)^-1 rhs over the first ``count`` slots, by Cholesky; False if it fails."""
     top = 0.0
     for a in range(count):
-        top = max(top, gram[slots[a], slots[a]])
+        top = max(top, gram[a, a])
     shift = regularization * top
     for a in range(count):                                  # chol = lower Cholesky factor
         for b in range(a + 1):
-            s = gram[slots[a], slots[b]] + (shift if a == b else 0.0)
+            s = gram[a, b] + (shift if a == b else 0.0)
             for c in range(b):
                 s -= chol[a, c] * chol[b, c]
             if a == b:
@@ -101,16 +89,22 @@ def _solve_gram(gram, slots, count, regularization, rhs, chol, gamma):
 
 
 @kernel(cache=True)
-def anderson_update(rho, w, safeguard, regularization, s, f, out, ist, before, F_prev, G_prev, plain, dF, dG, gram,
-                    g, slots, rhs, chol, gamma):
-    """The next state ``out`` (may be ``f`` itself) from the state ``s`` an iteration started from and its image
-    ``f`` (stacked [u; lam]); the memory (``dF``, ``dG``, ``gram``, ``F_prev``, ``G_prev``), the fallback
-    (``plain``, ``before[0]``) and the counters ``ist`` are updated in place.  See the module docstring."""
-    n = f.shape[0]
+def anderson_update(rho, w, safeguard, regularization, s_u, s_l, f_u, f_l, out_u, out_l, ist, before, F_prev,
+                    G_prev, plain, dF, dG, gram, g, slots, rhs, chol, gamma):
+    """The next state (``out_u``, ``out_l``; they may be ``f_u``, ``f_l`` themselves) from the state (``s_u``,
+    ``s_l``) an iteration started from and its image (``f_u``, ``f_l``); the memory (``dF``, ``dG``, ``gram``,
+    ``F_prev``, ``G_prev``: stacked [u; lam] rows), the fallback (``plain``, ``before[0]``) and the counters
+    ``ist`` are updated in place (``slots`` is unused scratch).  See the module docstring."""
+    m = w.shape[0]
     mem = dF.shape[0]
-    for i in range(n):
-        g[i] = f[i] - s[i]
-    g_norm = math.sqrt(max(_w_dot(rho, w, g, g), 0.0))
+    su = sl = 0.0
+    for i in range(m):                                      # g = f - s and ||g||_W, one pass
+        a = f_u[i] - s_u[i]
+        b = f_l[i] - s_l[i]
+        g[i], g[m + i] = a, b
+        su += w[i] * a * a
+        sl += w[i] * b * b
+    g_norm = math.sqrt(max(rho * su + sl / rho, 0.0))
     if ist[PENDING] == 1:                                   # s was extrapolated: the safeguard looks at it
         ist[PENDING] = 0
         if not g_norm <= safeguard * before[0]:             # NaN counts as a rejection
@@ -118,48 +112,47 @@ def anderson_update(rho, w, safeguard, regularization, s, f, out, ist, before, F
             ist[STORED] = ist[NEXT] = ist[HAVE_PREV] = 0
             ist[SKIP] = ist[BACKOFF]
             ist[BACKOFF] = min(2 * ist[BACKOFF], BACKOFF_MAX)
-            for i in range(n):
-                out[i] = plain[i]
+            for i in range(m):
+                out_u[i], out_l[i] = plain[i], plain[m + i]
             return
         ist[BACKOFF] = 1
+    p = -1
     if ist[HAVE_PREV] == 1:                                 # push (f - f_prev, g - g_prev) into the ring
         p = ist[NEXT]
-        for i in range(n):
-            dF[p, i] = f[i] - F_prev[i]
+        for i in range(m):
+            dF[p, i] = f_u[i] - F_prev[i]
+            dF[p, m + i] = f_l[i] - F_prev[m + i]
             dG[p, i] = g[i] - G_prev[i]
+            dG[p, m + i] = g[m + i] - G_prev[m + i]
         ist[NEXT] = (p + 1) % mem
         ist[STORED] = min(ist[STORED] + 1, mem)
-        for q in range(ist[STORED]):                        # the slots in use are 0 .. STORED - 1
-            gram[p, q] = gram[q, p] = _w_dot_rows(rho, w, dG, p, dG[q])
-    for i in range(n):
-        F_prev[i] = f[i]
+    for i in range(m):
+        F_prev[i], F_prev[m + i] = f_u[i], f_l[i]
+    for i in range(2 * m):
         G_prev[i] = g[i]
     ist[HAVE_PREV] = 1
     count = ist[STORED]
-    if count == 0:
-        for i in range(n):
-            out[i] = f[i]
-        return
-    if ist[SKIP] > 0:                                       # backing off after a rejection: plain
+    extrapolate = count > 0 and ist[SKIP] == 0
+    if ist[SKIP] > 0 and count > 0:                         # backing off after a rejection: plain
         ist[SKIP] -= 1
-        for i in range(n):
-            out[i] = f[i]
+    for q in range(count):                                  # the new Gram row and (A2)'s right side, one pass each
+        if p >= 0:
+            gram[p, q] = gram[q, p] = _wsum(w, dG[p], dG[q], rho)
+        if extrapolate:
+            rhs[q] = _wsum(w, dG[q], g, rho)
+    if not extrapolate or not _solve_gram(gram, count, regularization, rhs, chol, gamma):
+        for i in range(m):
+            out_u[i], out_l[i] = f_u[i], f_l[i]
         return
-    for a in range(count):                                  # (A2): the normal equations over the stored slots
-        slots[a] = a
-        rhs[a] = _w_dot_rows(rho, w, dG, a, g)
-    if not _solve_gram(gram, slots, count, regularization, rhs, chol, gamma):
-        for i in range(n):
-            out[i] = f[i]
-        return
-    for i in range(n):
-        plain[i] = f[i]
+    for i in range(m):                                      # the fallback, then (A3) in place
+        plain[i], plain[m + i] = f_u[i], f_l[i]
+        out_u[i], out_l[i] = f_u[i], f_l[i]
     before[0] = g_norm
-    for i in range(n):                                      # (A3)
-        v = f[i]
-        for a in range(count):
-            v -= gamma[a] * dF[a, i]
-        out[i] = v
+    for a in range(count):
+        c = gamma[a]
+        for i in range(m):
+            out_u[i] -= c * dF[a, i]
+            out_l[i] -= c * dF[a, m + i]
     ist[PENDING] = 1
     ist[EXTRAPOLATED] += 1
 

@@ -59,13 +59,13 @@ def choose_compiled(setting, qp) -> tuple[bool, bool]:
 @kernel(cache=True)
 def _xz_kkt(count, rho, alpha, a, sigma, Lp, Li, Lx, Dinv, perm, Rinv, q, lo, up, free, w_free,
             x, x_prev, x_rel, x_rel_prev, z, lam, Ax, rhs, sol, work, keep_last, z_last, lam_last, Ax_last, hat,
-            accelerate, w, safeguard, regularization, s_buf, f_buf, ist, before, F_prev, G_prev, plain, dF, dG,
+            accelerate, w, safeguard, regularization, s_z, s_lam, ist, before, F_prev, G_prev, plain, dF, dG,
             gram, g, slots, a_rhs, chol, gamma):
     """``count`` iterations on the state arrays (x, x_prev, x_rel, x_rel_prev, z, lam, Ax), in place;
     returns the number done (fewer if a step would meet a non-finite number).  With ``keep_last``, the
     last iteration's z, lam, A x in (its x is then x_prev) and its relaxed vector (``hat``) are kept.
     With ``accelerate``, Anderson's step (``admmkit.anderson_kernel``) follows every iteration but a kept
-    last one (the loop takes that one's), on the state (z, lam) stacked in ``s_buf`` and ``f_buf``."""
+    last one (the loop takes that one's), on the state (z, lam), the one it started from kept in ``s_z``, ``s_lam``."""
     n, m = x.shape[0], z.shape[0]
     relax_x, relax = a != 1.0, alpha != 1.0
     for it in range(count):
@@ -73,7 +73,7 @@ def _xz_kkt(count, rho, alpha, a, sigma, Lp, Li, Lx, Dinv, perm, Rinv, q, lo, up
         step = accelerate and not last
         if step:                                                                # s = (z^k, lam^k)
             for i in range(m):
-                s_buf[i], s_buf[m + i] = z[i], lam[i]
+                s_z[i], s_lam[i] = z[i], lam[i]
         for i in range(n):
             rhs[i] = sigma * x_rel[i] - q[i]                                    # (Q1)
         for i in range(m):
@@ -111,12 +111,8 @@ def _xz_kkt(count, rho, alpha, a, sigma, Lp, Li, Lx, Dinv, perm, Rinv, q, lo, up
             lam[i] = lam[i] + rho * (h - v)
             z[i] = v
         if step:                                                                # (A2)-(A3)
-            for i in range(m):
-                f_buf[i], f_buf[m + i] = z[i], lam[i]
-            anderson_update(rho, w, safeguard, regularization, s_buf, f_buf, f_buf, ist, before, F_prev, G_prev,
-                            plain, dF, dG, gram, g, slots, a_rhs, chol, gamma)
-            for i in range(m):
-                z[i], lam[i] = f_buf[i], f_buf[m + i]
+            anderson_update(rho, w, safeguard, regularization, s_z, s_lam, z, lam, z, lam, ist, before, F_prev,
+                            G_prev, plain, dF, dG, gram, g, slots, a_rhs, chol, gamma)
     return count
 
 
@@ -189,7 +185,7 @@ def run_segment(qp, x, z, lam, Ax, rho: float, alpha: float, order: str, count: 
                     work[:0], _NO_MATRIX, _NO_MATRIX, _NO_MATRIX, work[:0], _NO_INTS, work[:0], _NO_MATRIX, work[:0])
     else:
         w, safeguard, regularization, arrays = accel
-        anderson = (True, w, safeguard, regularization, np.empty(2 * m), np.empty(2 * m), *arrays.args())
+        anderson = (True, w, safeguard, regularization, np.empty(m), np.empty(m), *arrays.args())
     done = _xz_kkt(count, float(rho), float(alpha), a, qp.sigma, *factors, qp.inverse_penalty(rho),
                    qp.qs, qp.ls, qp.us, qp._free, qp._w_free_over_penalty,
                    x, x_prev, x_rel, x_rel_prev, z, lam, Ax, rhs, sol, work, read, *kept, *anderson)
