@@ -32,7 +32,7 @@ g_k = f_k - s_k.
   (HS268 at 1e-6: 1310 of 1376 extrapolations rejected and the run stalled
   at the cap without it).  For a problem whose inner product is a weighted
   dot product (``problem.inner_weights()``) the steps are one kernel,
-  :mod:`admmkit.anderson_kernel`, which a compiled segment calls too.
+  ``admmkit.anderson_kernel``, which a compiled segment calls too.
 * :class:`FastADMM`: the restarted fast ADMM of Goldstein, O'Donoghue,
   Setzer & Baraniuk (2014, Algorithm 8): Nesterov momentum on the state::
 
@@ -54,9 +54,9 @@ from abc import ABC, abstractmethod
 
 import numpy as np
 
+from .anderson_kernel import BACKOFF_MAX      # the longest run of plain steps Anderson takes after a rejection
+
 State = tuple  # (u, lam): two arrays of the constraint space
-#: the longest run of plain steps Anderson takes after a rejection (its back-off doubles up to it)
-BACKOFF_MAX = 1024
 
 
 class Accelerator(ABC):
@@ -125,7 +125,7 @@ class Anderson(Accelerator):
         self.reset()
 
     def bind(self, weights: np.ndarray | None, size: int | None) -> None:
-        """Take the steps with :func:`admmkit.anderson_kernel.anderson_update` for the inner product
+        """Take the steps with ``admmkit.anderson_kernel.anderson_update`` for the inner product
         (a, b)_M = sum_i ``weights``_i a_i b_i on vectors of length ``size`` (the loop's and a segment's steps
         then agree bit for bit); None: the problem's ``inner`` (numpy)."""
         from .anderson_kernel import AndersonArrays
@@ -197,7 +197,7 @@ class Anderson(Accelerator):
         return u, lam
 
     def _propose_kernel(self, s: State, f: State, rho: float) -> State:
-        """:meth:`propose` by :func:`admmkit.anderson_kernel.anderson_update` on the stacked states."""
+        """:meth:`propose` by ``admmkit.anderson_kernel.anderson_update`` on the stacked states."""
         from .anderson_kernel import anderson_update
         out = np.empty_like(f[0]), np.empty_like(f[1])
         anderson_update(float(rho), self._weights, self.safeguard, self.regularization, *s, *f, *out,

@@ -33,9 +33,10 @@ import math
 
 import numpy as np
 
-from .acceleration import BACKOFF_MAX
 from .compiled import kernel
 
+#: the longest run of plain proposals after a rejection (the back-off doubles up to it)
+BACKOFF_MAX = 1024
 #: the slots of the integer state ``ist``
 STORED, NEXT, HAVE_PREV, PENDING, EXTRAPOLATED, REJECTED, SKIP, BACKOFF = range(8)
 INT_SLOTS = 8

@@ -34,7 +34,7 @@ plug-in whose ``segment`` takes ``accel`` takes those steps itself, between
 the iterations it runs (all but a read last one, whose step the loop takes):
 ``accel`` is the accelerator's ``kernel_state()`` (Anderson bound to a
 weighted inner product: its weights, safeguard, regularization and the
-arrays of :mod:`admmkit.anderson_kernel`, updated in place), and its steps
+arrays of ``admmkit.anderson_kernel``, updated in place), and its steps
 must be the loop's bit for bit.  Other accelerators (restarted fast ADMM)
 run every iteration in Python.
 

@@ -262,7 +262,7 @@ class QP(Problem):
 
     def inner_weights(self):
         """w of the inner product (a, b)_M = sum_i w_i a_i b_i (ones under uniform weights): an accelerator's steps
-        use it (:mod:`admmkit.anderson_kernel`), the same in the loop and in a segment."""
+        use it (``admmkit.anderson_kernel``), the same in the loop and in a segment."""
         return self._ones[0] if self.w is None else self.w
 
     def norm(self, y):
