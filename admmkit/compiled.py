@@ -112,8 +112,10 @@ class Kernel:
 
     def __call__(self, *args):
         """Run compiled (see the class) or as Python."""
-        if self.switchable and not compiled_now():
-            return self.py_func(*args)
+        if self.switchable:                            # compiled_now(), inline: this runs at every call
+            mode = _MODE.get()
+            if not (("numba" in sys.modules and AVAILABLE) if mode is None else mode):
+                return self.py_func(*args)
         dispatcher = self._dispatcher or self.dispatcher()
         if not dispatcher.overloads:                   # the first compiled call in this process (``signatures``
             _note_cold(self)                           # builds a list of hashed types: 0.1 ms a call)

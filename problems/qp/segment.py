@@ -152,6 +152,15 @@ def kkt_x_step(qp, xp, z, lam, rho: float):
     return sol, rhs
 
 
+def _scratch(qp):
+    """The kernel's work vectors (rhs, sol, work) of length n + m, made once per QP (nothing reads them after)."""
+    held = qp.__dict__.get("_segment_scratch")
+    if held is None:
+        size = qp.n + qp.m
+        held = qp._segment_scratch = (np.empty(size), np.empty(size), np.empty(size))
+    return held
+
+
 #: placeholders for the kernel's Anderson arrays when it takes no steps (one compiled signature)
 _NO_INTS, _NO_MATRIX = np.zeros(0, dtype=np.int64), np.zeros((0, 0))
 
@@ -176,8 +185,7 @@ def run_segment(qp, x, z, lam, Ax, rho: float, alpha: float, order: str, count: 
     a = qp.x_relaxation
     x_rel = np.array(qp._x_rel if a != 1.0 and qp._x_rel is not None else x, dtype=np.float64)
     x_prev, x_rel_prev = np.empty_like(x), np.empty_like(x)
-    size = qp.n + qp.m
-    rhs, sol, work = np.empty(size), np.empty(size), np.empty(size)
+    rhs, sol, work = _scratch(qp)
     m = z.shape[0]
     kept = (np.empty(m), np.empty(m), np.empty(m), np.empty(m)) if read else (work[:0],) * 4
     if accel is None:
