@@ -257,6 +257,7 @@ class QP(Problem):
         (the loop asks for A x^{k+1} right after the x-step)."""
         held = self._z_tilde
         if held is not None and held[0] is x:
+            self._z_tilde = None                 # read once: a later A x (a warm start's x0) is a product
             return held[1]
         return products.apply_A(self.As, x)
 

@@ -258,3 +258,13 @@ def test_fast_admm_still_runs_in_python():
     qdldl_or_skip()
     res = solve_qp(random_qp(20, 30, seed=2), compiled=True, acceleration="fast")
     assert "compiled_iterations" not in res.counters
+
+
+def test_z_tilde_is_read_once():
+    """The loop asks for A x~ once, right after the x-step; any later A x of the same array (a warm start's x0)
+    is the product, as OSQP's warm start computes z = A x."""
+    qp = qp_for(random_qp(10, 15, seed=4), osqp_settings())
+    qp.begin_run()
+    x1 = qp.x_step(np.zeros(qp.m), np.ones(qp.m), 0.1, np.zeros(qp.n))
+    first = qp.apply_A(x1)
+    assert np.array_equal(qp.apply_A(x1), qp.As @ x1) and first is not None
