@@ -26,7 +26,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..linalg.compiled import all_finite, ldl_solve, njit
+from ..kernels import all_finite, njit
+
+from ..linalg.compiled import ldl_solve
 
 #: the proxes with a kernel (``g_kind``): their formulas in :func:`prox`
 ZERO, BOX, LOWER, UPPER, L1, CONSENSUS, CONSENSUS_M = range(7)

@@ -12,7 +12,7 @@ from contextlib import contextmanager
 import numpy as np
 import scipy.sparse as sp
 
-from .compiled import hand_written
+from ..kernels import hand_written
 
 
 @contextmanager
@@ -151,7 +151,7 @@ class AMGPreconditioner:
         """z = V-cycle(r), starting from zero (no residual norms, unlike ml.solve).
 
         With numba, :class:`admmkit.linalg.vcycle.VCycle` (the same values, its products row-parallel);
-        without, or under :func:`admmkit.linalg.compiled.library_kernels`, pyamg's own cycle.
+        without, or under :func:`admmkit.kernels.library_kernels`, pyamg's own cycle.
         """
         if hand_written():
             if self._cycle is None:

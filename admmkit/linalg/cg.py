@@ -9,7 +9,7 @@ import math
 
 import numpy as np
 
-from .compiled import hand_written, njit
+from ..kernels import hand_written, njit
 
 
 @njit(cache=True)

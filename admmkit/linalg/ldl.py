@@ -45,7 +45,9 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from admmkit.linalg.compiled import AVAILABLE, _u, ldl_backward, ldl_forward, ldl_solve, njit
+from admmkit.kernels import AVAILABLE, _u, njit
+
+from admmkit.linalg.compiled import ldl_backward, ldl_forward, ldl_solve
 
 
 @dataclass

@@ -87,7 +87,9 @@ def _checked(solve1, name: str, A):
 
     def refactor_in_place(matrix):
         B = _canonical(matrix)
-        if not (B.shape == A.shape and np.array_equal(B.indptr, A.indptr) and np.array_equal(B.indices, A.indices)):
+        same = B.indptr is A.indptr and B.indices is A.indices       # the same pattern arrays: nothing to compare
+        if not (same or (B.shape == A.shape and np.array_equal(B.indptr, A.indptr)
+                         and np.array_equal(B.indices, A.indices))):
             return None
         return _checked(_backend_factor(name, B, refactor), name, B)
     solve.refactor = None if refactor is None else refactor_in_place

@@ -95,7 +95,8 @@ def _factor_qdldl(A):
     import qdldl
     # qdldl reads the upper triangle; handing it only that (not the full matrix) made its solves 6x faster
     # on a QP's KKT matrix (PRIMAL4: 51 us against 302 us), same factor
-    return _qdldl_solve(qdldl.Solver(_upper(A), upper=True))
+    U = _upper(A)
+    return _qdldl_solve(qdldl.Solver(U, upper=True), U.indices if U is A else None)
 
 
 def _upper(A):
@@ -104,15 +105,16 @@ def _upper(A):
     return sp.triu(A, format="csc") if below.any() else A
 
 
-def _qdldl_solve(solver):
+def _qdldl_solve(solver, pattern=None):
     """``solve(b)`` with qdldl's ``solver``, its factors (``solve.ldl``) and ``solve.refactor(A)``: new values on
-    the same pattern, qdldl's numeric factorisation only (the ordering kept; the same factor as a new one)."""
+    the same pattern, qdldl's numeric factorisation only (the ordering kept; the same factor as a new one).
+    ``pattern``: the row indices of a matrix known to be upper triangular (no test for it again)."""
     def solve(b):
         return solver.solve(b)
 
     def refactor(A):
-        solver.update(_upper(A), upper=True)
-        return _qdldl_solve(solver)
+        solver.update(A if A.indices is pattern else _upper(A), upper=True)
+        return _qdldl_solve(solver, pattern)
     solve.ldl = solver.factors          # (L, D, p) with A = P (I + L) D (I + L)' P': for compiled solves
     solve.refactor = refactor
     return solve

@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from .compiled import _u, hand_written, njit
+from ..kernels import _u, hand_written, njit
 
 
 @njit(cache=True)

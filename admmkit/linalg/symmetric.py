@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from .compiled import _u, njit
+from ..kernels import _u, njit
 
 
 @njit(cache=True)
@@ -281,8 +281,8 @@ def pencil_products(pencil, blocksize: int = 1):
     """rho -> (x -> (K + rho D) x) for a :class:`admmkit.linalg.amg.PencilMatrix` in CSR: from the upper triangle
     (:class:`SymmetricPattern`, in node pairs for ``blocksize`` 2: a 2-D vector problem numbered node by node;
     a new rho updates D's entries only), or scipy's product with ``pencil.at(rho)`` without numba (or under
-    :func:`admmkit.linalg.compiled.library_kernels`)."""
-    from .compiled import hand_written
+    :func:`admmkit.kernels.library_kernels`)."""
+    from ..kernels import hand_written
     if not hand_written():
         return lambda rho: pencil.at(rho).__matmul__
     pattern = (NodePairPattern if blocksize == 2 else SymmetricPattern)(pencil.pattern)

@@ -42,7 +42,7 @@ import scipy.sparse as sp
 from numba import njit, prange
 
 from .kernel_threads import THREADS_VARIABLE, kernel_threads  # noqa: F401  (THREADS_VARIABLE: re-exported)
-from .compiled import _u
+from ..kernels import _u
 from .vcycle_blocks import BlockLevel
 from .vcycle_blocks3 import BlockLevel3
 

@@ -22,7 +22,7 @@ import numpy as np
 import scipy.sparse as sp
 from numba import njit, prange
 
-from .compiled import _u
+from ..kernels import _u
 from .kernel_threads import kernel_threads
 from .symmetric import diagonal_positions
 

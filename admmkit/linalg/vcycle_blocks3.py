@@ -15,7 +15,7 @@ from __future__ import annotations
 
 from numba import njit
 
-from .compiled import _u
+from ..kernels import _u
 from .vcycle_blocks import BlockLevel
 
 

@@ -25,7 +25,14 @@ g_k = f_k - s_k.
   with dG, dF the last m differences of g and f.  Safeguard (SCS 3): when
   the residual at an extrapolated state exceeds ``safeguard`` times the
   residual before it, the extrapolation is rejected, the memory cleared and
-  the run goes on from the plain image f of the state before it.
+  the run goes on from the plain image f of the state before it.  Rejections
+  back off: the next b proposals are plain, b doubling with every rejection
+  (up to BACKOFF_MAX) and back to 1 after an accepted extrapolation, so that
+  where extrapolation keeps failing the run is plain ADMM with rare probes
+  (HS268 at 1e-6: 1310 of 1376 extrapolations rejected and the run stalled
+  at the cap without it).  For a problem whose inner product is a weighted
+  dot product (``problem.inner_weights()``) the steps are one kernel,
+  ``admmkit.loop.anderson_kernel``, which a compiled segment calls too.
 * :class:`FastADMM`: the restarted fast ADMM of Goldstein, O'Donoghue,
   Setzer & Baraniuk (2014, Algorithm 8): Nesterov momentum on the state::
 
@@ -46,6 +53,8 @@ import math
 from abc import ABC, abstractmethod
 
 import numpy as np
+
+from .anderson_kernel import BACKOFF_MAX      # the longest run of plain steps Anderson takes after a rejection
 
 State = tuple  # (u, lam): two arrays of the constraint space
 
@@ -111,17 +120,54 @@ class Anderson(Accelerator):
             raise ValueError(f"Anderson: regularization must be a finite number >= 0, got {regularization!r}")
         super().__init__()
         self.m, self.safeguard, self.regularization = int(m), float(safeguard), float(regularization)
+        self._arrays = self._weights = None       # the kernel's arrays, for a weighted inner product (bind)
+        self._skip, self._backoff = 0, 1
         self.reset()
 
+    def bind(self, weights: np.ndarray | None, size: int | None) -> None:
+        """Take the steps with ``admmkit.loop.anderson_kernel.anderson_update`` for the inner product
+        (a, b)_M = sum_i ``weights``_i a_i b_i on vectors of length ``size`` (the loop's and a segment's steps
+        then agree bit for bit); None: the problem's ``inner`` (numpy)."""
+        from .anderson_kernel import AndersonArrays
+        if weights is None:
+            self._arrays = self._weights = None
+            return
+        self._weights = np.ascontiguousarray(weights, dtype=np.float64)
+        self._arrays = AndersonArrays(self.m, 2 * int(size))
+
+    def start(self) -> None:
+        """Start a run: clear the memory, the counts and the back-off."""
+        super().start()
+        self._skip, self._backoff = 0, 1
+        if self._arrays is not None:
+            self._arrays = type(self._arrays)(self.m, self._arrays.F_prev.size)
+
     def reset(self) -> None:
-        """Clear the memory (the differences and the last plain image)."""
+        """Clear the memory (the differences and the last plain image); the back-off stays."""
         self._f = self._g = None          # f_{k-1}, g_{k-1}
         self._dF, self._dG = [], []        # differences, oldest first
         self._gram = np.zeros((0, 0))     # <dG_i, dG_j>_W
         self._fallback = None             # (f of the state before an extrapolation, its residual norm)
+        if getattr(self, "_arrays", None) is not None:
+            self._arrays.reset()
+
+    def kernel_state(self):
+        """(weights, safeguard, regularization, arrays) for a compiled segment's steps, or None when unbound."""
+        if self._arrays is None:
+            return None
+        return self._weights, self.safeguard, self.regularization, self._arrays
+
+    def sync_stats(self) -> None:
+        """The counts from the kernel's arrays (after steps taken there)."""
+        if self._arrays is not None:
+            from .anderson_kernel import EXTRAPOLATED, REJECTED
+            self.stats["extrapolated"] = int(self._arrays.ist[EXTRAPOLATED])
+            self.stats["rejected"] = int(self._arrays.ist[REJECTED])
 
     def propose(self, s: State, f: State, rho: float, inner) -> State:
         """The next state: an Anderson extrapolation, f itself, or the fallback after a rejection."""
+        if self._arrays is not None:
+            return self._propose_kernel(s, f, rho)
         g = _diff(f, s)
         g_norm = math.sqrt(max(w_inner(g, g, rho, inner), 0.0))
         if self._fallback is not None:                        # s was extrapolated: the safeguard looks at it
@@ -130,11 +176,16 @@ class Anderson(Accelerator):
             if not g_norm <= self.safeguard * before:         # NaN counts as a rejection
                 self.stats["rejected"] += 1
                 self.reset()
+                self._skip, self._backoff = self._backoff, min(2 * self._backoff, BACKOFF_MAX)   # back off
                 return plain
+            self._backoff = 1
         if self._f is not None:
             self._push(_diff(f, self._f), _diff(g, self._g), rho, inner)
         self._f, self._g = f, g
         if not self._dG:
+            return f
+        if self._skip > 0:                                    # backing off after a rejection: a plain step
+            self._skip -= 1
             return f
         gamma = self._least_squares(g, rho, inner)                                      # (A2)
         if gamma is None:
@@ -144,6 +195,15 @@ class Anderson(Accelerator):
         self._fallback = (f, g_norm)
         self.stats["extrapolated"] += 1
         return u, lam
+
+    def _propose_kernel(self, s: State, f: State, rho: float) -> State:
+        """:meth:`propose` by ``admmkit.loop.anderson_kernel.anderson_update`` on the stacked states."""
+        from .anderson_kernel import anderson_update
+        out = np.empty_like(f[0]), np.empty_like(f[1])
+        anderson_update(float(rho), self._weights, self.safeguard, self.regularization, *s, *f, *out,
+                        *self._arrays.args())
+        self.sync_stats()
+        return out
 
     def _push(self, df: State, dg: State, rho: float, inner) -> None:
         """Append a difference pair and update the Gram matrix (dropping the oldest beyond m)."""
@@ -235,10 +295,22 @@ class Acceleration:
     the accelerator through :meth:`reset` and the plain iterate is kept.
     """
 
-    def __init__(self, accelerator: Accelerator, order: str, inner):
+    def __init__(self, accelerator: Accelerator, order: str, inner, weights=None, size: int | None = None):
         self.accelerator, self.inner = accelerator, inner
         self._u = 0 if order == "xz" else 2        # the index of u in (z, lam, Ax)
+        if isinstance(accelerator, Anderson):      # the kernel's steps for a weighted inner product, else numpy's
+            accelerator.bind(weights, size)
         accelerator.start()
+
+    def kernel_state(self):
+        """What a compiled segment needs to take the accelerator's steps itself, or None (it cannot)."""
+        if self._u != 0 or not isinstance(self.accelerator, Anderson):
+            return None
+        return self.accelerator.kernel_state()
+
+    def after_segment(self) -> None:
+        """The counts after a segment took steps."""
+        self.accelerator.sync_stats()
 
     def step(self, old: tuple, new: tuple, rho: float) -> tuple:
         """(z, lam, Ax) for the next iteration from those before (``old``) and after (``new``) it, at an

@@ -3,7 +3,7 @@
 The loop reads a record at a tested iteration (every ``check_every``-th and
 the last), where the policy asks for one
 (:meth:`admmkit.Policy.unchanged_until`), and at every iteration when a
-callback, an accelerator or the full history is set (a callback with
+callback or the full history is set (a callback with
 ``every_record = False``, such as the command line's progress bar, is given
 only the records of the iterations that run in Python, every tested one
 among them).  In between, an iteration only moves the state (x, z, lam, A x)
@@ -28,6 +28,15 @@ alpha = 1), when ``done == count``.  The loop then builds that iteration's
 record from the segment's numbers instead of running its steps in Python
 (:meth:`FastForward.serve`): the same bits, about 25 us less per test on a
 small QP.
+
+With an accelerator, the loop takes its step after every iteration: a
+plug-in whose ``segment`` takes ``accel`` takes those steps itself, between
+the iterations it runs (all but a read last one, whose step the loop takes):
+``accel`` is the accelerator's ``kernel_state()`` (Anderson bound to a
+weighted inner product: its weights, safeguard, regularization and the
+arrays of ``admmkit.loop.anderson_kernel``, updated in place), and its steps
+must be the loop's bit for bit.  Other accelerators (restarted fast ADMM)
+run every iteration in Python.
 
 The first iteration of a run always runs in Python, so that what the
 plug-in's own steps return is checked (``admmkit.loop.checks.check_step``)
@@ -58,15 +67,17 @@ class FastForward:
     ``segments`` and ``iterations`` count the calls and the iterations they ran, ``seconds`` their time.
     """
 
-    __slots__ = ("problem", "run", "enabled", "reads", "pending", "segments", "iterations", "seconds")
+    __slots__ = ("problem", "run", "enabled", "reads", "pending", "segments", "iterations", "seconds", "accel")
 
-    def __init__(self, run, enabled: bool = True) -> None:
+    def __init__(self, run, enabled: bool = True, accel=None) -> None:
         problem = run.problem
-        self.problem, self.run = problem, run
+        self.problem, self.run, self.accel = problem, run, accel
         watcher = run.callback is None or not getattr(run.callback, "every_record", True)   # e.g. a progress bar
         self.enabled = (enabled and AVAILABLE and callable(getattr(problem, "segment", None))
                         and watcher and run.history.mode == "lean")
-        self.reads = self.enabled and _takes_read(type(problem))
+        if accel is not None:           # an accelerator: only a segment that takes its steps itself
+            self.enabled = self.enabled and accel.kernel_state() is not None and _takes(type(problem), "accel")
+        self.reads = self.enabled and _takes(type(problem), "read")
         self.pending = None             # (x_j, the read iteration's outputs) when the segment ran it
         self.segments = self.iterations = 0
         self.seconds = 0.0
@@ -86,11 +97,14 @@ class FastForward:
         if count < (1 if self.reads else MIN_SEGMENT):
             return x, z, lam, Ax, k
         t0 = perf()
+        extra = {} if self.accel is None else {"accel": self.accel.kernel_state()}
         if self.reads:
-            out = self.problem.segment(x, z, lam, Ax, rho, self.run.alpha, self.run.order, count, read=True)
+            out = self.problem.segment(x, z, lam, Ax, rho, self.run.alpha, self.run.order, count, read=True, **extra)
         else:
-            out = self.problem.segment(x, z, lam, Ax, rho, self.run.alpha, self.run.order, count)
+            out = self.problem.segment(x, z, lam, Ax, rho, self.run.alpha, self.run.order, count, **extra)
         t1 = perf()
+        if self.accel is not None:
+            self.accel.after_segment()
         self.seconds += t1 - t0
         if out is None:
             self.enabled = False
@@ -118,9 +132,9 @@ class FastForward:
 
 
 @functools.lru_cache(maxsize=None)
-def _takes_read(kind: type) -> bool:
-    """Whether ``kind.segment`` takes ``read`` (asked once per class)."""
+def _takes(kind: type, keyword: str) -> bool:
+    """Whether ``kind.segment`` takes ``keyword`` (``read``, ``accel``; asked once per class)."""
     try:
-        return "read" in inspect.signature(kind.segment).parameters
+        return keyword in inspect.signature(kind.segment).parameters
     except (TypeError, ValueError):
         return False

@@ -144,9 +144,10 @@ def solve(
     watch, ledger = Termination(run), Ledger(run)           # the tests; the history, the callback, the taken ||r||
     ctx, rho, rho_changes, every, last = run.ctx, run.rho, 0, run.check_every, run.max_iter - 1
     x, z, lam, Ax = run.x, run.z, run.lam, run.Ax
-    accel = None if accelerator is None else Acceleration(accelerator, run.order, checks.inner_of(problem))
+    accel = None if accelerator is None else Acceleration(accelerator, run.order, checks.inner_of(problem),
+                                                          *_inner_weights(problem, run.z))
     rho_event = RhoEvent(problem, accel)                    # a change of rho, eq. (17) taking effect: one call
-    fast = FastForward(run, enabled=run.compiled and accel is None)    # unread iterations, compiled (segments)
+    fast = FastForward(run, enabled=run.compiled, accel=accel)    # unread iterations, compiled (segments)
     iterate = fast.serve(iterate)                    # ... and a read one the segment ran: its numbers, not a rerun
     rec = final = old = None
     k = 0
@@ -188,6 +189,16 @@ def solve(
     result.acceleration = None if accel is None else accel.summary()
     result.last_record = rec
     return result
+
+
+def _inner_weights(problem, z) -> tuple:
+    """(w, len(z)) when the problem's inner product is the weighted dot product sum_i w_i a_i b_i
+    (``problem.inner_weights()``), else (None, None): an accelerator's steps then use ``problem.inner``."""
+    weights = getattr(problem, "inner_weights", None)
+    w = weights() if callable(weights) else None
+    if w is None or np.shape(w) != np.shape(z):
+        return None, None
+    return w, z.shape[0]
 
 
 def _result(run, x, z, lam, rec, final, stopped_by, rho, rho_changes, timings) -> Result:

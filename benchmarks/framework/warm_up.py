@@ -26,7 +26,7 @@ import numpy as np
 
 def qp_kernels() -> None:
     """Every QP kernel, through ``solve_qp(..., compiled=True)`` on QPs that reach each of them."""
-    from admmkit.linalg.compiled import compiled_code
+    from admmkit.kernels import compiled_code
     from admmkit.problems.qp import solve_qp
     from admmkit.problems.qp.generate import infeasible_qp, random_qp, unbounded_qp
     from admmkit.problems.qp.residuals import neutral_residuals
@@ -72,17 +72,17 @@ GROUPS = (("QP plug-in (solve_qp, the cvxpy and qpsolvers routes)", qp_kernels),
 def kernels_ready() -> int:
     """How many of admmkit's kernels are compiled or loaded in this process (those only other kernels call are
     compiled inside them, or loaded with them from the cache, and not counted)."""
-    from admmkit.linalg.compiled import KERNELS
+    from admmkit.kernels import KERNELS
     return sum(k._dispatcher is not None and bool(k._dispatcher.signatures) for ks in KERNELS.values() for k in ks)
 
 
 def run(args) -> int:
     """Warm every group, a line each; exit code 0."""
-    from admmkit.linalg import compiled
-    if not compiled.AVAILABLE:
+    from admmkit import kernels
+    if not kernels.AVAILABLE:
         print("admmkit warm-up: numba is not installed: every run takes the Python path, nothing to compile")
         return 0
-    compiled._noted = True              # no "compiling ..." note: this command says what it compiles
+    kernels._noted = True              # no "compiling ..." note: this command says what it compiles
     start = time.perf_counter()
     for name, warm in GROUPS:
         t0 = time.perf_counter()

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from admmkit.linalg.compiled import kernel
+from admmkit.kernels import kernel
 
 from .sparse_kernels import _worse      # max(m, abs(v)) that keeps a NaN, as np.max does
 

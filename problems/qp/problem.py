@@ -159,6 +159,14 @@ class QP(Problem):
         rho (a numeric refactorisation of the same pattern with qdldl)."""
         self._solver.prepare(rho)
 
+    def inverse_penalty(self, rho: float) -> np.ndarray:
+        """R^-1 = 1 / :meth:`penalty` (rho): the KKT matrix's last diagonal block is -R^-1 (the same numbers), held for
+        the last rho asked."""
+        held = self.__dict__.get("_inverse_penalty")
+        if held is None or held[0] != rho:
+            held = self._inverse_penalty = (rho, 1.0 / self.penalty(rho))
+        return held[1]
+
     def penalty(self, rho: float) -> np.ndarray:
         """OSQP's rho_vec: rho w_i, and RHO_MIN on free rows under row_weights "osqp" (Q5)."""
         R = rho * (np.ones(self.m) if self.w is None else self.w)
@@ -184,6 +192,7 @@ class QP(Problem):
         """Forget the iterates of a previous run (called by :func:`admmkit.solve` at the start)."""
         self._x_in = self._x_last = self._x_rel = self._x_rel_prev = None
         self._residuals_of = None                 # (record, OSQP's residuals at it): see termination._iterate
+        self._z_tilde = None                      # (x~, z~) of the last KKT x-step (Q6): see apply_A
 
     def x_step(self, z, lam, rho, x):
         """Solve (Q1), in either form (KKT: [P + sigma I, A'; A, -R^-1] [x; v] = [sigma x^k - q; z - R^-1 M lam],
@@ -196,17 +205,18 @@ class QP(Problem):
         self._x_in = x
         relax = self.x_relaxation != 1.0
         xp = self._x_rel if relax and self._x_rel is not None else x
-        x_new = x_step_solution(self, xp, z, lam, rho)                                      # (Q1), (Q5)
+        x_new, z_tilde = x_step_solution(self, xp, z, lam, rho)                            # (Q1), (Q5), (Q6)
+        self._z_tilde = None if z_tilde is None else (x_new, z_tilde)      # A x_new, for apply_A (KKT form)
         if relax:
             a = self.x_relaxation
             self._x_rel_prev, self._x_rel, self._x_last = xp, a * x_new + (1.0 - a) * xp, x_new      # (Q4)
         return x_new
 
-    def segment(self, x, z, lam, Ax, rho, alpha, order, count, read=False):
-        """``count`` iterations in one compiled call (:mod:`admmkit.loop.segments`; ``read``: the last is a read one), or
-        None where it does not apply."""
+    def segment(self, x, z, lam, Ax, rho, alpha, order, count, read=False, accel=None):
+        """``count`` iterations in one compiled call (:mod:`admmkit.loop.segments`; ``read``: the last is a read one;
+        ``accel``: Anderson's steps between them), or None where it does not apply."""
         from .segment import run_segment
-        return run_segment(self, x, z, lam, Ax, rho, alpha, order, count, read)
+        return run_segment(self, x, z, lam, Ax, rho, alpha, order, count, read, accel)
 
     def after_segment(self, x, x_prev, x_rel, x_rel_prev, done: int) -> None:
         """The x-step's bookkeeping after a segment of ``done`` iterations ended at x (its x-step's output)."""
@@ -224,7 +234,11 @@ class QP(Problem):
     def _is_last(self, x) -> bool:
         """``x`` is the last x-step's output (or a view of it, as a record's ``x``)."""
         last = self._x_last
-        return last is not None and (x is last or (x.shape == last.shape and x.ctypes.data == last.ctypes.data))
+        if last is None:
+            return False
+        if x is last or x.base is last:          # itself, or a record's view of it (``ctypes.data`` costs ~2 us)
+            return True
+        return x.shape == last.shape and x.ctypes.data == last.ctypes.data
 
     def delta_x(self, x):
         """x^{k+1} - x^k of the loop's last iterate ``x`` (OSQP's relaxed x under (Q4)), or None if unknown."""
@@ -239,12 +253,22 @@ class QP(Problem):
         return np.minimum(v, self.us, out=v)
 
     def apply_A(self, x):
-        """A x (the scaled A when scaling)."""
+        """A x (the scaled A when scaling); for the last KKT x-step's own output, z~ read off its solve (Q6), as OSQP
+        (the loop asks for A x^{k+1} right after the x-step)."""
+        held = self._z_tilde
+        if held is not None and held[0] is x:
+            self._z_tilde = None                 # read once: a later A x (a warm start's x0) is a product
+            return held[1]
         return products.apply_A(self.As, x)
 
     def inner(self, a, b):
         """(a, b)_M = sum_i w_i a_i b_i."""
         return float(np.dot(a, b)) if self.w is None else float(np.dot(self.w * a, b))
+
+    def inner_weights(self):
+        """w of the inner product (a, b)_M = sum_i w_i a_i b_i (ones under uniform weights): an accelerator's steps
+        use it (``admmkit.loop.anderson_kernel``), the same in the loop and in a segment."""
+        return self._ones[0] if self.w is None else self.w
 
     def norm(self, y):
         """||y||_M."""

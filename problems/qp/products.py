@@ -8,7 +8,7 @@ so on the small Maros-Meszaros problems these wrappers were a visible part of
 a whole solve.  The kernels sum in scipy's order
 (:func:`admmkit.linalg.compiled.csc_matvec`, :func:`admmkit.linalg.compiled.csc_rmatvec`),
 so the iterates are the same bits either way; scipy where compiled code is
-not chosen (:func:`admmkit.linalg.compiled.compiled_now`: a small QP, or numba missing).
+not chosen (:func:`admmkit.kernels.compiled_now`: a small QP, or numba missing).
 """
 from __future__ import annotations
 
@@ -16,7 +16,9 @@ import math
 
 import numpy as np
 
-from admmkit.linalg.compiled import compiled_now, csc_matvec, csc_rmatvec
+from admmkit.kernels import compiled_now
+
+from admmkit.linalg.compiled import csc_matvec, csc_rmatvec
 
 
 def apply_A(A, x: np.ndarray) -> np.ndarray:

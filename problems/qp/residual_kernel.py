@@ -12,7 +12,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from admmkit.linalg.compiled import csc_matvec, kernel
+from admmkit.kernels import kernel
+
+from admmkit.linalg.compiled import csc_matvec
 
 from .residuals import ZERO_DEADZONE
 

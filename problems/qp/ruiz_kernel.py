@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from admmkit.linalg.compiled import kernel
+from admmkit.kernels import kernel
 
 
 @kernel(cache=True, inline="always")

@@ -23,6 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
+from admmkit.kernels import compiled_now
 from admmkit.loop.segments import AVAILABLE as NUMBA      # numba installed (asked once, without importing it)
 
 #: OSQP_MIN_SCALING, OSQP_MAX_SCALING
@@ -141,7 +142,12 @@ def _lift_tiny_rows(Ae: _Entries, E: np.ndarray) -> None:
     OSQP's steps count a norm below MIN_SCALING as 1, so a row of norm 1e-8 stays 1e-8 in the scaled
     problem and rho A'A does not see it.  No Maros-Meszaros row is below TINY_ROW (the smallest is 1e-4),
     so their scalings, and the iterates, are OSQP's."""
-    nu = Ae.row_max()(Ae.matrix.data)
+    if NUMBA and compiled_now():                # one compiled pass (the same maxima), no argsort of the rows
+        from .sparse_kernels import inf_norms
+        M = Ae.matrix
+        nu = inf_norms(M.indptr, M.indices, M.data, M.shape[0])[0]
+    else:
+        nu = Ae.row_max()(Ae.matrix.data)
     tiny = (nu > 0) & (nu < TINY_ROW)
     if tiny.any():
         E[tiny] = np.exp2(-np.round(np.log2(nu[tiny])))

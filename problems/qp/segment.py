@@ -6,9 +6,10 @@ over-relaxation alpha and OSQP's relaxed x (Q4).  One iteration, as
 :meth:`admmkit.problems.qp.QP.x_step`, ``apply_A``,
 ``z_step`` and :mod:`admmkit.loop.steps` compute it::
 
-    [x~; v] = K(rho)^-1 [sigma x^k - q; z^k - lam^k / rho]      (Q1), free rows: z - w lam / 1e-6 (Q5)
+    [x~; v] = K(rho)^-1 b,  b = [sigma x^k - q; z^k - lam^k / rho]   (Q1), free rows: z - w lam / 1e-6 (Q5)
     x^{k+1} = a x~ + (1 - a) x^k                                 (Q4, a = x_relaxation)
-    Ax_hat  = alpha A x~ + (1 - alpha) z^k
+    z~      = b_z + R^-1 v   (= A x~, read off the solve as OSQP does, no product)   (Q6)
+    Ax_hat  = alpha z~ + (1 - alpha) z^k
     z^{k+1} = clip(Ax_hat + lam^k / rho, l, u)                   (Q2)
     lam^{k+1} = lam^k + rho (Ax_hat - z^{k+1})
 
@@ -22,7 +23,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from admmkit.linalg.compiled import AVAILABLE, all_finite, compiled_now, csc_matvec, kernel, ldl_solve
+from admmkit.loop.anderson_kernel import anderson_update
+from admmkit.kernels import AVAILABLE, all_finite, compiled_now, kernel
+from admmkit.linalg.compiled import ldl_solve
 
 #: the size nnz(P) + nnz(A) + n + m from which a QP solve runs compiled code under ``compiled="auto"`` (the
 #: default): below it, importing numba and loading (or, on a fresh install, compiling) the kernels costs more
@@ -41,7 +44,7 @@ def compiled_pays(n: int, m: int, nnz: int) -> bool:
 def kernels_loaded() -> bool:
     """Whether this process has the QP's compiled segment (and with it numba and the other kernels) loaded."""
     dispatcher = _xz_kkt._dispatcher
-    return dispatcher is not None and bool(dispatcher.signatures)
+    return dispatcher is not None and bool(dispatcher.overloads)
 
 
 def choose_compiled(setting, qp) -> tuple[bool, bool]:
@@ -55,15 +58,23 @@ def choose_compiled(setting, qp) -> tuple[bool, bool]:
 
 
 @kernel(cache=True)
-def _xz_kkt(count, rho, alpha, a, sigma, Lp, Li, Lx, Dinv, perm, Ap, Ai, Ad, q, lo, up, free, w_free,
-            x, x_prev, x_rel, x_rel_prev, z, lam, Ax, rhs, sol, work, keep_last, z_last, lam_last, Ax_last, hat):
+def _xz_kkt(count, rho, alpha, a, sigma, Lp, Li, Lx, Dinv, perm, Rinv, q, lo, up, free, w_free,
+            x, x_prev, x_rel, x_rel_prev, z, lam, Ax, rhs, sol, work, keep_last, z_last, lam_last, Ax_last, hat,
+            accelerate, w, safeguard, regularization, s_z, s_lam, ist, before, F_prev, G_prev, plain, dF, dG,
+            gram, g, slots, a_rhs, chol, gamma):
     """``count`` iterations on the state arrays (x, x_prev, x_rel, x_rel_prev, z, lam, Ax), in place;
     returns the number done (fewer if a step would meet a non-finite number).  With ``keep_last``, the
-    last iteration's z, lam, A x in (its x is then x_prev) and its relaxed vector (``hat``) are kept."""
+    last iteration's z, lam, A x in (its x is then x_prev) and its relaxed vector (``hat``) are kept.
+    With ``accelerate``, Anderson's step (``admmkit.loop.anderson_kernel``) follows every iteration but a kept
+    last one (the loop takes that one's), on the state (z, lam), the one it started from kept in ``s_z``, ``s_lam``."""
     n, m = x.shape[0], z.shape[0]
     relax_x, relax = a != 1.0, alpha != 1.0
     for it in range(count):
         last = keep_last and it == count - 1
+        step = accelerate and not last
+        if step:                                                                # s = (z^k, lam^k)
+            for i in range(m):
+                s_z[i], s_lam[i] = z[i], lam[i]
         for i in range(n):
             rhs[i] = sigma * x_rel[i] - q[i]                                    # (Q1)
         for i in range(m):
@@ -87,7 +98,8 @@ def _xz_kkt(count, rho, alpha, a, sigma, Lp, Li, Lx, Dinv, perm, Ap, Ai, Ad, q, 
             else:
                 x_rel_prev[i] = x_rel[i]
                 x_rel[i] = sol[i]
-        csc_matvec(Ap, Ai, Ad, x, Ax)
+        for i in range(m):                                                      # z~ = rhs + R^-1 v (Q6)
+            Ax[i] = rhs[n + i] + Rinv[i] * sol[n + i]
         for i in range(m):
             h = alpha * Ax[i] + (1.0 - alpha) * z[i] if relax else Ax[i]
             if last:
@@ -99,6 +111,9 @@ def _xz_kkt(count, rho, alpha, a, sigma, Lp, Li, Lx, Dinv, perm, Ap, Ai, Ad, q, 
                 v = up[i]
             lam[i] = lam[i] + rho * (h - v)
             z[i] = v
+        if step:                                                                # (A2)-(A3)
+            anderson_update(rho, w, safeguard, regularization, s_z, s_lam, z, lam, z, lam, ist, before, F_prev,
+                            G_prev, plain, dF, dG, gram, g, slots, a_rhs, chol, gamma)
     return count
 
 
@@ -120,8 +135,8 @@ def _kkt_solve(rho, sigma, Lp, Li, Lx, Dinv, perm, q, free, w_free, xp, z, lam, 
 
 
 def kkt_x_step(qp, xp, z, lam, rho: float):
-    """The KKT x-step's solution x~ in one compiled call with qdldl's factors (the same bits as qdldl's solve), or
-    None where it does not apply (compiled code not chosen, :func:`admmkit.linalg.compiled.compiled_now`; another
+    """The KKT x-step's (solution [x~; v], right-hand side) in one compiled call with qdldl's factors (the same bits as qdldl's solve), or
+    None where it does not apply (compiled code not chosen, :func:`admmkit.kernels.compiled_now`; another
     backend; a non-finite number: the Python path then meets it as it would anyway)."""
     if not compiled_now():
         return None
@@ -135,17 +150,32 @@ def kkt_x_step(qp, xp, z, lam, rho: float):
                       np.asarray(lam, dtype=np.float64), rhs, work, sol):
         return None
     qp._solver.solves += 1
-    return sol[:qp.n]
+    return sol, rhs
 
 
-def run_segment(qp, x, z, lam, Ax, rho: float, alpha: float, order: str, count: int, read: bool = False):
+def _scratch(qp):
+    """The kernel's work vectors (rhs, sol, work) of length n + m, made once per QP (nothing reads them after)."""
+    held = qp.__dict__.get("_segment_scratch")
+    if held is None:
+        size = qp.n + qp.m
+        held = qp._segment_scratch = (np.empty(size), np.empty(size), np.empty(size))
+    return held
+
+
+#: placeholders for the kernel's Anderson arrays when it takes no steps (one compiled signature)
+_NO_INTS, _NO_MATRIX = np.zeros(0, dtype=np.int64), np.zeros((0, 0))
+
+
+def run_segment(qp, x, z, lam, Ax, rho: float, alpha: float, order: str, count: int, read: bool = False,
+                accel=None):
     """``count`` iterations of ``qp`` from (x, z, lam, Ax) in one compiled call, or None where the kernel does
     not apply (order "zx", the reduced x-step, a backend other than qdldl, compiled code not chosen).
 
     Returns (x, z, lam, Ax, done) in new arrays; the QP's relaxed-x bookkeeping (Q4) follows, and its
     solve counter grows by ``done``.  ``read``: the last iteration is one the loop reads
     (:mod:`admmkit.loop.segments`); a sixth item, (x, z, lam, A x) it started from and its relaxed vector (None
-    when alpha = 1), is returned, None unless all ``count`` iterations were done.
+    when alpha = 1), is returned, None unless all ``count`` iterations were done.  ``accel``: Anderson's
+    ``kernel_state()`` (:mod:`admmkit.loop.segments`), whose steps follow the iterations (not a read last one's).
     """
     if order != "xz" or qp.xstep != "kkt" or not compiled_now():
         return None
@@ -156,14 +186,18 @@ def run_segment(qp, x, z, lam, Ax, rho: float, alpha: float, order: str, count: 
     a = qp.x_relaxation
     x_rel = np.array(qp._x_rel if a != 1.0 and qp._x_rel is not None else x, dtype=np.float64)
     x_prev, x_rel_prev = np.empty_like(x), np.empty_like(x)
-    size = qp.n + qp.m
-    rhs, sol, work = np.empty(size), np.empty(size), np.empty(size)
-    As = qp.As
+    rhs, sol, work = _scratch(qp)
     m = z.shape[0]
     kept = (np.empty(m), np.empty(m), np.empty(m), np.empty(m)) if read else (work[:0],) * 4
-    done = _xz_kkt(count, float(rho), float(alpha), a, qp.sigma, *factors, As.indptr, As.indices, As.data,
+    if accel is None:
+        anderson = (False, work[:0], 1.0, 0.0, work[:0], work[:0], _NO_INTS, work[:0], work[:0], work[:0],
+                    work[:0], _NO_MATRIX, _NO_MATRIX, _NO_MATRIX, work[:0], _NO_INTS, work[:0], _NO_MATRIX, work[:0])
+    else:
+        w, safeguard, regularization, arrays = accel
+        anderson = (True, w, safeguard, regularization, np.empty(m), np.empty(m), *arrays.args())
+    done = _xz_kkt(count, float(rho), float(alpha), a, qp.sigma, *factors, qp.inverse_penalty(rho),
                    qp.qs, qp.ls, qp.us, qp._free, qp._w_free_over_penalty,
-                   x, x_prev, x_rel, x_rel_prev, z, lam, Ax, rhs, sol, work, read, *kept)
+                   x, x_prev, x_rel, x_rel_prev, z, lam, Ax, rhs, sol, work, read, *kept, *anderson)
     if done:
         qp.after_segment(x, x_prev, x_rel, x_rel_prev, done)
     if not read:

@@ -30,7 +30,7 @@ import numpy as np
 import admmkit
 from admmkit import Result, Status
 from admmkit.loop.checks import number
-from admmkit.linalg.compiled import compiled_code
+from admmkit.kernels import compiled_code
 
 from .polish import polish as polish_solution
 from .problem import QP

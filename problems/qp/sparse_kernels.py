@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from admmkit.linalg.compiled import kernel
+from admmkit.kernels import kernel
 
 
 @kernel(cache=True)
@@ -235,3 +235,22 @@ def neutral_norms(Pp, Pi, Px, q, Ap, Ai, Ax, l, u, x, y):
         quad += x[j] * Pxv[j]
         lin += q[j] * x[j]
     return primal, dual, abs(quad + lin + support)
+
+
+@kernel(cache=True)
+def inf_norms(indptr, indices, data, rows):
+    """(row inf-norms, column inf-norms) of the CSC matrix (indptr, indices, data) with ``rows`` rows, in one pass
+    (the values ``np.maximum.reduceat`` of ``abs`` gives over the rows and the columns: a max is exact)."""
+    n = indptr.shape[0] - 1
+    row = np.zeros(rows)
+    col = np.zeros(n)
+    for j in range(n):
+        c = 0.0
+        for p in range(indptr[j], indptr[j + 1]):
+            a = abs(data[p])
+            if a > c:
+                c = a
+            if a > row[indices[p]]:
+                row[indices[p]] = a
+        col[j] = c
+    return row, col

@@ -76,32 +76,36 @@ def x_step_solver(qp, backend: str) -> CachedFactorization:
     return CachedFactorization(matrix, backend=kkt_backend, in_place=True)
 
 
-def x_step_solution(qp, xp, z, lam, rho: float) -> np.ndarray:
-    """x~ of (Q1) with the free rows' penalty (Q5), from x^k = ``xp`` (OSQP's relaxed x), z^k and lam^k, in the QP's form.
+def x_step_solution(qp, xp, z, lam, rho: float) -> tuple[np.ndarray, np.ndarray | None]:
+    """(x~, z~) of (Q1) with the free rows' penalty (Q5), from x^k = ``xp`` (OSQP's relaxed x), z^k and lam^k, in the
+    QP's form; z~ = A x~ read off the KKT solve (Q6), None in the reduced form.
 
-    kkt: [P + sigma I, A'; A, -R^-1] [x; v] = [sigma x^k - q; z - R^-1 M lam] with R = ``qp.penalty(rho)``,
-    solved in one compiled call on qdldl's factors where it can (the same bits as qdldl's solve);
+    kkt: [P + sigma I, A'; A, -R^-1] [x; v] = b = [sigma x^k - q; z - R^-1 M lam] with R = ``qp.penalty(rho)``,
+    solved in one compiled call on qdldl's factors where it can (the same bits as qdldl's solve); its second
+    row gives A x~ = b_z + R^-1 v, OSQP's z~ (no product with A);
     reduced: (P + sigma I + rho A'MA) x = sigma x^k - q + A'M(rho z - lam).
     """
     if qp.xstep == "kkt":
         from .segment import kkt_x_step
-        x_new = kkt_x_step(qp, xp, z, lam, rho)
-        if x_new is not None:
-            return x_new
         n = qp.n
-        rhs = np.empty(n + qp.m)
-        np.subtract(qp.sigma * xp, qp.qs, out=rhs[:n])
-        np.subtract(z, lam / rho, out=rhs[n:])
-        if qp._free.size:
-            f = qp._free
-            rhs[n + f] = z[f] - qp._w_free_over_penalty * lam[f]
-        return qp._solver.solve(rho, rhs)[:n]
+        solved = kkt_x_step(qp, xp, z, lam, rho)
+        if solved is not None:
+            sol, rhs = solved
+        else:
+            rhs = np.empty(n + qp.m)
+            np.subtract(qp.sigma * xp, qp.qs, out=rhs[:n])
+            np.subtract(z, lam / rho, out=rhs[n:])
+            if qp._free.size:
+                f = qp._free
+                rhs[n + f] = z[f] - qp._w_free_over_penalty * lam[f]
+            sol = qp._solver.solve(rho, rhs)
+        return sol[:n], rhs[n:] + qp.inverse_penalty(rho) * sol[n:]                 # (Q6)
     v = rho * z - lam
     v = v if qp.w is None else qp.w * v
     if qp._free.size:
         f = qp._free
         v[f] = FREE_ROW_PENALTY * z[f] - qp.w[f] * lam[f]
-    return qp._solver.solve(rho, qp.sigma * xp - qp.qs + qp.Ats @ v)
+    return qp._solver.solve(rho, qp.sigma * xp - qp.qs + qp.Ats @ v), None
 
 
 def _kkt_pattern(qp, upper: bool):

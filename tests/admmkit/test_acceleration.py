@@ -126,3 +126,25 @@ def test_names_make_accelerators():
     assert isinstance(make_accelerator("Anderson"), Anderson)
     assert isinstance(make_accelerator("fast"), FastADMM)
     assert make_accelerator(None) is None
+
+
+def test_anderson_backs_off_after_rejections():
+    """After a rejection the next b proposals are plain, b doubling with each rejection (issue #50's safeguard)."""
+    a = Anderson(m=2)
+    a.start()
+    inner = lambda u, v: float(np.dot(u, v))
+    one = np.ones(3)
+    a.propose((0 * one, 0 * one), (one, one), 1.0, inner)
+    a._skip, a._backoff = 0, 4
+    a._fallback = ((one, one), 0.0)                   # pretend s was extrapolated with a residual of 0 before it
+    plain = a.propose((one, one), (2 * one, 2 * one), 1.0, inner)
+    assert a.stats["rejected"] == 1 and plain[0] is one
+    assert a._skip == 4 and a._backoff == 8
+    for k in range(5):        # memory gathers (none at the first), but the four that could extrapolate are plain
+        s = (k * one, k * one)
+        f = ((k + 1) * one, (k + 1) * one + k * k)
+        assert a.propose(s, f, 1.0, inner) is f
+    assert a._skip == 0 and a.stats["extrapolated"] == 0
+    f = (6 * one, 7 * one + 30)
+    assert a.propose((5 * one, 5 * one + 16), f, 1.0, inner) is not f      # then it extrapolates again
+    assert a.stats["extrapolated"] == 1

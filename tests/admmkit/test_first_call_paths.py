@@ -12,14 +12,14 @@ import pytest
 import scipy.sparse as sp
 
 import admmkit
-from admmkit.linalg import compiled
+from admmkit import kernels
 from admmkit.cli import COMMAND_HELP, build_parser, commands, main
 from admmkit.problems.qp import QP, osqp_settings, random_qp, solve_qp
 from admmkit.problems.qp.segment import COMPILED_MIN_SIZE, choose_compiled, compiled_pays
 
 ROOT = Path(__file__).resolve().parents[2]
 HEAVY = ("ngsolve", "matplotlib", "pyamg", "dask", "pandas", "cvxpy")
-needs_numba = pytest.mark.skipif(not compiled.AVAILABLE, reason="numba is not installed")
+needs_numba = pytest.mark.skipif(not kernels.AVAILABLE, reason="numba is not installed")
 
 
 def fresh(code: str, **env) -> dict:
@@ -75,7 +75,7 @@ def test_a_small_qp_runs_numpy_without_numba_and_a_large_one_compiled():
             "                  'compiled': res.counters.get('compiled_iterations', 0)}))")
     out = fresh(code)
     assert out["numba"] is False and out["compiled"] == 0 and "converged" in out["status"]
-    assert compiled_pays(500, 400, COMPILED_MIN_SIZE) == compiled.AVAILABLE
+    assert compiled_pays(500, 400, COMPILED_MIN_SIZE) == kernels.AVAILABLE
 
 
 def test_a_process_that_ran_compiled_keeps_compiled_code_for_small_qps_too():
@@ -87,8 +87,8 @@ def test_a_process_that_ran_compiled_keeps_compiled_code_for_small_qps_too():
             "import json; print(json.dumps({'before': before, 'after': compiled_pays(5, 5, 40),\n"
             "                               'compiled': res.counters.get('compiled_iterations', 0)}))")
     out = fresh(code)
-    assert out["before"] is False and out["after"] is compiled.AVAILABLE
-    assert (out["compiled"] > 0) is compiled.AVAILABLE
+    assert out["before"] is False and out["after"] is kernels.AVAILABLE
+    assert (out["compiled"] > 0) is kernels.AVAILABLE
 
 
 @needs_numba
@@ -113,7 +113,7 @@ def test_a_kernel_as_python_gives_the_compiled_bits():
     out = {}
     for flag in (False, True):
         Pd, Ad, q, D, E = P.data.copy(), A.data.copy(), qp.q.copy(), np.ones(qp.n), np.ones(qp.m)
-        with compiled.compiled_code(flag):
+        with kernels.compiled_code(flag):
             c = ruiz_steps(10, MIN_SCALING, MAX_SCALING, Pd, P.row, P.col, Ad, A.row, A.col, q, D, E)
         out[flag] = np.concatenate([Pd, Ad, q, D, E, [c]])
     assert np.array_equal(out[False].view(np.int64), out[True].view(np.int64))
@@ -125,7 +125,7 @@ def test_the_setting_is_checked():
     assert osqp_settings().compiled == "auto"
     small = random_qp(5, 5, seed=0)
     assert choose_compiled(False, small)[0] is False           # every iteration in Python
-    assert choose_compiled(True, small) == (compiled.AVAILABLE, compiled.AVAILABLE)
+    assert choose_compiled(True, small) == (kernels.AVAILABLE, kernels.AVAILABLE)
 
 
 def test_one_index_dtype_for_every_route():
@@ -146,9 +146,9 @@ def test_import_admmkit_loads_no_numba():
 
 @needs_numba
 def test_a_cold_compile_says_so_once_and_a_cached_one_does_not(tmp_path):
-    code = ("import numpy as np\nfrom admmkit.linalg import compiled\n"
-            "with compiled.compiled_code(True):\n"
-            "    ok = compiled.all_finite(np.ones(3), 0, 3)\n"
+    code = ("import numpy as np\nfrom admmkit import kernels\n"
+            "with kernels.compiled_code(True):\n"
+            "    ok = kernels.all_finite(np.ones(3), 0, 3)\n"
             "import json; print(json.dumps({'ok': bool(ok)}))")
     cold = fresh(code, NUMBA_CACHE_DIR=str(tmp_path))
     assert cold["ok"] and cold["stderr"].count("admmkit warm-up") == 1

@@ -16,7 +16,7 @@ import scipy.sparse.linalg as spla
 
 from admmkit.linalg.amg import AMGPreconditioner, PencilMatrix
 from admmkit.linalg.cg import cg_direction, cg_step, pcg
-from admmkit.linalg.compiled import hand_written, library_kernels
+from admmkit.kernels import hand_written, library_kernels
 from admmkit.linalg.submatrix import principal_submatrix
 from admmkit.linalg.symmetric import pencil_products
 
@@ -42,7 +42,7 @@ def test_the_switch_and_its_environment_variable():
         assert not hand_written()
         with library_kernels(False):
             assert hand_written()
-    code = "from admmkit.linalg.compiled import hand_written; print(hand_written())"
+    code = "from admmkit.kernels import hand_written; print(hand_written())"
     env = dict(os.environ, ADMMKIT_KERNELS="library")
     out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True).stdout
     assert out.strip() == "False"

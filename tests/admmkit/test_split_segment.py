@@ -6,10 +6,10 @@ import scipy.sparse as sp
 
 import admmkit
 from admmkit import QuadraticXStep, SplitProblem, prox
-from admmkit.linalg import compiled
+from admmkit import kernels
 from admmkit.blocks.split_segment import run_segment
 
-pytestmark = pytest.mark.skipif(not compiled.AVAILABLE, reason="numba is not installed: no compiled segment")
+pytestmark = pytest.mark.skipif(not kernels.AVAILABLE, reason="numba is not installed: no compiled segment")
 HAS_QDLDL = "qdldl" in admmkit.linalg.linsolve.available_backends()
 rng = np.random.default_rng(25)
 N, P_ROWS = 30, 40

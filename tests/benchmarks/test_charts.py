@@ -5,6 +5,7 @@ from pathlib import Path
 
 import matplotlib.pyplot as plt
 import numpy as np
+import pytest
 
 from admmkit.benchmarks.rules import report as rank_report
 from admmkit.benchmarks.adaptive.charts import error_figure, levels_figure, read_rows, redraw
@@ -53,6 +54,7 @@ def test_read_rows_gives_back_numbers_and_nan(tmp_path):
     assert math.isnan(b["true_error"]) and b["a_error"] == 0.25
 
 
+@pytest.mark.study   # the whole chart redraw
 def test_redraw_writes_both_charts_from_the_csv(tmp_path):
     (tmp_path / "adaptive.csv").write_text(STUDY.read_text())
     assert [p.name for p in redraw(tmp_path)] == ["adaptive.png", "adaptive_levels.png"]

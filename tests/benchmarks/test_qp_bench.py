@@ -103,6 +103,7 @@ def test_one_run_gives_the_looser_accuracy_of_a_run_stopped_there(variant, order
         assert np.linalg.norm(tight.x - x_ref) <= 1e-3 * max(1.0, np.linalg.norm(x_ref))
 
 
+@pytest.mark.study   # the whole Maros-Meszaros study, smoke-sized
 def test_benchmark_smoke(tmp_path, capsys):
     data = tmp_path / "data"
     data.mkdir()

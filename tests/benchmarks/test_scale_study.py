@@ -13,6 +13,7 @@ def accuracy_in_process(monkeypatch):
                         scale_runs.run_case(example, h, mode, accuracy=True) | {"wall_s": 0.0})
 
 
+@pytest.mark.study   # bench scale end to end, child processes
 def test_bench_scale_reports_zz_estimate_algebraic_error_and_error_against_finest(tmp_path, accuracy_in_process):
     from admmkit.benchmarks.contact.scale import run_scale_bench
     rows = run_scale_bench(out=tmp_path, hs=(1 / 5, 1 / 10, 1 / 20))
@@ -35,6 +36,7 @@ def test_bench_scale_reports_zz_estimate_algebraic_error_and_error_against_fines
     assert f"| 1/20 | 1680 | converged | {fine['last_change']:.2e} | {fine['alg_error']:.2e} | " in text
 
 
+@pytest.mark.study   # bench scale end to end, child processes
 def test_the_child_process_measures_accuracy_only_when_asked_and_a_continued_run_agrees_with_the_reference(
         monkeypatch):
     from admmkit.benchmarks.contact import scale_runs

@@ -18,6 +18,9 @@ import pytest
 from admmkit.benchmarks.framework.executors import run_case, tiny_cases
 from admmkit.benchmarks.runner.sweep import Executor, case_id, load_results, run_sweep
 
+#: a LocalCluster of worker processes, killed and restarted: minutes on 2 cores, run by `-m study` (CI)
+pytestmark = pytest.mark.study
+
 FUNC = f"{__name__}:paced_case"
 
 

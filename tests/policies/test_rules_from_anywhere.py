@@ -121,6 +121,7 @@ def test_bench_policies_refuses_a_bad_rule_before_any_case(rule_file, tmp_path, 
     assert not (tmp_path / "o" / "results.jsonl").exists()
 
 
+@pytest.mark.study   # a Dask LocalCluster end to end
 def test_a_rule_file_gives_the_same_results_on_a_dask_local_cluster(rule_file, tmp_path):
     pytest.importorskip("distributed")
     from admmkit.benchmarks.policies.study import run

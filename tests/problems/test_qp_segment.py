@@ -6,7 +6,7 @@ import pytest
 
 import admmkit
 from admmkit import Policy
-from admmkit.linalg import compiled
+from admmkit import kernels
 from admmkit.policies import Fixed, OSQPRule, Summable
 from admmkit.problems.qp import load_mat, osqp_settings, random_qp, solve_qp
 from admmkit.problems.qp.generate import infeasible_qp, unbounded_qp
@@ -14,7 +14,7 @@ from admmkit.problems.qp.segment import run_segment
 from admmkit.problems.qp.solve import qp_for
 
 MM = Path(__file__).resolve().parents[3] / "shared" / "data" / "maros_meszaros"
-pytestmark = pytest.mark.skipif(not compiled.AVAILABLE, reason="numba is not installed: no compiled segment")
+pytestmark = pytest.mark.skipif(not kernels.AVAILABLE, reason="numba is not installed: no compiled segment")
 
 
 def same_run(a, b):
@@ -189,3 +189,83 @@ def test_a_fixed_rho_without_a_policy_runs_in_segments():
     fast, slow = solve_qp(qp, policy=None, compiled=True), solve_qp(qp, policy=None, compiled=False)
     assert fast.counters.get("compiled_iterations", 0) > 0 and "compiled_iterations" not in slow.counters
     assert fast.iterations == slow.iterations and np.array_equal(fast.x, slow.x)
+
+
+def test_the_kkt_x_step_reads_z_tilde_off_its_solve(monkeypatch):
+    """OSQP's z~ = b_z + R^-1 v (Q6): the KKT form's A x~ comes from the solve, no product with A, on both paths."""
+    from admmkit.problems.qp import products
+    qp = qp_for(random_qp(20, 30, seed=11), osqp_settings())
+
+    def no_product(*args):
+        raise AssertionError("A x computed by a product after a KKT x-step")
+    monkeypatch.setattr(products, "apply_A", no_product)
+    for flag in (False, True):
+        with kernels.compiled_code(flag):
+            qp.begin_run()
+            rng = np.random.default_rng(0)
+            x, z, lam = rng.standard_normal(qp.n), rng.standard_normal(qp.m), rng.standard_normal(qp.m)
+            x1 = qp.x_step(z, lam, 0.1, x)
+            z_tilde = qp.apply_A(x1)
+            # the second block row of the KKT system: A x~ - R^-1 v = z - R^-1 M lam
+            assert np.allclose(z_tilde, qp.As @ x1, rtol=1e-8, atol=1e-10)
+    monkeypatch.undo()
+    assert np.array_equal(qp.apply_A(np.ones(qp.n)), qp.As @ np.ones(qp.n))     # any other x: the product
+
+
+def test_a_warm_kernel_call_does_not_list_numba_signatures(monkeypatch):
+    """A kernel's call asks numba's dispatcher for its compiled overloads, not ``signatures`` (a list of hashed
+    types built anew at every call: 0.1 ms, 32 calls in a small QP's solve)."""
+    from admmkit.kernels import all_finite
+    with kernels.compiled_code(True):
+        all_finite(np.ones(3), 0, 3)
+        kind = type(all_finite._dispatcher)
+        monkeypatch.setattr(kind, "signatures", property(lambda self: pytest.fail("signatures listed")))
+        assert all_finite(np.ones(3), 0, 3)
+
+
+@pytest.mark.parametrize("make", [lambda: random_qp(40, 60, seed=1), lambda: random_qp(25, 40, kind="lp", seed=3)],
+                         ids=["mixed", "lp"])
+def test_anderson_runs_in_the_segment_bit_for_bit(make):
+    """Anderson's steps on the compiled path (issue #50): the segment takes them between its iterations, with the
+    loop's kernel, so a run is the Python loop's bit for bit and most of its iterations are compiled."""
+    qdldl_or_skip()
+    qp = make()
+    for eps in (1e-3, 1e-7):
+        fast = solve_qp(qp, compiled=True, acceleration="anderson", eps_abs=eps, eps_rel=eps)
+        slow = solve_qp(qp, compiled=False, acceleration="anderson", eps_abs=eps, eps_rel=eps)
+        same_run(fast, slow)
+        assert fast.acceleration == slow.acceleration and fast.acceleration["extrapolated"] > 0
+        assert fast.counters["compiled_iterations"] >= fast.iterations - 2 * (fast.iterations // 25 + 1)
+
+
+@pytest.mark.skipif(not MM.is_dir(), reason="Maros-Meszaros data not present")
+@pytest.mark.parametrize("name", ["HS268", "S268"])
+def test_anderson_does_not_lose_what_plain_admm_solves(name):
+    """HS268 and S268 at 1e-6: plain ADMM solves them in 250 iterations; Anderson stalled at the cap (1310 of 1376
+    extrapolations rejected).  The safeguard's back-off now makes it plain ADMM with rare probes: solved, the
+    safeguard having fired, on both paths alike."""
+    qdldl_or_skip()
+    qp = load_mat(MM / f"{name}.mat")
+    plain = solve_qp(qp, compiled=True, eps_abs=1e-6, eps_rel=1e-6)
+    fast = solve_qp(qp, compiled=True, acceleration="anderson", eps_abs=1e-6, eps_rel=1e-6)
+    assert plain.termination == "solved" and fast.termination == "solved"
+    assert fast.iterations <= 2 * plain.iterations
+    assert fast.acceleration["rejected"] > 0 and fast.acceleration["extrapolated"] > 0
+    same_run(fast, solve_qp(qp, compiled=False, acceleration="anderson", eps_abs=1e-6, eps_rel=1e-6))
+
+
+def test_fast_admm_still_runs_in_python():
+    """Restarted fast ADMM takes its steps in Python only: no segment runs with it."""
+    qdldl_or_skip()
+    res = solve_qp(random_qp(20, 30, seed=2), compiled=True, acceleration="fast")
+    assert "compiled_iterations" not in res.counters
+
+
+def test_z_tilde_is_read_once():
+    """The loop asks for A x~ once, right after the x-step; any later A x of the same array (a warm start's x0)
+    is the product, as OSQP's warm start computes z = A x."""
+    qp = qp_for(random_qp(10, 15, seed=4), osqp_settings())
+    qp.begin_run()
+    x1 = qp.x_step(np.zeros(qp.m), np.ones(qp.m), 0.1, np.zeros(qp.n))
+    first = qp.apply_A(x1)
+    assert np.array_equal(qp.apply_A(x1), qp.As @ x1) and first is not None

@@ -4,6 +4,7 @@ import pytest
 import scipy.sparse as sp
 
 pytest.importorskip("numba")
+from admmkit import kernels  # noqa: E402
 from admmkit.problems.qp import QP, kkt, residuals, validate, xstep_forms  # noqa: E402
 
 
@@ -107,9 +108,11 @@ def test_the_compiled_x_step_is_qdldls_solve_bit_for_bit(seed, monkeypatch):
     qp = awkward_qp(seed, scaling=10, row_weights="osqp", xstep="kkt", backend="qdldl")
     rng = np.random.default_rng(seed)
     xp, z, lam = rng.standard_normal(qp.n), rng.standard_normal(qp.m), rng.standard_normal(qp.m)
-    got = xstep_forms.x_step_solution(qp, xp, z, lam, 0.37)
+    got = xstep_forms.x_step_solution(qp, xp, z, lam, 0.37)          # (x~, z~)
     monkeypatch.setattr(segment, "AVAILABLE", False)              # the Python path: qdldl's own solve
-    assert np.array_equal(got, xstep_forms.x_step_solution(qp, xp, z, lam, 0.37))
+    with kernels.compiled_code(False):
+        want = xstep_forms.x_step_solution(qp, xp, z, lam, 0.37)
+    assert np.array_equal(got[0], want[0]) and np.array_equal(got[1], want[1])
 
 
 def test_a_qp_builds_its_scaled_data_only_when_used():
@@ -153,7 +156,7 @@ def test_a_small_dense_p_is_judged_by_dense_cholesky_as_by_its_eigenvalues(seed)
 @pytest.mark.parametrize("seed", range(30))
 @pytest.mark.parametrize("scaling", [0, 10])
 def test_the_loops_products_are_scipys_bit_for_bit(seed, scaling):
-    from admmkit.linalg.compiled import compiled_code
+    from admmkit.kernels import compiled_code
     qp = awkward_qp(seed, scaling=scaling, row_weights="osqp")
     rng = np.random.default_rng(seed)
     x, y = rng.standard_normal(qp.n), rng.standard_normal(qp.m)
@@ -170,3 +173,19 @@ def test_a_factorised_matrix_is_left_as_the_caller_gave_it():
     M = sp.csc_matrix((np.array([1.0, 1.0, 3.0]), np.array([0, 0, 1]), np.array([0, 2, 3])), shape=(2, 2))
     x = factorize(M, "superlu")(np.array([2.0, 3.0]))
     assert np.allclose(x, [1.0, 1.0]) and M.nnz == 3       # the duplicate summed in a copy, not in M
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_inf_norms_are_numpys(seed):
+    """Row and column inf-norms of a CSC matrix in one compiled pass: numpy's maxima, and those of the pure
+    Python run of the same kernel."""
+    from admmkit.problems.qp.sparse_kernels import inf_norms
+    M = sp.random(30, 17, 0.2, format="csc", random_state=seed) - 0.5 * sp.random(30, 17, 0.1, format="csc",
+                                                                                  random_state=seed + 9)
+    M = sp.csc_matrix(M)
+    rows, cols = inf_norms(M.indptr, M.indices, M.data, M.shape[0])
+    assert np.array_equal(rows, abs(M).max(axis=1).toarray().ravel())
+    assert np.array_equal(cols, abs(M).max(axis=0).toarray().ravel())
+    with kernels.compiled_code(False):
+        again = inf_norms(M.indptr, M.indices, M.data, M.shape[0])
+    assert np.array_equal(again[0], rows) and np.array_equal(again[1], cols)

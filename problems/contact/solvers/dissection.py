@@ -28,7 +28,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from admmkit.linalg.compiled import AVAILABLE, njit
+from admmkit.kernels import AVAILABLE, njit
 
 #: sets of at most this many dofs are not split (16 was the fastest factorisation of 8, 16, 32 at
 #: Examples 1 and 2, h = 1/40 and 1/100)

@@ -81,7 +81,7 @@ def available_schur_backends() -> tuple[str, ...]:
         out.append("cholmod")
     except ImportError:
         pass
-    from admmkit.linalg.compiled import AVAILABLE
+    from admmkit.kernels import AVAILABLE
     return tuple(out + (["ldl"] if AVAILABLE else []) + ["superlu"])
 
 

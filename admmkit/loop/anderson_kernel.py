@@ -1,0 +1,181 @@
+"""Anderson's update (eqs. (A2)-(A3) of :mod:`admmkit.loop.acceleration`) as one kernel on arrays, for the loop and segments.
+
+A problem whose inner product is a weighted dot product, (a, b)_M = sum_i
+w_i a_i b_i (``problem.inner_weights()``: the QP's row weights), has its
+Anderson steps made here, by :func:`anderson_update`, from the loop's
+Python iteration and from the problem's compiled segment alike: the same
+kernel, the same operations in the same order, so a run with Anderson is
+the same bit for bit whether its iterations run in Python or in a segment
+(:mod:`admmkit.loop.segments`).  Without numba the kernel runs as Python (the same
+bits, slower).
+
+The state s = (u, lam) comes as its two arrays (a segment's z and lam,
+updated in place); the memory holds stacked rows [u; lam] of length 2 m; the
+norm (A1) is ||s||_W^2 = rho sum_i w_i u_i^2 + sum_i w_i lam_i^2 / rho.  The
+memory is a ring of ``m`` difference pairs (dF, dG) with their Gram matrix;
+(A2) is solved by a Cholesky factorisation of the Gram matrix plus
+``regularization`` times its largest diagonal entry (no extrapolation when it
+is not positive definite or a number is not finite).
+
+The safeguard (SCS 3): an extrapolated state whose residual ||g||_W exceeds
+``safeguard`` times that of the state before it is rejected, the memory is
+cleared and the run goes on from the plain image of the state before it.
+Rejections back off: after a rejection the next ``b`` proposals are plain
+(memory still gathered), b doubling with each rejection that follows (up to
+BACKOFF_MAX) and back to 1 after an accepted extrapolation.  So where
+extrapolation keeps failing (HS268 at 1e-6: 1310 of 1376 rejected, the run
+stalled at the cap) the iteration becomes plain ADMM with rare probes, and
+converges as plain ADMM does.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..kernels import kernel
+
+#: the longest run of plain proposals after a rejection (the back-off doubles up to it)
+BACKOFF_MAX = 1024
+#: the slots of the integer state ``ist``
+STORED, NEXT, HAVE_PREV, PENDING, EXTRAPOLATED, REJECTED, SKIP, BACKOFF = range(8)
+INT_SLOTS = 8
+
+
+@kernel(cache=True, inline="always")
+def _wsum(w, a, b, rho):
+    """rho sum_i w_i a_i b_i over the first half of the stacked vectors a, b plus the second half's over rho."""
+    m = w.shape[0]
+    su = 0.0
+    for i in range(m):
+        su += w[i] * a[i] * b[i]
+    sl = 0.0
+    for i in range(m):
+        sl += w[i] * a[m + i] * b[m + i]
+    return rho * su + sl / rho
+
+
+@kernel(cache=True)
+def _solve_gram(gram, count, regularization, rhs, chol, gamma):
+    """gamma = (G + reg max diag(G) I)^-1 rhs over the first ``count`` slots, by Cholesky; False if it fails."""
+    top = 0.0
+    for a in range(count):
+        top = max(top, gram[a, a])
+    shift = regularization * top
+    for a in range(count):                                  # chol = lower Cholesky factor
+        for b in range(a + 1):
+            s = gram[a, b] + (shift if a == b else 0.0)
+            for c in range(b):
+                s -= chol[a, c] * chol[b, c]
+            if a == b:
+                if not (s > 0.0) or not np.isfinite(s):
+                    return False
+                chol[a, a] = math.sqrt(s)
+            else:
+                chol[a, b] = s / chol[b, b]
+    for a in range(count):                                  # forward: chol y = rhs
+        s = rhs[a]
+        for c in range(a):
+            s -= chol[a, c] * gamma[c]
+        gamma[a] = s / chol[a, a]
+    for a in range(count - 1, -1, -1):                      # backward: chol' gamma = y
+        s = gamma[a]
+        for c in range(a + 1, count):
+            s -= chol[c, a] * gamma[c]
+        gamma[a] = s / chol[a, a]
+    for a in range(count):
+        if not np.isfinite(gamma[a]):
+            return False
+    return True
+
+
+@kernel(cache=True)
+def anderson_update(rho, w, safeguard, regularization, s_u, s_l, f_u, f_l, out_u, out_l, ist, before, F_prev,
+                    G_prev, plain, dF, dG, gram, g, slots, rhs, chol, gamma):
+    """The next state (``out_u``, ``out_l``; they may be ``f_u``, ``f_l`` themselves) from the state (``s_u``,
+    ``s_l``) an iteration started from and its image (``f_u``, ``f_l``); the memory (``dF``, ``dG``, ``gram``,
+    ``F_prev``, ``G_prev``: stacked [u; lam] rows), the fallback (``plain``, ``before[0]``) and the counters
+    ``ist`` are updated in place (``slots`` is unused scratch).  See the module docstring."""
+    m = w.shape[0]
+    mem = dF.shape[0]
+    su = sl = 0.0
+    for i in range(m):                                      # g = f - s and ||g||_W, one pass
+        a = f_u[i] - s_u[i]
+        b = f_l[i] - s_l[i]
+        g[i], g[m + i] = a, b
+        su += w[i] * a * a
+        sl += w[i] * b * b
+    g_norm = math.sqrt(max(rho * su + sl / rho, 0.0))
+    if ist[PENDING] == 1:                                   # s was extrapolated: the safeguard looks at it
+        ist[PENDING] = 0
+        if not g_norm <= safeguard * before[0]:             # NaN counts as a rejection
+            ist[REJECTED] += 1
+            ist[STORED] = ist[NEXT] = ist[HAVE_PREV] = 0
+            ist[SKIP] = ist[BACKOFF]
+            ist[BACKOFF] = min(2 * ist[BACKOFF], BACKOFF_MAX)
+            for i in range(m):
+                out_u[i], out_l[i] = plain[i], plain[m + i]
+            return
+        ist[BACKOFF] = 1
+    p = -1
+    if ist[HAVE_PREV] == 1:                                 # push (f - f_prev, g - g_prev) into the ring
+        p = ist[NEXT]
+        for i in range(m):
+            dF[p, i] = f_u[i] - F_prev[i]
+            dF[p, m + i] = f_l[i] - F_prev[m + i]
+            dG[p, i] = g[i] - G_prev[i]
+            dG[p, m + i] = g[m + i] - G_prev[m + i]
+        ist[NEXT] = (p + 1) % mem
+        ist[STORED] = min(ist[STORED] + 1, mem)
+    for i in range(m):
+        F_prev[i], F_prev[m + i] = f_u[i], f_l[i]
+    for i in range(2 * m):
+        G_prev[i] = g[i]
+    ist[HAVE_PREV] = 1
+    count = ist[STORED]
+    extrapolate = count > 0 and ist[SKIP] == 0
+    if ist[SKIP] > 0 and count > 0:                         # backing off after a rejection: plain
+        ist[SKIP] -= 1
+    for q in range(count):                                  # the new Gram row and (A2)'s right side, one pass each
+        if p >= 0:
+            gram[p, q] = gram[q, p] = _wsum(w, dG[p], dG[q], rho)
+        if extrapolate:
+            rhs[q] = _wsum(w, dG[q], g, rho)
+    if not extrapolate or not _solve_gram(gram, count, regularization, rhs, chol, gamma):
+        for i in range(m):
+            out_u[i], out_l[i] = f_u[i], f_l[i]
+        return
+    for i in range(m):                                      # the fallback, then (A3) in place
+        plain[i], plain[m + i] = f_u[i], f_l[i]
+        out_u[i], out_l[i] = f_u[i], f_l[i]
+    before[0] = g_norm
+    for a in range(count):
+        c = gamma[a]
+        for i in range(m):
+            out_u[i] -= c * dF[a, i]
+            out_l[i] -= c * dF[a, m + i]
+    ist[PENDING] = 1
+    ist[EXTRAPOLATED] += 1
+
+
+class AndersonArrays:
+    """The arrays :func:`anderson_update` works on, for memory ``mem`` and states of length ``n`` (= 2 m)."""
+
+    def __init__(self, mem: int, n: int) -> None:
+        self.ist = np.zeros(INT_SLOTS, dtype=np.int64)
+        self.ist[BACKOFF] = 1
+        self.before = np.zeros(1)
+        self.F_prev, self.G_prev, self.plain, self.g = (np.zeros(n) for _ in range(4))
+        self.dF, self.dG = np.zeros((mem, n)), np.zeros((mem, n))
+        self.gram, self.chol = np.zeros((mem, mem)), np.zeros((mem, mem))
+        self.slots = np.zeros(mem, dtype=np.int64)
+        self.rhs, self.gamma = np.zeros(mem), np.zeros(mem)
+
+    def reset(self) -> None:
+        """Clear the memory and the pending fallback (the counters and the back-off stay)."""
+        self.ist[STORED] = self.ist[NEXT] = self.ist[HAVE_PREV] = self.ist[PENDING] = 0
+
+    def args(self):
+        """The arrays in :func:`anderson_update`'s order, after ``out``."""
+        return (self.ist, self.before, self.F_prev, self.G_prev, self.plain, self.dF, self.dG, self.gram,
+                self.g, self.slots, self.rhs, self.chol, self.gamma)
