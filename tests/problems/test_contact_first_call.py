@@ -70,3 +70,10 @@ def test_compiled_true_keeps_the_ldl_path(example):
     assert a.iterations == b.iterations
     assert np.abs(a.x - b.x).max() <= 1e-10 * np.abs(a.x).max()
     assert np.allclose(a.lam, b.lam, rtol=1e-8, atol=1e-10 * np.abs(a.lam).max())
+
+
+def test_compiled_is_checked_in_every_mode():
+    ops = assemble(example1(h=1 / 5))
+    for mode in ("full", "condensed", "auto"):
+        with pytest.raises(ValueError, match="compiled must be 'auto', True or False, got 'yes'"):
+            contact_problem(ops, mode, compiled="yes")

@@ -256,6 +256,8 @@ def contact_problem(ops: ContactOperators, mode: str = "auto", backend: str = "a
     """
     if mode not in MODES:
         raise ValueError(f"mode must be one of {', '.join(MODES)}, got {mode!r}")
+    if compiled not in ("auto", True, False):
+        raise ValueError(f"compiled must be 'auto', True or False, got {compiled!r}")
     if mode == "auto":
         mode = auto_mode(ops, backend)
     if mode == "iterative":
