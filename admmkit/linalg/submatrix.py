@@ -7,13 +7,24 @@ unknowns (Example 1, 14e6 entries) ``K[free][:, free]`` took 0.9 s and the
 node renumbering ``K[perm][:, perm]`` 1.0 s; :func:`principal_submatrix`
 gives the same matrix (the same values at the same places, rows sorted) in a
 single pass per row, sorting each short row by insertion.
+
+Compiled only where it pays (issue #49): importing numba and loading these
+two kernels costs about 0.7 s in a fresh process, where scipy's two steps
+take 1 ms at Example 1, h = 1/40 (6,560 unknowns).  So ``compiled="auto"``
+runs compiled when numba is imported in the process already or A has at least
+:data:`COMPILED_MIN_NNZ` entries, and scipy otherwise: the same matrix, array
+for array.
 """
 from __future__ import annotations
 
 import numpy as np
 import scipy.sparse as sp
 
-from ..kernels import _u, hand_written, njit
+from ..kernels import _u, compiled_now, hand_written, njit
+
+#: from this many entries of A, ``compiled="auto"`` takes the compiled pass even in a process without numba:
+#: scipy's two steps cost about 64 ns an entry (0.9 s at 14e6), the compiled pass 7 ns plus ~0.7 s once
+COMPILED_MIN_NNZ = 2_000_000
 
 
 @njit(cache=True)
@@ -49,12 +60,14 @@ def _fill_rows(indptr, indices, data, rows, position, out_indptr, out_indices, o
                 w += 1
 
 
-def principal_submatrix(A, index) -> sp.csr_matrix:
+def principal_submatrix(A, index, compiled="auto") -> sp.csr_matrix:
     """B = A[index][:, index] in CSR with sorted rows: b_ij = a_(index_i, index_j).
 
     ``index``: distinct row numbers of the square matrix A (a selection such as
     the free dofs, or a permutation).  The values are copied, never summed, so
     B holds exactly A's numbers; A's duplicate entries, if any, stay duplicates.
+    ``compiled``: True (the compiled pass, when numba is installed), False
+    (scipy's fancy indexing) or "auto" (see the module docstring); the same B.
     """
     A = A if sp.issparse(A) and A.format == "csr" else sp.csr_matrix(A)
     n = A.shape[0]
@@ -69,7 +82,11 @@ def principal_submatrix(A, index) -> sp.csr_matrix:
     position[index] = np.arange(index.size)
     if np.count_nonzero(position >= 0) != index.size:
         raise ValueError("index must not repeat a row")
-    if not hand_written():      # scipy's indexing: the library path (no numba, or library_kernels())
+    if compiled not in ("auto", True, False):
+        raise ValueError(f"compiled must be 'auto', True or False, got {compiled!r}")
+    if compiled == "auto":
+        compiled = compiled_now() or A.nnz >= COMPILED_MIN_NNZ
+    if not (hand_written() and compiled):   # scipy's indexing: the library path (no numba, library_kernels())
         return sp.csr_matrix(A[index][:, index], copy=True).sorted_indices()
     rows = index.astype(np.int64)
     indptr = np.asarray(A.indptr, dtype=np.int64)

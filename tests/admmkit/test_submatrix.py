@@ -51,3 +51,16 @@ def test_bad_index_is_named(index, message):
 def test_non_square_is_refused():
     with pytest.raises(ValueError, match="square"):
         principal_submatrix(sp.csr_matrix(np.ones((2, 3))), np.array([0]))
+
+
+@pytest.mark.parametrize("compiled", [True, False, "auto"])
+def test_every_setting_gives_the_same_arrays(compiled):
+    """Issue #49: scipy's fancy indexing for a small matrix in a process without numba, the same B."""
+    A, rng = _matrix(80, seed=3)
+    index = rng.permutation(80)[:50]
+    B, ref = principal_submatrix(A, index, compiled=compiled), principal_submatrix(A, index, compiled=True)
+    for attr in ("indptr", "indices", "data"):
+        assert np.array_equal(getattr(B, attr), getattr(ref, attr)) and getattr(B, attr).dtype == getattr(ref, attr).dtype
+    assert B.has_sorted_indices
+    with pytest.raises(ValueError, match="compiled must be 'auto', True or False"):
+        principal_submatrix(A, index, compiled="fast")

@@ -117,3 +117,34 @@ def test_permute_symmetric_is_scipys_fancy_indexing_sorted(ops):
     for bad in (order[:-1], np.r_[order[:-1], order[0]], np.r_[order[:-1], K.shape[0]]):
         with pytest.raises(ValueError, match="order"):
             permute_symmetric(K, bad)
+
+
+@pytest.mark.parametrize("leaf", [16, 4, 1, 10**6])
+@pytest.mark.parametrize("name, h, fe_order", [("ex1", 1 / 10, 1), ("ex2", 1 / 10, 1), ("ex1", 1 / 8, 2)])
+def test_the_numpy_twin_orders_as_the_kernel(name, h, fe_order, leaf):
+    """Issue #49: a small body is ordered without numba, in the very order of the compiled dissection."""
+    from admmkit.problems.contact import example1, example2
+    from admmkit.problems.contact.solvers.dissection import use_kernels
+    if not use_kernels(1, True):
+        pytest.skip("numba is not installed")
+    ops = assemble({"ex1": example1, "ex2": example2}[name](h=h, order=fe_order))
+    K, X = ops.K.tocsc(), ops.dof_coordinates()
+    for dofs in (np.arange(K.shape[0]), np.random.default_rng(1).permutation(K.shape[0])[: K.shape[0] // 2 + 3]):
+        compiled = nested_dissection(K, dofs, X, leaf=leaf, compiled=True)
+        twin = nested_dissection(K, dofs, X, leaf=leaf, compiled=False)
+        assert np.array_equal(compiled, twin)
+    order = np.random.default_rng(2).permutation(K.shape[0])
+    a, b = permute_symmetric(K, order, compiled=True), permute_symmetric(K, order, compiled=False)
+    for attr in ("indptr", "indices", "data"):
+        assert np.array_equal(getattr(a, attr), getattr(b, attr)) and getattr(a, attr).dtype == getattr(b, attr).dtype
+
+
+def test_twin_on_degenerate_sets():
+    K = sp.csc_matrix(sp.eye(30) + sp.eye(30, k=1) + sp.eye(30, k=-1))
+    X = np.zeros((30, 2))
+    X[:, 0] = np.repeat(np.arange(3), 10)                   # ten dofs on each of three points: ties everywhere
+    for leaf in (1, 2, 16):
+        assert np.array_equal(nested_dissection(K, np.arange(30), X, leaf=leaf, compiled=False),
+                              nested_dissection(K, np.arange(30), X, leaf=leaf, compiled=True))
+    with pytest.raises(ValueError, match="compiled must be"):
+        nested_dissection(K, np.arange(30), X, compiled="no")

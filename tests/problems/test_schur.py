@@ -91,17 +91,34 @@ def test_ldl_and_superlu_give_the_same_schur_and_solves(ops):
     assert set(ldl.timings) == {"ordering", "factorisation", "schur"}
 
 
-def test_auto_picks_ldl_or_superlu_by_the_mean_column_length(ops, monkeypatch):
+def test_auto_with_compiled_picks_ldl_or_superlu_by_the_mean_column_length(ops, monkeypatch):
     from admmkit.problems.contact.solvers import schur as module
     if available_schur_backends()[0] == "cholmod":
         pytest.skip("auto takes CHOLMOD here")
+    if "ldl" not in available_schur_backends():
+        pytest.skip("numba is not installed")
     X = ops.dof_coordinates()
-    assert BoundarySchur(ops.K, ops.B, coordinates=X).backend == "ldl"   # h = 1/10: short columns
+    assert BoundarySchur(ops.K, ops.B, coordinates=X, compiled=True).backend == "ldl"   # h = 1/10: short columns
     monkeypatch.setattr(module, "LDL_MAX_COLUMN_LENGTH", 1.0)
-    assert BoundarySchur(ops.K, ops.B, coordinates=X).backend == "superlu"
+    assert BoundarySchur(ops.K, ops.B, coordinates=X, compiled=True).backend == "superlu"
     monkeypatch.setattr(module, "LDL_MAX_COLUMN_LENGTH", 1e9)
     monkeypatch.setattr(module, "LDL_MAX_DOFS", 10)
-    assert BoundarySchur(ops.K, ops.B, coordinates=X).backend == "superlu"
+    assert BoundarySchur(ops.K, ops.B, coordinates=X, compiled=True).backend == "superlu"
+
+
+@pytest.mark.parametrize("compiled", ["auto", False])
+def test_auto_takes_superlu_unless_compiled_is_true(ops, compiled):
+    """Issue #49: the compiled ldl costs a fresh process ~0.7 s of numba for a few ms saved, so "auto" (without
+    CHOLMOD) takes SuperLU unless compiled=True; its order is the same with the kernels or their numpy twins."""
+    if available_schur_backends()[0] == "cholmod":
+        pytest.skip("auto takes CHOLMOD here")
+    X = ops.dof_coordinates()
+    auto = BoundarySchur(ops.K, ops.B, coordinates=X, compiled=compiled)
+    ref = BoundarySchur(ops.K, ops.B, coordinates=X, backend="superlu", compiled=True)
+    assert auto.backend == "superlu" and np.array_equal(auto.order, ref.order)
+    assert np.array_equal(auto.S, ref.S) and np.array_equal(auto.compliance(ops.B), ref.compliance(ops.B))
+    with pytest.raises(ValueError, match="compiled must be 'auto', True or False"):
+        BoundarySchur(ops.K, ops.B, coordinates=X, compiled="yes")
 
 
 def test_indefinite_K_is_reported_by_ldl(ops):

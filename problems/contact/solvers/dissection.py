@@ -21,6 +21,17 @@ minimum degree at h = 1/40, in under a millisecond there.
 :func:`permute_symmetric` applies the order to K for the factorisation;
 :func:`contact_last_order` is the whole order the Schur backends use, with
 :func:`minimum_degree_ordering` (SuperLU's) where no coordinates are known.
+
+Compiled only where it pays (issue #49): importing numba and loading these
+kernels costs about 0.7 s in a fresh process, more than the whole condensed
+set-up of a small body.  Each of :func:`nested_dissection` and
+:func:`permute_symmetric` has a numpy twin that gives the same permutation
+and the same matrix, array for array (``_dissect_numpy`` splits every set
+of one level of the dissection at once; scipy's fancy indexing permutes);
+``compiled="auto"`` runs the kernels when numba is imported in the process
+already or K has at least :data:`COMPILED_MIN_DOFS` rows, the twins
+otherwise.  At Example 1 (CPU seconds at load 9 on 2 cores) the twin ordered
+in 16 ms at h = 1/40 (the kernel 2 ms) and 0.6 s at h = 1/200 (0.09 s).
 """
 from __future__ import annotations
 
@@ -28,38 +39,57 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from admmkit.kernels import AVAILABLE, njit
+from admmkit.kernels import AVAILABLE, compiled_now, njit
 
 #: sets of at most this many dofs are not split (16 was the fastest factorisation of 8, 16, 32 at
 #: Examples 1 and 2, h = 1/40 and 1/100)
 LEAF = 16
+#: from this many rows of K, ``compiled="auto"`` runs the kernels even in a process without numba
+#: (at Example 1, h = 1/200, 160,800 rows, the twin's extra 0.5 s is about what importing numba costs)
+COMPILED_MIN_DOFS = 150_000
 
 
-def nested_dissection(K, dofs: np.ndarray, coordinates: np.ndarray, leaf: int = LEAF) -> np.ndarray:
+def use_kernels(n: int, compiled="auto") -> bool:
+    """Whether the kernels run for a matrix of ``n`` rows: ``compiled`` True or False, or "auto" (the module
+    docstring); False where numba is not installed."""
+    if compiled not in ("auto", True, False):
+        raise ValueError(f"compiled must be 'auto', True or False, got {compiled!r}")
+    if compiled == "auto":
+        compiled = compiled_now() or n >= COMPILED_MIN_DOFS
+    return bool(compiled) and AVAILABLE
+
+
+def nested_dissection(K, dofs: np.ndarray, coordinates: np.ndarray, leaf: int = LEAF,
+                       compiled="auto") -> np.ndarray:
     """An order of ``dofs`` by geometric nested dissection of K's graph restricted to them.
 
     K: sparse (CSR or CSC; only its pattern is read, which must be
     symmetric); ``dofs``: the indices to order; ``coordinates``: (n, d), the
     position of every dof of K.  Returns ``dofs`` permuted: eliminating them
-    in that order (the others after) makes little fill.
+    in that order (the others after) makes little fill.  ``compiled``: the
+    kernel (True), its numpy twin (False) or "auto" (module docstring); the
+    same order.
     """
-    if not AVAILABLE:   # pragma: no cover - numba is a dependency
-        raise RuntimeError("nested_dissection needs numba")
+    kernels = use_kernels(K.shape[0], compiled)
     dofs = np.ascontiguousarray(dofs, dtype=np.int64)
     X = np.ascontiguousarray(coordinates, dtype=np.float64)
     if X.ndim != 2 or X.shape[0] != K.shape[0]:
         raise ValueError(f"coordinates must have shape ({K.shape[0]}, d), got {X.shape}")
     if leaf < 1:
         raise ValueError(f"leaf must be >= 1, got {leaf}")
-    return _dissect(K.indptr, K.indices, X, dofs, int(leaf))
+    if kernels:
+        return _dissect(K.indptr, K.indices, X, dofs, int(leaf))
+    return _dissect_numpy(np.asarray(K.indptr), np.asarray(K.indices), X, dofs, int(leaf))
 
 
-def permute_symmetric(K: sp.csc_matrix, order: np.ndarray) -> sp.csc_matrix:
+def permute_symmetric(K: sp.csc_matrix, order: np.ndarray, compiled="auto") -> sp.csc_matrix:
     """P K P' for a structurally symmetric CSC matrix K: ``K[order][:, order]``, row indices sorted.
 
     Column j of the result is column ``order[j]`` of K with its rows renamed
     and sorted, in one compiled pass: at Example 1, h = 1/40, 0.2 ms where
-    scipy's two fancy-index steps took 0.7 ms.
+    scipy's two fancy-index steps took 0.7 ms.  ``compiled``: that pass
+    (True), scipy's fancy indexing (False) or "auto" (module docstring); the
+    same arrays.
     """
     order = np.ascontiguousarray(order, dtype=np.int64)
     n = K.shape[0]
@@ -67,9 +97,13 @@ def permute_symmetric(K: sp.csc_matrix, order: np.ndarray) -> sp.csc_matrix:
         raise ValueError(f"order must have shape ({n},), got {order.shape}")
     if n and (order.min() < 0 or order.max() >= n or np.bincount(order, minlength=n).max() > 1):
         raise ValueError("order must be a permutation of 0..n-1")
-    position = np.empty(n, np.int64)
-    position[order] = np.arange(n)
-    indptr, indices, data = _permute(K.indptr, K.indices, K.data, order, position)
+    if use_kernels(n, compiled):
+        position = np.empty(n, np.int64)
+        position[order] = np.arange(n)
+        indptr, indices, data = _permute(K.indptr, K.indices, K.data, order, position)
+    else:
+        P = sp.csc_matrix(K)[:, order][order, :].sorted_indices()
+        indptr, indices, data = P.indptr.astype(np.int64), P.indices.astype(np.int32), P.data
     out = sp.csc_matrix((data, indices, indptr.astype(np.int32) if indptr[-1] < 2**31 else indptr), shape=K.shape)
     out.has_canonical_format = True   # sorted, and no duplicates since K has none: splu need not check
     return out
@@ -90,10 +124,11 @@ def minimum_degree_ordering(A: sp.spmatrix) -> np.ndarray:
     return np.argsort(ilu.perm_c)   # perm_c[j] is the new position of column j
 
 
-def contact_last_order(K: sp.csc_matrix, inner: np.ndarray, contact: np.ndarray, coordinates) -> np.ndarray:
+def contact_last_order(K: sp.csc_matrix, inner: np.ndarray, contact: np.ndarray, coordinates,
+                       compiled="auto") -> np.ndarray:
     """The order of a factorisation that gives the Schur complement on ``contact``: the ``inner`` dofs in nested
     dissection order (given the dofs' ``coordinates``) or minimum degree order (None), then ``contact``."""
-    first = (nested_dissection(K, inner, coordinates) if coordinates is not None else
+    first = (nested_dissection(K, inner, coordinates, compiled=compiled) if coordinates is not None else
              inner[minimum_degree_ordering(K[inner][:, inner])])
     return np.concatenate([first, contact])
 
@@ -243,3 +278,66 @@ def _dissect(indptr, indices, X, dofs, leaf):
         stack_lo[depth + 1], stack_hi[depth + 1] = lo + n_lower, lo + n_lower + n_upper
         depth += 2
     return out
+
+
+def _dissect_numpy(indptr, indices, X, dofs, leaf):
+    """:func:`_dissect` with numpy, level by level: every set of a level is split at once, the same split.
+
+    Each dof gets one digit per level, 0 (lower half), 1 (upper half) or 2 (separator), and the order is the
+    lexicographic order of the digits: the layout [lower, upper, separator] that the kernel writes. Ties are
+    the dofs of one leaf, ordered by coordinates then index (the kernel's insertion sort), or of one
+    separator, in their order in ``dofs`` (the kernel's partitions are stable).
+    """
+    n, d = dofs.shape[0], X.shape[1]
+    digits = []                                     # one array of n digits per level
+    tie_x = np.zeros((n, d))                        # a leaf's dofs: their coordinates, then their index
+    tie_i = np.arange(n)                            # a separator's dofs: their place in ``dofs``
+    pos = np.arange(n)                              # the dofs still to split, by set, each set in dofs' order
+    label = np.zeros(n, dtype=np.int64)             # their set
+    in_set = np.full(X.shape[0], -1, dtype=np.int64)
+    while pos.size:
+        starts = np.flatnonzero(np.r_[True, label[1:] != label[:-1]])
+        sizes = np.diff(np.r_[starts, pos.size])
+        set_of = np.repeat(np.arange(starts.size), sizes)
+        v = dofs[pos]
+        Xv = X[v]
+        extent = np.column_stack([np.maximum.reduceat(Xv[:, k], starts) - np.minimum.reduceat(Xv[:, k], starts)
+                                  for k in range(d)])
+        axis = np.argmax(extent, axis=1)            # the first longest side, as the kernel's strict >
+        splits = (sizes > leaf) & (extent[np.arange(starts.size), axis] > 0.0)
+        value = Xv[np.arange(pos.size), axis[set_of]]
+        ranked = np.lexsort((value, set_of))        # each set's values in ascending order
+        sv = value[ranked]
+        half = starts + sizes // 2
+        odd = sizes % 2 == 1
+        median = np.where(odd, sv[half], (sv[np.maximum(half - 1, starts)] + sv[half]) / 2)
+        lower = value < median[set_of]
+        none_below = np.bincount(set_of, weights=lower, minlength=starts.size) == 0
+        lower |= none_below[set_of] & (value <= median[set_of])   # at least half at the minimum: split there
+        n_lower = np.bincount(set_of, weights=lower, minlength=starts.size)
+        splits &= n_lower < sizes
+        split_dof = splits[set_of]
+        # separator: an upper dof of a split set coupled in K to a lower dof of the same set
+        in_set[v] = -1
+        in_set[v[split_dof & lower]] = set_of[split_dof & lower]
+        upper = np.flatnonzero(split_dof & ~lower)
+        rows = v[upper]
+        counts = indptr[rows + 1] - indptr[rows]
+        entry = np.repeat(indptr[rows] - np.cumsum(np.r_[0, counts[:-1]]), counts) + np.arange(counts.sum())
+        hit = in_set[indices[entry]] == np.repeat(set_of[upper], counts)
+        touches = np.zeros(pos.size, dtype=bool)
+        touches[upper] = np.bincount(np.repeat(np.arange(upper.size), counts), weights=hit,
+                                     minlength=upper.size) > 0
+        in_set[v] = -1
+        digit = np.zeros(n, dtype=np.int8)
+        digit[pos] = np.where(split_dof & ~lower, np.where(touches, 2, 1), 0)   # a leaf's dofs: 0, then the ties
+        digits.append(digit)
+        leaf_dof = ~split_dof
+        tie_x[pos[leaf_dof]] = Xv[leaf_dof]
+        tie_i[pos[leaf_dof]] = v[leaf_dof]
+        go_on = split_dof & ~touches                # the halves, each set in dofs' order (a stable sort)
+        pos, label = pos[go_on], 2 * set_of[go_on] + (~lower[go_on])
+        keep = np.argsort(label, kind="stable")
+        pos, label = pos[keep], label[keep]
+    keys = [tie_i] + [tie_x[:, k] for k in reversed(range(d))] + digits[::-1]
+    return dofs[np.lexsort(keys)]

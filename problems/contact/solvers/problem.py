@@ -44,14 +44,12 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 from scipy.linalg.lapack import dpotrs
 
-from admmkit.blocks.iterative import IterativeXSolver
 from admmkit.linalg.linsolve import CachedFactorization
 from admmkit.blocks.operators import LinearMap
 from admmkit.blocks.xstep import QuadraticXStep
 
 from admmkit.problems.contact.model.assembly import ContactOperators
 from admmkit.problems.contact.solvers.base import _ContactBase
-from admmkit.problems.contact.solvers.iterative import near_null_space
 from admmkit.problems.contact.solvers.schur import SCHUR_BACKENDS, BoundarySchur
 
 MODES = ("auto", "full", "condensed", "iterative")
@@ -140,11 +138,12 @@ class CondensedContact(_ContactBase):
 
     mode = "condensed"
 
-    def __init__(self, ops: ContactOperators, backend: str = "auto"):
+    def __init__(self, ops: ContactOperators, backend: str = "auto", compiled="auto"):
         super().__init__(ops)
         self.n = self.A.shape[0] + 1
-        # "auto", "cholmod", "ldl" or "superlu"; the last two order by nested dissection where the dofs have coordinates
-        self.schur = BoundarySchur(ops.K, self.A, backend=backend, coordinates=_coordinates(ops))
+        # "auto", "cholmod", "ldl" or "superlu"; the last two order by nested dissection where the dofs have
+        # coordinates; compiled: numba's kernels where they pay ("auto"), always (True: "auto" may take "ldl"), never
+        self.schur = BoundarySchur(ops.K, self.A, backend=backend, coordinates=_coordinates(ops), compiled=compiled)
         self.e0, u0_c = self.schur.load(ops.f)     # ||u0||_K^2 = f'K^{-1}f and u0 = K^{-1} f on the contact dofs
         self._A_c = sp.csr_matrix(self.A)[:, self.schur.contact_dofs]
         self.d0 = self._A_c @ u0_c                 # A K^{-1} f (A touches the contact dofs only)
@@ -210,6 +209,8 @@ class IterativeContact(_ContactBase):
     mode = "iterative"
 
     def __init__(self, ops: ContactOperators, **options):
+        from admmkit.blocks.iterative import IterativeXSolver          # AMG and its kernels: loaded for this mode only
+        from admmkit.problems.contact.solvers.iterative import near_null_space
         super().__init__(ops)
         self.n = ops.n_free
         AtMA = (self.A.T @ sp.diags(self.w) @ self.A).tocsr()
@@ -253,11 +254,17 @@ def _coordinates(ops) -> np.ndarray | None:
     return points() if callable(points) else None
 
 
-def contact_problem(ops: ContactOperators, mode: str = "auto", backend: str = "auto") -> _ContactBase:
+def contact_problem(ops: ContactOperators, mode: str = "auto", backend: str = "auto",
+                    compiled="auto") -> _ContactBase:
     """The contact plug-in for assembled operators, in the requested mode.
 
     ``backend`` names the sparse solver: any of :mod:`admmkit.linalg.linsolve`'s in
     the full mode, "cholmod", "ldl" or "superlu" (or "auto") in the condensed mode.
+    ``compiled`` (condensed mode): "auto" runs numba's kernels only where
+    they pay, so a small body's set-up imports no numba; True also lets
+    "auto" take the compiled ``ldl`` for a small body (the choice before
+    issue #49; the same iterates to round-off, a few ms faster once numba is
+    loaded); False never (:class:`admmkit.problems.contact.solvers.schur.BoundarySchur`).
     ``mode="auto"`` picks the condensed mode when the contact boundary has at
     most CONDENSED_MAX_NC nodes (the dense n_c x n_c compliance then fits and
     its factorisations are cheaper than sparse ones of the whole body), unless
@@ -265,6 +272,8 @@ def contact_problem(ops: ContactOperators, mode: str = "auto", backend: str = "a
     """
     if mode not in MODES:
         raise ValueError(f"mode must be one of {', '.join(MODES)}, got {mode!r}")
+    if compiled not in ("auto", True, False):
+        raise ValueError(f"compiled must be 'auto', True or False, got {compiled!r}")
     if mode == "auto":
         mode = auto_mode(ops, backend)
     if mode == "iterative":
@@ -273,7 +282,7 @@ def contact_problem(ops: ContactOperators, mode: str = "auto", backend: str = "a
         if backend not in ("auto",) + SCHUR_BACKENDS:
             raise ValueError(f"backend for mode 'condensed' must be 'auto' or one of {', '.join(SCHUR_BACKENDS)} "
                              f"(the solvers that give the Schur complement), got {backend!r}")
-        return CondensedContact(ops, backend=backend)
+        return CondensedContact(ops, backend=backend, compiled=compiled)
     return FullContact(ops, backend=backend)
 
 

@@ -33,15 +33,23 @@ read off a factorisation that keeps no fill).  At Example 2, h = 1/200,
 nested dissection took 0.06 s and its order 1.59 s to factorise, minimum
 degree 0.33 s and 1.99 s.
 
-``"auto"`` takes CHOLMOD when installed.  Otherwise, up to ``LDL_MAX_DOFS``
-dofs, it orders, computes the elimination tree and L's column counts c_j
-(:func:`admmkit.linalg.ldl.ldl_analyse`, 1-4 % of a factorisation), and takes
-``ldl`` when the mean column length sum c_j^2 / sum c_j is at most
-``LDL_MAX_COLUMN_LENGTH``, else ``superlu``: the longer the columns, the more
-SuperLU's dense supernodal blocks gain over the compiled scalar loop.  On the
-paper's 2D meshes that is ``ldl`` up to about h = 1/90 (3.3e4 unknowns), on
-the 3D block up to about h = 1/5 (2e3 unknowns); larger bodies get
-``superlu`` without the analysis.
+``"auto"`` takes CHOLMOD when installed, else ``superlu``, whose set-up runs
+without numba on a small body (``compiled="auto"``: the ordering's kernels run
+only where they pay, :mod:`admmkit.problems.contact.solvers.dissection`; the
+same order either way).  Importing numba and loading the ``ldl`` kernels
+costs about 0.7 s in a fresh process, where ``ldl`` saves 5-15 ms over
+SuperLU at h = 1/40 (issue #49: the whole ``solve contact`` process).
+
+With ``compiled=True``, ``"auto"`` without CHOLMOD chooses as before issue
+#49: up to ``LDL_MAX_DOFS`` dofs, it orders, computes the elimination tree and
+L's column counts c_j (:func:`admmkit.linalg.ldl.ldl_analyse`, 1-4 % of a
+factorisation), and takes ``ldl`` when the mean column length sum c_j^2 /
+sum c_j is at most ``LDL_MAX_COLUMN_LENGTH``, else ``superlu``: the longer the
+columns, the more SuperLU's dense supernodal blocks gain over the compiled
+scalar loop.  On the paper's 2D meshes that is ``ldl`` up to about h = 1/90
+(3.3e4 unknowns), on the 3D block up to about h = 1/5 (2e3 unknowns); larger
+bodies get ``superlu`` without the analysis.  That is the choice for a process
+that solves many small bodies (numba's cost paid once).
 """
 from __future__ import annotations
 
@@ -61,12 +69,12 @@ from admmkit.problems.contact.solvers.dissection import (contact_last_order, min
                                                          permute_symmetric)
 
 SCHUR_BACKENDS = ("cholmod", "ldl", "superlu")
-#: without CHOLMOD, "auto" takes "ldl" when the mean length of L's columns (sum c_j^2 / sum c_j, known from the
+#: with compiled=True and without CHOLMOD, "auto" takes "ldl" when the mean length of L's columns (sum c_j^2 / sum c_j, known from the
 #: elimination tree before the factorisation) is at most this, else "superlu" (supernodal: dense blocks by BLAS).
 #: Measured (ordering + factorisation + S, one thread, Examples 1-2 and example2_3d): ldl / superlu 0.67-0.78 at
 #: 83-129 (2D h = 1/40-1/70, 3D 1/4), 0.89-1.04 at 142-188 (2D 1/70-1/100), 1.09-1.80 at 214-682 (3D 1/6-1/12)
 LDL_MAX_COLUMN_LENGTH = 170.0
-#: without CHOLMOD, "auto" computes the mean column length up to this many dofs only, and takes "superlu" above
+#: with compiled=True and without CHOLMOD, "auto" computes the mean column length up to this many dofs only, and takes "superlu" above
 #: it: the analysis costs 2-4 percent of a factorisation, 58-104 ms at h = 1/200, where the mean column length
 #: was 296-325 (2D: 172-188 at 4e4-6e4 dofs)
 LDL_MAX_DOFS = 50_000
@@ -111,10 +119,10 @@ class _CholmodSchur:
 class _SuperLUSchur:
     """K = L U by SuperLU in the given order (contact dofs last), without pivoting."""
 
-    def __init__(self, K: sp.csc_matrix, order: np.ndarray, m: int, timings: dict, analysis=None):
+    def __init__(self, K: sp.csc_matrix, order: np.ndarray, m: int, timings: dict, analysis=None, compiled="auto"):
         t1 = time.perf_counter()
         self.order = order
-        Kp = permute_symmetric(K, order)
+        Kp = permute_symmetric(K, order, compiled)
         try:
             self._lu = spla.splu(Kp, permc_spec="NATURAL", diag_pivot_thresh=0.0,
                                  options=dict(SymmetricMode=True))
@@ -136,7 +144,7 @@ class _SuperLUSchur:
 class _LDLSchur:
     """P K P' = (I + L) D (I + L)' by :func:`admmkit.linalg.ldl.ldl_factor` in the given order (contact dofs last)."""
 
-    def __init__(self, K: sp.csc_matrix, order: np.ndarray, m: int, timings: dict, analysis=None):
+    def __init__(self, K: sp.csc_matrix, order: np.ndarray, m: int, timings: dict, analysis=None, compiled=True):
         t1 = time.perf_counter()
         self.order = order
         try:
@@ -176,18 +184,18 @@ class _LDLSchur:
 _ORDERED = {"ldl": _LDLSchur, "superlu": _SuperLUSchur}   # the backends that take our order
 
 
-def _ordered_factorisation(K, inner, contact, timings, coordinates, backend):
+def _ordered_factorisation(K, inner, contact, timings, coordinates, backend, compiled="auto"):
     """Order the dofs (contact_last_order), pick "ldl" or "superlu" for "auto", factorise."""
     t0 = time.perf_counter()
-    order = contact_last_order(K, inner, contact, coordinates)
+    order = contact_last_order(K, inner, contact, coordinates, compiled)
     analysis = None
-    if backend == "auto" and K.shape[0] > LDL_MAX_DOFS:
+    if backend == "auto" and (compiled is not True or K.shape[0] > LDL_MAX_DOFS):
         backend = "superlu"
     elif backend == "auto":   # the elimination tree and L's column counts tell how long the updates run
         analysis = ldl_analyse(K, order)
         backend = "ldl" if analysis.mean_column_length <= LDL_MAX_COLUMN_LENGTH else "superlu"
     timings["ordering"] = time.perf_counter() - t0
-    return _ORDERED[backend](K, order, contact.size, timings, analysis), backend
+    return _ORDERED[backend](K, order, contact.size, timings, analysis, compiled), backend
 
 
 class BoundarySchur:
@@ -206,12 +214,19 @@ class BoundarySchur:
     ``coordinates`` ((n, d), the position of each dof, or None): with them
     the order of the inner dofs (``ldl``, ``superlu``) is nested dissection,
     else minimum degree (CHOLMOD always takes AMD).
+
+    ``compiled``: "auto" (the ordering's numba kernels where they pay, the
+    same order as without them), True (the kernels, and "auto" may take
+    ``ldl``: see the module docstring) or False (no numba unless ``backend``
+    is "ldl").
     """
 
     def __init__(self, K: sp.spmatrix, B: sp.spmatrix, backend: str = "auto", blas_threads: int | None = 1,
-                 coordinates: np.ndarray | None = None):
+                 coordinates: np.ndarray | None = None, compiled="auto"):
         if backend not in ("auto",) + SCHUR_BACKENDS:
             raise ValueError(f"schur backend must be 'auto' or one of {', '.join(SCHUR_BACKENDS)}, got {backend!r}")
+        if compiled not in ("auto", True, False):
+            raise ValueError(f"compiled must be 'auto', True or False, got {compiled!r}")
         installed = available_schur_backends()
         if backend == "auto" and installed[0] == "cholmod":
             backend = "cholmod"
@@ -230,7 +245,7 @@ class BoundarySchur:
                     self._impl = _CholmodSchur(K, inner, self.contact_dofs, self.timings)
                 else:
                     self._impl, backend = _ordered_factorisation(K, inner, self.contact_dofs, self.timings,
-                                                                 coordinates, backend)
+                                                                 coordinates, backend, compiled)
         except np.linalg.LinAlgError:
             raise
         except Exception as err:  # CHOLMOD reports a non-positive-definite K as CholmodNotPositiveDefiniteError
