@@ -106,3 +106,15 @@ def test_bench_contact3d_writes_figure_vtk_and_table(tmp_path, monkeypatch, caps
         assert (tmp_path / name).exists()
     text = (tmp_path / "contact3d.md").read_text()
     assert "| 1/4 |" in text and "converged" in text and "## SADMM by x-step mode" in text
+
+
+def test_the_named_scene_block3d_is_the_frictionless_block_of_bench_contact3d():
+    from admmkit.problems.contact.cli import scene_names
+    from admmkit.problems.contact.model.scene_file import load_scene
+    assert scene_names()["block3d"] == "3-D, frictionless"
+    scene, reference = load_scene("block3d", h=1 / 4), example2_3d(h=1 / 4)
+    for key in ("Lx", "Ly", "Lz", "h", "E", "nu", "dirichlet", "contact", "tangential", "order"):
+        assert getattr(scene, key) == getattr(reference, key), key
+    assert dict(scene.tractions) == dict(reference.tractions) == {"front": (0.0, 0.0, -2.0)}
+    for x, y in ((0.0, 0.0), (1.5, 0.5), (3.0, 1.0), (0.7, 0.2)):
+        assert scene.gap_at(x, y) == reference.gap_at(x, y)
