@@ -118,3 +118,21 @@ def test_the_named_scene_block3d_is_the_frictionless_block_of_bench_contact3d():
     assert dict(scene.tractions) == dict(reference.tractions) == {"front": (0.0, 0.0, -2.0)}
     for x, y in ((0.0, 0.0), (1.5, 0.5), (3.0, 1.0), (0.7, 0.2)):
         assert scene.gap_at(x, y) == reference.gap_at(x, y)
+
+
+@pytest.mark.parametrize("order", [1, 2])
+def test_the_compiled_stiffness_is_ngsolves_to_round_off(order):
+    scene = example2_3d(h=1 / 4, order=order, tangential="stick") if order == 1 else example2_3d(h=1 / 2, order=2)
+    fast, slow = assemble3d(scene), assemble3d(scene, stiffness="ngsolve")
+    assert np.array_equal(fast.K.indptr, slow.K.indptr) and np.array_equal(fast.K.indices, slow.K.indices)
+    assert abs(fast.K - slow.K).max() <= 1e-14 * abs(slow.K).max()
+    if order == 1:
+        assert abs(fast.K - slow.K).max() > 0          # two assemblies, not one twice
+    for key in ("f", "mc", "g", "xc", "free"):
+        assert np.array_equal(getattr(fast, key), getattr(slow, key)), key
+    assert (fast.B != slow.B).nnz == 0
+
+
+def test_stiffness_is_checked():
+    with pytest.raises(ValueError, match="stiffness = 'fast'; accepted: compiled, ngsolve"):
+        assemble3d(example2_3d(h=1 / 2), stiffness="fast")
