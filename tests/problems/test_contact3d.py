@@ -106,6 +106,19 @@ def test_bench_contact3d_writes_figure_vtk_and_table(tmp_path, monkeypatch, caps
         assert (tmp_path / name).exists()
     text = (tmp_path / "contact3d.md").read_text()
     assert "| 1/4 |" in text and "converged" in text and "## SADMM by x-step mode" in text
+    for name in ("contact3d_growth.md", "contact3d_growth.csv", "contact3d_growth.png", "contact3d_growth.svg"):
+        assert (tmp_path / name).exists()
+    growth = (tmp_path / "contact3d_growth.md").read_text()
+    assert "| 1/4 | 900 | converged |" in growth and "| 1/6 |" in growth and "Growth exponents" in growth
+
+
+def test_growth_exponent_is_the_log_log_slope_of_the_large_runs():
+    from admmkit.benchmarks.contact.contact3d import growth_exponent
+    rows = [{"n_free": n, "status": "converged", "cpu_s": 2e-6 * n ** 1.25} for n in (1e3, 5e4, 3e5, 1e6)]
+    rows[0]["cpu_s"] = 5.0                                   # start-up dominated: below 4e4, left out
+    rows.append({"n_free": 2e6, "status": "timeout", "cpu_s": 1.0})
+    assert growth_exponent(rows, "cpu_s") == pytest.approx(1.25)
+    assert math.isnan(growth_exponent(rows[:2], "cpu_s"))
 
 
 def test_the_named_scene_block3d_is_the_frictionless_block_of_bench_contact3d():
