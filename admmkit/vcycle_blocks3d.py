@@ -36,6 +36,23 @@ from .compiled import _u
 from .vcycle_blocks import BlockLevel
 
 
+@njit(cache=True, inline="always")
+def _add_blocks_descending(indices, data, x, k_first, k_last, s, R, B, BB):
+    """s[r] += the blocks k_last, k_last - 1, ..., k_first of row r < R (B columns a block, BB values).
+
+    At module level, not in :func:`level_kernels`: numba's disk cache misses a kernel that calls another
+    made in the same factory; inlined, it sees its caller's constant sizes."""
+    for kk in range(k_last - k_first + 1):
+        k = k_last - kk
+        j = B * indices[_u(k)]
+        for r in range(R):
+            t = s[r]
+            at = BB * k + B * r
+            for c in range(B):
+                t += data[_u(at + c)] * x[_u(j + c)]
+            s[r] = t
+
+
 def level_kernels(R: int, C: int):
     """(forward_restrict, prolong_backward, block_values) for A in R x R blocks and P in R x C blocks."""
     RR, RC = R * R, R * C
@@ -84,26 +101,15 @@ def level_kernels(R: int, C: int):
                         for c in range(R):
                             t += data[_u(at + c)] * x[_u(j + c)]
                         s[r] = t
+                for r in range(R):
+                    s[r] = -s[r]                        # the residuals
                 for k in range(P_indptr[_u(M)], P_indptr[_u(M + 1)]):
                     j = C * P_indices[_u(k)]
-                    for r in range(R):
-                        res = -s[r]
-                        at = RC * k + C * r
-                        for c in range(C):
-                            coarse_b[_u(j + c)] += P_data[_u(at + c)] * res
-
-    @njit(cache=True, inline="always")
-    def add_blocks_descending(indices, data, x, k_first, k_last, s, B, BB):
-        """s[r] += the blocks k_last, k_last - 1, ..., k_first of row r (B columns a block, BB values)."""
-        for kk in range(k_last - k_first + 1):
-            k = k_last - kk
-            j = B * indices[_u(k)]
-            for r in range(R):
-                t = s[r]
-                at = BB * k + B * r
-                for c in range(B):
-                    t += data[_u(at + c)] * x[_u(j + c)]
-                s[r] = t
+                    for c in range(C):                  # rows M R, M R + 1, ... in turn: CSR's order
+                        t = coarse_b[_u(j + c)]
+                        for r in range(R):
+                            t += P_data[_u(RC * k + C * r + c)] * s[r]
+                        coarse_b[_u(j + c)] = t
 
     @njit(cache=True)
     def prolong_backward(indptr, indices, data, block_diagonal, inverse, x, b, P_indptr, P_indices, P_data,
@@ -119,7 +125,8 @@ def level_kernels(R: int, C: int):
             if I >= 0:                                  # x += P coarse_x on block row I
                 for r in range(R):
                     s[r] = 0.0
-                add_blocks_descending(P_indices, P_data, coarse_x, P_indptr[_u(I)], P_indptr[_u(I + 1)] - 1, s, C, RC)
+                _add_blocks_descending(P_indices, P_data, coarse_x, P_indptr[_u(I)], P_indptr[_u(I + 1)] - 1, s, R, C,
+                                           RC)
                 for r in range(R):
                     x[_u(R * I + r)] = x[_u(R * I + r)] + s[r]
             I = nb - 1 - step + lag
@@ -127,8 +134,8 @@ def level_kernels(R: int, C: int):
                 kd = block_diagonal[_u(I)]
                 for r in range(R):
                     s[r] = 0.0
-                add_blocks_descending(indices, data, x, kd + 1, indptr[_u(I + 1)] - 1, s, R, RR)
-                add_blocks_descending(indices, data, x, indptr[_u(I)], kd - 1, s, R, RR)
+                _add_blocks_descending(indices, data, x, kd + 1, indptr[_u(I + 1)] - 1, s, R, R, RR)
+                _add_blocks_descending(indices, data, x, indptr[_u(I)], kd - 1, s, R, R, RR)
                 for rr in range(R):
                     r = R - 1 - rr
                     t = s[r]
