@@ -11,10 +11,14 @@ finest level, 5.3e6 on the coarse one) this took the V-cycle from ... s to ... s
 
 The sums, row by row:
 
-- forward sweep from zero, residual and restriction, prolongation: the CSR
-  kernels' sums in their order (columns ascending), so those passes give
-  their values bit for bit (a zero a block holds where CSR stores nothing
-  adds +-0);
+- forward sweep from zero: the CSR kernel's sums in its order (columns
+  ascending), so its x is CSR's bit for bit (a zero a block holds where CSR
+  stores nothing adds +-0);
+- residual and restriction: from the blocks left of the diagonal only (A is
+  symmetric), in the same pass: once x_I is known, block (I, J) adds
+  -A_IJ' x_I to row J's residual, which is complete a bandwidth later.  The
+  descent reads the lower half of A instead of all of it; the residual's
+  terms come in another order than CSR's (round-off);
 - prolongation and backward sweep (one pass upwards): each block row's
   blocks from the last to the first (columns descending), so that the pass
   streams memory downwards throughout (reading each row upwards, in CSR's
@@ -60,11 +64,15 @@ def level_kernels(R: int, C: int):
     @njit(cache=True)
     def forward_restrict(indptr, indices, data, block_diagonal, inverse, b, x, P_indptr, P_indices, P_data,
                          coarse_b, lag):
-        """:func:`admmkit.vcycle._forward_restrict` on blocks (``lag`` in block rows): a forward sweep from
-        zero, and coarse_b = P' (b - A x) ``lag`` block rows behind it."""
+        """A forward sweep from zero and coarse_b = P' (b - A x), reading only the blocks left of the diagonal
+        (A symmetric): once x_I is known, each block (I, J < I) gives row J's residual its term
+        -A_IJ' x_I; row M's residual is complete ``lag`` block rows later (the bandwidth) and is then
+        scattered through P's row M.  The residuals in between live in a ring of lag + 1 block rows."""
         nb = indptr.shape[0] - 1
         coarse_b[:] = 0.0
         lag = min(lag, nb)
+        W = lag + 1
+        ring = np.empty(R * W)
         s = np.empty(R)
         for step in range(nb + lag):
             I = step
@@ -85,30 +93,28 @@ def level_kernels(R: int, C: int):
                     for c in range(r):
                         t += data[_u(RR * kd + R * r + c)] * x[_u(R * I + c)]
                     x[_u(R * I + r)] = (b[_u(R * I + r)] - t) * inverse[_u(R * I + r)]
-            M = step - lag
-            if M >= 0:                                  # block row M's residual through P's blocks
-                kd = block_diagonal[_u(M)]
+                slot = R * (I % W)                      # row I's residual: its diagonal block's upper part
                 for r in range(R):
                     t = 0.0
                     for c in range(r + 1, R):
-                        t += data[_u(RR * kd + R * r + c)] * x[_u(R * M + c)]
-                    s[r] = t
-                for k in range(kd + 1, indptr[_u(M + 1)]):
-                    j = R * indices[_u(k)]
-                    for r in range(R):
-                        t = s[r]
-                        at = RR * k + R * r
-                        for c in range(R):
-                            t += data[_u(at + c)] * x[_u(j + c)]
-                        s[r] = t
-                for r in range(R):
-                    s[r] = -s[r]                        # the residuals
+                        t += data[_u(RR * kd + R * r + c)] * x[_u(R * I + c)]
+                    ring[slot + r] = -t
+                for k in range(indptr[_u(I)], kd):      # and the rows above: A_JI x_I = A_IJ' x_I
+                    at = R * (indices[_u(k)] % W)
+                    for c in range(R):
+                        t = ring[at + c]
+                        for r in range(R):
+                            t -= data[_u(RR * k + R * r + c)] * x[_u(R * I + r)]
+                        ring[at + c] = t
+            M = step - lag
+            if M >= 0:                                  # block row M's residual, complete, through P's blocks
+                slot = R * (M % W)
                 for k in range(P_indptr[_u(M)], P_indptr[_u(M + 1)]):
                     j = C * P_indices[_u(k)]
-                    for c in range(C):                  # rows M R, M R + 1, ... in turn: CSR's order
+                    for c in range(C):
                         t = coarse_b[_u(j + c)]
                         for r in range(R):
-                            t += P_data[_u(RC * k + C * r + c)] * s[r]
+                            t += P_data[_u(RC * k + C * r + c)] * ring[slot + r]
                         coarse_b[_u(j + c)] = t
 
     @njit(cache=True)
