@@ -149,3 +149,9 @@ def test_the_compiled_stiffness_is_ngsolves_to_round_off(order):
 def test_stiffness_is_checked():
     with pytest.raises(ValueError, match="stiffness = 'fast'; accepted: compiled, ngsolve"):
         assemble3d(example2_3d(h=1 / 2), stiffness="fast")
+
+
+@pytest.mark.parametrize("h, peak", [(1 / 8, 0.31e9), (1 / 16, 0.50e9), (1 / 24, 1.04e9), (1 / 32, 1.95e9)])
+def test_the_iterative_memory_estimate_is_just_above_the_measured_peak(h, peak):
+    # peaks: docs/results/scale/contact3d_growth.md (whole SADMM runs, ru_maxrss)
+    assert peak <= memory_need3d(example2_3d(h=h), "iterative") <= 1.15 * peak
