@@ -40,7 +40,7 @@ P2_VERTEX_SHARE = 1 / 19
 P2_MIDPOINT_SHARE = 16 / 57
 
 
-#: how K is assembled: "compiled" (P1: :func:`admmkit.problems.contact.model.stiffness3d.p1_stiffness`, P2:
+#: the ways to assemble K, "compiled" (P1 by ``p1_stiffness`` of problems/contact/model/stiffness3d.py, P2 by
 #: NGSolve) or "ngsolve" (NGSolve's symbolic assembly for both)
 STIFFNESS = ("compiled", "ngsolve")
 
