@@ -7,15 +7,16 @@ value carries a 4-byte column index and every row is one chain of dependent
 additions; here one index serves a block, and the R rows of a block row are
 summed side by side, R independent chains over the same blocks (the
 processor overlaps them).  At h = 1/32 (3.1e5 unknowns, 1.4e7 entries on the
-finest level, 5.3e6 on the coarse one) this took the V-cycle from ... s to ... s.
+finest level, 5.3e6 on the coarse one) the V-cycle took 0.053 s of CPU
+against 0.104-0.113 s for the CSR levels of :mod:`admmkit.vcycle`.
 
 The sums, row by row:
 
 - forward sweep from zero: the CSR kernel's sums in its order (columns
   ascending), so its x is CSR's bit for bit (a zero a block holds where CSR
   stores nothing adds +-0);
-- residual and restriction: from the blocks left of the diagonal only (A is
-  symmetric), in the same pass: once x_I is known, block (I, J) adds
+- residual and restriction: from the blocks left of the diagonal only (A
+  symmetric: smoothed aggregation's levels are, to round-off), in the same pass: once x_I is known, block (I, J) adds
   -A_IJ' x_I to row J's residual, which is complete a bandwidth later.  The
   descent reads the lower half of A instead of all of it; the residual's
   terms come in another order than CSR's (round-off);
