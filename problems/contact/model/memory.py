@@ -156,8 +156,7 @@ def estimate_memory3d(nx: int, ny: int, nz: int, solver: str = "direct", order: 
     holds K once; its element blocks are freed before the AMG set-up, where the
     peak is) and :func:`iterative_solver_bytes`: with the process baseline
     (:func:`memory_need3d`) 2.05 GB at 3.1e5 unknowns (measured 1.95 GB) and
-    6.3 GB at 1.04e6 (measured 5.55 GB with NGSolve's assembly; see
-    docs/results/scale/contact3d_growth.md).  Otherwise three copies and a
+    6.4 GB at 1.04e6 (measured 5.72 GB; docs/results/scale/contact3d_growth.md).  Otherwise three copies and a
     sparse Cholesky factor of ~ 20 n^(4/3) nonzeros for P1 (CHOLMOD, nested
     dissection: 11.8, 13.5 and 14.4 n^(4/3) measured at 5.8e3, 1.8e4 and 4.2e4
     unknowns; SuperLU's MMD ordering filled 44, 30 and 70 n^(4/3), so without
