@@ -15,6 +15,24 @@ def _elasticity():
     return sp.csr_matrix(A), B
 
 
+def _elasticity3d(n=10):
+    """3-D P1 elasticity on the unit cube cut into n^3 cubes of 6 tetrahedra, clamped at x = 0, numbered node by
+    node (3 x 3 blocks), with its six rigid-body modes."""
+    from pyamg.gallery.elasticity import linear_elasticity_p1
+    g = np.arange(n + 1)
+    I, J, K = np.meshgrid(g, g, g, indexing="ij")
+    vertices = np.column_stack([I.ravel(), J.ravel(), K.ravel()]) / n
+    vid = lambda i, j, k: (i * (n + 1) + j) * (n + 1) + k  # noqa: E731
+    i, j, k = (a.ravel() for a in np.meshgrid(*(np.arange(n),) * 3, indexing="ij"))
+    c = [vid(i, j, k), vid(i, j, k + 1), vid(i, j + 1, k + 1), vid(i, j + 1, k), vid(i + 1, j, k),
+         vid(i + 1, j, k + 1), vid(i + 1, j + 1, k + 1), vid(i + 1, j + 1, k)]
+    tets = np.vstack([np.column_stack([c[a] for a in t]) for t in
+                      ((0, 4, 5, 6), (0, 6, 7, 4), (0, 3, 7, 6), (0, 1, 6, 5), (0, 1, 2, 6), (0, 3, 6, 2))])
+    A, B = linear_elasticity_p1(vertices, tets, E=5000.0, nu=0.49, format="csr")
+    free = np.flatnonzero(np.repeat(vertices[:, 0] > 0, 3))
+    return sp.csr_matrix(A)[free][:, free], np.ascontiguousarray(B[free])
+
+
 def _pyamg_cycle(ml, r):
     z = np.zeros_like(r)
     ml._MultilevelSolver__solve(0, z, r, "V")
@@ -206,3 +224,50 @@ def test_node_pair_products_equal_the_upper_triangle_products():
     assert np.linalg.norm(y - sparse @ x) <= 1e-13 * np.linalg.norm(sparse @ x)
     with pytest.raises(ValueError, match="even order"):
         NodePairPattern(sp.csr_matrix(sp.eye(3)))
+
+
+@pytest.mark.parametrize("values", [np.float64, np.float32])
+def test_3d_block_levels_give_the_csr_cycle_to_round_off(values):
+    from admmkit.linalg.vcycle_blocks3d import CoarseLevel6, FinestLevel3D
+    A, B = _elasticity3d()
+    assert B.shape[1] == 6
+    amg = AMGPreconditioner(A, B, blocksize=3, max_coarse=50, cycle_values=np.dtype(values).name)
+    blocks, rows = VCycle(amg.ml, values=values), VCycle(amg.ml, values=values, blocks3d=False)
+    assert isinstance(blocks.block[0], FinestLevel3D) and isinstance(blocks.block[1], CoarseLevel6)
+    assert not any(rows.block) and blocks.first is None       # the 2-D finest level's own storage: not this one
+    r = np.random.default_rng(8).standard_normal(A.shape[0])
+    z, z_rows = blocks(r), rows(r)
+    assert not np.array_equal(z, z_rows)                      # the backward sweep sums in another order
+    assert np.linalg.norm(z - z_rows) <= 1e-13 * np.linalg.norm(z_rows)
+    assert np.linalg.norm(z - _pyamg_cycle(amg.ml, r)) <= (1e-13 if values == np.float64 else 1e-5) * np.linalg.norm(z)
+    assert abs(r @ blocks(z) - z @ blocks(r)) <= 1e-12 * abs(r @ blocks(z))    # still symmetric
+    amg.refresh(sp.csr_matrix(A + 0.5 * sp.eye(A.shape[0])))    # new values on the same pattern
+    fresh, refreshed = VCycle(amg.ml, values=values), blocks.refreshed(amg.ml)
+    assert np.array_equal(refreshed(r), fresh(r))
+
+
+def test_3d_descent_is_the_csr_descent():
+    from admmkit.linalg.vcycle import _forward_restrict
+    A, B = _elasticity3d()
+    amg = AMGPreconditioner(A, B, blocksize=3, max_coarse=50)
+    blocks, rows = VCycle(amg.ml), VCycle(amg.ml, blocks3d=False)
+    level, b = blocks.block[0], np.random.default_rng(9).standard_normal(A.shape[0])
+    x, coarse_b, x_rows, coarse_rows = (np.empty(n) for n in (A.shape[0], level.P_shape[1]) * 2)
+    lag = (blocks._bandwidth[0] + 2) // 3
+    level.descent(level.indptr, level.indices, level.data, level.block_diagonal, blocks._inverse[0], b, x,
+                  level.P_indptr, level.P_indices, level.P_data, coarse_b, lag)
+    M, P = rows.A[0], rows.P[0]
+    _forward_restrict(M.indptr, M.indices, M.data, rows._diagonal[0], rows._inverse[0], b, x_rows,
+                      P.indptr, P.indices, P.data, coarse_rows, rows._bandwidth[0])
+    assert np.array_equal(x, x_rows)                         # the sweep: CSR's sums in CSR's order
+    assert np.linalg.norm(coarse_b - coarse_rows) <= 1e-13 * np.linalg.norm(coarse_rows)   # the residual: round-off
+    assert not np.array_equal(coarse_b, coarse_rows)       # from the lower triangle, in another order
+
+
+def test_amg_option_keeps_the_csr_cycle_of_3d_problems():
+    A, B = _elasticity3d(6)
+    r = np.random.default_rng(10).standard_normal(A.shape[0])
+    off = AMGPreconditioner(A, B, blocksize=3, max_coarse=50, cycle_blocks3d=False)
+    z = off(r)
+    assert not any(off._cycle.block)
+    assert np.array_equal(z, VCycle(off.ml, blocks3d=False)(r))

@@ -67,7 +67,9 @@ class AMGPreconditioner:
 
     Options for speed (the defaults keep pyamg's set-up): ``spectral_steps``
     (:func:`short_spectral_radius`) and ``cycle_values="float32"`` (the V-cycle
-    on single-precision values, :class:`admmkit.linalg.vcycle.VCycle`).
+    on single-precision values, :class:`admmkit.linalg.vcycle.VCycle`);
+    ``cycle_blocks3d=False`` runs the levels of a 3-D vector problem (3 x 3 node
+    blocks, six near-null vectors) in CSR instead of :mod:`admmkit.linalg.vcycle_blocks3d`'s blocks.
     """
 
     SMOOTHERS = (("gauss_seidel", {"sweep": "forward"}), ("gauss_seidel", {"sweep": "backward"}))
@@ -81,7 +83,7 @@ class AMGPreconditioner:
 
     def __init__(self, A: sp.spmatrix, near_null: np.ndarray | None, *, blocksize: int = 1, max_coarse: int = 500,
                  D: sp.spmatrix | None = None, rho: float | None = None, spectral_steps: int | None = None,
-                 cycle_values: str = "float64"):
+                 cycle_values: str = "float64", cycle_blocks3d: bool = True):
         import pyamg
         from pyamg.relaxation.smoothing import change_smoothers
         start = time.perf_counter()
@@ -110,6 +112,7 @@ class AMGPreconditioner:
             self._pencils = pencils
         self._cycle = None        # the compiled V-cycle (admmkit.linalg.vcycle), built at the first application
         self.cycle_values = np.dtype(cycle_values)
+        self.cycle_blocks3d = bool(cycle_blocks3d)
         self.setup_time = time.perf_counter() - start
         self.refresh_time = math.nan
 
@@ -156,7 +159,7 @@ class AMGPreconditioner:
         if hand_written():
             if self._cycle is None:
                 from .vcycle import VCycle
-                self._cycle = VCycle(self.ml, values=self.cycle_values)
+                self._cycle = VCycle(self.ml, values=self.cycle_values, blocks3d=self.cycle_blocks3d)
             return self._cycle(r)
         z = np.zeros_like(r)
         if len(self.ml.levels) == 1:

@@ -45,6 +45,11 @@ from .kernel_threads import THREADS_VARIABLE, kernel_threads  # noqa: F401  (THR
 from ..kernels import _u
 from .vcycle_blocks import BlockLevel
 from .vcycle_blocks3 import BlockLevel3
+from .vcycle_blocks3d import CoarseLevel6, FinestLevel3D
+
+#: the block storages of a level: the finest (2-D: 2 x 2 blocks, P 2 x 3; 3-D: 3 x 3, P 3 x 6), then the coarse
+#: ones (3 x 3 and 6 x 6 blocks: three and six near-null vectors); ``blocks3d=False`` leaves out the 3-D ones
+FINEST_LEVELS, COARSE_LEVELS = (BlockLevel, FinestLevel3D), (BlockLevel3, CoarseLevel6)
 
 
 # ---------------------------------------------------------------- kernels
@@ -207,8 +212,9 @@ class VCycle:
     inner tolerance, not the round-off.
     """
 
-    def __init__(self, ml, values=np.float64, P=None, pattern_of: VCycle | None = None):
+    def __init__(self, ml, values=np.float64, P=None, pattern_of: VCycle | None = None, blocks3d: bool = True):
         levels = ml.levels
+        self.blocks3d = blocks3d
         for level in levels[:-1]:
             level.A = _sorted_csr(level.A)
         self.values = values
@@ -220,7 +226,7 @@ class VCycle:
         old = pattern_of._patterns if pattern_of is not None else [(None, None)] * len(self._patterns)
         kept = [b is not None and _same_array(a, b) and _same_array(c, d)
                 for (a, c), (b, d) in zip(self._patterns, old)]
-        self.block = [_block_level(lvl, level, values, pattern_of.block[lvl] if kept[lvl] else None)
+        self.block = [_block_level(lvl, level, values, pattern_of.block[lvl] if kept[lvl] else None, blocks3d)
                       for lvl, level in enumerate(levels[:-1])]
         self.A = [None if block else _stored(level.A, values) for level, block in zip(levels, self.block)]
         # R = P': no copy of R.  ``P``: the prolongators of a cycle on the same hierarchy (a Galerkin refresh
@@ -239,11 +245,11 @@ class VCycle:
     @property
     def first(self) -> BlockLevel | None:
         """The finest level in 2 x 2 node blocks, if it is stored so."""
-        return self.block[0] if self.block and isinstance(self.block[0], BlockLevel) else None
+        return self.block[0] if self.block and type(self.block[0]) is BlockLevel else None
 
     def refreshed(self, ml) -> VCycle:
         """The cycle of the same hierarchy after a Galerkin refresh (new A on every level, the same P)."""
-        return VCycle(ml, self.values, P=self.P, pattern_of=self)
+        return VCycle(ml, self.values, P=self.P, pattern_of=self, blocks3d=self.blocks3d)
 
     def __call__(self, r: np.ndarray) -> np.ndarray:
         """The V-cycle applied to r from a zero initial guess (a new array)."""
@@ -273,13 +279,17 @@ class VCycle:
         return x
 
 
-def _block_level(lvl: int, level, values, old):
-    """A level's storage in blocks where its kernels have them: 2 x 2 node blocks with a 2 x 3 prolongator on
-    the finest level (:class:`BlockLevel`), 3 x 3 blocks in A and P below (:class:`BlockLevel3`); else None
-    (CSR).  ``old``: the level of a cycle on the same pattern, refreshed with the new values."""
+def _block_level(lvl: int, level, values, old, blocks3d: bool = True):
+    """A level's storage in blocks where its kernels have them: on the finest level 2 x 2 node blocks with a
+    2 x 3 prolongator (:class:`BlockLevel`) or 3 x 3 with 3 x 6 (:class:`admmkit.linalg.vcycle_blocks3d.FinestLevel3D`),
+    below 3 x 3 or 6 x 6 blocks in A and P (:class:`BlockLevel3`, :class:`admmkit.linalg.vcycle_blocks3d.CoarseLevel6`);
+    else None (CSR).  ``blocks3d=False``: not the 3-D ones.  ``old``: the level of a cycle on the same pattern,
+    refreshed with the new values."""
     if old is not None:
         return old.refreshed(level.A)
-    kind = (BlockLevel if lvl == 0 and BlockLevel.eligible(level.A, level.P)
-            else BlockLevel3 if BlockLevel3.eligible(level.A, level.P) else None)
+    kinds = (FINEST_LEVELS if lvl == 0 else ()) + COARSE_LEVELS
+    if not blocks3d:
+        kinds = tuple(k for k in kinds if k not in (FinestLevel3D, CoarseLevel6))
+    kind = next((k for k in kinds if k.eligible(level.A, level.P)), None)
     block = kind(level.A, level.P, values) if kind is not None else None
     return block if block is not None and block.valid() else None

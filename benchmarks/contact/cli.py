@@ -168,14 +168,19 @@ def contact3d(targets) -> None:
     d.add_argument("--timeout", type=positive_float, default=600.0, help="seconds per probe (default 600)")
     d.add_argument("--vtk", default="out/contact3d/contact3d", metavar="BASENAME",
                    help="VTK file of the SADMM run, .vtu added (default out/contact3d/contact3d)")
+    d.add_argument("--growth-h", type=positive_float, action="append", default=None, dest="growth_hs",
+                   help="mesh sizes of the growth chart (time and peak memory against the unknowns; repeatable; "
+                        "default 1/8 1/12 1/16 1/24 1/32 1/48, up to 1.04e6 unknowns)")
+    d.add_argument("--growth-only", action="store_true", help="only the growth chart (contact3d_growth.png/md/csv)")
 
 
 def _contact3d(args) -> int:
-    from admmkit.benchmarks.contact.contact3d import PROBE_HS, SADMM_HS, run_contact3d
+    from admmkit.benchmarks.contact.contact3d import GROWTH_HS, PROBE_HS, SADMM_HS, run_contact3d
+    growth_hs = tuple(args.growth_hs) if args.growth_hs else ((1 / 4, 1 / 6) if args.quick else GROWTH_HS)
     run_contact3d(out=args.out, h=1 / 4 if args.quick else args.h,
                   probe_hs=tuple(args.probe_hs) if args.probe_hs else ((1 / 4,) if args.quick else PROBE_HS),
                   timeout=args.timeout, command=args.command_line, sadmm_hs=(1 / 4,) if args.quick else SADMM_HS,
-                  vtk=args.vtk)
+                  vtk=args.vtk, growth_hs=growth_hs, growth_only=args.growth_only)
     return 0
 
 

@@ -12,11 +12,19 @@
    pressure on the contact face (``contact3d.png/svg``) and VTK output
    (``--vtk``, default ``out/contact3d/contact3d.vtu``: displacement and contact
    pressure, for ParaView).
+3. **Growth with the unknowns** (:func:`run_growth`, alone with ``--growth-only``):
+   SADMM with the iterative x-step at each size up to 1e6 unknowns, each in its
+   own process; the whole process's wall-clock and CPU time (``getrusage`` of
+   the child: start-up, assembly, set-up, SADMM) and its peak memory against
+   the memory check's estimate, charted log-log with the growth exponents
+   (``contact3d_growth.png/svg``, ``contact3d_growth.md``, ``.csv``).
 """
 from __future__ import annotations
 
 import json
+import math
 import os
+import resource
 import subprocess
 import sys
 import time
@@ -33,6 +41,10 @@ from admmkit.benchmarks.contact.scale_runs import peak_rss_bytes
 DEFAULT_H = 1 / 32
 PROBE_HS = (1 / 8, 1 / 12, 1 / 16, 1 / 24, 1 / 32)
 SADMM_HS = (1 / 8, 1 / 12, 1 / 16, 1 / 24)
+#: the sizes of the growth chart: 5.8e3 to 1.04e6 unknowns
+GROWTH_HS = (1 / 8, 1 / 12, 1 / 16, 1 / 24, 1 / 32, 1 / 48)
+#: the issue's target at h = 1/48 (1.04e6 unknowns): the whole process in 60 s, at most 8 GB
+TARGET_SECONDS, TARGET_BYTES = 60.0, 8e9
 
 
 def _label(h: float) -> str:
@@ -203,12 +215,114 @@ def run_sadmm_modes(hs, modes=("full", "condensed", "iterative"), timeout=600.0)
     return rows
 
 
-def run_contact3d(out="out/scale", h=DEFAULT_H, probe_hs=PROBE_HS, timeout=600.0,
-                  command="admmkit bench contact3d", sadmm_hs=SADMM_HS, vtk="out/contact3d/contact3d") -> dict:
-    """All measurements; print them; write contact3d.md, the figure and the VTK file (``vtk``.vtu:
-    double precision, written by meshio; large at h = 1/32, so outside docs/ and not committed)."""
+def children_cpu_seconds() -> float:
+    """User + system CPU seconds of this process's finished children (``getrusage(RUSAGE_CHILDREN)``)."""
+    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return usage.ru_utime + usage.ru_stime
+
+
+def run_growth(hs=GROWTH_HS, timeout=1800.0) -> list[dict]:
+    """SADMM with the iterative x-step at each mesh size, each in its own process (``scale_runs``); each row
+    adds ``cpu_s``, the child's CPU seconds (on a shared machine its wall-clock time includes waiting)."""
+    from admmkit.benchmarks.contact import scale_runs
+    rows = []
+    for h in hs:
+        print(f"growth: SADMM h = {_label(h)} iterative ...", flush=True)
+        before = children_cpu_seconds()
+        r = scale_runs.run_in_subprocess("ex2_3d", h, "iterative", timeout=timeout)
+        rows.append(r | {"cpu_s": children_cpu_seconds() - before})
+        scale_runs.print_run(r)
+    return rows
+
+
+def growth_exponent(rows, key: str) -> float:
+    """Least-squares slope of log(row[key]) against log(unknowns) over the converged runs with >= 4e4 unknowns
+    (the smaller ones are start-up; 1 is linear growth)."""
+    pts = [(math.log(r["n_free"]), math.log(r[key])) for r in rows
+           if r.get("status") == "converged" and r["n_free"] >= 4e4 and r.get(key)]
+    if len(pts) < 2:
+        return math.nan
+    mx, my = sum(p[0] for p in pts) / len(pts), sum(p[1] for p in pts) / len(pts)
+    return sum((x - mx) * (y - my) for x, y in pts) / sum((x - mx) ** 2 for x, _ in pts)
+
+
+def figure_growth(rows, path: Path) -> list[Path]:
+    """Two log-log panels against the unknowns: the whole process's time (wall and CPU) and SADMM's, and the
+    peak memory with the memory check's estimate; growth exponents in the legends, the targets dashed."""
+    plt = pyplot()
+    done = [r for r in rows if r.get("status") == "converged"]
+    n = [r["n_free"] for r in done]
+    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(11, 4.4))
+    for key, label, style in (("wall_s", "whole process, wall clock", "o-"), ("cpu_s", "whole process, CPU", "s-"),
+                              ("solve_s", "SADMM loop, wall clock", "^:")):
+        ax1.loglog(n, [r[key] for r in done], style, label=f"{label} (n^{growth_exponent(done, key):.2f})")
+    ax1.axhline(TARGET_SECONDS, color="r", ls="--", lw=1, label=f"target {TARGET_SECONDS:g} s at 1e6")
+    ax1.set_xlabel("unknowns"); ax1.set_ylabel("seconds"); ax1.set_title("time")
+    ax2.loglog(n, [r["peak_rss_bytes"] / 1e9 for r in done], "o-",
+               label=f"peak RSS (n^{growth_exponent(done, 'peak_rss_bytes'):.2f})")
+    ax2.loglog(n, [r["estimate_bytes"] / 1e9 for r in done], "s--", label="estimate of the memory check")
+    ax2.axhline(TARGET_BYTES / 1e9, color="r", ls="--", lw=1, label=f"target {TARGET_BYTES / 1e9:g} GB")
+    ax2.set_xlabel("unknowns"); ax2.set_ylabel("GB"); ax2.set_title("peak memory")
+    for ax in (ax1, ax2):
+        ax.grid(alpha=0.3, which="both")
+        ax.legend(fontsize=8)
+    fig.suptitle("3D block (bench contact3d), SADMM with the iterative x-step: growth with the unknowns "
+                 "(exponents: sizes >= 4e4)", fontsize=11)
+    fig.tight_layout()
+    return save_figure(fig, path)
+
+
+def write_growth(out: Path, rows, command: str) -> list[Path]:
+    """contact3d_growth.md, .csv and the chart (``figure_growth``)."""
+    from admmkit.benchmarks.runner.report import write_csv
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
+    keys = ("h", "n_free", "n_c", "status", "iterations", "cg_iterations", "wall_s", "cpu_s", "assemble_s", "setup_s",
+            "solve_s", "cg_s", "amg_setup_s", "peak_rss_bytes", "estimate_bytes")
+    table = [{k: (r.get("counters", {}).get(k) if k == "cg_iterations" else r.get(k)) for k in keys} for r in rows]
+    write_csv(out / "contact3d_growth.csv", table, keys)
+    figs = figure_growth(rows, out / "contact3d_growth.png") if any(r.get("status") == "converged" for r in rows) else []
+    done = [r for r in rows if r.get("status") == "converged"]
+    lines = ["# 3D block: time and memory against the unknowns (iterative x-step)", "",
+             f"Produced by `{command}`. SADMM (rho_0 = 1e3, the paper's stopping rule) on the block of "
+             "`example2_3d` (the scene `block3d`) with `mode=\"iterative\"`, each size in its own process "
+             "(BLAS on one thread). Whole process = start-up, assembly, set-up and SADMM; CPU = the child's user + "
+             "system time (`getrusage`), which does not count the time it waited for a core on a shared machine; "
+             "peak = its ru_maxrss; estimate = `memory_need3d`, the check made before anything is assembled.", "",
+             "| h | unknowns | status | SADMM it. | CG it. | whole process wall (s) | CPU (s) | assembly (s) | "
+             "SADMM (s) | peak (GB) | estimate (GB) |",
+             "|---|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|"]
+    for r in rows:
+        if r.get("status") != "converged":
+            lines.append(f"| {_label(r['h'])} | {r.get('n_free', '-')} | {r.get('status')}: {r.get('message', '')} "
+                         "| | | | | | | | |")
+            continue
+        lines.append(f"| {_label(r['h'])} | {r['n_free']} | converged | {r['iterations']} | "
+                     f"{r['counters'].get('cg_iterations', '-')} | {r['wall_s']:.1f} | {r['cpu_s']:.1f} | "
+                     f"{r['assemble_s']:.1f} | {r['solve_s']:.1f} | {r['peak_rss_bytes'] / 1e9:.2f} | "
+                     f"{r['estimate_bytes'] / 1e9:.2f} |")
+    lines += ["", "Growth exponents (log-log least squares over the sizes >= 4e4; 1 is linear): whole process "
+              f"wall {growth_exponent(done, 'wall_s'):.2f}, CPU {growth_exponent(done, 'cpu_s'):.2f}, SADMM "
+              f"{growth_exponent(done, 'solve_s'):.2f}, peak memory {growth_exponent(done, 'peak_rss_bytes'):.2f}.",
+              "", "Chart: `contact3d_growth.png`.", "", "Machine:", ""]
+    lines += [f"- {k}: {v}" for k, v in machine_info().items()]
+    write_text(out / "contact3d_growth.md", "\n".join(lines) + "\n")
+    return figs
+
+
+def run_contact3d(out="out/scale", h=DEFAULT_H, probe_hs=PROBE_HS, timeout=600.0,
+                  command="admmkit bench contact3d", sadmm_hs=SADMM_HS, vtk="out/contact3d/contact3d",
+                  growth_hs=GROWTH_HS, growth_only=False) -> dict:
+    """All measurements; print them; write contact3d.md, the figure and the VTK file (``vtk``.vtu:
+    double precision, written by meshio; large at h = 1/32, so outside docs/ and not committed), and the
+    growth chart of ``growth_hs`` (only that with ``growth_only``)."""
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    growth = run_growth(growth_hs, timeout=max(timeout, 1800.0)) if growth_hs else []
+    if growth:
+        write_growth(out, growth, command)
+    if growth_only:
+        return {"growth": growth}
     sadmm = run_sadmm_modes(sadmm_hs, timeout=timeout) if sadmm_hs else []
     probes = []
     for ph in probe_hs:
@@ -235,7 +349,7 @@ def run_contact3d(out="out/scale", h=DEFAULT_H, probe_hs=PROBE_HS, timeout=600.0
     vtu = write_vtk(ops, res.x, res.lam, Path(vtk), p=res.z)
     print(f"        figure {figs[0]}, VTK {vtu}", flush=True)
     _write_md(out / "contact3d.md", probes, run, command, figs, vtu, sadmm)
-    return {"probes": probes, "run": run, "sadmm": sadmm}
+    return {"probes": probes, "run": run, "sadmm": sadmm, "growth": growth}
 
 
 def _write_md(path, probes, run, command, figs, vtu, sadmm=()) -> None:

@@ -59,7 +59,7 @@ def test_scene_errors_tell_a_missing_file_from_an_unknown_name(capsys, tmp_path,
     assert code == 2 and one_error_line(err) == "admmkit: error: --scene: no such scene file my/scene.toml"
     code, _, err = run(["solve", "contact", "--scene", "ex3"], capsys)
     line = one_error_line(err)
-    assert code == 2 and "unknown scene 'ex3'; give one of block3d_coulomb, ex1, ex1_coulomb, ex1_tresca, ex2" in line
+    assert code == 2 and "unknown scene 'ex3'; give one of block3d, block3d_coulomb, ex1, ex1_coulomb, ex1_tresca, ex2" in line
     assert line.endswith("(did you mean ex2?)")
 
 
@@ -102,7 +102,7 @@ def test_help_lists_every_scene_rule_and_backend(capsys):
     assert len(scenes) >= 5
     for name in scenes:
         assert f"{name} (" in text                           # with its dimension and law
-    assert "block3d_coulomb (3-D, coulomb)" in text and "ex1 (2-D, frictionless)" in text
+    assert "block3d_coulomb (3-D, coulomb)" in text and "block3d (3-D, frictionless)" in text and "ex1 (2-D, frictionless)" in text
     for rule in admmkit.policy_names():
         assert rule in text.split("--policy NAME")[1].split("--order")[0]
     text = help_of(["solve", "obstacle"], capsys)

@@ -106,3 +106,53 @@ def test_bench_contact3d_writes_figure_vtk_and_table(tmp_path, monkeypatch, caps
         assert (tmp_path / name).exists()
     text = (tmp_path / "contact3d.md").read_text()
     assert "| 1/4 |" in text and "converged" in text and "## SADMM by x-step mode" in text
+    for name in ("contact3d_growth.md", "contact3d_growth.csv", "contact3d_growth.png", "contact3d_growth.svg"):
+        assert (tmp_path / name).exists()
+    growth = (tmp_path / "contact3d_growth.md").read_text()
+    assert "| 1/4 | 900 | converged |" in growth and "| 1/6 |" in growth and "Growth exponents" in growth
+
+
+def test_growth_exponent_is_the_log_log_slope_of_the_large_runs():
+    from admmkit.benchmarks.contact.contact3d import growth_exponent
+    rows = [{"n_free": n, "status": "converged", "cpu_s": 2e-6 * n ** 1.25} for n in (1e3, 5e4, 3e5, 1e6)]
+    rows[0]["cpu_s"] = 5.0                                   # start-up dominated: below 4e4, left out
+    rows.append({"n_free": 2e6, "status": "timeout", "cpu_s": 1.0})
+    assert growth_exponent(rows, "cpu_s") == pytest.approx(1.25)
+    assert math.isnan(growth_exponent(rows[:2], "cpu_s"))
+
+
+def test_the_named_scene_block3d_is_the_frictionless_block_of_bench_contact3d():
+    from admmkit.problems.contact.cli import scene_names
+    from admmkit.problems.contact.model.scene_file import load_scene
+    assert scene_names()["block3d"] == "3-D, frictionless"
+    scene, reference = load_scene("block3d", h=1 / 4), example2_3d(h=1 / 4)
+    for key in ("Lx", "Ly", "Lz", "h", "E", "nu", "dirichlet", "contact", "tangential", "order"):
+        assert getattr(scene, key) == getattr(reference, key), key
+    assert dict(scene.tractions) == dict(reference.tractions) == {"front": (0.0, 0.0, -2.0)}
+    for x, y in ((0.0, 0.0), (1.5, 0.5), (3.0, 1.0), (0.7, 0.2)):
+        assert scene.gap_at(x, y) == reference.gap_at(x, y)
+
+
+@pytest.mark.parametrize("order", [1, 2])
+def test_the_compiled_stiffness_is_ngsolves_to_round_off(order):
+    scene = example2_3d(h=1 / 4, order=order, tangential="stick") if order == 1 else example2_3d(h=1 / 2, order=2)
+    fast, slow = assemble3d(scene), assemble3d(scene, stiffness="ngsolve")
+    assert np.array_equal(fast.K.indptr, slow.K.indptr) and np.array_equal(fast.K.indices, slow.K.indices)
+    assert abs(fast.K - slow.K).max() <= 1e-14 * abs(slow.K).max()
+    if order == 1:
+        assert abs(fast.K - slow.K).max() > 0          # two assemblies, not one twice
+    for key in ("f", "mc", "g", "xc", "free"):
+        assert np.array_equal(getattr(fast, key), getattr(slow, key)), key
+    assert (fast.B != slow.B).nnz == 0
+
+
+def test_stiffness_is_checked():
+    with pytest.raises(ValueError, match="stiffness = 'fast'; accepted: compiled, ngsolve"):
+        assemble3d(example2_3d(h=1 / 2), stiffness="fast")
+
+
+@pytest.mark.parametrize("h, peak", [(1 / 8, 0.31e9), (1 / 16, 0.50e9), (1 / 24, 1.04e9), (1 / 32, 1.95e9),
+                                     (1 / 48, 5.72e9)])
+def test_the_iterative_memory_estimate_is_just_above_the_measured_peak(h, peak):
+    # peaks: docs/results/scale/contact3d_growth.md (whole SADMM runs, ru_maxrss)
+    assert peak <= memory_need3d(example2_3d(h=h), "iterative") <= 1.15 * peak

@@ -143,12 +143,21 @@ def dofs3d(nx: int, ny: int, nz: int, order: int = 1) -> float:
     return 3.0 * (vertices + edges)
 
 
+#: resident memory of a 3D run's process before its arrays: the 2D baseline and NGSolve's meshes, the compiled
+#: kernels of the 3D block V-cycle and assembly (measured: 0.31 GB peak for the whole run at 5.8e3 unknowns)
+PROCESS_BASELINE_3D = 300_000_000
+
+
 def estimate_memory3d(nx: int, ny: int, nz: int, solver: str = "direct", order: int = 1) -> int:
     """Rough bytes of a 3D contact run on nx x ny x nz cubes, P1 or P2 (``order``).
 
-    n = :func:`dofs3d` dofs, NNZ_ROW_3D nonzeros per row, 12 bytes each, 3
-    copies; the iterative x-step adds :func:`iterative_solver_bytes`; a sparse
-    Cholesky factor of the P1 problem has ~ 20 n^(4/3) nonzeros (CHOLMOD, nested
+    n = :func:`dofs3d` dofs, NNZ_ROW_3D nonzeros per row, 12 bytes each.  With
+    ``solver="iterative"``: one copy of the system (the compiled assembly
+    holds K once; its element blocks are freed before the AMG set-up, where the
+    peak is) and :func:`iterative_solver_bytes`: with the process baseline
+    (:func:`memory_need3d`) 2.05 GB at 3.1e5 unknowns (measured 1.95 GB) and
+    6.4 GB at 1.04e6 (measured 5.72 GB; docs/results/scale/contact3d_growth.md).  Otherwise three copies and a
+    sparse Cholesky factor of ~ 20 n^(4/3) nonzeros for P1 (CHOLMOD, nested
     dissection: 11.8, 13.5 and 14.4 n^(4/3) measured at 5.8e3, 1.8e4 and 4.2e4
     unknowns; SuperLU's MMD ordering filled 44, 30 and 70 n^(4/3), so without
     CHOLMOD this is an underestimate).  P2's factor is taken denser in
@@ -156,9 +165,9 @@ def estimate_memory3d(nx: int, ny: int, nz: int, solver: str = "direct", order: 
     """
     n = dofs3d(nx, ny, nz, order)
     nnz_row = NNZ_ROW_3D[order]
-    system = 3 * 12 * nnz_row * n
     if solver == "iterative":
-        return int(system + iterative_solver_bytes(n, nnz_row * n, blocksize=3))
+        return int(12 * nnz_row * n + iterative_solver_bytes(n, nnz_row * n, blocksize=3))
+    system = 3 * 12 * nnz_row * n
     return int(system + 12 * 20.0 * (nnz_row / NNZ_ROW_3D[1]) * n ** (4 / 3))
 
 
@@ -168,7 +177,7 @@ def memory_need3d(scene, mode: str) -> int:
     nx, ny, nz = scene.counts
     order = getattr(scene, "order", 1)
     if mode == "iterative":
-        return PROCESS_BASELINE + estimate_memory3d(nx, ny, nz, "iterative", order)
+        return PROCESS_BASELINE_3D + estimate_memory3d(nx, ny, nz, "iterative", order)
     if mode not in ("full", "condensed"):
         raise ValueError(f"mode = {mode!r}; accepted: full, condensed, iterative")
     n = dofs3d(nx, ny, nz, order)
