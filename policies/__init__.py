@@ -5,6 +5,7 @@ Importing this package registers every rule by name, so that
 """
 from .fixed import Fixed
 from .osqp_rule import OSQPRule
+from .osqp_kkt import OSQPKKTRule
 from .quantized import Quantized
 from .residual_balancing import ResidualBalancing
 from .spectral import Spectral
@@ -13,5 +14,5 @@ from .summable_steps import SummableSteps
 from .wohlberg import Wohlberg
 from .paper_methods import PAPER_METHODS, method  # noqa: E402  (after the rules it names)
 
-__all__ = ["Fixed", "ResidualBalancing", "Summable", "Wohlberg", "OSQPRule", "Spectral", "SummableSteps",
+__all__ = ["Fixed", "ResidualBalancing", "Summable", "Wohlberg", "OSQPRule", "OSQPKKTRule", "Spectral", "SummableSteps",
            "Quantized", "PAPER_METHODS", "method"]
