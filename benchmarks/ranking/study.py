@@ -48,9 +48,9 @@ QUICK_QP = ("HS21", "HS35", "HS118", "QAFIRO", "DUAL1", "QPCBLEND")
 QP_MAX_SIZE = 3000
 QP_EPS, QUICK_QP_EPS = (1e-3, 1e-6), (1e-3,)
 QP_MAX_ITER, QP_TIME_LIMIT = 4000, 5.0
-#: the QP settings presets a rule can run in (--presets): OSQP's (with OSQP's cap QP_MAX_ITER) and admmkit's own
-#: (``admmkit.problems.qp.admmkit_settings``, with its own cap); a rule in a preset other than OSQP's is ranked as
-#: ``rule@preset``
+#: the QP settings presets of the option --presets, OSQP's (with OSQP's cap QP_MAX_ITER) and admmkit's own
+#: (``admmkit.problems.qp.admmkit_settings``, with its own cap); a rule in a preset other than OSQP's is ranked
+#: as ``rule@preset``
 QP_PRESETS = ("osqp", "admmkit")
 FRAMEWORK = ("lasso", "box_ls_weighted", "consensus_8", "tv_2d")
 FRAMEWORK_RHO0 = (1e-3, 1.0, 1e3)
