@@ -6,6 +6,7 @@ Importing this package registers every rule by name, so that
 from .fixed import Fixed
 from .osqp_rule import OSQPRule
 from .osqp_kkt import OSQPKKTRule
+from .priced import PricedOSQPRule
 from .quantized import Quantized
 from .residual_balancing import ResidualBalancing
 from .spectral import Spectral
@@ -14,5 +15,5 @@ from .summable_steps import SummableSteps
 from .wohlberg import Wohlberg
 from .paper_methods import PAPER_METHODS, method  # noqa: E402  (after the rules it names)
 
-__all__ = ["Fixed", "ResidualBalancing", "Summable", "Wohlberg", "OSQPRule", "OSQPKKTRule", "Spectral", "SummableSteps",
+__all__ = ["Fixed", "ResidualBalancing", "Summable", "Wohlberg", "OSQPRule", "OSQPKKTRule", "PricedOSQPRule", "Spectral", "SummableSteps",
            "Quantized", "PAPER_METHODS", "method"]

@@ -46,3 +46,29 @@ def test_registered_and_checked():
     for bad in (0.0, 1.0, math.nan, "x"):
         with pytest.raises(ValueError, match="fraction"):
             OSQPKKTRule(fraction=bad)
+
+
+# ---------------------------------------------------------------- OSQP's rule with each change priced
+def test_a_priced_change_soon_after_the_last_needs_a_larger_disagreement():
+    from admmkit.policies import PricedOSQPRule
+    rule = PricedOSQPRule(interval=1, tolerance=5.0, price=100.0)
+    # estimate 10 x rho: log 10 = 2.30 against log 5 x 100 / (k + 1) = 161 / (k + 1): kept until k = 68,
+    # adopted at k = 69 (161 / 70 = 2.30 - 0.0005)
+    errors = [(1.0, 0.01)] * 100
+    rhos = feed(rule, errors)
+    assert rhos[0] == 1.0 and rhos[68] == 1.0
+    assert rhos[69] == pytest.approx(10.0)
+    assert rule.last_change == 69
+
+
+def test_price_zero_is_osqps_rule():
+    from admmkit.policies import OSQPRule, PricedOSQPRule
+    errors = [(1.0, 0.01), (0.5, 0.5), (0.001, 1.0), (1.0, 1.0)]
+    assert feed(PricedOSQPRule(interval=1, price=0.0), errors) == feed(OSQPRule(interval=1), errors)
+
+
+def test_priced_rule_is_registered_and_checked():
+    from admmkit.policies import PricedOSQPRule
+    assert isinstance(admmkit.make_policy("osqp_priced"), PricedOSQPRule)
+    with pytest.raises(ValueError, match="price"):
+        PricedOSQPRule(price=-1.0)
