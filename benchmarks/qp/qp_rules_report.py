@@ -154,7 +154,12 @@ def report(results: Path, out: Path, data: Path) -> Path:
                       f"{', '.join(sorted(ours - osqp)) or 'none'}.  Shifted geometric mean (shift {SHIFT:g} s) of "
                       f"whole-solve time over the {both} problems both solve: admmkit_settings {t_ours:.4f} s, "
                       f"OSQP 1.1 {t_osqp:.4f} s.", ""]
-    lines += ["## Performance profiles (Dolan-More)", "",
+    lines += ["## The same comparison as a ranking, and how the preset was chosen", "",
+              "`admmkit bench rules --families qp --rules osqp --presets osqp,admmkit --acceleration none` ranks "
+              "OSQP's rule in OSQP's preset (`osqp`) against admmkit's preset (`osqp@admmkit`) on the class, in one "
+              "command: [ranking/README.md](ranking/README.md).  What was tried on the training split, and why the "
+              "preset is what it is: [choice.md](choice.md).", "",
+              "## Performance profiles (Dolan-More)", "",
               "Fraction of problems solved within a factor tau of the best configuration on each problem "
               "(a failure never counts).", "", "![iterations](profiles_iterations.png)", "",
               "![time](profiles_time.png)", ""]

@@ -55,3 +55,22 @@ def test_the_qp_case_in_admmkit_preset_is_judged_as_the_others():
     ours = rank_cases.run_qp(case | {"max_iter": None, "preset": "admmkit"})
     assert all(r["solved"] for r in plain + ours)
     assert [r["iterations"] for r in ours] < [r["iterations"] for r in plain]       # polished before OSQP's stop
+
+
+def test_the_results_page_counts_successes_and_false_converged(tmp_path, monkeypatch):
+    from admmkit.benchmarks.qp import qp_rules_report as page
+    from admmkit.benchmarks.qp.maros_meszaros_report import FIELDS, write_rows
+    rows = []
+    for problem, ours, osqp in (("A", (True, True), (True, True)), ("B", (True, False), (False, False)),
+                                ("C", (True, True), (False, False)), ("D", (False, False), (True, True))):
+        for (variant, solver), (solved, neutral) in ((("admmkit", "osqp"), ours), (("preset", "osqp"), osqp),
+                                                     (("default", "OSQP"), osqp)):
+            rows.append({f: 0 for f in FIELDS} | {"problem": problem, "variant": variant, "solver": solver,
+                                                  "order": "xz", "eps": 1e-6, "solved": solved, "neutral": neutral,
+                                                  "status": "solved", "iterations": 10, "time": 0.5})
+    write_rows(rows, tmp_path / "results.csv")
+    monkeypatch.setattr(page, "qp_class", lambda data: {"A", "B", "C", "D"})
+    text = page.report(tmp_path / "results.csv", tmp_path, tmp_path).read_text()
+    assert "| admmkit_settings | 2/4 | 2/4 | 2/2 | 0/2 | B |" in text          # A, C train; B "solved", not neutral
+    assert "lost against `osqp_settings`: D" in text and "gained against OSQP 1.1: C" in text
+    assert (tmp_path / "profiles_iterations.png").stat().st_size > 0
