@@ -77,3 +77,14 @@ def test_kkt_error_mode_solves_and_changes_rho_less_often():
     assert kkt.status is Status.CONVERGED
     assert "OSQPKKTRule" in kkt.policy and "OSQPRule" in interval.policy
     assert neutral_satisfied(neutral_residuals(qp, kkt.x, kkt.y), 1e-5)
+
+
+def test_the_iterates_solved_is_confirmed_in_the_users_problem(monkeypatch):
+    """QSHELL at 1e-3: OSQP's gap summed in the scaled problem held (9e-4) where the user's problem's is 0.015 (terms
+    of 1e12); the preset confirms a solved iterate there.  Here the user's-problem residuals are made to fail."""
+    from admmkit.problems.qp import polish_stop
+    qp = hs118_like()
+    failing = {"primal": 1.0, "primal_scale": 0.0, "dual": 1.0, "dual_scale": 0.0, "gap": 1.0, "gap_scale": 0.0}
+    monkeypatch.setattr(polish_stop, "osqp_residuals", lambda *args: failing)
+    res = solve_qp(qp, admmkit_settings(1e-3, 0.0, max_iter=300, early_polish=True))
+    assert res.status is not Status.CONVERGED and res.iterations == 300
