@@ -33,6 +33,7 @@ from admmkit import IterationRecord
 from .kkt import osqp_residuals
 from .polish import polish
 from .problem import QP
+from .residuals import neutral_residuals
 from .termination import SOLVED, QPTermination
 
 
@@ -79,12 +80,13 @@ class PolishingTermination(QPTermination):
                 and (not self.gap or abs(res["gap"]) <= a + r * res["gap_scale"]))
 
     def confirmed(self, rec: IterationRecord) -> bool:
-        """OSQP's test again, on the iterate's (x, z, y) in the user's problem, summed there (the test itself sums
-        in the scaled problem: where the objective's terms are 1e12, the two gaps differ by round-off, and a point
-        must pass where a harness measures it)."""
+        """OSQP's test again, on the iterate's (x, z, y) in the user's problem, summed there, and with the neutral
+        residuals of (x, y) in place of OSQP's (the test itself sums in the scaled problem: where the objective's
+        terms are 1e12, the gaps differ by round-off, and a point must pass where a harness measures it)."""
         qp = self.qp
         x, z, y = qp.unscaled(rec.x, rec.z, rec.lam_z)
-        return self.passes(osqp_residuals(qp, x, z, y))
+        res = osqp_residuals(qp, x, z, y)
+        return self.passes(res) and self.passes(res | neutral_residuals(qp, x, y))
 
     def fired(self, rec: IterationRecord) -> str | None:
         """OSQP's test on the iterate; failing it, near the solution, the same test on the polished iterate."""
