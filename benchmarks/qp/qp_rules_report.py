@@ -120,6 +120,8 @@ def report(results: Path, out: Path, data: Path) -> Path:
     sets = {f"all {len(everything)} run": everything, f"qpbenchmark's class ({len(klass)})": klass}
     figures = [plot(rows, sets, m, out / f"profiles_{name}.png") for m, name in (("iterations", "iterations"),
                                                                                  ("time", "time"))]
+    from admmkit.problems.qp.mat import list_problems
+    missing = sorted({path.stem for path in list_problems(data)} - everything)
     lines = ["# admmkit's QP preset against OSQP 1.x on Maros-Meszaros", "",
              "Made by `python -m admmkit.benchmarks.qp.qp_rules_report docs/results/qp_rules/bench_qp/results.csv "
              "docs/results/qp_rules` from the runs of `bench_qp/` (their command and machine: "
@@ -135,7 +137,10 @@ def report(results: Path, out: Path, data: Path) -> Path:
              f"rows are bounds, qpbenchmark's lb <= x <= ub): {len(klass)} convex problems (VALUES, not convex, "
              f"is refused).  Training split: the class sorted by name, every other problem from the first "
              f"({sum(v == 'train' for v in halves.values())} problems); test split: the others "
-             f"({sum(v == 'test' for v in halves.values())}).  The preset was chosen on the training split only.", ""]
+             f"({sum(v == 'test' for v in halves.values())}).  The preset was chosen on the training split only.", "",
+             f"\"all\": the {len(everything)} problems every configuration ran; not in this run "
+             f"({len(missing)} of the {len(everything) + len(missing)} MAT files; EXDATA is not in the folder): "
+             f"{', '.join(missing) or 'none'}.", ""]
     for eps in sorted({r["eps"] for r in rows}, reverse=True):
         lines += [f"## eps = {eps:g}", "",
                   "| configuration | all | class | class, train | class, test | false converged (class) |",
