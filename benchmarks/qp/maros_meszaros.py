@@ -15,7 +15,9 @@ Configurations (:func:`default_configs`), each from rho_0 = 0.1:
   alpha = 1, the test every iteration);
 - one-off ablations of the preset with OSQP's rule in order xz:
   ``no-scaling``, ``uniform-rho`` (no penalty per row), ``alpha-1`` (no
-  over-relaxation), and ``polish`` (with polishing);
+  over-relaxation), and ``polish`` (with polishing); and ``admmkit``,
+  admmkit's own preset (:func:`admmkit.problems.qp.admmkit_settings`, with
+  its own iteration cap);
 - ``OSQP``: the osqp package with its defaults, and with polishing.
 
 Every run asks for the absolute accuracy eps (eps_abs = eps, eps_rel = 0)
@@ -69,8 +71,10 @@ TIME_LIMIT = 5.0
 #: skip a problem whose x-step matrix would have more nonzeros than this in both forms (reduced: at most
 #: nnz(P) + sum_i nnz(row_i)^2; KKT: nnz(P) + 2 nnz(A) + n + m)
 NNZ_LIMIT = 2e7
-#: the one-off ablations of the preset (OSQP's rule, order xz)
-ABLATIONS = ("no-scaling", "uniform-rho", "alpha-1", "polish")
+#: the one-off ablations of the preset (OSQP's rule, order xz), and admmkit's own preset (its own iteration cap)
+ABLATIONS = ("no-scaling", "uniform-rho", "alpha-1", "polish", "admmkit")
+#: the variants that run with their own iteration cap instead of the study's
+OWN_CAP = ("admmkit",)
 #: the folder of the MAT files, for the workers (set by the driver through the sweep's env)
 DATA_ENV = "ADMMKIT_QP_DATA"
 
@@ -141,7 +145,8 @@ def build_cases(paths, configs, eps, max_iter: int, time_limit: float, osqp_dire
         base = {"target": "maros_meszaros", "problem": path.stem, "file": path.name, "max_iter": max_iter,
                 "time_limit": time_limit, "group": path.stem}
         for variant, policy, order in configs:
-            cases.append(base | {"variant": variant, "solver": policy, "order": order, "eps": list(eps)})
+            cases.append(base | {"variant": variant, "solver": policy, "order": order, "eps": list(eps)}
+                         | ({"max_iter": None} if variant in OWN_CAP else {}))
         if osqp_direct:
             cases += [base | {"variant": v, "solver": OSQP_DIRECT, "order": "-", "eps": e}
                       for v in ("default", "polish") for e in sorted(eps)]
@@ -173,9 +178,10 @@ def case_rows(record: dict) -> list[dict]:
     case = record["case"]
     error = (record.get("error") or "error").split(":")[0]
     eps = case["eps"] if isinstance(case["eps"], list) else [case["eps"]]
+    cap = case["max_iter"] or VARIANTS[case["variant"]]().max_iter
     return [{"problem": case["problem"], "n": -1, "m": -1, "variant": case["variant"], "solver": case["solver"],
              "order": case["order"], "eps": e, "solved": False, "neutral": False, "status": error,
-             "iterations": case["max_iter"], "time": case["time_limit"], "setup_time": math.nan, "loop_time": math.nan,
+             "iterations": cap, "time": case["time_limit"], "setup_time": math.nan, "loop_time": math.nan,
              "factorizations": 0, "rho_changes": 0, "rho_final": math.nan, "rho_max": math.nan,
              "neutral_primal": math.nan, "neutral_dual": math.nan, "neutral_gap": math.nan} for e in eps]
 

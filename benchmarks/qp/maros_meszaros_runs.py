@@ -31,7 +31,7 @@ import scipy.sparse as sp
 
 from admmkit.problems.qp.problem import QP
 from admmkit.problems.qp.residuals import neutral_residuals, neutral_satisfied
-from admmkit.problems.qp.settings import QPSettings, osqp_settings, textbook_settings
+from admmkit.problems.qp.settings import QPSettings, admmkit_settings, osqp_settings, textbook_settings
 from admmkit.problems.qp.solve import qp_for, solve_qp
 from admmkit.problems.qp.termination import SOLVED, QPTermination
 
@@ -44,6 +44,7 @@ VARIANTS = {
     "uniform-rho": lambda: osqp_settings(row_weights="uniform"),
     "alpha-1": lambda: osqp_settings(alpha=1.0),
     "polish": lambda: osqp_settings(polish=True),
+    "admmkit": lambda: admmkit_settings(),
 }
 #: the label of OSQP called directly (variants "default" and "polish")
 OSQP_DIRECT = "OSQP"
@@ -51,12 +52,14 @@ OSQP_DIRECT = "OSQP"
 WALL_FACTOR = 20.0
 
 
-def settings_for(variant: str, order: str, eps: float, max_iter: int, time_limit: float) -> QPSettings:
-    """The variant's settings at absolute accuracy eps (eps_rel = 0), with the study's cap and limit."""
+def settings_for(variant: str, order: str, eps: float, max_iter: int | None, time_limit: float) -> QPSettings:
+    """The variant's settings at absolute accuracy eps (eps_rel = 0), with the study's cap (None: the variant's own)
+    and limit."""
     if variant not in VARIANTS:
         raise ValueError(f"variant must be one of {', '.join(VARIANTS)}, got {variant!r}")
-    return VARIANTS[variant]().replace(order=order, eps_abs=float(eps), eps_rel=0.0, max_iter=max_iter,
-                                       time_limit=WALL_FACTOR * time_limit)
+    cap = {} if max_iter is None else {"max_iter": max_iter}
+    return VARIANTS[variant]().replace(order=order, eps_abs=float(eps), eps_rel=0.0,
+                                       time_limit=WALL_FACTOR * time_limit, **cap)
 
 
 def _row(qp: QP, label: dict, eps: float, **fields) -> dict:
@@ -70,6 +73,11 @@ def _neutral_fields(neutral: dict | None, eps: float) -> dict:
             "neutral_dual": neutral["dual"], "neutral_gap": neutral["gap"]}
 
 
+def polishes(settings: QPSettings) -> bool:
+    """The settings polish (after the stop, or during the run): a run at one eps says nothing of another."""
+    return settings.polish or settings.early_polish
+
+
 def run_admmkit(qp: QP, variant: str, rule: str, order: str, eps, max_iter: int, time_limit: float,
                 acceleration: str | None = None) -> list[dict]:
     """One admmkit run to the tightest eps (the polish variant: one run per eps); one row per eps.
@@ -77,7 +85,7 @@ def run_admmkit(qp: QP, variant: str, rule: str, order: str, eps, max_iter: int,
     ``acceleration``: None (plain ADMM), "anderson" or "fast" (:mod:`admmkit.loop.acceleration`).
     """
     eps = sorted({float(e) for e in eps}, reverse=True)
-    if variant == "polish":
+    if variant in VARIANTS and polishes(VARIANTS[variant]()):       # a polished stop: one run per eps
         return [row for e in eps for row in run_admmkit_at(qp, variant, rule, order, [e], max_iter, time_limit,
                                                            acceleration)]
     return run_admmkit_at(qp, variant, rule, order, eps, max_iter, time_limit, acceleration)
@@ -101,7 +109,7 @@ def run_admmkit_at(qp: QP, variant: str, rule: str, order: str, eps: list[float]
 
     def watch(rec):
         rho_max[0] = max(rho_max[0], rec.rho)
-        if (rec.k + 1) % settings.check_every == 0 or rec.k + 1 == max_iter:
+        if (rec.k + 1) % settings.check_every == 0 or rec.k + 1 == settings.max_iter:
             for e, test in looser.items():
                 if e not in hits and test.fired(rec):
                     neutral = None

@@ -5,7 +5,8 @@ for a QP, whose one solve is judged at every accuracy), judged by the
 family's own truthful measure:
 
 - ``qp``: a Maros-Meszaros problem under OSQP's machinery (the preset,
-  order xz, rho_0 = 0.1; ``admmkit.benchmarks.qp.maros_meszaros_runs``):
+  order xz, rho_0 = 0.1; ``admmkit.benchmarks.qp.maros_meszaros_runs``), or
+  under admmkit's preset (``case["preset"] = "admmkit"``, its own cap):
   solved when the solver's own test said solved *and* the returned point
   meets the neutral criteria at that eps (a ``solved`` that misses them is
   the failure ``solved_not_neutral``);
@@ -63,7 +64,8 @@ def run_qp(case: dict) -> list[dict]:
     if _CACHE.get("qp_path") != path:
         _CACHE.clear()
         _CACHE.update(qp_path=path, qp=load_mat(path))
-    rows = run_admmkit(_CACHE["qp"], "preset", case["rule"], case["order"], tuple(case["eps"]), case["max_iter"],
+    variant = {"osqp": "preset", "admmkit": "admmkit"}[case.get("preset", "osqp")]
+    rows = run_admmkit(_CACHE["qp"], variant, case["rule"], case["order"], tuple(case["eps"]), case["max_iter"],
                        case["time_limit"], acceleration=case.get("acceleration"))
     runs = []
     for row in rows:

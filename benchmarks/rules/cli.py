@@ -17,6 +17,9 @@ def rules(targets) -> None:
                    help="comma-separated rules: names, module:Class or path/to/file.py:Class (default: all registered)")
     r.add_argument("--acceleration", default="none,anderson",
                    help="comma-separated: none, anderson, fast (default none,anderson)")
+    r.add_argument("--presets", default="osqp",
+                   help="qp family: comma-separated QP settings presets to run each rule in: osqp (OSQP's, cap 4000), "
+                        "admmkit (admmkit_settings, its own cap; ranked as rule@admmkit) (default osqp)")
     r.add_argument("--families", default=",".join(FAMILIES), help=f"comma-separated (default {','.join(FAMILIES)})")
     r.add_argument("--data", default=None, metavar="DIR",
                    help="Maros-Meszaros MAT files for the qp family (default ../shared/data/maros_meszaros if there)")
@@ -34,7 +37,8 @@ def references(args) -> tuple[str, ...]:
 def _rules(args) -> int:
     from admmkit.benchmarks.rules.study import run
     print_files(run(args.out, rules=split_list(args.rules), acceleration=split_list(args.acceleration) or [],
-                    families=split_list(args.families) or [], quick=args.quick, data=args.data,
+                    families=split_list(args.families) or [], presets=split_list(args.presets) or [],
+                    quick=args.quick, data=args.data,
                     command=args.command_line, progress=args.progress, report_only=args.report_only,
                     executor=executor_of(args)))
     return 0

@@ -40,8 +40,9 @@ TAUS = np.logspace(0, 2, 300)
 
 
 def config_of(case: dict) -> str:
-    """``rule`` or ``rule+acceleration``."""
-    return case["rule"] + (f"+{case['acceleration']}" if case.get("acceleration") else "")
+    """``rule`` or ``rule+acceleration``; ``rule@preset`` for a QP case in a preset other than OSQP's."""
+    preset = f"@{case['preset']}" if case.get("preset") else ""
+    return case["rule"] + preset + (f"+{case['acceleration']}" if case.get("acceleration") else "")
 
 
 def rows_of(records: dict) -> list[dict]:
@@ -55,7 +56,8 @@ def rows_of(records: dict) -> list[dict]:
         case = rec["case"]
         problem = " ".join(f"{k}={case[k]:g}" if isinstance(case[k], float) else f"{k}={case[k]}"
                            for k in PROBLEM_FIELDS if case.get(k) is not None)
-        base = {"family": case["family"], "problem": problem, "rule": case["rule"],
+        rule = case["rule"] + (f"@{case['preset']}" if case.get("preset") else "")
+        base = {"family": case["family"], "problem": problem, "rule": rule,
                 "acceleration": case.get("acceleration") or "none", "config": config_of(case),
                 "rho_sweep": " ".join(problem.split(" rho")[0:1])}
         runs = (rec.get("result") or {}).get("runs")

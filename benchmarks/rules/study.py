@@ -8,8 +8,10 @@ A study is a grid, a case runner and a summary.  The grid (:func:`build_cases`)
 puts each rule, with and without acceleration, in the setting where it
 belongs, one family at a time:
 
-- ``qp``: Maros-Meszaros with n + m <= 3000 under OSQP's machinery, eps 1e-3
-  and 1e-6 (quick: 6 small problems at 1e-3);
+- ``qp``: Maros-Meszaros with n + m <= 3000 (qpbenchmark's count: bound rows
+  are not constraints; 86 convex problems) under OSQP's machinery, eps 1e-3
+  and 1e-6 (quick: 6 small problems at 1e-3); ``--presets osqp,admmkit`` runs
+  each rule in admmkit's preset too (``rule@admmkit``);
 - ``contact``: Examples 1 and 2 (h = 1/20), rho_0 = 1e-4 ... 1e8, both
   orders (quick: h = 1/10, 3 rho_0);
 - ``obstacle``: the radial obstacle (h = 1/16), rho_0 = 1e-6 ... 1e6, both
@@ -47,6 +49,10 @@ QUICK_QP = ("HS21", "HS35", "HS118", "QAFIRO", "DUAL1", "QPCBLEND")
 QP_MAX_SIZE = 3000
 QP_EPS, QUICK_QP_EPS = (1e-3, 1e-6), (1e-3,)
 QP_MAX_ITER, QP_TIME_LIMIT = 4000, 5.0
+#: the QP settings presets of the option --presets, OSQP's (with OSQP's cap QP_MAX_ITER) and admmkit's own
+#: (``admmkit.problems.qp.admmkit_settings``, with its own cap); a rule in a preset other than OSQP's is ranked
+#: as ``rule@preset``
+QP_PRESETS = ("osqp", "admmkit")
 FRAMEWORK = ("lasso", "box_ls_weighted", "consensus_8", "tv_2d")
 FRAMEWORK_RHO0 = (1e-3, 1.0, 1e3)
 FRAMEWORK_MAX_ITER = 10_000
@@ -68,8 +74,17 @@ def accelerations(names) -> list[str | None]:
     return out
 
 
+def qp_size(P, A) -> int:
+    """n + m as qpbenchmark counts a Maros-Meszaros problem: the rows of A with one entry are bounds on a variable
+    (qpbenchmark's lb <= x <= ub), not constraints."""
+    import numpy as np
+    import scipy.sparse as sp
+    return int(P.shape[0] + np.count_nonzero(np.diff(sp.csr_matrix(A).indptr) > 1))
+
+
 def qp_files(data: Path, quick: bool) -> list[Path]:
-    """The Maros-Meszaros files of the grid: the quick six, or every convex one with n + m <= QP_MAX_SIZE."""
+    """The Maros-Meszaros files of the grid: the quick six, or every convex one with n + m <= QP_MAX_SIZE (qpbenchmark's
+    count, :func:`qp_size`: 86 problems, VALUES left out as not convex)."""
     from admmkit.benchmarks.qp.maros_meszaros import skip_reason
     from admmkit.problems.qp.mat import list_problems, read_matrices
     if quick:
@@ -80,24 +95,26 @@ def qp_files(data: Path, quick: bool) -> list[Path]:
             P, A = read_matrices(path)
         except ValueError:
             continue                                   # unreadable: bench qp lists it
-        if sum(A.shape) <= QP_MAX_SIZE and skip_reason(path) is None:
+        if qp_size(P, A) <= QP_MAX_SIZE and skip_reason(path) is None:
             files.append(path)
     return files
 
 
-def build_cases(rules, accel, families=FAMILIES, *, quick: bool = False, data: Path | None = None) -> list[dict]:
-    """One case per (family, problem, rule, acceleration, order, rho_0); a problem's cases form a group."""
+def build_cases(rules, accel, families=FAMILIES, *, quick: bool = False, data: Path | None = None,
+                presets=("osqp",)) -> list[dict]:
+    """One case per (family, problem, rule, acceleration, order, rho_0) (and QP preset); a problem's cases form a
+    group."""
     cases = []
     versions = {rule: policy_version(method_label(rule, "zx")) for rule in rules}
     for family in families:
-        for base in _problem_cases(family, rules, quick, data):
+        for base in _problem_cases(family, rules, quick, data, presets):
             for a in accel:
                 cases.append(base | {"family": family, "acceleration": a, "policy_version": versions[base["rule"]],
                                      "group": f"{family}:{base['group']}"})
     return cases
 
 
-def _problem_cases(family: str, rules, quick: bool, data: Path | None) -> list[dict]:
+def _problem_cases(family: str, rules, quick: bool, data: Path | None, presets=("osqp",)) -> list[dict]:
     """The family's cases for every rule, without acceleration (its own study's grid where it has one)."""
     if family in ("contact", "obstacle", "friction"):
         problems = {"contact": ("contact", "contact_ex2"), "obstacle": ("obstacle",), "friction": ("tresca",)}[family]
@@ -113,8 +130,9 @@ def _problem_cases(family: str, rules, quick: bool, data: Path | None) -> list[d
                 for p in FRAMEWORK for r in rules for o in ("xz", "zx") for rho0 in FRAMEWORK_RHO0]
     if family == "qp":
         eps = list(QUICK_QP_EPS if quick else QP_EPS)
-        return [{"problem": f.stem, "file": f.name, "rule": r, "order": "xz", "eps": eps, "max_iter": QP_MAX_ITER,
-                 "time_limit": QP_TIME_LIMIT, "group": f.stem} for f in qp_files(data, quick) for r in rules]
+        return [{"problem": f.stem, "file": f.name, "rule": r, "order": "xz", "eps": eps,
+                 "max_iter": QP_MAX_ITER if p == "osqp" else None, "time_limit": QP_TIME_LIMIT, "group": f.stem}
+                | ({} if p == "osqp" else {"preset": p}) for f in qp_files(data, quick) for r in rules for p in presets]
     raise ValueError(f"--families: unknown {family!r}; choose among {', '.join(FAMILIES)}")
 
 
@@ -148,14 +166,24 @@ def label(case: dict) -> str:
             f"{case['acceleration'] or ''} {where}")
 
 
+def check_presets(presets) -> list[str]:
+    """The QP presets of --presets, each known and given once; ValueError naming the option otherwise."""
+    out = [str(p).strip().lower() for p in presets]
+    if not out or len(set(out)) != len(out) or any(p not in QP_PRESETS for p in out):
+        raise ValueError(f"--presets: give each of {', '.join(QP_PRESETS)} at most once, at least one; "
+                         f"got {list(presets)!r}")
+    return out
+
+
 def run(out="out/rules", *, rules=None, acceleration=("none", "anderson"), families=FAMILIES, quick: bool = False,
-        data=None, command: str = "admmkit bench rules", progress: bool = True, report_only: bool = False,
+        data=None, presets=("osqp",), command: str = "admmkit bench rules", progress: bool = True, report_only: bool = False,
         executor: Executor | None = None) -> list[Path]:
     """Build the grid, run (or resume) it, and write the ranking (returns the files written)."""
     from admmkit.benchmarks.rules.report import summarise
     out = Path(out)
     rules = check_rules(rules if rules is not None else admmkit.policy_names())
     accel = accelerations(acceleration)
+    presets = check_presets(presets)
     families = list(families)
     if not families:
         raise ValueError(f"--families: give at least one of {', '.join(FAMILIES)}")
@@ -169,7 +197,7 @@ def run(out="out/rules", *, rules=None, acceleration=("none", "anderson"), famil
             raise ValueError(f"--data: folder of Maros-Meszaros MAT files not found: {data_dir}")
         families.remove("qp")
         notes.append(f"qp left out: no Maros-Meszaros folder at {DEFAULT_DATA} (give --data DIR)")
-    cases = build_cases(rules, accel, families, quick=quick, data=data_dir.resolve())
+    cases = build_cases(rules, accel, families, quick=quick, data=data_dir.resolve(), presets=presets)
     records, wall = run_or_report(cases, "admmkit.benchmarks.rules.cases:run_case", out, report_only=report_only,
                                   env={DATA_ENV: str(data_dir.resolve()), stability.CACHE_ENV: str(out / "cache")},
                                   executor=executor or Executor(), progress=progress, cost=case_cost, label=label)

@@ -45,10 +45,20 @@ class QPSettings:
     check_every: int = 25              # OSQP's check_termination
     adaptive_rho_interval: int = 50    # OSQP's rule: every this many iterations
     adaptive_rho_tolerance: float = 5.0
+    # when solve_qp's policy is "osqp": "interval", OSQP's rule every adaptive_rho_interval iterations (OSQP 1.x's
+    # adaptive_rho 1); "kkt_error", once the KKT error fell to adaptive_rho_fraction x its value at the last update
+    # (adaptive_rho 3, policies.OSQPKKTRule, read every adaptive_rho_interval iterations)
+    adaptive_rho: str = "interval"
+    adaptive_rho_fraction: float = 0.4
     max_iter: int = 4000
     polish: bool = False
     polish_refine_iter: int = 3
     delta: float = 1e-6                # regularisation of the polishing system
+    # polishing during the run (problems.qp.polish_stop): at a check where the test holds at polish_gate x the
+    # tolerances, at most every polish_interval iterations, polish; a polished point that passes the test ends the run
+    early_polish: bool = False
+    polish_gate: float = 1e3
+    polish_interval: int = 100
     time_limit: float | None = None    # seconds (benchmarks only)
     # compiled code (numba): "auto" where the QP is large enough to pay for numba's import and its kernels' load
     # or compile (problems.qp.segment.compiled_pays), True always, False every iteration in Python (the helper
@@ -56,12 +66,18 @@ class QPSettings:
     compiled: bool | str = "auto"
 
     def __post_init__(self):
-        for name in ("rho", "alpha", "eps_prim_inf", "eps_dual_inf", "adaptive_rho_tolerance", "delta"):
+        for name in ("rho", "alpha", "eps_prim_inf", "eps_dual_inf", "adaptive_rho_tolerance", "delta", "polish_gate"):
             v = number(name, getattr(self, name), "finite, > 0")
             if not (math.isfinite(v) and v > 0):
                 raise ValueError(f"{name} must be a finite number > 0, got {getattr(self, name)!r}")
         if not 0 < self.alpha < 2:
             raise ValueError(f"alpha must be in (0, 2), got {self.alpha!r}")
+        if self.adaptive_rho not in ("interval", "kkt_error"):
+            raise ValueError(f"adaptive_rho must be 'interval' or 'kkt_error', got {self.adaptive_rho!r}")
+        if not 0 < number("adaptive_rho_fraction", self.adaptive_rho_fraction, "in (0, 1)") < 1:
+            raise ValueError(f"adaptive_rho_fraction must be a number in (0, 1), got {self.adaptive_rho_fraction!r}")
+        if self.polish_gate < 1:
+            raise ValueError(f"polish_gate must be >= 1, got {self.polish_gate!r}")
         if self.adaptive_rho_tolerance < 1:
             raise ValueError(f"adaptive_rho_tolerance must be >= 1, got {self.adaptive_rho_tolerance!r}")
         for name in ("sigma", "eps_abs", "eps_rel"):
@@ -69,10 +85,12 @@ class QPSettings:
             if not (math.isfinite(v) and v >= 0):
                 raise ValueError(f"{name} must be a finite number >= 0, got {getattr(self, name)!r}")
         for name, low in (("scaling", 0), ("check_every", 1), ("adaptive_rho_interval", 1), ("max_iter", 1),
-                          ("polish_refine_iter", 0)):
+                          ("polish_refine_iter", 0), ("polish_interval", 1)):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < low:
                 raise ValueError(f"{name} must be an integer >= {low}, got {v!r}")
+        if not isinstance(self.early_polish, bool):
+            raise ValueError(f"early_polish must be True or False, got {self.early_polish!r}")
         if not (isinstance(self.compiled, bool) or self.compiled == "auto"):
             raise ValueError(f"compiled must be 'auto', True or False, got {self.compiled!r}")
         if self.xstep not in ("auto", "reduced", "kkt"):
@@ -104,6 +122,24 @@ def osqp_settings(**changes) -> QPSettings:
     """OSQP 1.x's defaults (the preset), with ``changes`` applied."""
     _check_names(changes)
     return QPSettings(**changes)
+
+
+def admmkit_settings(eps_abs: float = 1e-3, eps_rel: float = 1e-3, **changes) -> QPSettings:
+    """admmkit's own preset (docs/qp.md, "admmkit's preset"): OSQP's machinery with what ``admmkit bench rules``
+    found best on the training half of the Maros-Meszaros problems (docs/results/qp_rules), ``changes`` applied.
+
+    Beside OSQP's defaults: polishing during the run (``early_polish``: near the solution the iterate is
+    polished, and a polished point that passes OSQP's test ends the run) and the iteration cap raised to
+    ADMMKIT_MAX_ITER (a ``time_limit`` is the budget that matters).
+    """
+    _check_names(changes)
+    return QPSettings(eps_abs=eps_abs, eps_rel=eps_rel, **(ADMMKIT_PRESET | changes))
+
+
+#: the iteration cap of admmkit's preset
+ADMMKIT_MAX_ITER = 100_000
+#: what admmkit's preset changes in OSQP's defaults (chosen on the training split, docs/results/qp_rules)
+ADMMKIT_PRESET = {"max_iter": ADMMKIT_MAX_ITER, "early_polish": True}
 
 
 def textbook_settings(**changes) -> QPSettings:

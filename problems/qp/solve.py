@@ -98,8 +98,13 @@ def qp_for(qp: QP, settings: QPSettings) -> QP:
 
 
 def default_policy(qp: QP, settings: QPSettings):
-    """OSQP's rule as OSQP 1.x runs it: every ``adaptive_rho_interval`` iterations, on the scaled problem's residuals."""
-    from admmkit.policies import OSQPRule
+    """OSQP's rule as OSQP 1.x runs it: every ``adaptive_rho_interval`` iterations, on the scaled problem's residuals
+    (``adaptive_rho="kkt_error"``: OSQP 1.x's KKT-error mode, ``policies.OSQPKKTRule``)."""
+    from admmkit.policies import OSQPKKTRule, OSQPRule
+    if settings.adaptive_rho == "kkt_error":
+        return OSQPKKTRule(interval=settings.adaptive_rho_interval, tolerance=settings.adaptive_rho_tolerance,
+                           fraction=settings.adaptive_rho_fraction, rho_min=RHO_MIN, rho_max=RHO_MAX,
+                           residuals=osqp_relative_residuals(qp))
     return OSQPRule(interval=settings.adaptive_rho_interval, tolerance=settings.adaptive_rho_tolerance,
                     rho_min=RHO_MIN, rho_max=RHO_MAX, residuals=osqp_relative_residuals(qp))
 
@@ -142,9 +147,7 @@ def solve_qp(qp: QP, settings: QPSettings | None = None, *, policy="osqp", warm_
             x0, z0, lam0 = run_qp.iterate_from(warm_start.x, warm_start.lam)
             rho = warm_start.rho if rho is None else rho
         rho0 = min(max(settings.rho if rho is None else check_rho(rho), RHO_MIN), RHO_MAX)
-        stop = QPTermination(run_qp, settings.eps_abs, settings.eps_rel, gap=settings.gap,
-                             infeasibility=settings.infeasibility, eps_prim_inf=settings.eps_prim_inf,
-                             eps_dual_inf=settings.eps_dual_inf)
+        stop = termination_for(run_qp, settings)
         start = time.perf_counter()
         setup_factorizations = run_qp.setup(rho0)                               # OSQP factorises in its setup too
         setup_time = time.perf_counter() - start
@@ -155,6 +158,19 @@ def solve_qp(qp: QP, settings: QPSettings | None = None, *, policy="osqp", warm_
         res.timings["setup"] = setup_time
         res.counters["factorizations"] = res.counters.get("factorizations", 0) + setup_factorizations
         return _qp_result(run_qp, settings, res, stop, res.last_record)
+
+
+def termination_for(qp: QP, settings: QPSettings) -> QPTermination:
+    """OSQP's test at the settings' tolerances; with ``early_polish``, the test that also polishes near the solution
+    (:class:`admmkit.problems.qp.polish_stop.PolishingTermination`)."""
+    options = dict(gap=settings.gap, infeasibility=settings.infeasibility, eps_prim_inf=settings.eps_prim_inf,
+                   eps_dual_inf=settings.eps_dual_inf)
+    if settings.early_polish:
+        from .polish_stop import PolishingTermination
+        return PolishingTermination(qp, settings.eps_abs, settings.eps_rel, gate=settings.polish_gate,
+                                    every=settings.polish_interval, delta=settings.delta,
+                                    refine=settings.polish_refine_iter, **options)
+    return QPTermination(qp, settings.eps_abs, settings.eps_rel, **options)
 
 
 def check_rho(rho) -> float:
@@ -215,7 +231,13 @@ def _qp_result(qp: QP, settings: QPSettings, res: Result, stop: QPTermination, r
     elif status is Status.DUAL_INFEASIBLE or status is Status.DUAL_INFEASIBLE_INACCURATE:
         objective = -math.inf
     polish_info = None
-    if settings.polish:
+    polished = getattr(stop, "polished", None)
+    if polished is not None:                    # the run ended on a polished point that passed the test
+        x, z, y, polish_info = polished
+        objective = qp.objective(x, z)
+        residuals = dict(stop.last)
+        kkt = qp.kkt(x, qp.scaling.E * z if qp.scaled else z, qp.iterate_from(x, y)[2])
+    elif settings.polish:
         if termination in (SOLVED, SOLVED + "_inaccurate"):
             yb = lam_z if qp.w is None else qp.w * lam_z
             xp, yp, polish_info = polish_solution(qp, xb, zb, yb, delta=settings.delta,

@@ -25,10 +25,14 @@ def declared_in_pyproject() -> dict[str, str]:
 
 
 def policy_classes_in(path: Path) -> list[str]:
-    """The classes of a file that subclass ``Policy`` by name (what a rule file defines)."""
+    """The classes a rule file defines that are ``Policy`` subclasses (directly, or through another rule)."""
+    import importlib
+
+    from admmkit import Policy
     tree = ast.parse(path.read_text(encoding="utf-8"))
+    module = importlib.import_module(f"admmkit.policies.{path.stem}")
     return [node.name for node in tree.body if isinstance(node, ast.ClassDef)
-            and any(getattr(b, "id", getattr(b, "attr", None)) == "Policy" for b in node.bases)]
+            and isinstance(getattr(module, node.name, None), type) and issubclass(getattr(module, node.name), Policy)]
 
 
 def docs_table() -> dict[str, tuple[str, str]]:

@@ -31,7 +31,6 @@ import scipy.sparse as sp
 from admmkit.problems.contact.model.assembly import ContactOperators, free_matrix, lame
 from admmkit.problems.contact.model.fastpaths import component_map
 from admmkit.problems.contact.model.scene3d import block_mesh
-from admmkit.problems.contact.model.stiffness3d import p1_stiffness
 from admmkit.problems.contact.solvers.friction import friction_of, tangent_frames
 
 #: the share of a P2 triangle's area at each of its vertices in the HRZ-lumped mass
@@ -69,6 +68,7 @@ def assemble3d(scene, mesh=None, stiffness: str = "compiled") -> ContactOperator
     if scene.order == 1 and stiffness == "compiled":
         points = np.array(mesh.ngmesh.Coordinates())
         tets = mesh.ngmesh.Elements3D().NumPy()["nodes"][:, :4] - 1        # netgen numbers points from 1
+        from admmkit.problems.contact.model.stiffness3d import p1_stiffness   # numba: loaded by a 3-D run only
         K = p1_stiffness(points, tets, scene.E, scene.nu, free)
     else:
         K = _ngsolve_stiffness(fes, scene.E, scene.nu, free)

@@ -1,0 +1,90 @@
+"""admmkit's QP preset (``admmkit_settings``): polishing during the run, OSQP 1.x's KKT-error rho mode, bad settings."""
+import numpy as np
+import pytest
+
+from admmkit import Status
+from admmkit.problems.qp import QP, admmkit_settings, osqp_settings, solve_qp
+from admmkit.problems.qp.residuals import neutral_residuals, neutral_satisfied
+from admmkit.problems.qp.settings import ADMMKIT_MAX_ITER
+
+
+def hs118_like(seed=0, n=15, m=29):
+    """A strictly convex box- and row-constrained QP with several active constraints (small: a fast test)."""
+    rng = np.random.default_rng(seed)
+    B = rng.standard_normal((n, n))
+    P = B @ B.T / n + 0.1 * np.eye(n)
+    A = np.vstack([np.eye(n), rng.standard_normal((m - n, n))])
+    l = np.r_[np.full(n, -0.2), np.full(m - n, -np.inf)]
+    u = np.r_[np.full(n, 0.2), rng.uniform(0.0, 0.5, m - n)]
+    return QP(P, 3 * rng.standard_normal(n), A, l, u)
+
+
+def test_admmkit_settings_is_osqps_with_polishing_during_the_run_and_its_own_cap():
+    s = admmkit_settings(1e-6, 0.0)
+    assert (s.eps_abs, s.eps_rel, s.max_iter, s.early_polish) == (1e-6, 0.0, ADMMKIT_MAX_ITER, True)
+    o = osqp_settings()
+    assert (s.rho, s.sigma, s.alpha, s.scaling, s.check_every) == (o.rho, o.sigma, o.alpha, o.scaling, o.check_every)
+    assert admmkit_settings(max_iter=10).max_iter == 10
+    with pytest.raises(TypeError, match="unknown QP setting"):
+        admmkit_settings(polishh=True)
+
+
+@pytest.mark.parametrize("eps", [1e-3, 1e-6])
+def test_polishing_during_the_run_stops_earlier_and_truthfully(eps):
+    qp = hs118_like()
+    plain = solve_qp(qp, osqp_settings(eps_abs=eps, eps_rel=0.0, max_iter=20000))
+    early = solve_qp(qp, admmkit_settings(eps, 0.0))
+    assert plain.status is Status.CONVERGED and early.status is Status.CONVERGED
+    assert early.iterations < plain.iterations                 # the polished point passed before the iterate did
+    assert early.polish["status"] == "succeeded"
+    assert neutral_satisfied(neutral_residuals(qp, early.x, early.y), eps)      # no false "converged"
+    assert early.residuals["primal"] <= eps and early.residuals["dual"] <= eps and abs(early.residuals["gap"]) <= eps
+    assert early.kkt["primal"] <= eps and early.kkt["dual"] <= eps
+    assert np.allclose(early.x, plain.x, atol=1e-2)
+
+
+def test_a_polished_point_that_misses_the_test_does_not_stop_the_run(monkeypatch):
+    from admmkit.problems.qp import polish_stop
+    tries = []
+
+    def spoilt(qp, *args, **kwargs):                       # polishing, then the point moved off the solution
+        x, y, info = polish_stop.__dict__["_polish"](qp, *args, **kwargs)
+        tries.append(x is not None)
+        return (None if x is None else x + 1e-2), y, info
+    monkeypatch.setitem(polish_stop.__dict__, "_polish", polish_stop.polish)
+    monkeypatch.setattr(polish_stop, "polish", spoilt)
+    qp = hs118_like()
+    plain = solve_qp(qp, osqp_settings(eps_abs=1e-6, eps_rel=0.0, max_iter=20000))
+    early = solve_qp(qp, admmkit_settings(1e-6, 0.0))
+    assert any(tries)                                      # polishing was tried, and refused every time
+    assert early.status is Status.CONVERGED and early.polish is None
+    assert early.iterations == plain.iterations and np.array_equal(early.x, plain.x)
+
+
+@pytest.mark.parametrize("changes, name", [({"polish_gate": 0.5}, "polish_gate"), ({"polish_interval": 0}, "polish_interval"),
+                                           ({"early_polish": "yes"}, "early_polish"),
+                                           ({"adaptive_rho": "time"}, "adaptive_rho"),
+                                           ({"adaptive_rho_fraction": 1.5}, "adaptive_rho_fraction")])
+def test_bad_settings_name_themselves(changes, name):
+    with pytest.raises(ValueError, match=name):
+        osqp_settings(**changes)
+
+
+def test_kkt_error_mode_solves_and_changes_rho_less_often():
+    qp = hs118_like(seed=2)
+    interval = solve_qp(qp, osqp_settings(eps_abs=1e-6, eps_rel=0.0, max_iter=20000))
+    kkt = solve_qp(qp, osqp_settings(eps_abs=1e-6, eps_rel=0.0, max_iter=20000, adaptive_rho="kkt_error"))
+    assert kkt.status is Status.CONVERGED
+    assert "OSQPKKTRule" in kkt.policy and "OSQPRule" in interval.policy
+    assert neutral_satisfied(neutral_residuals(qp, kkt.x, kkt.y), 1e-5)
+
+
+def test_the_iterates_solved_is_confirmed_in_the_users_problem(monkeypatch):
+    """QSHELL at 1e-3: OSQP's gap summed in the scaled problem held (9e-4) where the user's problem's is 0.015 (terms
+    of 1e12); the preset confirms a solved iterate there.  Here the user's-problem residuals are made to fail."""
+    from admmkit.problems.qp import polish_stop
+    qp = hs118_like()
+    failing = {"primal": 1.0, "primal_scale": 0.0, "dual": 1.0, "dual_scale": 0.0, "gap": 1.0, "gap_scale": 0.0}
+    monkeypatch.setattr(polish_stop, "osqp_residuals", lambda *args: failing)
+    res = solve_qp(qp, admmkit_settings(1e-3, 0.0, max_iter=300, early_polish=True))
+    assert res.status is not Status.CONVERGED and res.iterations == 300
