@@ -220,11 +220,12 @@ def test_stick_through_the_space():
 
 # ---------------------------------------------------------------- 3D (P1 tetrahedra)
 def test_user_forms_reproduce_assemble3d():
-    """The 3D block with Coulomb friction: the same operators and iterates as assemble3d."""
+    """The 3D block with Coulomb friction: the same operators and iterates as assemble3d through NGSolve's forms
+    (its default P1 stiffness, compiled, agrees with NGSolve's to round-off: tests/problems/test_contact3d.py)."""
     from admmkit.problems.contact.model.assembly3d import assemble3d
     from admmkit.problems.contact.model.scene3d import block_mesh, example2_3d
     scene = example2_3d(h=1 / 4, tangential="coulomb", mu=0.3)
-    ref = assemble3d(scene)
+    ref = assemble3d(scene, stiffness="ngsolve")
     mesh3 = block_mesh(scene.Lx, scene.Ly, scene.Lz, scene.h)
     fes3 = ng.VectorH1(mesh3, order=1, dirichlet="back")
     u3, v3 = fes3.TnT()
