@@ -10,6 +10,7 @@ is imported for its side effect: no rule needs importing before it is named.
 """
 from __future__ import annotations
 
+import functools
 import importlib
 import warnings
 
@@ -21,6 +22,14 @@ RENAMED = {"Spectral": "AADMM"}
 
 def builtin_rules() -> dict[str, tuple[str, str]]:
     """The built-in rules: ``{name: (module, Class)}``, read from the entry-point group ``admmkit.policies``."""
+    return dict(_builtin_rules())
+
+
+@functools.lru_cache(maxsize=1)
+def _builtin_rules() -> dict[str, tuple[str, str]]:
+    """:func:`builtin_rules`, read once per process: scanning every installed package's entry points takes
+    20-80 ms, and ``from admmkit.policies import OSQPRule`` runs on every QP solve (a small QP's whole solve
+    took 70 ms instead of 3 with a scan each time)."""
     rules = {}
     for name, point in declared_rules().items():
         module, _, cls = point.value.partition(":")
@@ -35,9 +44,10 @@ def __getattr__(attr: str):
         warnings.warn(f"admmkit.policies.{attr} is now admmkit.policies.{RENAMED[attr]}",
                       DeprecationWarning, stacklevel=2)
         return __getattr__(RENAMED[attr])
-    for module, cls in builtin_rules().values():
+    for module, cls in _builtin_rules().values():
         if cls == attr:
-            return getattr(importlib.import_module(module), cls)
+            value = globals()[attr] = getattr(importlib.import_module(module), cls)   # later lookups: no search
+            return value
     if attr in ("PAPER_METHODS", "method"):
         return getattr(importlib.import_module(f"{__name__}.paper_methods"), attr)
     raise AttributeError(f"module {__name__!r} has no attribute {attr!r}")

@@ -114,3 +114,21 @@ def test_an_unknown_class_is_an_attribute_error():
     from admmkit import policies
     with pytest.raises(AttributeError, match="NoSuchRule"):
         policies.NoSuchRule
+
+
+def test_a_solve_reads_the_entry_points_once_per_process(monkeypatch):
+    """The registry is read once: a QP solve after the first scans no installed package's entry points (a scan
+    per solve made a small QP's whole solve 70 ms instead of 3)."""
+    import numpy as np
+    import scipy.sparse as sp
+
+    import admmkit.policy
+    from admmkit.problems.qp import QP, solve_qp
+    qp = QP(sp.csc_matrix(np.eye(2)), np.array([1.0, -1.0]), sp.csc_matrix(np.eye(2)), -np.ones(2), np.ones(2))
+    solve_qp(qp, compiled=False)
+    scans = []
+    real = admmkit.policy.entry_points
+    monkeypatch.setattr(admmkit.policy, "entry_points", lambda **kw: scans.append(kw) or real(**kw))
+    for _ in range(2):
+        assert solve_qp(qp, compiled=False).converged
+    assert scans == []
