@@ -56,10 +56,4 @@ class OSQPKKTRule(OSQPRule):
         if error > self.fraction * self.reference:
             return rec.rho
         self.reference = error
-        est = self.estimate(rec)
-        if math.isnan(est):
-            return rec.rho
-        est = min(max(est, self.rho_min), self.rho_max)
-        if est > self.tolerance * rec.rho or est < rec.rho / self.tolerance:
-            return est
-        return rec.rho
+        return self.adopted(rec, self.clamped_estimate(rec))

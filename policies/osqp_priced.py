@@ -45,10 +45,9 @@ class OSQPPricedRule(OSQPRule):
         """At iterations interval, 2 interval, ...: the estimate, if it disagrees with rho by more than its price."""
         if (rec.k + 1) % self.interval:
             return rec.rho
-        est = self.estimate(rec)
+        est = self.clamped_estimate(rec)
         if math.isnan(est):
             return rec.rho
-        est = min(max(est, self.rho_min), self.rho_max)
         since = rec.k - self.last_change
         threshold = math.log(self.tolerance) * max(1.0, self.price / since)
         if est <= 0 or abs(math.log(est / rec.rho)) <= threshold:

@@ -101,10 +101,15 @@ class OSQPRule(Policy):
         """Adopt rho_est at iterations interval, 2 interval, ... when it differs by more than ``tolerance``."""
         if (rec.k + 1) % self.interval:
             return rec.rho
+        return self.adopted(rec, self.clamped_estimate(rec))
+
+    def clamped_estimate(self, rec: IterationRecord) -> float:
+        """rho_est of :meth:`estimate` clipped to [rho_min, rho_max], or NaN where it cannot be computed."""
         est = self.estimate(rec)
-        if math.isnan(est):
-            return rec.rho
-        est = min(max(est, self.rho_min), self.rho_max)
+        return est if math.isnan(est) else min(max(est, self.rho_min), self.rho_max)
+
+    def adopted(self, rec: IterationRecord, est: float) -> float:
+        """``est`` if it differs from rho by more than the factor ``tolerance`` (OSQP's test), else rho."""
         if est > self.tolerance * rec.rho or est < rec.rho / self.tolerance:
             return est
         return rec.rho
