@@ -112,15 +112,22 @@ def test_a_verdict_is_true_in_the_users_problem_or_warned(case):
 @settings(max_examples=12, deadline=None)
 @given(st.integers(0, 10_000), st.floats(-150, -9), st.integers(1, 8))
 def test_tiny_rows_end_at_the_unscaled_solution(seed, exponent, rows):
-    """Rows multiplied by 10**exponent <= 1e-9 describe the same feasible set: a converged run is the solution."""
+    """Rows multiplied by 10**exponent <= 1e-9 describe the same feasible set: a converged run is the solution.
+
+    Tiny rows must not cost convergence: where the unscaled problem converges within the cap, so does the
+    scaled one.  Some random bases do not converge in 10,000 iterations at 1e-6 at all (seed 260: three
+    equality rows, OSQP 1.1.3 also stops at its cap); for those the scaled run must not claim convergence
+    at a wrong answer either."""
     base = random_qp(6, 8, seed=seed)
     factor = np.ones(base.m)
     factor[:rows] = 10.0 ** exponent
-    res = solve_qp(scaled((base.P, base.q, base.A, base.l, base.u), factor, np.ones(base.n)), eps_abs=1e-6,
-                   eps_rel=1e-6, max_iter=10_000)
+    settings = dict(eps_abs=1e-6, eps_rel=1e-6, max_iter=10_000)
+    res = solve_qp(scaled((base.P, base.q, base.A, base.l, base.u), factor, np.ones(base.n)), **settings)
     _, _, f_ref = solve_with_cvxpy(base)
-    assert res.status is Status.CONVERGED
-    assert abs(res.objective - f_ref) <= 1e-3 * max(1.0, abs(f_ref))
+    if solve_qp(base, **settings).status is Status.CONVERGED:
+        assert res.status is Status.CONVERGED
+    if res.status is Status.CONVERGED:
+        assert abs(res.objective - f_ref) <= 1e-3 * max(1.0, abs(f_ref))
 
 
 @pytest.mark.parametrize("factor", [1e-8, 1e-150])
