@@ -92,3 +92,18 @@ def test_cli_target_error_picks_the_cheapest_model(capsys):
     assert main(["solve", "contact", "--scene", "ex1", "--fe-order", "1", "--h", "1/10", "--target-error", "0.05"]) == 0
     text = capsys.readouterr().out
     assert "from h = 0.1, P1, target 0.05" in text and "model " not in text
+
+
+@pytest.mark.parametrize("caps", [dict(max_levels=2), dict(max_levels=6, max_unknowns=1500)])
+def test_a_capped_run_returns_the_last_level_on_its_own_mesh(caps, tmp_path):
+    """The loop ended by a cap keeps the last level's mesh: the model, its indicators and the solution belong
+    together (the mesh was refined in place after the last level, and --plot of such a run failed)."""
+    out = solve_adaptive(example1(h=1 / 8), target=1e-6, **caps)
+    assert out.status in ("level_cap", "unknowns_cap")
+    mesh = out.model.mesh
+    assert mesh.ne == out.levels[-1].cells == len(out.indicators)
+    assert len(out.result.x) == out.model.n_free == out.levels[-1].unknowns
+    png = tmp_path / "adapted.png"
+    assert main(["solve", "contact", "--scene", "ex1", "--h", "1/8", "--target-error", "1e-6", "--max-levels", "2",
+                 "--plot", str(png), "--quiet"]) == 1                      # level_cap: 1, the plot written
+    assert png.stat().st_size > 0

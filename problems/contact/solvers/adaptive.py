@@ -52,7 +52,7 @@ from admmkit.problems.contact.solvers.estimate_residual import check_estimator
 from admmkit.problems.contact.solvers.methods import method
 from admmkit.problems.contact.solvers.problem import contact_problem
 from admmkit.problems.contact.solvers.warm_trace import ContactTrace, contact_trace, start_at, trace_warm_start
-from admmkit.problems.fe import refine_marked
+from admmkit.problems.fe import refined_copy
 
 
 @dataclass
@@ -122,7 +122,7 @@ def solve_adaptive(scene: Scene, target: float, *, theta: float = 0.5, gamma: fl
                 out.message += f" ({res.message})"
             return out
         warm = LastLevel(ops.xc.copy(), res.lam.copy(), res.rho, None if three else contact_trace(problem, res.x))
-        refine_marked(mesh, dorfler_mark(indicators, theta))
+        mesh = refined_copy(mesh, dorfler_mark(indicators, theta))    # a copy: the level's model keeps its own mesh
     return out.capped(max_levels, target)
 
 
