@@ -247,7 +247,7 @@ def test_layout_page_draws_the_current_arrows():
 
 
 @pytest.mark.parametrize("study", ["loop-overhead", "four-problems", "qp-fidelity", "qp-agreement", "friction",
-                                   "linsolve"])
+                                   "linsolve", "anderson-cost"])
 def test_studies_with_their_own_options_answer_help_and_bad_options(study, capsys):
     from admmkit.cli import main
     assert main(["bench", study, "--help"]) == 0

@@ -42,19 +42,6 @@ STORED, NEXT, HAVE_PREV, PENDING, EXTRAPOLATED, REJECTED, SKIP, BACKOFF = range(
 INT_SLOTS = 8
 
 
-@kernel(cache=True, inline="always")
-def _wsum(w, a, b, rho):
-    """rho sum_i w_i a_i b_i over the first half of the stacked vectors a, b plus the second half's over rho."""
-    m = w.shape[0]
-    su = 0.0
-    for i in range(m):
-        su += w[i] * a[i] * b[i]
-    sl = 0.0
-    for i in range(m):
-        sl += w[i] * a[m + i] * b[m + i]
-    return rho * su + sl / rho
-
-
 @kernel(cache=True)
 def _solve_gram(gram, count, regularization, rhs, chol, gamma):
     """gamma = (G + reg max diag(G) I)^-1 rhs over the first ``count`` slots, by Cholesky; False if it fails."""
@@ -91,11 +78,11 @@ def _solve_gram(gram, count, regularization, rhs, chol, gamma):
 
 @kernel(cache=True)
 def anderson_update(rho, w, safeguard, regularization, s_u, s_l, f_u, f_l, out_u, out_l, ist, before, F_prev,
-                    G_prev, plain, dF, dG, gram, g, slots, rhs, chol, gamma):
+                    G_prev, plain, dF, dG, gram, g, acc, rhs, chol, gamma):
     """The next state (``out_u``, ``out_l``; they may be ``f_u``, ``f_l`` themselves) from the state (``s_u``,
     ``s_l``) an iteration started from and its image (``f_u``, ``f_l``); the memory (``dF``, ``dG``, ``gram``,
     ``F_prev``, ``G_prev``: stacked [u; lam] rows), the fallback (``plain``, ``before[0]``) and the counters
-    ``ist`` are updated in place (``slots`` is unused scratch).  See the module docstring."""
+    ``ist`` are updated in place (``acc``: scratch, 4 x the memory).  See the module docstring."""
     m = w.shape[0]
     mem = dF.shape[0]
     su = sl = 0.0
@@ -120,42 +107,66 @@ def anderson_update(rho, w, safeguard, regularization, s_u, s_l, f_u, f_l, out_u
     p = -1
     if ist[HAVE_PREV] == 1:                                 # push (f - f_prev, g - g_prev) into the ring
         p = ist[NEXT]
-        for i in range(m):
+        ist[NEXT] = (p + 1) % mem
+        ist[STORED] = min(ist[STORED] + 1, mem)
+    for i in range(m):                                      # ... and keep f, g as the next f_prev, g_prev
+        if p >= 0:
             dF[p, i] = f_u[i] - F_prev[i]
             dF[p, m + i] = f_l[i] - F_prev[m + i]
             dG[p, i] = g[i] - G_prev[i]
             dG[p, m + i] = g[m + i] - G_prev[m + i]
-        ist[NEXT] = (p + 1) % mem
-        ist[STORED] = min(ist[STORED] + 1, mem)
-    for i in range(m):
         F_prev[i], F_prev[m + i] = f_u[i], f_l[i]
-    for i in range(2 * m):
-        G_prev[i] = g[i]
+        G_prev[i], G_prev[m + i] = g[i], g[m + i]
     ist[HAVE_PREV] = 1
     count = ist[STORED]
     extrapolate = count > 0 and ist[SKIP] == 0
     if ist[SKIP] > 0 and count > 0:                         # backing off after a rejection: plain
         ist[SKIP] -= 1
-    for q in range(count):                                  # the new Gram row and (A2)'s right side, one pass each
-        if p >= 0:
-            gram[p, q] = gram[q, p] = _wsum(w, dG[p], dG[q], rho)
-        if extrapolate:
-            rhs[q] = _wsum(w, dG[q], g, rho)
+    _gram_row_and_rhs(w, rho, dG, g, p, count, extrapolate, gram, rhs, acc)
     if not extrapolate or not _solve_gram(gram, count, regularization, rhs, chol, gamma):
         for i in range(m):
             out_u[i], out_l[i] = f_u[i], f_l[i]
         return
-    for i in range(m):                                      # the fallback, then (A3) in place
-        plain[i], plain[m + i] = f_u[i], f_l[i]
-        out_u[i], out_l[i] = f_u[i], f_l[i]
     before[0] = g_norm
-    for a in range(count):
-        c = gamma[a]
-        for i in range(m):
-            out_u[i] -= c * dF[a, i]
-            out_l[i] -= c * dF[a, m + i]
+    for i in range(m):                                      # the fallback, then (A3): out = f - sum_a gamma_a dF_a
+        u, v = f_u[i], f_l[i]
+        plain[i], plain[m + i] = u, v
+        for a in range(count):
+            u -= gamma[a] * dF[a, i]
+            v -= gamma[a] * dF[a, m + i]
+        out_u[i], out_l[i] = u, v
     ist[PENDING] = 1
     ist[EXTRAPOLATED] += 1
+
+
+@kernel(cache=True)
+def _gram_row_and_rhs(w, rho, dG, g, p, count, extrapolate, gram, rhs, acc):
+    """The new Gram row gram[p, q] = (dG_p, dG_q)_W (when ``p >= 0``) and (A2)'s right side rhs[q] = (dG_q, g)_W
+    (when ``extrapolate``), q < ``count``, in one pass over the entries.
+
+    (a, b)_W = rho sum_{i<m} w_i a_i b_i + (sum_{i<m} w_i a_{m+i} b_{m+i}) / rho.  Each of the 4 ``count`` sums
+    (``acc``'s rows) adds its terms (w_i a_i) b_i in the order of i, as a loop per sum would: the same bits, but
+    the sums advance side by side, so the adds of one no longer wait for the one before (no ``fastmath``, no
+    reassociation: one sum alone is a chain of dependent adds)."""
+    m = w.shape[0]
+    if p < 0 and not extrapolate:
+        return
+    for q in range(count):
+        acc[0, q] = acc[1, q] = acc[2, q] = acc[3, q] = 0.0
+    for half in range(2):                                   # u's entries (rows 0, 2), then lam's (rows 1, 3)
+        for k in range(m):
+            i = half * m + k
+            wp = w[k] * dG[p, i] if p >= 0 else 0.0
+            for q in range(count):
+                if p >= 0:
+                    acc[half, q] += wp * dG[q, i]
+                if extrapolate:
+                    acc[2 + half, q] += (w[k] * dG[q, i]) * g[i]
+    for q in range(count):
+        if p >= 0:
+            gram[p, q] = gram[q, p] = rho * acc[0, q] + acc[1, q] / rho
+        if extrapolate:
+            rhs[q] = rho * acc[2, q] + acc[3, q] / rho
 
 
 class AndersonArrays:
@@ -168,7 +179,7 @@ class AndersonArrays:
         self.F_prev, self.G_prev, self.plain, self.g = (np.zeros(n) for _ in range(4))
         self.dF, self.dG = np.zeros((mem, n)), np.zeros((mem, n))
         self.gram, self.chol = np.zeros((mem, mem)), np.zeros((mem, mem))
-        self.slots = np.zeros(mem, dtype=np.int64)
+        self.acc = np.zeros((4, mem))
         self.rhs, self.gamma = np.zeros(mem), np.zeros(mem)
 
     def reset(self) -> None:
@@ -178,4 +189,4 @@ class AndersonArrays:
     def args(self):
         """The arrays in :func:`anderson_update`'s order, after ``out``."""
         return (self.ist, self.before, self.F_prev, self.G_prev, self.plain, self.dF, self.dG, self.gram,
-                self.g, self.slots, self.rhs, self.chol, self.gamma)
+                self.g, self.acc, self.rhs, self.chol, self.gamma)

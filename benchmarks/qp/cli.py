@@ -63,3 +63,8 @@ qp_agreement = own_parser("qp-agreement", "admmkit.benchmarks.qp.qp_agreement",
 qp_speed = own_parser("qp-speed", "admmkit.benchmarks.qp.qp_speed",
                       "a whole QP solve (compiled and Python) against OSQP 1.x's C, problem by problem",
                       modules=("osqp",))
+
+
+anderson_cost = own_parser("anderson-cost", "admmkit.benchmarks.qp.anderson_cost",
+                           "what an Anderson step adds to an iteration of the compiled QP segment",
+                           modules=("numba",))

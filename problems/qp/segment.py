@@ -61,7 +61,7 @@ def choose_compiled(setting, qp) -> tuple[bool, bool]:
 def _xz_kkt(count, rho, alpha, a, sigma, Lp, Li, Lx, Dinv, perm, Rinv, q, lo, up, free, w_free,
             x, x_prev, x_rel, x_rel_prev, z, lam, Ax, rhs, sol, work, keep_last, z_last, lam_last, Ax_last, hat,
             accelerate, w, safeguard, regularization, s_z, s_lam, ist, before, F_prev, G_prev, plain, dF, dG,
-            gram, g, slots, a_rhs, chol, gamma):
+            gram, g, acc, a_rhs, chol, gamma):
     """``count`` iterations on the state arrays (x, x_prev, x_rel, x_rel_prev, z, lam, Ax), in place;
     returns the number done (fewer if a step would meet a non-finite number).  With ``keep_last``, the
     last iteration's z, lam, A x in (its x is then x_prev) and its relaxed vector (``hat``) are kept.
@@ -113,7 +113,7 @@ def _xz_kkt(count, rho, alpha, a, sigma, Lp, Li, Lx, Dinv, perm, Rinv, q, lo, up
             z[i] = v
         if step:                                                                # (A2)-(A3)
             anderson_update(rho, w, safeguard, regularization, s_z, s_lam, z, lam, z, lam, ist, before, F_prev,
-                            G_prev, plain, dF, dG, gram, g, slots, a_rhs, chol, gamma)
+                            G_prev, plain, dF, dG, gram, g, acc, a_rhs, chol, gamma)
     return count
 
 
@@ -191,7 +191,7 @@ def run_segment(qp, x, z, lam, Ax, rho: float, alpha: float, order: str, count: 
     kept = (np.empty(m), np.empty(m), np.empty(m), np.empty(m)) if read else (work[:0],) * 4
     if accel is None:
         anderson = (False, work[:0], 1.0, 0.0, work[:0], work[:0], _NO_INTS, work[:0], work[:0], work[:0],
-                    work[:0], _NO_MATRIX, _NO_MATRIX, _NO_MATRIX, work[:0], _NO_INTS, work[:0], _NO_MATRIX, work[:0])
+                    work[:0], _NO_MATRIX, _NO_MATRIX, _NO_MATRIX, work[:0], _NO_MATRIX, work[:0], _NO_MATRIX, work[:0])
     else:
         w, safeguard, regularization, arrays = accel
         anderson = (True, w, safeguard, regularization, np.empty(m), np.empty(m), *arrays.args())

@@ -148,3 +148,34 @@ def test_anderson_backs_off_after_rejections():
     f = (6 * one, 7 * one + 30)
     assert a.propose((5 * one, 5 * one + 16), f, 1.0, inner) is not f      # then it extrapolates again
     assert a.stats["extrapolated"] == 1
+
+
+@pytest.mark.parametrize("compiled", [False, True])
+def test_the_fused_gram_pass_is_the_weighted_inner_product_bit_for_bit(compiled):
+    """_gram_row_and_rhs advances the 4 count sums side by side; each must be the loop of its own sum, bit for bit
+    (so the compiled segment's Anderson steps stay the Python path's)."""
+    from admmkit.kernels import AVAILABLE, compiled_code
+    from admmkit.loop.anderson_kernel import _gram_row_and_rhs
+    if compiled and not AVAILABLE:
+        pytest.skip("numba not installed")
+    rng = np.random.default_rng(7)
+    m, mem, rho = 37, 6, 0.37
+    w, dG, g = rng.uniform(0.1, 3, m), rng.standard_normal((mem, 2 * m)), rng.standard_normal(2 * m)
+
+    def inner(a, b):                       # (a, b)_W of the module docstring, one sum at a time
+        su = sl = 0.0
+        for i in range(m):
+            su += w[i] * a[i] * b[i]
+        for i in range(m):
+            sl += w[i] * a[m + i] * b[m + i]
+        return rho * su + sl / rho
+
+    for p, count, extrapolate in ((2, 5, True), (0, 1, True), (4, 6, False), (-1, 3, True)):
+        gram, rhs, acc = np.full((mem, mem), np.nan), np.full(mem, np.nan), np.zeros((4, mem))
+        with compiled_code(compiled):
+            _gram_row_and_rhs(w, rho, dG, g, p, count, extrapolate, gram, rhs, acc)
+        for q in range(count):
+            if p >= 0:
+                assert gram[p, q] == gram[q, p] == inner(dG[p], dG[q])
+            assert (rhs[q] == inner(dG[q], g)) if extrapolate else np.isnan(rhs[q])
+        assert np.isnan(gram[:, count:]).all() and (p >= 0 or np.isnan(gram).all())

@@ -62,6 +62,7 @@ def one_line(capsys) -> str:
     ("clarabel", ["reproduce", "paper", "--quick"]),
     ("osqp", ["bench", "qp-speed", "--data", "{data}"]),
     ("osqp", ["bench", "qp-fidelity", "--data", "{data}"]),
+    ("numba", ["bench", "anderson-cost", "--data", "{data}"]),
     ("osqp", ["bench", "qp", "--data", "{data}"]),
     ("distributed", ["bench", "executors", "--quick"]),
     ("dask", ["bench", "precision", "--quick", "--dask-workers", "2"]),

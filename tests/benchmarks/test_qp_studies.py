@@ -60,3 +60,15 @@ def test_qp_speed_rejects_bad_options(capsys):
         with pytest.raises(SystemExit) as exit_:
             qp_speed.main(bad)
         assert exit_.value.code == 2 and bad[0] in capsys.readouterr().err
+
+
+@pytest.mark.skipif(not MM.is_dir(), reason=f"Maros-Meszaros data not found at {MM}")
+def test_anderson_cost_on_one_problem(tmp_path):
+    pytest.importorskip("numba")
+    from admmkit.benchmarks.qp import anderson_cost
+    assert anderson_cost.main(["--data", str(MM), "--problems", "HS21", "--out", str(tmp_path), "--repeat", "1"]) == 0
+    rows = list(csv.DictReader((tmp_path / "anderson_cost.csv").open()))
+    assert len(rows) == 1 and rows[0]["problem"] == "HS21" and float(rows[0]["cost_ratio"]) > 0
+    assert rows[0]["plain_status"] == rows[0]["anderson_status"] == "solved"
+    readme = (tmp_path / "README.md").read_text()
+    assert "Command: `admmkit bench anderson-cost" in readme and "## Machine" in readme
