@@ -88,3 +88,25 @@ def test_the_iterates_solved_is_confirmed_in_the_users_problem(monkeypatch):
     monkeypatch.setattr(polish_stop, "osqp_residuals", lambda *args: failing)
     res = solve_qp(qp, admmkit_settings(1e-3, 0.0, max_iter=300, early_polish=True))
     assert res.status is not Status.CONVERGED and res.iterations == 300
+
+
+def test_polishing_solves_its_reduced_system_with_or_without_qdldl(monkeypatch):
+    """(P1) is quasi-definite: qdldl's LDL' (AMD order) and, without qdldl, SuperLU in symmetric mode give the same
+    polished point to round-off, and both polish the run to a point that passes the neutral test."""
+    import sys
+    from admmkit.problems.qp import polish as polish_module
+    K = polish_module.sp.csc_matrix(np.array([[2.0, 0.0, 1.0], [0.0, 3.0, 1.0], [1.0, 1.0, -1e-6]]))
+    b = np.array([1.0, -2.0, 0.5])
+    reduced_solver = polish_module._reduced_solver
+
+    def superlu_only(K):                                   # import qdldl raises ImportError inside the polish only
+        with monkeypatch.context() as m:
+            m.setitem(sys.modules, "qdldl", None)
+            return reduced_solver(K)
+    with_qdldl, without = reduced_solver(K)(b), superlu_only(K)(b)
+    assert type(superlu_only(K).__self__).__name__ == "SuperLU"
+    assert np.allclose(with_qdldl, without, rtol=1e-12, atol=0) and np.allclose(K @ without, b, atol=1e-12)
+    monkeypatch.setattr(polish_module, "_reduced_solver", superlu_only)
+    qp = hs118_like()
+    early = solve_qp(qp, admmkit_settings(1e-6, 0.0))                     # the polish on SuperLU's path
+    assert early.polish["status"] == "succeeded" and neutral_satisfied(neutral_residuals(qp, early.x, early.y), 1e-6)
