@@ -205,7 +205,8 @@ def policy_answer(policy, rho_next, k: int) -> float:
         shape = f" of shape {np.shape(rho_next)}" if isinstance(rho_next, (np.ndarray, list, tuple)) else ""
         raise TypeError(f"policy {name}.update() returned {type(rho_next).__name__}{shape} {rho_next!r:.60} at "
                         f"iteration {k + 1}; it must return rho_(k+1), one number in (0, inf) (admmkit's rho is "
-                        f"a scalar; a penalty per row is admmkit.RowPenalties(rho, weights) from a rule with per_row = True)")
+                        f"a scalar; a penalty per row is admmkit.RowPenalties(rho, weights) from a rule with "
+                        f"per_row = True)")
     value = float(rho_next)
     if not (math.isfinite(value) and value > 0):
         raise ValueError(f"policy {name}.update() returned rho = {rho_next!r} at iteration {k + 1}; it must "

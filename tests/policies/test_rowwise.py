@@ -83,3 +83,22 @@ def test_a_problem_with_one_rho_refuses_it():
 def test_bad_parameters_name_themselves(params, name):
     with pytest.raises(ValueError, match=name):
         RowwiseRule(**params)
+
+
+def test_solve_qp_runs_it_by_name_on_osqps_normalisation():
+    from admmkit.problems.qp.solve import qp_for
+    from admmkit.problems.qp.settings import osqp_settings
+    from admmkit.problems.qp.termination import osqp_relative_residuals
+    qp = random_qp(20, 30, seed=7)
+    settings = osqp_settings(eps_abs=1e-8, eps_rel=0.0, max_iter=3000)
+    run_qp = qp_for(qp, settings)
+
+    def rule(**changes):
+        return RowwiseRule(rho_min=1e-6, rho_max=1e6, residuals=osqp_relative_residuals(run_qp), **changes)
+    named = solve_qp(qp, settings, policy="rowwise")
+    given = solve_qp(run_qp, settings, policy=rule())
+    assert named.history.row_weights and named.iterations == given.iterations
+    assert np.array_equal(named.x, given.x) and np.array_equal(named.y, given.y)
+    osqp = solve_qp(qp, settings)                                       # OSQP's rule as solve_qp runs it
+    still = solve_qp(run_qp, settings, policy=rule(spread=1.0))
+    assert osqp.iterations == still.iterations and np.array_equal(osqp.x, still.x) and np.array_equal(osqp.y, still.y)
