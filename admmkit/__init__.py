@@ -15,7 +15,7 @@ from ._layout import map_source_tree
 
 map_source_tree(__path__[0])   # a source checkout resolves admmkit.policies etc. as the installed package does
 from .loop.history import History
-from .policy import Policy, make_policy, policy_names, register_policy
+from .policy import Policy, RowPenalties, make_policy, policy_names, register_policy
 from .problem import Problem
 from .loop.record import IterationRecord
 from .loop.result import Result, Status
@@ -49,7 +49,7 @@ def __dir__() -> list[str]:
 __version__ = "0.1.0"
 
 __all__ = [
-    "solve", "Problem", "Policy", "IterationRecord", "Result", "Status", "History",
+    "solve", "Problem", "Policy", "RowPenalties", "IterationRecord", "Result", "Status", "History",
     "StoppingRule", "Stop", "RelativeChange", "ResidualTolerance", "BalancedStop", "AnyOf", "AllOf", "default_stop",
     "register_policy", "make_policy", "policy_names", "__version__",
     "LinearMap", "QuadraticXStep", "SplitProblem",

@@ -12,6 +12,14 @@ Writing a rule takes a few lines::
     class Halve(Policy):
         def update(self, rec):
             return rec.rho / 2 if rec.k % 10 == 9 else rec.rho
+
+A rule may also set a penalty per row of the constraint (RLQP's shape): it
+declares ``per_row = True`` and its ``update`` returns, where it changes them,
+:class:`RowPenalties` (rho_{k+1}, w): row i's penalty becomes rho_{k+1} w_i,
+w the diagonal of the problem's inner product M (``rec.row_weights`` holds the
+current one).  The loop makes it the one event of a change of rho
+(:class:`admmkit.loop.steps.RhoEvent`); a problem without per-row weights
+refuses such a rule at the start.
 """
 from __future__ import annotations
 
@@ -24,7 +32,9 @@ import sys
 from abc import ABC, abstractmethod
 from importlib.metadata import entry_points
 from pathlib import Path
-from typing import Callable
+from typing import Callable, NamedTuple
+
+import numpy as np
 
 from .loop.record import IterationRecord
 
@@ -33,12 +43,29 @@ _REGISTRY: dict[str, Callable[..., "Policy"]] = {}
 GROUP = "admmkit.policies"
 
 
+class RowPenalties(NamedTuple):
+    """What ``update`` of a rule with ``per_row = True`` returns where it sets a penalty per row.
+
+    ``rho`` is rho_{k+1} (one number, checked as a scalar rule's answer) and
+    ``weights`` the diagonal w of the problem's inner product M for the next
+    iterations (shape of z, finite, > 0): row i's penalty is rho w_i.  The
+    problem keeps the multiplier it reports (M lam) across the change
+    (:meth:`admmkit.loop.steps.RhoEvent.change_rows`).
+    """
+
+    rho: float
+    weights: np.ndarray
+
+
 class Policy(ABC):
     """Base class of penalty rules."""
 
     #: record fields the rule reads that a problem might not provide
     #: (only "dual_residual" can be missing: order "xz" needs ``adjoint_norm``)
     requires: tuple[str, ...] = ()
+    #: True: ``update`` may return :class:`RowPenalties` (a penalty per row); the loop then refuses a problem
+    #: without ``update_row_weights(rho, w)`` and ``inner_weights()`` before the first iteration
+    per_row: bool = False
 
     def reset(self, rho0: float) -> None:
         """Start a new run from rho0 (clear any state)."""
@@ -46,7 +73,8 @@ class Policy(ABC):
 
     @abstractmethod
     def update(self, rec: IterationRecord) -> float:
-        """Return rho_{k+1} from the record of iteration k (``rec.rho`` is rho_k)."""
+        """Return rho_{k+1} from the record of iteration k (``rec.rho`` is rho_k); a rule with ``per_row = True``
+        may return :class:`RowPenalties` (rho_{k+1}, row weights) instead."""
 
     def unchanged_until(self, k: int) -> int:
         """The first iteration j >= k whose record the rule reads.

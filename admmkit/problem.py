@@ -30,7 +30,12 @@ class Problem(ABC):
     products :meth:`inner`, :meth:`x_norm`, :meth:`x_distance`,
     :meth:`adjoint_norm` (needed only for Boyd's dual residual in order "xz"),
     :meth:`objective`, :meth:`kkt`, :meth:`counters` and :meth:`update_rho`
-    (the event of a change of rho).
+    (the event of a change of rho).  A plug-in whose inner product is
+    M = diag(w) takes a penalty per row (rho w_i, from a rule with
+    ``per_row = True``, :class:`admmkit.RowPenalties`) by implementing two more:
+    ``inner_weights()`` (w, of z's shape) and ``update_row_weights(rho, w)``
+    (make M = diag(w) and refresh what depends on it, once; the loop then
+    rescales lam so that M lam is kept).  Without them such a rule is refused.
     """
 
     #: number of x unknowns

@@ -174,6 +174,17 @@ class CachedFactorization:
         """Factorise matrix(rho) now unless it is held (the event of a change of rho: :meth:`admmkit.Problem.update_rho`)."""
         self._factor(rho)
 
+    def refresh(self, rho: float) -> None:
+        """matrix(rho) changed for the same rho (a new weighting of the rows): factorise it now (numerically in
+        place of the held factorisation when ``in_place`` allows) and drop every other held one, now stale."""
+        key = float(rho)
+        start = time.perf_counter()
+        solve = self._new_factor(key)
+        self._cache.clear()
+        self._cache[key] = solve
+        self.factor_time += time.perf_counter() - start
+        self.factorizations += 1
+
     def clear(self) -> None:
         """Drop every held factorisation (the counters stay): memory back, the next rho factorises anew."""
         self._cache.clear()

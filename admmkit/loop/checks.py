@@ -205,12 +205,52 @@ def policy_answer(policy, rho_next, k: int) -> float:
         shape = f" of shape {np.shape(rho_next)}" if isinstance(rho_next, (np.ndarray, list, tuple)) else ""
         raise TypeError(f"policy {name}.update() returned {type(rho_next).__name__}{shape} {rho_next!r:.60} at "
                         f"iteration {k + 1}; it must return rho_(k+1), one number in (0, inf) (admmkit's rho is "
-                        f"a scalar: a penalty per row is the problem's inner product M)")
+                        f"a scalar; a penalty per row is admmkit.RowPenalties(rho, weights) from a rule with "
+                        f"per_row = True)")
     value = float(rho_next)
     if not (math.isfinite(value) and value > 0):
         raise ValueError(f"policy {name}.update() returned rho = {rho_next!r} at iteration {k + 1}; it must "
                          f"return rho_(k+1) in (0, inf)")
     return value
+
+
+def row_weights_answer(policy, weights, k: int, shape: tuple) -> np.ndarray:
+    """The row weights of a :class:`admmkit.RowPenalties` that ``policy.update`` returned at iteration ``k``, as a
+    new float array, if the rule declares ``per_row = True`` and they are finite, > 0, of the shape of z
+    (``shape``); else a TypeError or ValueError naming the policy's class."""
+    name = type(policy).__name__
+    if not getattr(policy, "per_row", False):
+        raise TypeError(f"policy {name}.update() returned RowPenalties at iteration {k + 1} but {name} does not "
+                        f"declare per_row = True (the loop checks that the problem takes a penalty per row "
+                        f"before the first iteration)")
+    try:
+        w = np.array(weights, dtype=float)
+    except (TypeError, ValueError):
+        raise TypeError(f"policy {name}.update() returned RowPenalties with weights {weights!r:.60} at iteration "
+                        f"{k + 1}; they must be an array of numbers of shape {shape}") from None
+    if w.shape != shape:
+        raise ValueError(f"policy {name}.update() returned RowPenalties with weights of shape {w.shape} at "
+                         f"iteration {k + 1}; they must have the shape of z, {shape}")
+    if not (np.all(np.isfinite(w)) and np.all(w > 0)):
+        raise ValueError(f"policy {name}.update() returned RowPenalties with weights outside (0, inf) at "
+                         f"iteration {k + 1} (min {np.min(w)!r}); every row's weight must be finite and > 0")
+    return w
+
+
+def check_row_penalties(problem, policy, z) -> None:
+    """Refuse a rule with ``per_row = True`` on a problem that cannot take a penalty per row: it needs
+    ``update_row_weights(rho, w)`` and ``inner_weights()`` (the diagonal of M, of z's shape)."""
+    if not getattr(policy, "per_row", False):
+        return
+    name = type(problem).__name__
+    weights = getattr(problem, "inner_weights", None)
+    if not (callable(getattr(problem, "update_row_weights", None)) and callable(weights)):
+        raise ValueError(f"policy {policy!r} sets a penalty per row (per_row = True), which {name} does not take: "
+                         f"a problem takes one by implementing update_row_weights(rho, w) and inner_weights() "
+                         f"(its inner product M = diag(w); the QP plug-in does); use a rule with one rho for {name}")
+    if np.shape(weights()) != np.shape(z):
+        raise ValueError(f"policy {policy!r} sets a penalty per row, but {name}.inner_weights() has shape "
+                         f"{np.shape(weights())}, not z's {np.shape(z)}")
 
 
 def callback_answer(callback, answer):
@@ -306,6 +346,7 @@ def prepare(problem, *, rho, policy, order, stop, max_iter, callback, x0, z0, la
     c = problem.c
     adjoint = order_key == "xz" and has_adjoint(problem, z)   # only order xz uses adjoint_norm
     check_requirements(problem, order_key, adjoint, (("policy", policy), ("stop", stop)))
+    check_row_penalties(problem, policy, z)
     primal_unit = problem.norm(np.ones_like(z))
     dual_unit = math.sqrt(getattr(problem, "n", x.size)) if order_key == "xz" else primal_unit
     c_zero = np.isscalar(c) and c == 0

@@ -36,9 +36,16 @@ class History:
             raise ValueError(f"history must be 'lean' or 'full', got {mode!r}")
         self.mode = mode
         self._rows: list[tuple] = []     # (k, rho, primal_unit, dual_unit, time, lazy values, rho_next)
+        #: {k: w}: the row weights a per-row rule set after iteration k (``admmkit.RowPenalties``); its row's
+        #: ``rho_changed`` is True (one event), ``rho_next`` its rho
+        self.row_weights: dict[int, np.ndarray] = {}
 
-    def append(self, rec: IterationRecord, rho_next: float) -> None:
-        """Add the row of iteration ``rec.k``; ``rho_next`` is the rho the policy chose."""
+    def append(self, rec: IterationRecord, rho_next) -> None:
+        """Add the row of iteration ``rec.k``; ``rho_next`` is the rho the policy chose (or its
+        :class:`admmkit.RowPenalties`, whose weights go to :attr:`row_weights`)."""
+        if type(rho_next) is not float and isinstance(rho_next, tuple):     # RowPenalties (rho, weights)
+            self.row_weights[rec.k] = rho_next.weights
+            rho_next = rho_next.rho
         if self.mode == "full":
             rec.complete()
         d, ctx = rec._d, rec._ctx
@@ -67,7 +74,7 @@ class History:
         return out + (relative_change(v["x_change"], v["x_norm"]) if vals[4] is not None and vals[5] is not None else _NAN,
                       ratio(v["primal_residual"], v["primal_scale"]) if vals[0] is not None and vals[7] is not None else _NAN,
                       ratio(v["dual_residual"], v["dual_scale"]) if vals[1] is not None and vals[8] is not None else _NAN,
-                      rho_next, rho_next != rho)
+                      rho_next, rho_next != rho or (bool(self.row_weights) and k in self.row_weights))
 
     def __getitem__(self, column: str) -> np.ndarray:
         """The column ``column`` as an array, e.g. ``history["rho"]`` (NaN where a lean row did not compute it)."""

@@ -60,12 +60,13 @@ def _view(i: int, slot: int, doc: str) -> property:
 
 
 class _Given:
-    """The context of a hand-made record: its order, units and inner product."""
+    """The context of a hand-made record: its order, units, inner product and row weights."""
 
-    __slots__ = ("order", "primal_unit", "dual_unit", "inner", "alpha")
+    __slots__ = ("order", "primal_unit", "dual_unit", "inner", "alpha", "row_weights")
 
-    def __init__(self, order, primal_unit, dual_unit, inner):
+    def __init__(self, order, primal_unit, dual_unit, inner, row_weights=None):
         self.order, self.primal_unit, self.dual_unit, self.inner, self.alpha = order, primal_unit, dual_unit, inner, 1.0
+        self.row_weights = row_weights
 
 
 def _item(i: int, doc: str) -> property:
@@ -115,11 +116,12 @@ class IterationRecord:
                  primal_scale: float, dual_scale: float, primal_unit: float, dual_unit: float, time: float,
                  x: np.ndarray, z: np.ndarray, lam: np.ndarray, Ax: np.ndarray,
                  z_prev: np.ndarray | None = None, Ax_prev: np.ndarray | None = None,
-                 inner: Callable[[np.ndarray, np.ndarray], float] | None = None):
+                 inner: Callable[[np.ndarray, np.ndarray], float] | None = None,
+                 row_weights: np.ndarray | None = None):
         _SET_D(self, (k, rho, time, x, z, lam, Ax, None, z_prev, None, Ax_prev, None, None))
         _SET_VALS(self, [primal_residual, dual_residual, rho_Ax_change, lam_change, x_change, x_norm,
                          z_change, primal_scale, dual_scale])
-        _SET_CTX(self, _Given(order, primal_unit, dual_unit, inner))
+        _SET_CTX(self, _Given(order, primal_unit, dual_unit, inner, row_weights))
 
     def __setattr__(self, name, value):
         raise AttributeError(f"IterationRecord is read-only (tried to set {name!r})")
@@ -149,6 +151,19 @@ class IterationRecord:
     Ax = _view(6, 3, "A x^{k+1} (read-only).")
     z_prev = _view(8, 4, "z^k (read-only; None in a hand-made record that did not give it).")
     Ax_prev = _view(10, 5, "A x^k (read-only; None in a hand-made record that did not give it).")
+
+    @property
+    def row_weights(self) -> np.ndarray | None:
+        """The diagonal w of M in this iteration (row i's penalty is rho w_i), a copy: the problem's
+        ``inner_weights()`` (None when it has none; a hand-made record's given ``row_weights``).  What a rule
+        with ``per_row = True`` moves (:class:`admmkit.RowPenalties`)."""
+        ctx = self._ctx
+        if isinstance(ctx, _Given):
+            w = ctx.row_weights
+        else:
+            weights = getattr(ctx.problem, "inner_weights", None)
+            w = weights() if callable(weights) else None
+        return None if w is None else np.array(w, dtype=float)
 
     def _residual(self) -> np.ndarray:
         """r = A x^{k+1} - z^{k+1} - c (the dual update's vector when alpha = 1)."""

@@ -12,7 +12,8 @@ then each iteration is, line by line:
   the stopping rule, stalling;
 - the policy's rho_{k+1} (17) (:class:`admmkit.loop.steps.PolicyStep`), and where
   it differs from rho_k the one event of a change of rho
-  (:class:`admmkit.loop.steps.RhoEvent`: ``problem.update_rho``, the accelerator's restart);
+  (:class:`admmkit.loop.steps.RhoEvent`: ``problem.update_rho``, the accelerator's restart;
+  for a rule's :class:`admmkit.RowPenalties`, ``problem.update_row_weights`` and lam rescaled so that M lam is kept);
 - the bookkeeping (:mod:`admmkit.loop.ledger`): the history, the callback, the
   time limit, and whether the next dual update takes ||r||.
 """
@@ -27,7 +28,7 @@ import numpy as np
 from . import checks
 from .acceleration import Acceleration, Accelerator, make_accelerator
 from .ledger import Ledger
-from ..policy import Policy
+from ..policy import Policy, RowPenalties
 from ..problem import Problem
 from .record import IterationRecord, loop_record
 from .result import Result, Status
@@ -81,7 +82,9 @@ def solve(
         A :class:`Policy` (reset at the start of the run), a registered
         name such as ``"summable"`` (found by entry point: no import needed), or None to
         keep rho fixed.  Its ``update`` must return one number in (0, inf)
-        (else a TypeError or ValueError naming it, ``admmkit.loop.checks.policy_answer``).
+        (else a TypeError or ValueError naming it, ``admmkit.loop.checks.policy_answer``),
+        or, for a rule with ``per_row = True`` on a problem with
+        ``update_row_weights``, :class:`admmkit.RowPenalties` (a penalty per row).
     order : str
         ``"xz"`` (ADMM1: x-step first) or ``"zx"`` (ADMM2: z-step first).
     stop : StoppingRule or None
@@ -140,7 +143,7 @@ def solve(
                          alpha=alpha, check_every=check_every, history=history, warm_start=warm_start,
                          compiled=compiled)
     iterate = ITERATIONS[run.order](problem, run.ctx)      # eqs. (11), (12), (13) in the run's order
-    rho_step = PolicyStep(run.policy)                       # eq. (17)
+    rho_step = PolicyStep(run.policy, problem)              # eq. (17)
     watch, ledger = Termination(run), Ledger(run)           # the tests; the history, the callback, the taken ||r||
     ctx, rho, rho_changes, every, last = run.ctx, run.rho, 0, run.check_every, run.max_iter - 1
     x, z, lam, Ax = run.x, run.z, run.lam, run.Ax
@@ -172,7 +175,10 @@ def solve(
             if final is not None:
                 break
             if rho_next != rho:         # the rho event: the problem's refresh, the accelerator's restart (steps)
-                rho = rho_event.change(rho_next, follows=k + 1 < run.max_iter)
+                if type(rho_next) is RowPenalties:      # a penalty per row: M changes, M lam is kept
+                    rho, lam = rho_event.change_rows(rho_next, lam, follows=k + 1 < run.max_iter)
+                else:
+                    rho = rho_event.change(rho_next, follows=k + 1 < run.max_iter)
                 rho_changes += 1
             elif accel is not None:                      # the state iteration k + 1 starts from, (A2)-(A5)
                 z, lam, Ax = accel.step(old, (z, lam, Ax), rho)

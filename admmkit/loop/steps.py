@@ -29,7 +29,8 @@ import time
 
 import numpy as np
 
-from .checks import RHO_RANGE, check_step, policy_answer, rho_in_range
+from ..policy import RowPenalties
+from .checks import RHO_RANGE, check_step, policy_answer, rho_in_range, row_weights_answer
 from .result import Status
 
 perf = time.perf_counter
@@ -172,13 +173,16 @@ class PolicyStep:
     admmkit's range ``admmkit.loop.checks.RHO_RANGE``, or a non-finite one from a
     record with a non-finite norm.  Anything else that is not one number in
     (0, inf) is the rule's error: ``admmkit.loop.checks.policy_answer`` raises,
-    naming its class and the value.
+    naming its class and the value.  A rule with ``per_row = True`` may answer
+    :class:`admmkit.RowPenalties`: its weights are checked
+    (``admmkit.loop.checks.row_weights_answer``), and where they are the problem's
+    current ones the answer is its rho alone.
     """
 
-    __slots__ = ("policy", "seconds")
+    __slots__ = ("policy", "seconds", "problem")
 
-    def __init__(self, policy) -> None:
-        self.policy, self.seconds = policy, 0.0
+    def __init__(self, policy, problem=None) -> None:
+        self.policy, self.seconds, self.problem = policy, 0.0, problem
 
     def update(self, rec, rho: float) -> tuple:
         """(rho_{k+1}, None or the end of the run) from the record of iteration k and rho_k."""
@@ -187,6 +191,12 @@ class PolicyStep:
         self.seconds += perf() - t0
         if rho_next is rho or rho_in_range(rho_next):          # the same object: checked already
             return rho_next, None
+        if type(rho_next) is RowPenalties:                     # a penalty per row (RowPenalties)
+            return self._rows(rec, rho, rho_next)
+        return self._scalar(rec, rho, rho_next)
+
+    def _scalar(self, rec, rho: float, rho_next) -> tuple:
+        """(rho_{k+1}, end) for an answer that is not a number in range: diverged, or the rule's error."""
         if _blown_up(rec):                                     # a rule fed inf or NaN: the iterates diverged
             return rho, (Status.DIVERGED, f"non-finite iterate at iteration {rec.k + 1} (policy "
                                           f"{self.policy!r} returned rho={rho_next!r})")
@@ -196,6 +206,14 @@ class PolicyStep:
         return value, (Status.DIVERGED, f"policy {self.policy!r} returned rho={rho_next!r} at iteration "
                                         f"{rec.k + 1}, outside admmkit's rho range [{RHO_RANGE[0]:g}, "
                                         f"{RHO_RANGE[1]:g}]")
+
+    def _rows(self, rec, rho: float, answer: RowPenalties) -> tuple:
+        """(rho_{k+1} or RowPenalties with new weights, end) for a per-row answer, checked."""
+        weights = row_weights_answer(self.policy, answer.weights, rec.k, np.shape(rec.z))
+        rho_next, final = (answer.rho, None) if rho_in_range(answer.rho) else self._scalar(rec, rho, answer.rho)
+        if final is not None or np.array_equal(weights, self.problem.inner_weights()):
+            return rho_next, final                             # the rows as they are: a scalar answer
+        return RowPenalties(float(rho_next), weights), None
 
 
 def _blown_up(rec) -> bool:
@@ -212,13 +230,16 @@ class RhoEvent:
     accelerator restarts (its history mixed two penalties).  The problem is
     told only when another iteration follows, so that no refresh is made for
     an iteration that will not run.  ``seconds`` is the time spent in the
-    problem's refreshes (``result.timings["rho_update"]``).
+    problem's refreshes (``result.timings["rho_update"]``).  A change of the
+    penalties per row (:class:`admmkit.RowPenalties`) is the same one event,
+    :meth:`change_rows`.
     """
 
-    __slots__ = ("update_rho", "accel", "seconds")
+    __slots__ = ("problem", "update_rho", "accel", "seconds")
 
     def __init__(self, problem, accel=None) -> None:
         # a plug-in written to the protocol without subclassing admmkit.Problem may lack the hook: nothing to redo
+        self.problem = problem
         self.update_rho = getattr(problem, "update_rho", None)
         self.accel, self.seconds = accel, 0.0
 
@@ -233,3 +254,22 @@ class RhoEvent:
             self.accel.reset()
         return rho
 
+    def change_rows(self, penalties, lam: np.ndarray, follows: bool = True) -> tuple[float, np.ndarray]:
+        """Make (rho, w) = ``penalties`` the run's penalties: (rho, lam) to go on with.
+
+        ``problem.update_row_weights(rho, w)`` makes M = diag(w) (the problem
+        may keep some rows' weights: what it took is ``inner_weights()`` after
+        the call) and refreshes its x-step once; the multiplier it reports,
+        M lam, is kept: lam_i <- lam_i w_i(before) / w_i(after).  As
+        :meth:`change`, nothing is refreshed after the last iteration.
+        """
+        rho = float(penalties.rho)
+        if follows:
+            t0 = perf()
+            before = np.array(self.problem.inner_weights(), dtype=float)
+            self.problem.update_row_weights(rho, penalties.weights)
+            lam = lam * (before / self.problem.inner_weights())           # M lam (the QP's y) unchanged
+            self.seconds += perf() - t0
+        if self.accel is not None:
+            self.accel.reset()
+        return rho, lam

@@ -123,14 +123,15 @@ def osqp_settings_from(args, order: str):
 
 def run_osqp(qp, args):
     """``solve_qp`` with the osqp preset and the options; prints the common summary."""
-    from .solve import default_policy, qp_for, solve_qp
+    from .solve import OSQP_NORMALISED, default_policy, qp_for, solve_qp
     key = args.policy.strip().lower().replace("-", "_")
-    if key == "osqp":
-        order, rule, name = args.order or "xz", "osqp", "osqp"
+    if key in OSQP_NORMALISED:                    # OSQP's rule (or rowwise) on OSQP's normalisation (solve_qp)
+        order, rule, name = args.order or "xz", key, key
     else:
         order, rule, name = resolve_policy(args)
     settings = osqp_settings_from(args, order)
-    shown = default_policy(qp_for(qp, settings), settings) if rule == "osqp" else rule
+    named = isinstance(rule, str) and rule in OSQP_NORMALISED
+    shown = default_policy(qp_for(qp, settings), settings, rule) if named else rule
     with progress(args, settings.max_iter, every=settings.check_every) as show:
         result = solve_qp(qp, settings, policy=rule, callback=show)
     args.resolved = {"policy": name, "order": order, "policy_repr": repr(shown),

@@ -50,7 +50,8 @@ from . import products, rows
 from .kkt import kkt_relative, kkt_residuals
 from .rows import FREE_ROW_PENALTY
 from .validate import _real, _validate, check_options
-from .xstep_forms import REDUCED_MAX_NNZ, reduced_nnz_bound, x_step_backend, x_step_solution, x_step_solver
+from .xstep_forms import (REDUCED_MAX_NNZ, reduced_nnz_bound, weighted_gram, x_step_backend, x_step_solution,
+                          x_step_solver)
 
 class QP(Problem):
     """A convex QP, validated on construction.
@@ -159,6 +160,29 @@ class QP(Problem):
         rho (a numeric refactorisation of the same pattern with qdldl)."""
         self._solver.prepare(rho)
 
+    def update_row_weights(self, rho: float, w) -> None:
+        """A penalty per row (a rule's ``admmkit.RowPenalties``): M = diag(w), so that rho w_i is OSQP's rho_vec,
+        in one refresh of the x-step (a numeric refactorisation of the KKT matrix with its new -R^-1 diagonal,
+        or A'MA anew in the reduced form).  Free rows keep their weight (their penalty is RHO_MIN whatever rho
+        is, Q5).  The loop keeps M lam; the weights hold until the next run starts (:meth:`begin_run` puts the
+        QP's own back)."""
+        if "_w_own" not in self.__dict__:
+            self._w_own = (self.w, None if self.w is None else self.w.copy())
+        new = np.array(w, dtype=float)
+        if self.w is None:
+            self.w = new
+        else:
+            new[self._free] = self.w[self._free]
+            self.w[:] = new             # in place: whoever holds w (an accelerator's inner product) sees it
+        self._reweighted()
+        self._solver.refresh(rho)
+
+    def _reweighted(self) -> None:
+        """Drop what was made from the old row weights: the held R^-1, the reduced form's A'MA."""
+        self.__dict__.pop("_inverse_penalty", None)
+        if self._x_solver is not None and self.xstep == "reduced":
+            self._reduced_gram = weighted_gram(self)
+
     def inverse_penalty(self, rho: float) -> np.ndarray:
         """R^-1 = 1 / :meth:`penalty` (rho): the KKT matrix's last diagonal block is -R^-1 (the same numbers), held for
         the last rho asked."""
@@ -190,6 +214,14 @@ class QP(Problem):
     # -- the splitting --------------------------------------------------------
     def begin_run(self):
         """Forget the iterates of a previous run (called by :func:`admmkit.solve` at the start)."""
+        own = self.__dict__.pop("_w_own", None)
+        if own is not None:             # a per-row rule moved the weights in the last run: the QP's own back
+            self.w = own[0]
+            if own[1] is not None:
+                self.w[:] = own[1]
+            self._reweighted()
+            if self._x_solver is not None:
+                self._x_solver.clear()
         self._x_in = self._x_last = self._x_rel = self._x_rel_prev = None
         self._residuals_of = None                 # (record, OSQP's residuals at it): see termination._iterate
         self._z_tilde = None                      # (x~, z~) of the last KKT x-step (Q6): see apply_A

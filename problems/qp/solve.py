@@ -97,9 +97,19 @@ def qp_for(qp: QP, settings: QPSettings) -> QP:
     return qp.with_options(**want)
 
 
-def default_policy(qp: QP, settings: QPSettings):
+#: the rules ``solve_qp`` names and runs as OSQP runs its own (OSQP 1.x's residuals of the scaled problem, rho clamped
+#: to [RHO_MIN, RHO_MAX]): ``default_policy``
+OSQP_NORMALISED = ("osqp", "rowwise")
+
+
+def default_policy(qp: QP, settings: QPSettings, name: str = "osqp"):
     """OSQP's rule as OSQP 1.x runs it: every ``adaptive_rho_interval`` iterations, on the scaled problem's residuals
-    (``adaptive_rho="kkt_error"``: OSQP 1.x's KKT-error mode, ``policies.OSQPKKTRule``)."""
+    (``adaptive_rho="kkt_error"``: OSQP 1.x's KKT-error mode, ``policies.OSQPKKTRule``); ``name="rowwise"``: the
+    same with a penalty per row (``policies.rowwise.RowwiseRule``)."""
+    if name == "rowwise":
+        from admmkit.policies.rowwise import RowwiseRule
+        return RowwiseRule(interval=settings.adaptive_rho_interval, tolerance=settings.adaptive_rho_tolerance,
+                           rho_min=RHO_MIN, rho_max=RHO_MAX, residuals=osqp_relative_residuals(qp))
     from admmkit.policies import OSQPKKTRule, OSQPRule
     if settings.adaptive_rho == "kkt_error":
         return OSQPKKTRule(interval=settings.adaptive_rho_interval, tolerance=settings.adaptive_rho_tolerance,
@@ -114,7 +124,8 @@ def solve_qp(qp: QP, settings: QPSettings | None = None, *, policy="osqp", warm_
     """Solve ``qp`` with ``settings`` (default :func:`osqp_settings`; keyword ``changes`` override single settings).
 
     ``policy``: "osqp" (default: OSQP's rule with OSQP's normalisation, see
-    ``admmkit.problems.qp.solve.default_policy``), None for a fixed rho, or any policy or registered
+    ``admmkit.problems.qp.solve.default_policy``), "rowwise" (the same with a penalty per row, on the same
+    normalisation), None for a fixed rho, or any policy or registered
     name :func:`admmkit.solve` accepts.  ``warm_start``: a previous result of
     this QP (its x, y and rho; finite).  ``rho`` overrides rho_0: a number in (0, inf),
     clamped to OSQP's [1e-6, 1e6] as OSQP does.  ``acceleration``:
@@ -131,7 +142,8 @@ def solve_qp(qp: QP, settings: QPSettings | None = None, *, policy="osqp", warm_
     segment, helpers = choose_compiled(settings.compiled, qp)
     with compiled_code(helpers):          # the helper kernels compiled, or run as Python (the same bits)
         run_qp = qp_for(qp, settings)
-        rule = default_policy(run_qp, settings) if isinstance(policy, str) and policy == "osqp" else policy
+        named = isinstance(policy, str) and policy in OSQP_NORMALISED
+        rule = default_policy(run_qp, settings, policy) if named else policy
         x0 = z0 = lam0 = None
         if warm_start is not None:
             if not isinstance(warm_start, Result):

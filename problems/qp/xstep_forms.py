@@ -52,16 +52,12 @@ def x_step_solver(qp, backend: str) -> CachedFactorization:
     """
     if qp.xstep == "reduced":
         base = (qp.Ps + qp.sigma * sp.identity(qp.n, format="csc")).tocsc()
-        if qp.w is None:
-            G = (qp.Ats @ qp.As).tocsc()
-        else:
-            w = qp.w.copy()
-            w[qp._free] = 0.0
-            G = (qp.Ats @ sp.diags(w) @ qp.As).tocsc()
+        qp._reduced_gram = weighted_gram(qp)
         if qp._free.size:
             Af = qp.As[qp._free]
             base = (base + FREE_ROW_PENALTY * (Af.T @ Af)).tocsc()
-        return CachedFactorization(lambda rho: (base + rho * G).tocsc(), backend=backend)
+        # A'MA read at each factorisation: a new row weighting (QP.update_row_weights) makes it anew
+        return CachedFactorization(lambda rho: (base + rho * qp._reduced_gram).tocsc(), backend=backend)
     kkt_backend = _kkt_backend(backend)
     # the KKT matrix is assembled once, with a placeholder on the -R^-1 diagonal; a new rho writes that
     # diagonal only (OSQP's update_kkt_rho_vec).  qdldl reads the upper triangle; given only that, its solves
@@ -74,6 +70,16 @@ def x_step_solver(qp, backend: str) -> CachedFactorization:
         return K0
     # in place: a new rho refactorises the one factorisation numerically (OSQP's update_rho), without a new ordering
     return CachedFactorization(matrix, backend=kkt_backend, in_place=True)
+
+
+def weighted_gram(qp) -> sp.csc_matrix:
+    """A'MA of the reduced x-step (the scaled A, M = diag(w) with the free rows' weights 0: their term is in the
+    constant part, Q5)."""
+    if qp.w is None:
+        return (qp.Ats @ qp.As).tocsc()
+    w = qp.w.copy()
+    w[qp._free] = 0.0
+    return (qp.Ats @ sp.diags(w) @ qp.As).tocsc()
 
 
 def x_step_solution(qp, xp, z, lam, rho: float) -> tuple[np.ndarray, np.ndarray | None]:
