@@ -63,7 +63,7 @@ class Policy(ABC):
     #: record fields the rule reads that a problem might not provide
     #: (only "dual_residual" can be missing: order "xz" needs ``adjoint_norm``)
     requires: tuple[str, ...] = ()
-    #: True: ``update`` may return :class:`RowPenalties` (a penalty per row); the loop then refuses a problem
+    #: True: ``update`` may return :class:`admmkit.RowPenalties` (a penalty per row); the loop then refuses a problem
     #: without ``update_row_weights(rho, w)`` and ``inner_weights()`` before the first iteration
     per_row: bool = False
 
