@@ -47,7 +47,8 @@ class QPSettings:
     adaptive_rho_tolerance: float = 5.0
     # when solve_qp's policy is "osqp": "interval", OSQP's rule every adaptive_rho_interval iterations (OSQP 1.x's
     # adaptive_rho 1); "kkt_error", once the KKT error fell to adaptive_rho_fraction x its value at the last update
-    # (adaptive_rho 3, policies.OSQPKKTRule, read every adaptive_rho_interval iterations)
+    # (adaptive_rho 3, policies.OSQPKKTRule, read every adaptive_rho_interval iterations); "rowwise", OSQP's rule
+    # every interval with a penalty per row moved by each row's own residuals (policies.rowwise.RowwiseRule)
     adaptive_rho: str = "interval"
     adaptive_rho_fraction: float = 0.4
     max_iter: int = 4000
@@ -72,8 +73,8 @@ class QPSettings:
                 raise ValueError(f"{name} must be a finite number > 0, got {getattr(self, name)!r}")
         if not 0 < self.alpha < 2:
             raise ValueError(f"alpha must be in (0, 2), got {self.alpha!r}")
-        if self.adaptive_rho not in ("interval", "kkt_error"):
-            raise ValueError(f"adaptive_rho must be 'interval' or 'kkt_error', got {self.adaptive_rho!r}")
+        if self.adaptive_rho not in ADAPTIVE_RHO:
+            raise ValueError(f"adaptive_rho must be one of {', '.join(map(repr, ADAPTIVE_RHO))}, got {self.adaptive_rho!r}")
         if not 0 < number("adaptive_rho_fraction", self.adaptive_rho_fraction, "in (0, 1)") < 1:
             raise ValueError(f"adaptive_rho_fraction must be a number in (0, 1), got {self.adaptive_rho_fraction!r}")
         if self.polish_gate < 1:
@@ -129,17 +130,21 @@ def admmkit_settings(eps_abs: float = 1e-3, eps_rel: float = 1e-3, **changes) ->
     found best on the training half of the Maros-Meszaros problems (docs/results/qp_rules), ``changes`` applied.
 
     Beside OSQP's defaults: polishing during the run (``early_polish``: near the solution the iterate is
-    polished, and a polished point that passes OSQP's test ends the run) and the iteration cap raised to
-    ADMMKIT_MAX_ITER (a ``time_limit`` is the budget that matters).
+    polished, and a polished point that passes OSQP's test ends the run), the iteration cap raised to
+    ADMMKIT_MAX_ITER (a ``time_limit`` is the budget that matters) and a penalty per row
+    (``adaptive_rho="rowwise"``: OSQP's rule for rho, each row's weight moved by its own residuals,
+    ``policies.rowwise.RowwiseRule``).
     """
     _check_names(changes)
     return QPSettings(eps_abs=eps_abs, eps_rel=eps_rel, **(ADMMKIT_PRESET | changes))
 
 
+#: when solve_qp's rule "osqp" updates rho, and how (QPSettings.adaptive_rho)
+ADAPTIVE_RHO = ("interval", "kkt_error", "rowwise")
 #: the iteration cap of admmkit's preset
 ADMMKIT_MAX_ITER = 100_000
 #: what admmkit's preset changes in OSQP's defaults (chosen on the training split, docs/results/qp_rules)
-ADMMKIT_PRESET = {"max_iter": ADMMKIT_MAX_ITER, "early_polish": True}
+ADMMKIT_PRESET = {"max_iter": ADMMKIT_MAX_ITER, "early_polish": True, "adaptive_rho": "rowwise"}
 
 
 def textbook_settings(**changes) -> QPSettings:

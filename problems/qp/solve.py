@@ -105,8 +105,9 @@ OSQP_NORMALISED = ("osqp", "rowwise")
 def default_policy(qp: QP, settings: QPSettings, name: str = "osqp"):
     """OSQP's rule as OSQP 1.x runs it: every ``adaptive_rho_interval`` iterations, on the scaled problem's residuals
     (``adaptive_rho="kkt_error"``: OSQP 1.x's KKT-error mode, ``policies.OSQPKKTRule``); ``name="rowwise"``: the
-    same with a penalty per row (``policies.rowwise.RowwiseRule``)."""
-    if name == "rowwise":
+    same with a penalty per row (``policies.rowwise.RowwiseRule``), as is "osqp" with ``adaptive_rho="rowwise"``
+    (admmkit's preset)."""
+    if name == "rowwise" or settings.adaptive_rho == "rowwise":
         from admmkit.policies.rowwise import RowwiseRule
         return RowwiseRule(interval=settings.adaptive_rho_interval, tolerance=settings.adaptive_rho_tolerance,
                            rho_min=RHO_MIN, rho_max=RHO_MAX, residuals=osqp_relative_residuals(qp))

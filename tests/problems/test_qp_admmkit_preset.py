@@ -21,7 +21,8 @@ def hs118_like(seed=0, n=15, m=29):
 
 def test_admmkit_settings_is_osqps_with_polishing_during_the_run_and_its_own_cap():
     s = admmkit_settings(1e-6, 0.0)
-    assert (s.eps_abs, s.eps_rel, s.max_iter, s.early_polish) == (1e-6, 0.0, ADMMKIT_MAX_ITER, True)
+    assert (s.eps_abs, s.eps_rel, s.max_iter, s.early_polish, s.adaptive_rho) == (1e-6, 0.0, ADMMKIT_MAX_ITER, True,
+                                                                                  "rowwise")
     o = osqp_settings()
     assert (s.rho, s.sigma, s.alpha, s.scaling, s.check_every) == (o.rho, o.sigma, o.alpha, o.scaling, o.check_every)
     assert admmkit_settings(max_iter=10).max_iter == 10
@@ -33,7 +34,7 @@ def test_admmkit_settings_is_osqps_with_polishing_during_the_run_and_its_own_cap
 def test_polishing_during_the_run_stops_earlier_and_truthfully(eps):
     qp = hs118_like()
     plain = solve_qp(qp, osqp_settings(eps_abs=eps, eps_rel=0.0, max_iter=20000))
-    early = solve_qp(qp, admmkit_settings(eps, 0.0))
+    early = solve_qp(qp, admmkit_settings(eps, 0.0, adaptive_rho="interval"))   # OSQP's rule: polishing is what differs
     assert plain.status is Status.CONVERGED and early.status is Status.CONVERGED
     assert early.iterations < plain.iterations                 # the polished point passed before the iterate did
     assert early.polish["status"] == "succeeded"
@@ -55,7 +56,7 @@ def test_a_polished_point_that_misses_the_test_does_not_stop_the_run(monkeypatch
     monkeypatch.setattr(polish_stop, "polish", spoilt)
     qp = hs118_like()
     plain = solve_qp(qp, osqp_settings(eps_abs=1e-6, eps_rel=0.0, max_iter=20000))
-    early = solve_qp(qp, admmkit_settings(1e-6, 0.0))
+    early = solve_qp(qp, admmkit_settings(1e-6, 0.0, adaptive_rho="interval"))
     assert any(tries)                                      # polishing was tried, and refused every time
     assert early.status is Status.CONVERGED and early.polish is None
     assert early.iterations == plain.iterations and np.array_equal(early.x, plain.x)
@@ -108,5 +109,21 @@ def test_polishing_solves_its_reduced_system_with_or_without_qdldl(monkeypatch):
     assert np.allclose(with_qdldl, without, rtol=1e-12, atol=0) and np.allclose(K @ without, b, atol=1e-12)
     monkeypatch.setattr(polish_module, "_reduced_solver", superlu_only)
     qp = hs118_like()
-    early = solve_qp(qp, admmkit_settings(1e-6, 0.0))                     # the polish on SuperLU's path
+    early = solve_qp(qp, admmkit_settings(1e-6, 0.0, adaptive_rho="interval"))   # the polish on SuperLU's path
     assert early.polish["status"] == "succeeded" and neutral_satisfied(neutral_residuals(qp, early.x, early.y), 1e-6)
+
+
+
+@pytest.mark.parametrize("eps", [1e-3, 1e-6])
+def test_the_preset_runs_the_rule_rowwise_and_names_it(eps):
+    """admmkit_settings' rule is rowwise (a penalty per row, chosen on the training split): the run changes row
+    weights, ends converged at a point that passes the neutral test, and adaptive_rho="interval" is OSQP's rule."""
+    from admmkit.policies.rowwise import RowwiseRule
+    from admmkit.problems.qp.solve import default_policy
+    qp = hs118_like(seed=3)
+    assert isinstance(default_policy(qp, admmkit_settings(eps, 0.0)), RowwiseRule)
+    assert not isinstance(default_policy(qp, admmkit_settings(eps, 0.0, adaptive_rho="interval")), RowwiseRule)
+    res = solve_qp(qp, admmkit_settings(eps, 0.0))
+    assert res.status is Status.CONVERGED and neutral_satisfied(neutral_residuals(qp, res.x, res.y), eps)
+    with pytest.raises(ValueError, match="adaptive_rho must be one of 'interval', 'kkt_error', 'rowwise'"):
+        admmkit_settings(adaptive_rho="per-row")
