@@ -126,8 +126,8 @@ def report(results: Path, out: Path, data: Path) -> Path:
              "Made by `python -m admmkit.benchmarks.qp.qp_rules_report docs/results/qp_rules/bench_qp/results.csv "
              "docs/results/qp_rules` from the runs of `bench_qp/` (their command and machine: "
              "[bench_qp/README.md](bench_qp/README.md)).", "",
-             "Configurations: `admmkit_settings` = `admmkit.problems.qp.admmkit_settings()` (OSQP's machinery and "
-             "rule, the cap raised to 100,000 iterations, polishing during the run); `osqp_settings` = admmkit's "
+             "Configurations: `admmkit_settings` = `admmkit.problems.qp.admmkit_settings()` (OSQP's machinery, "
+             "the rule rowwise (a penalty per row), the cap raised to 100,000 iterations, polishing during the run); `osqp_settings` = admmkit's "
              "re-implementation of OSQP 1.x (`osqp_settings()`, cap 4000); `OSQP 1.1 (C)` = the osqp package 1.1.3 "
              "with its defaults (cap 4000).  Every run asks for eps_abs = eps, eps_rel = 0 and has 5 CPU s; a "
              "success is qpbenchmark's: the returned (x, y) has primal residual, dual residual and duality gap "
