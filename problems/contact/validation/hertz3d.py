@@ -68,10 +68,12 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import scipy.sparse as sp
+from scipy.spatial import cKDTree
 
 #: the scene's sphere radius, its centre over the plane, and the plane's rise (hertz3d.toml)
 R_SPHERE = 1.0
-CENTRE = (0.5, 0.5)
+CENTRE = (0.0, 0.0)
 DELTA = 0.0024
 #: the outer ring of the contact set whose pressures fix a_h: radii from this share of the outermost active one
 BAND = 0.5
@@ -105,18 +107,64 @@ def hertz_pressure(r: np.ndarray, F: float, R: float, E: float, nu: float) -> np
     return hertz_peak_pressure(F, a) * np.sqrt(np.maximum(1.0 - (np.asarray(r) / a) ** 2, 0.0))
 
 
+def copies(scene) -> int:
+    """How many copies of the model make the whole body: 2 per symmetry plane (they pass through the centre)."""
+    return 2 ** len(getattr(scene, "symmetry", ()))
+
+
 def radii(ops, centre=CENTRE) -> np.ndarray:
     """r = |(x, y) - centre| of every contact node."""
     return np.hypot(ops.xc[:, 0] - centre[0], ops.xc[:, 1] - centre[1])
 
 
-def measure(ops, lam: np.ndarray, p: np.ndarray, *, R: float = R_SPHERE, centre=CENTRE, band: float = BAND) -> dict:
-    """F, a_h, p0_h (and the largest nodal pressure) against Hertz's a and p0 at the measured F (module
-    docstring); ValueError when the contact set is too small to measure (fewer than 3 nodes in its outer ring)."""
+def face_mass(ops) -> sp.csr_matrix:
+    """The consistent mass matrix of the contact face's trace space (P1 or P2 Lagrange on its triangles) on the
+    contact nodes, M_ij = int_Gamma phi_i phi_j; rows of nodes left out of the contact set (on a clamped face) are
+    dropped.  For a nodal force vector f, M^{-1} f is the pressure p_h of the trace space whose consistent loads
+    int p_h phi_i are f."""
+    mesh, order = ops.mesh, ops.scene.order
+    points = np.array(mesh.ngmesh.Coordinates())
+    surface = mesh.ngmesh.Elements2D().NumPy()
+    labels = np.array(mesh.GetBoundaries())[surface["index"] - 1]
+    P = points[surface["nodes"][:, :3].astype(np.int64)[labels == ops.scene.contact] - 1]
+    area = 0.5 * np.linalg.norm(np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0]), axis=1)
+    if order == 2:
+        P = np.concatenate([P, (P + np.roll(P, -1, axis=1)) / 2], axis=1)    # the midpoints of edges 01, 12, 20
+    local = _triangle_mass(order)
+    dist, idx = cKDTree(ops.xc[:, :2]).query(P[:, :, :2].reshape(-1, 2))
+    idx = np.where(dist <= 1e-9 * max(1.0, float(np.abs(ops.xc).max())), idx, -1).reshape(len(P), -1)
+    k = local.shape[0]
+    rows, cols = np.repeat(idx, k, axis=1).ravel(), np.tile(idx, (1, k)).ravel()
+    vals = (area[:, None, None] * local[None]).ravel()
+    keep = (rows >= 0) & (cols >= 0)
+    return sp.csr_matrix((vals[keep], (rows[keep], cols[keep])), shape=(ops.n_c, ops.n_c))
+
+
+def _triangle_mass(order: int) -> np.ndarray:
+    """The Lagrange P1 or P2 mass matrix of a triangle of unit area (P2: vertices 0-2, then the midpoints of edges
+    01, 12, 20), A_ij / A = int phi_i phi_j / A."""
+    if order == 1:
+        return (np.ones((3, 3)) + np.eye(3)) / 12.0
+    vertex = 6 * np.eye(3) - (np.ones((3, 3)) - np.eye(3))                       # 6 on the diagonal, -1 off it
+    mid = 16 * (np.ones((3, 3)) + np.eye(3))                                      # 32 on the diagonal, 16 off it
+    coupling = np.zeros((3, 3))
+    coupling[0, 1], coupling[1, 2], coupling[2, 0] = -4, -4, -4                   # vertex i and the opposite edge
+    return np.block([[vertex, coupling], [coupling.T, mid]]) / 180.0
+
+
+def measure(ops, lam: np.ndarray, p: np.ndarray, *, R: float = R_SPHERE, centre=CENTRE, band: float = BAND,
+            mass=None) -> dict:
+    """F, a_fit and p0_fit (and the other readings of the module docstring) against Hertz's a and p0 at the
+    measured F; ValueError when the contact set is too small to measure (fewer than 3 nodes in its outer ring).
+
+    ``mass``: the Gram matrix of the nodal basis on the contact face that the fit uses, default
+    :func:`face_mass` where ``ops`` has a mesh, else the lumped weights ``ops.mc`` (a diagonal).
+    """
     scene = ops.scene
     lam = np.asarray(lam)[:ops.n_c]
     r = radii(ops, centre)
-    F = float(ops.mc @ lam)
+    forces = ops.mc * lam
+    F = copies(scene) * float(forces.sum())
     active = np.asarray(p)[:ops.n_c] >= ops.g
     if F <= 0 or not active.any():
         raise ValueError("no contact: raise the plane (a larger delta)")
@@ -134,35 +182,47 @@ def measure(ops, lam: np.ndarray, p: np.ndarray, *, R: float = R_SPHERE, centre=
     p0_h = math.sqrt(max(p0_squared, 0.0))
     a = hertz_radius(F, R, scene.E, scene.nu)
     p0 = hertz_peak_pressure(F, a)
-    a_area = math.sqrt(float(ops.mc[active].sum()) / math.pi)
+    a_area = math.sqrt(copies(scene) * float(ops.mc[active].sum()) / math.pi)
+    if mass is None:
+        mass = face_mass(ops) if getattr(ops, "mesh", None) is not None else ops.mc
+    a_fit, p0_fit = profile_fit(r, forces, mass, r_in)
     near = r < 1.5 * r_in
-    a_fit, p0_fit = profile_fit(r[near], lam[near], ops.mc[near], r_in)
+    a_moment = moment_radius(r[near], forces[near])
     return {"F": F, "a_h": a_h, "a_area": a_area, "a_area_err": a_area / a - 1.0, "a_hertz": a,
             "a_err": a_h / a - 1.0, "p0_h": p0_h, "p0_hertz": p0,
             "p0_err": p0_h / p0 - 1.0, "a_fit": a_fit, "a_fit_err": a_fit / a - 1.0, "p0_fit": p0_fit,
-            "p0_fit_err": p0_fit / p0 - 1.0, "p_max": float(lam.max()), "p_max_err": float(lam.max()) / p0 - 1.0,
+            "p0_fit_err": p0_fit / p0 - 1.0, "a_moment": a_moment, "a_moment_err": a_moment / a - 1.0,
+            "p_max": float(lam.max()), "p_max_err": float(lam.max()) / p0 - 1.0,
             "edge_in": r_in / a, "edge_out": r_out / a, "active_nodes": int(active.sum())}
 
 
-def profile_fit(r: np.ndarray, lam: np.ndarray, mc: np.ndarray, r_in: float, steps: int = 4001) -> tuple[float, float]:
-    """(a, p0) of Hertz's profile p0 sqrt(1 - r^2/a^2) closest to the nodal pressures lam in the lumped boundary
-    mass's norm, sum_i mc_i (lam_i - p(r_i))^2: p0 = (sum mc lam s) / (sum mc s^2) for each a (s_i =
-    sqrt(1 - r_i^2/a^2)+), a scanned over [r_in / 2, 1.5 r_in] in ``steps`` values (r_in: the outermost active
-    radius)."""
-    r, lam, mc = (np.asarray(v, dtype=float) for v in (r, lam, mc))
-    best = (math.inf, math.nan, math.nan)
+def moment_radius(r: np.ndarray, forces: np.ndarray) -> float:
+    """The radius of the Hertz profile with the nodal forces' load and second moment: Hertz's pressure has
+    int p r^2 = (2/5) a^2 F, so a = sqrt(5 sum f_i r_i^2 / (2 sum f_i)) (sum f_i r_i^2 is the forces' work on the
+    displacement r^2, a P2 function: exactly int p_h r^2 for the pressure p_h of :func:`face_mass`)."""
+    return math.sqrt(2.5 * float(forces @ (r * r)) / float(forces.sum()))
+
+
+def profile_fit(r: np.ndarray, forces: np.ndarray, mass, r_in: float, steps: int = 4001) -> tuple[float, float]:
+    """(a, p0) of Hertz's profile p0 s_a, s_a = sqrt(1 - r^2/a^2)+, closest to the pressure p_h = M^{-1} f of the
+    nodal forces f in the L2 norm of the contact face, ||p_h - p0 s_a||_M^2 with M = ``mass`` (the Gram matrix of
+    the nodal basis, :func:`face_mass`; a vector: a diagonal, the lumped weights) and s_a at the nodes: for a given
+    a, p0 = f.s / s'Ms (the forces' work on s over its consistent load), and a is the best of ``steps`` values in
+    [r_in / 2, 1.5 r_in] (r_in: the outermost active radius), the one that maximises (f.s)^2 / s'Ms."""
+    r, f = np.asarray(r, dtype=float), np.asarray(forces, dtype=float)
+    Ms = (lambda s: mass * s) if np.ndim(mass) == 1 else (lambda s: mass @ s)
+    best = (-math.inf, math.nan, math.nan)
     for a in np.linspace(0.5 * r_in, 1.5 * r_in, steps):
         s = np.sqrt(np.maximum(1.0 - (r / a) ** 2, 0.0))
-        weight = float(mc @ (s * s))
+        weight = float(s @ Ms(s))
         if weight <= 0:
             continue
-        p0 = float((mc * lam) @ s) / weight
-        residual = float(mc @ (lam - p0 * s) ** 2)
-        if residual < best[0]:
-            best = (residual, float(a), p0)
+        work = float(f @ s)
+        if work * work / weight > best[0]:
+            best = (work * work / weight, float(a), work / weight)
     return best[1], best[2]
 
 
-__all__ = ["profile_fit", "R_SPHERE", "CENTRE", "DELTA", "BAND", "e_star", "hertz_radius", "hertz_peak_pressure",
+__all__ = ["profile_fit", "face_mass", "moment_radius", "copies", "R_SPHERE", "CENTRE", "DELTA", "BAND", "e_star", "hertz_radius", "hertz_peak_pressure",
            "hertz_load",
            "hertz_pressure", "radii", "measure"]
