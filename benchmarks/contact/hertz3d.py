@@ -1,8 +1,8 @@
 """Hertz in 3D under adaptive refinement: a and p0 of the scene ``hertz3d`` against Hertz, level by level.
 
-``python -m admmkit.benchmarks.contact.hertz3d [--target E] [--order 1|2] [--out DIR]`` runs
-``solve_adaptive`` (the loop of ``admmkit solve contact --scene hertz3d --target-error E``: ZZ, Dörfler
-theta 0.5, the balanced stop, warm starts) and measures every level twice with
+``python -m admmkit.benchmarks.contact.hertz3d [--target E] [--order 1|2] [--balance GAMMA] [--out DIR]``
+runs ``solve_adaptive`` (the loop of ``admmkit solve contact --scene hertz3d --target-error E --balance GAMMA``:
+ZZ, Dörfler theta 0.5, the balanced stop, warm starts) and measures every level twice with
 :func:`admmkit.problems.contact.validation.hertz3d.measure`:
 
 - **stop**: the level's iterate where the balanced stop fired (what ``--target-error`` returns);
@@ -11,7 +11,7 @@ theta 0.5, the balanced stop, warm starts) and measures every level twice with
   pressure's (docs/contact.md), so the two differ where the stop came early.
 
 It writes ``hertz3d.md`` / ``hertz3d.csv`` (one row per level) and ``hertz3d_pressure.png`` (the nodal
-pressures of the last level against r / a_Hertz, with Hertz's ellipse) under ``--out``.
+pressures of the iterate the run returns against r / a_Hertz, with Hertz's ellipse) under ``--out``.
 """
 from __future__ import annotations
 
@@ -24,7 +24,6 @@ from pathlib import Path
 import numpy as np
 
 from admmkit import RelativeChange
-from admmkit.fe.balanced_stop import GAMMA
 from admmkit.figures import pyplot, save_figure
 from admmkit.io import write_text
 
@@ -51,10 +50,10 @@ def _measured(ops, res) -> dict | None:
         return None
 
 
-def run_hertz3d(target: float = 0.1, order: int = 2, theta: float = 0.5, gamma: float = GAMMA,
+def run_hertz3d(target: float = 0.1, order: int = 2, theta: float = 0.5, gamma: float | None = None,
                 progress: bool = True):
-    """The adaptive run (balanced stop ``gamma``) and one row per level (module docstring); returns (rows,
-    AdaptiveResult, last discrete result)."""
+    """The adaptive run (balanced stop ``gamma``, None: ``solve_adaptive``'s default) and one row per level (module
+    docstring); returns (rows, AdaptiveResult, last discrete result)."""
     scene = load_scene("hertz3d", order=order)
     rows, last = [], {}
     t0 = time.perf_counter()
@@ -85,7 +84,8 @@ def run_hertz3d(target: float = 0.1, order: int = 2, theta: float = 0.5, gamma: 
                   f"at the stop: a {row['stop_a_err']:+.2%} p0 {row['stop_p0_err']:+.2%} (discrete "
                   f"{row['a_fit_err']:+.2%}, {row['p0_fit_err']:+.2%})  [{time.perf_counter() - t0:.0f} s, "
                   f"{resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1e6:.2f} GB]", flush=True)
-    out = solve_adaptive(scene, target, theta=theta, gamma=gamma, log=log, max_levels=40)
+    balance = {} if gamma is None else {"gamma": gamma}
+    out = solve_adaptive(scene, target, theta=theta, log=log, max_levels=40, **balance)
     return rows, out, last
 
 
@@ -166,14 +166,14 @@ def main(argv=None) -> int:
     p = argparse.ArgumentParser(prog="python -m admmkit.benchmarks.contact.hertz3d")
     p.add_argument("--target", type=float, default=0.1)
     p.add_argument("--order", type=int, choices=(1, 2), default=2)
-    p.add_argument("--balance", type=float, default=GAMMA, metavar="GAMMA",
-                   help=f"gamma of the balanced stop (default {GAMMA:g}, the --target-error default)")
+    p.add_argument("--balance", type=float, default=None, metavar="GAMMA",
+                   help="gamma of the balanced stop, as admmkit solve contact --balance (default: its default)")
     p.add_argument("--out", default="out/hertz3d")
     args = p.parse_args(argv)
     t0 = time.perf_counter()
     rows, out, last = run_hertz3d(args.target, args.order, gamma=args.balance)
-    command = (f"python -m admmkit.benchmarks.contact.hertz3d --target {args.target:g} --order {args.order} "
-               f"--balance {args.balance:g}")
+    command = (f"python -m admmkit.benchmarks.contact.hertz3d --target {args.target:g} --order {args.order}"
+               + ("" if args.balance is None else f" --balance {args.balance:g}"))
     for path in write_report(args.out, rows, out, last, args.target, args.order, command,
                              time.perf_counter() - t0):
         print(path)
