@@ -1,19 +1,21 @@
 """Hertz in 3D: a body with a spherical cap pressed on a rigid plane (frictionless), the scene ``hertz3d``.
 
-The scene (problems/contact/scenes/hertz3d.toml) is the block
-(0, 1) x (0, 1) x (0, 0.5) whose bottom face z = 0 carries the profile of a
-sphere of radius R = 1 centred over c = (0.5, 0.5): its height above the
-rigid plane is R - sqrt(R^2 - r^2), r = |(x, y) - c|.  The top is clamped
-and the plane raised by delta = 0.0024 (as the 2D Hertz scene does,
-:mod:`admmkit.problems.contact.validation.hertz`), so the gap is
+The body is the block (-0.5, 0.5)^2 x (0, 0.5) whose bottom face z = 0
+carries the profile of a sphere of radius R = 1 centred over c = (0, 0): its
+height above the rigid plane is R - sqrt(R^2 - r^2), r = |(x, y) - c|.  The
+scene (problems/contact/scenes/hertz3d.toml) is its quarter x, y >= 0, with
+the planes x = 0 and y = 0 as symmetry planes (``Scene3D.symmetry``: u.n = 0
+there).  The top is clamped and the plane raised by delta = 0.0024 (as the
+2D Hertz scene does, :mod:`admmkit.problems.contact.validation.hertz`), so
+the gap is
 
     g(x, y) = R - sqrt(R^2 - r^2) - delta,
 
-and the load F is the reaction, sum_i mc_i lam_i.  E = 1, nu = 0.3.  This is
-Hertz's own model: a body whose surface is flat to first order, with the
-initial separation of a sphere, and u.n measured along the plane's normal.
-Hertz (K. L. Johnson, *Contact Mechanics*, 1985, section 4.2) for a sphere on
-a rigid plane, E* = E / (1 - nu^2):
+and the load F is the reaction, :func:`copies` (4) x sum_i mc_i lam_i.
+E = 1, nu = 0.3.  This is Hertz's own model: a body whose surface is flat to
+first order, with the initial separation of a sphere, and u.n measured along
+the plane's normal.  Hertz (K. L. Johnson, *Contact Mechanics*, 1985,
+section 4.2) for a sphere on a rigid plane, E* = E / (1 - nu^2):
 
     a  = (3 F R / (4 E*))^(1/3)          contact radius
     p0 = 3 F / (2 pi a^2)                peak pressure
@@ -27,41 +29,34 @@ sphere differs from Hertz's paraboloid r^2 / (2R) by at most (a/R)^2 / 4 ~
 The comparison is at the measured F, since the approach delta of a clamped
 finite block is not the half-space's d.
 
-**What is measured** (:func:`measure`), from the multiplier lam (the
-nodal pressure) and the contact set (the nodes whose z-iterate p sits on
-the obstacle, p >= g):
+**What is measured** (:func:`measure`), from the nodal forces f_i = mc_i lam_i
+(at an iterate of the condensed mode, exactly the forces of its displacement)
+and the contact set (the nodes whose z-iterate p sits on the obstacle, p >= g):
 
-- F = sum_i mc_i lam_i;
-- a_h and p0_h: Hertz's profile makes p^2 linear in r^2,
-  p^2 = p0^2 - (p0/a)^2 r^2; a least-squares line of lam_i^2 against r_i^2
-  over the active nodes with r_i >= ``band`` x the outermost active radius
-  (the outer ring, where the edge is decided) gives a_h where it reaches
-  zero; p0_h is the line through all active nodes at r = 0 (with P2 the
-  lumped vertex and midpoint pressures of one element alternate about the
-  profile; the fit reads their mean), and ``p_max`` the largest nodal
-  pressure is reported beside it;
-- ``a_fit`` and ``p0_fit``: Hertz's profile p0 sqrt(1 - r^2/a^2) fitted to
-  the nodal pressures in the norm of the lumped boundary mass,
-  min sum_i mc_i (lam_i - p(r_i))^2 over the nodes with r_i < 1.5 x the
-  outermost active radius (:func:`profile_fit`): for a given a, p0 is
-  sum_i mc_i lam_i s_i / sum_i mc_i s_i^2 with s_i = sqrt(1 - r_i^2/a^2)+, a
-  ratio of the nodal forces mc_i lam_i, and a is the best of a fine scan.  It
-  reads the pressure through its nodal forces, which is what P2 needs: its
-  HRZ-lumped vertices carry almost no force in 3D (the consistent P2 load of
-  a triangle vanishes at its vertices), so inside the contact the vertex
-  pressures are near 0 and the midpoint ones about 1.15 p0;
-- ``a_area``, the radius of the disc of the contact set's area (the sum of
-  mc_i over the active nodes), a second reading of a that does not assume
-  Hertz's profile;
-- the outermost active radius and the innermost inactive one bracket the
-  discrete edge.
+- F = copies x sum_i f_i;
+- ``a_fit`` and ``p0_fit``: Hertz's profile p0 s_a, s_a = sqrt(1 - r^2/a^2)+,
+  closest in L2 of the contact face to the pressure p_h = M^{-1} f whose
+  consistent loads are the nodal forces, M the Gram matrix of the nodal
+  (Lagrange) basis on the face (:func:`face_mass`, :func:`profile_fit`).
+  Only the forces and M enter: this is what P2 needs, whose vertices carry
+  almost no force in 3D (the consistent P2 load of a triangle vanishes at its
+  vertices), so the nodal pressures lam_i alternate between about 0
+  (vertices) and 1.15-1.2 p0 (midpoints);
+- ``a_moment``: the radius of the forces' second moment (:func:`moment_radius`),
+  a second reading of a through the forces, without a fit;
+- beside them, readings of the nodal pressures lam_i: ``a_h`` (the line of
+  lam_i^2 against r_i^2 over the contact set's outer ring, r_i >= ``band`` x
+  the outermost active radius, at zero: Hertz's p^2 is linear in r^2),
+  ``p0_h`` (that line through all active nodes, at r = 0), ``a_area`` (the
+  disc of the contact set's area) and ``p_max`` (the largest nodal pressure);
+- the outermost active radius and the innermost inactive one (on P2 levels
+  possibly a vertex inside the contact, whose force is near 0).
 
-The nodal pressures of a lumped contact condition oscillate about the
-profile where the mesh is not uniform (a node's weight mc_i and its
+The nodal pressures of a lumped contact condition also oscillate about the
+profile where a P1 mesh is not uniform (a node's weight mc_i and its
 pressure go opposite ways, the force mc_i lam_i stays smooth): on an
 adapted P1 level of 10,248 unknowns neighbours at r = 0.22 a and 0.31 a
-read 1.04 p0 and 0.86 p0.  The fits read through the oscillation; the
-largest nodal pressure does not, and is reported only beside them.
+read 1.04 p0 and 0.86 p0.  The readings through the forces are not affected.
 """
 from __future__ import annotations
 
