@@ -30,7 +30,7 @@ import scipy.sparse as sp
 
 from admmkit.problems.contact.model.assembly import ContactOperators, free_matrix, lame
 from admmkit.problems.contact.model.fastpaths import component_map
-from admmkit.problems.contact.model.scene3d import block_mesh
+from admmkit.problems.contact.model.scene3d import FACE_AXIS, block_mesh
 from admmkit.problems.contact.solvers.friction import friction_of, tangent_frames
 
 #: the share of a P2 triangle's area at each of its vertices in the HRZ-lumped mass
@@ -58,11 +58,10 @@ def assemble3d(scene, mesh=None, stiffness: str = "compiled") -> ContactOperator
         mesh = block_mesh(scene.Lx, scene.Ly, scene.Lz, scene.h)
     else:
         known = set(mesh.GetBoundaries())
-        for label in (*scene.dirichlet, *scene.tractions, scene.contact):
+        for label in (*scene.dirichlet, *scene.tractions, *scene.symmetry, scene.contact):
             if label not in known:
                 raise ValueError(f"unknown boundary label {label!r}; known labels: {', '.join(sorted(known))}")
-    stick = {"dirichletx": scene.contact, "dirichlety": scene.contact} if scene.tangential == "stick" else {}
-    fes = ng.VectorH1(mesh, order=scene.order, dirichlet="|".join(scene.dirichlet), **stick)
+    fes = ng.VectorH1(mesh, order=scene.order, dirichlet="|".join(scene.dirichlet), **component_dirichlet(scene))
     v = fes.TestFunction()
     free = np.flatnonzero(np.array(fes.FreeDofs(), dtype=bool))
     if scene.order == 1 and stiffness == "compiled":
@@ -94,6 +93,18 @@ def assemble3d(scene, mesh=None, stiffness: str = "compiled") -> ContactOperator
     return ContactOperators(K=K, f=f, B=B, mc=mc, g=g, xc=xc, normals=normals, free=free,
                             mesh=mesh, fes=fes, scene=scene, T=T, tangents=tangents,
                             friction=friction_of(scene, xc))
+
+
+def component_dirichlet(scene) -> dict:
+    """VectorH1's per-component Dirichlet faces: u_x = u_y = 0 on the contact face for ``stick``, and u.n = 0 on
+    every symmetry face (``FACE_AXIS``)."""
+    faces = {axis: [] for axis in "xyz"}
+    if scene.tangential == "stick":
+        faces["x"].append(scene.contact)
+        faces["y"].append(scene.contact)
+    for label in getattr(scene, "symmetry", ()):
+        faces[FACE_AXIS[label]].append(label)
+    return {f"dirichlet{axis}": "|".join(labels) for axis, labels in faces.items() if labels}
 
 
 def _ngsolve_stiffness(fes, E: float, nu: float, free: np.ndarray):
@@ -187,4 +198,4 @@ def point_evaluation(mesh: ng.Mesh, scalar: ng.comp.FESpace, points: np.ndarray,
     return sp.csr_matrix((vals, (rows, cols)), shape=(len(points), scalar.ndof))
 
 
-__all__ = ["assemble3d", "STIFFNESS", "face_nodes", "point_evaluation", "P2_VERTEX_SHARE", "P2_MIDPOINT_SHARE"]
+__all__ = ["assemble3d", "component_dirichlet", "STIFFNESS", "face_nodes", "point_evaluation", "P2_VERTEX_SHARE", "P2_MIDPOINT_SHARE"]

@@ -16,6 +16,10 @@ nodes, with HRZ-lumped weights.  The assembly is
 ``ContactOperators`` as the 2D assembly, so every contact mode and method
 works unchanged; at useful sizes only the iterative mode is practical.
 
+Symmetry planes (``symmetry``): faces on which only the normal displacement is 0 (u_x = 0 on back / front,
+u_y = 0 on left / right, u_z = 0 on top), the mirror condition of a body symmetric about that face's plane
+and loaded symmetrically; e.g. a quarter of a block symmetric about x = 0 and y = 0 (the scene hertz3d).
+
 Mesh: ``block_mesh`` cuts nx x ny x nz cubes into 6 tetrahedra each, the
 Kuhn triangulation of ``ngsolve.meshes.MakeStructured3DMesh(hexes=False)``
 with the same vertex numbering and tetrahedra, built from arrays.  Boundary
@@ -37,6 +41,8 @@ from admmkit.problems.contact.solvers.friction import check_friction_fields
 from admmkit.problems.contact.model.scene import MAX_CELLS, FrozenDict, check_slide
 
 FACES_3D = ("back", "front", "left", "right", "bottom", "top")
+#: the displacement component normal to each face (the one a symmetry plane there fixes)
+FACE_AXIS = {"back": "x", "front": "x", "left": "y", "right": "y", "bottom": "z", "top": "z"}
 #: the 6 tetrahedra of a cube (local corners as in MakeStructured3DMesh: 0 = (i,j,k), 1 = k+1,
 #: 2 = j+1,k+1, 3 = j+1, 4 = i+1, 5 = i+1,k+1, 6 = i+1,j+1,k+1, 7 = i+1,j+1); all share the diagonal 0-6
 KUHN = ((0, 4, 5, 6), (0, 6, 7, 4), (0, 3, 7, 6), (0, 1, 6, 5), (0, 1, 2, 6), (0, 3, 6, 2))
@@ -98,6 +104,7 @@ class Scene3D:
     (u_x = u_y = 0 there), ``"tresca"`` with ``slip_bound`` s(x, y) >= 0 or
     ``"coulomb"`` with ``mu`` >= 0, as in the 2D :class:`~admmkit.problems.contact.model.scene.Scene`;
     ``obstacle_slide`` = (w_x, w_y) moves the foundation tangentially (friction only).
+    ``symmetry``: faces that are symmetry planes, u.n = 0 there and the tangential traction 0 (module docstring).
     """
 
     Lx: float = 3.0
@@ -116,12 +123,14 @@ class Scene3D:
     slip_bound: Any = None
     mu: Any = None
     obstacle_slide: tuple[float, float] = (0.0, 0.0)
+    symmetry: tuple[str, ...] = ()
 
     def __post_init__(self):
         set_ = lambda k, v: object.__setattr__(self, k, v)  # noqa: E731 (frozen)
         if isinstance(self.dirichlet, str):
             set_("dirichlet", (self.dirichlet,))
         set_("dirichlet", tuple(self.dirichlet))
+        set_("symmetry", (self.symmetry,) if isinstance(self.symmetry, str) else tuple(self.symmetry))
         set_("tractions", FrozenDict({k: _traction3(v, f"tractions[{k!r}]") for k, v in dict(self.tractions).items()}))
         set_("gap", as_function(self.gap, "gap"))
         if self.slip_bound is not None:
@@ -164,6 +173,12 @@ class Scene3D:
                     raise ValueError(f"{what}: unknown face {label!r}; known faces: {', '.join(FACES_3D)}")
         if not self.dirichlet:
             raise ValueError("dirichlet: no clamped face; at least one is needed (otherwise K is singular)")
+        for label in self.symmetry:
+            if label not in FACES_3D:
+                raise ValueError(f"symmetry: unknown face {label!r}; known faces: {', '.join(FACES_3D)}")
+            if label == self.contact or label in self.dirichlet or label in self.tractions:
+                raise ValueError(f"symmetry: face {label!r} is also the contact face, clamped or loaded; accepted: "
+                                 f"faces that are none of these")
         if self.contact != "bottom":
             raise ValueError(f"contact: {self.contact!r}; accepted: 'bottom' (the face z = 0 on the foundation)")
         if self.contact in self.dirichlet or self.contact in self.tractions:

@@ -38,6 +38,7 @@ TOML_KEYS_3D = {
     "h": ((int, float), "a number"), "order": ((int,), "an integer"),
     "E": ((int, float), "a number"), "nu": ((int, float), "a number"),
     "dirichlet": ((list, str), "a list of faces"),
+    "symmetry": ((list, str), "a list of faces (symmetry planes: u.n = 0)"),
     "tractions": ((dict,), "a table face = [tx, ty, tz]"),
     "contact": ((str,), "a face"),
     "gap": ((int, float, str), "a number or an expression in x, y"),
@@ -79,8 +80,9 @@ def load_scene(path, **changes):
         if not (isinstance(t, list) and len(t) == dim and all(isinstance(c, (int, float, str)) for c in t)):
             what = "a pair [tx, ty]" if dim == 2 else "a triple [tx, ty, tz]"
             raise ValueError(f"{path}: key 'tractions.{label}' must be {what}, got {t!r}")
-    if "dirichlet" in data and isinstance(data["dirichlet"], list):
-        data["dirichlet"] = tuple(data["dirichlet"])
+    for key in ("dirichlet", "symmetry"):
+        if key in data and isinstance(data[key], list):
+            data[key] = tuple(data[key])
     for key in ("contact_normal", "body_force", "obstacle_slide"):
         if key in data and isinstance(data[key], list):
             data[key] = tuple(data[key])

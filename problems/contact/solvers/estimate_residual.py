@@ -10,7 +10,8 @@ norm ``||v||_a^2 = int sigma(v):eps(v)``), for every element T::
     eta_T^2 =  h_T^2 / k ||div sigma(u_h) + f||_T^2                         (element residual; 0 for P1)
              + 1/2 sum_{E in T, E interior} h_E / k ||[sigma(u_h) n]||_E^2     (normal-stress jumps)
              + sum_{E in T, E on Gamma_N} h_E / k ||sigma(u_h) n - t||_E^2    (Neumann residual; t = 0 where no
-                                                                              traction is given)
+                                                                              traction is given; on a 3D
+                                                                              symmetry face its tangential part)
              + sum_{E in T, E on Gamma_C} [ h_E / k ||sigma_n(u_h) + lambda_h||_E^2       (normal stress against
                                                                                            the discrete pressure)
                                             + h_E / k ||sigma_t(u_h)||_E^2               (tangential stress: 0
@@ -78,7 +79,8 @@ class ResidualEstimator:
         self._nodes = _boundary_interpolation(mesh, self.scalar, ops.xc, pts, self.order)
         self.pressure = ng.GridFunction(self.scalar)
         self.gap = _gap_cf(scene, self.scalar, self._nodes, ops.g)
-        labels = set(mesh.GetBoundaries()) - set(scene.dirichlet) - {scene.contact}
+        self.symmetry = tuple(getattr(scene, "symmetry", ()))
+        labels = set(mesh.GetBoundaries()) - set(scene.dirichlet) - set(self.symmetry) - {scene.contact}
         self.neumann = {label: _traction_cf(scene.tractions.get(label), self.dim) for label in sorted(labels)}
         force = getattr(scene, "body_force", None)
         self.f = ng.CF((0.0,) * self.dim) if force is None else _vector_cf(force)
@@ -127,6 +129,9 @@ class ResidualEstimator:
         neumann = [hE / k * ng.InnerProduct(sn - t, sn - t) * q
                    * ng.ds(skeleton=True, definedon=mesh.Boundaries(label), bonus_intorder=2)
                    for label, t in self.neumann.items()]
+        neumann += [hE / k * ng.InnerProduct(sn - normal_stress * n, sn - normal_stress * n) * q   # symmetry: s.t = 0
+                    * ng.ds(skeleton=True, definedon=mesh.Boundaries(label), bonus_intorder=2)
+                    for label in self.symmetry]
         out = {name: _assemble(self.cells, [form]) for name, form in forms.items()}
         out["neumann"] = _assemble(self.cells, neumann)
         return out
