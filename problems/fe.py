@@ -48,6 +48,13 @@ def refine_marked(mesh: ng.Mesh, marked: np.ndarray) -> None:
         mesh.Refine()
 
 
+def mesh_copy(mesh: ng.Mesh) -> ng.Mesh:
+    """A new NGSolve mesh with the points and elements of ``mesh`` in the same order, without its refinement
+    history: a finished level's model keeps it while ``mesh`` is refined in place (netgen's bisection of
+    tetrahedra reads that history, so refining a copy instead would give other meshes in 3D)."""
+    return ng.Mesh(mesh.ngmesh.Copy())
+
+
 def refined_copy(mesh: ng.Mesh, marked: np.ndarray) -> ng.Mesh:
     """A new mesh: a copy of ``mesh`` with the marked elements bisected (:func:`refine_marked`); ``mesh`` stays as
     it is, so fields on it can be evaluated at the new mesh's points.
@@ -56,7 +63,7 @@ def refined_copy(mesh: ng.Mesh, marked: np.ndarray) -> ng.Mesh:
     refinement hierarchy: NGSolve's prolongation (``GridFunction.Update``) does not reach the new mesh; P1
     values are carried over by :func:`p1_prolongation`.
     """
-    copy = ng.Mesh(mesh.ngmesh.Copy())
+    copy = mesh_copy(mesh)
     refine_marked(copy, marked)
     return copy
 

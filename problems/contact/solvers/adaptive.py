@@ -52,7 +52,7 @@ from admmkit.problems.contact.solvers.estimate_residual import check_estimator
 from admmkit.problems.contact.solvers.methods import method
 from admmkit.problems.contact.solvers.problem import contact_problem
 from admmkit.problems.contact.solvers.warm_trace import ContactTrace, contact_trace, start_at, trace_warm_start
-from admmkit.problems.fe import refined_copy
+from admmkit.problems.fe import mesh_copy, refine_marked
 
 
 @dataclass
@@ -100,7 +100,8 @@ def solve_adaptive(scene: Scene, target: float, *, theta: float = 0.5, gamma: fl
                 out.message += " (P2 elements, --fe-order 2, converge about twice as fast on a 2D scene)"
             return out
         t0 = time.perf_counter()
-        ops = assemble3d_on(scene, mesh) if three else assemble(scene, mesh=mesh)
+        level_mesh = mesh_copy(mesh)         # the level's model keeps its own mesh; ``mesh`` is refined in place,
+        ops = assemble3d_on(scene, level_mesh) if three else assemble(scene, mesh=level_mesh)   # with its history
         problem = contact_problem(ops, mode="condensed")
         stop = BalancedStop(problem, gamma, estimator=estimator)
         lam0 = None if warm is None else _interpolate(ops, warm.xc, warm.lam)
@@ -122,7 +123,7 @@ def solve_adaptive(scene: Scene, target: float, *, theta: float = 0.5, gamma: fl
                 out.message += f" ({res.message})"
             return out
         warm = LastLevel(ops.xc.copy(), res.lam.copy(), res.rho, None if three else contact_trace(problem, res.x))
-        mesh = refined_copy(mesh, dorfler_mark(indicators, theta))    # a copy: the level's model keeps its own mesh
+        refine_marked(mesh, dorfler_mark(indicators, theta))   # the same elements in the same order as level_mesh
     return out.capped(max_levels, target)
 
 
