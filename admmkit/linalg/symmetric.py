@@ -108,19 +108,27 @@ class SymmetricPattern:
         on_upper, on_diagonal = np.flatnonzero(D_upper), np.flatnonzero(D_diagonal)
         D_upper, D_diagonal = D_upper[on_upper], D_diagonal[on_diagonal]
 
-        def at(rho: float):
-            data, diagonal = K_upper.copy(), K_diagonal.copy()
+        def at(rho: float, into=None):
+            """The product for rho: new, or ``into`` (a product this ``at`` returned) with D's entries
+            rewritten in place for rho (the same values; no copy of the whole triangle)."""
+            if into is None:
+                data, diagonal = K_upper.copy(), K_diagonal.copy()
+            else:
+                data, diagonal = into.values
             data[on_upper] = K_upper[on_upper] + rho * D_upper
             diagonal[on_diagonal] = K_diagonal[on_diagonal] + rho * D_diagonal
-            return self._apply(data, diagonal)
+            return into if into is not None else self._apply(data, diagonal)
+        at.updates_in_place = True
         return at
 
     def _apply(self, data: np.ndarray, diagonal: np.ndarray):
         """x -> A x for the upper triangle's values ``data`` and the ``diagonal``."""
-        def apply(x):
-            out = np.empty(self.shape[0])
+        def apply(x, out=None):
+            out = np.empty(self.shape[0]) if out is None else out
             _symmetric_matvec(self.indptr, self.indices, data, diagonal, np.ascontiguousarray(x, dtype=float), out)
             return out
+        apply.writes_into = True      # apply(x, out=buffer): pcg's products without a new array each
+        apply.values = (data, diagonal)
         return apply
 
 
@@ -269,11 +277,13 @@ class NodePairPattern(SymmetricPattern):
         """x -> A x from the layout's values ``data`` and the ``diagonal``."""
         offset = 4 * self.block_indices.size
 
-        def apply(x):
-            out = np.empty(self.shape[0])
+        def apply(x, out=None):
+            out = np.empty(self.shape[0]) if out is None else out
             _pair_matvec(self.block_indptr, self.block_indices, data, offset, diagonal,
                          np.ascontiguousarray(x, dtype=float), out)
             return out
+        apply.writes_into = True
+        apply.values = (data, diagonal)
         return apply
 
 
