@@ -293,7 +293,8 @@ class PencilMatrix:
             positions = self._positions(D)
             if positions is not None:
                 self.K_data = K.data          # the pattern's own values: K (never written)
-                self.D_data = np.zeros_like(K.data)
+                self.D_data = np.zeros(K.data.shape, dtype=K.data.dtype)  # calloc: pages D never touches
+                # stay unwritten (zeros_like wrote all 360 MB at 1e6 unknowns in 3D, 0.34 s at 3e5)
                 self.D_data[positions] = D.data
                 self._D_entries = np.sort(positions[D.data != 0])   # where D_data is nonzero, from D's own entries
                 return

@@ -113,3 +113,20 @@ def test_cycle_and_products_write_into_the_given_arrays(block_ops):
         out = np.full(solver.n, np.nan)
         assert solver._amg(r, out=out) is out
         np.testing.assert_array_equal(out, solver._amg(r))
+
+
+def test_products_from_ds_entries_equal_those_from_its_gathered_values(block_ops):
+    from admmkit.linalg.symmetric import SymmetricPattern
+    solver = _solver(block_ops)
+    pencil = solver.pencil
+    entries = pencil.changed_entries()
+    assert 0 < entries.size < pencil.D_data.size // 100          # D: the contact dofs only
+    pattern = SymmetricPattern(pencil.pattern)
+    by_entries = pattern.pencil_products(pencil.K_data, pencil.D_data, entries)
+    gathered = pattern.pencil_products(pencil.K_data, pencil.D_data)
+    x = np.random.default_rng(5).standard_normal(solver.n)
+    for rho in (1e3, 2.7e4):
+        ours, theirs = by_entries(rho), gathered(rho)
+        for a, b in zip(ours.values, theirs.values):
+            np.testing.assert_array_equal(a, b)
+        np.testing.assert_array_equal(ours(x), theirs(x))
