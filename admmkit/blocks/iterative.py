@@ -165,9 +165,6 @@ class IterativeXSolver:
     def _prepare(self, rho: float) -> str:
         """Make A = A(rho) and a preconditioner for it; return what was done."""
         action = "none"
-        if self._rho_A != rho:
-            self._A, self._rho_A = self.matrix(rho), rho
-            self._product = self._products(rho)
         if self._amg is None:
             action = "setup"
         elif self._rho_amg != rho:
@@ -179,6 +176,8 @@ class IterativeXSolver:
                 action = "keep"
             else:  # auto: rent (keep) until the loss reaches the price of a refresh, both in CG iterations
                 action = "refresh" if self._stale_loss >= self._refresh_price() else "keep"
+        if self._rho_A != rho:
+            self._new_matrix(rho, in_place=action == "refresh")
         if action == "setup":
             start = time.perf_counter()
             self._amg = AMGPreconditioner(self._A, self.near_null, blocksize=self.blocksize,
@@ -193,6 +192,24 @@ class IterativeXSolver:
         if action in ("setup", "refresh"):
             self._rho_amg, self._fresh_factor, self._stale_loss = rho, None, 0.0
         return action
+
+    def _new_matrix(self, rho: float, in_place: bool) -> None:
+        """A = K + rho D and CG's product with it.  With the compiled kernels and ``in_place`` (the
+        preconditioner is refreshed next, so nothing else holds the old A) only D's entries of the last A and
+        product are rewritten (:meth:`admmkit.linalg.amg.PencilMatrix.update`, the same values); otherwise, and
+        under :func:`admmkit.kernels.library_kernels`, both are made anew (copies of all values: 0.3 s and more
+        at 1e6 unknowns)."""
+        from ..kernels import hand_written
+        in_place = in_place and self._A is not None and hand_written()
+        if in_place and self.pencil.changed_entries() is not None and sp.isspmatrix_csr(self._A):
+            self.pencil.update(self._A, rho)
+        else:
+            self._A = self.matrix(rho)
+        if in_place and getattr(self._products, "updates_in_place", False):
+            self._product = self._products(rho, into=self._product)
+        else:
+            self._product = self._products(rho)
+        self._rho_A = rho
 
     def update_rho(self, rho: float) -> None:
         """The event of a change of rho: A = K + rho D and the preconditioner's set-up, Galerkin refresh or keep

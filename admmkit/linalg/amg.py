@@ -101,6 +101,7 @@ class AMGPreconditioner:
         # A = K + rho D gives A_l = K_l + rho D_l on every level with D_l = R D_{l-1} P: keep the coarse
         # D_l on the coarse patterns, so that a Galerkin refresh for another rho is one axpy per level
         self._rho, self._pencils = rho, None
+        self._D, self._fine_entries = (sp.csr_matrix(D) if D is not None else None), None
         if D is not None and rho is not None:
             pencils, Dl = [], sp.csr_matrix(D)
             for fine, coarse in zip(self.ml.levels[:-1], self.ml.levels[1:]):
@@ -135,6 +136,9 @@ class AMGPreconditioner:
         from pyamg.multilevel import coarse_grid_solver
         from pyamg.relaxation.smoothing import change_smoothers
         start = time.perf_counter()
+        if self._refresh_in_place(A, rho):
+            self.refresh_time = time.perf_counter() - start
+            return
         levels = self.ml.levels
         levels[0].A = _symmetric_csr(A)
         if self._pencils is not None and rho is not None:
@@ -150,8 +154,45 @@ class AMGPreconditioner:
             self._cycle = self._cycle.refreshed(self.ml)
         self.refresh_time = time.perf_counter() - start
 
-    def __call__(self, r: np.ndarray) -> np.ndarray:
-        """z = V-cycle(r), starting from zero (no residual norms, unlike ml.solve).
+    def _refresh_in_place(self, A: sp.spmatrix, rho: float | None) -> bool:
+        """The Galerkin refresh for a new rho where only D's entries change, made in place; False (nothing
+        done) where it does not apply.
+
+        It applies with the compiled cycle, after a first refresh, when A is the finest level's matrix updated
+        in place at D's entries (:meth:`PencilMatrix.update`) and D is sparse on every coarse pattern.  Then
+        every level changes only where D_l is stored: those values are rewritten as A_l + (rho - rho_0) D_l
+        (the axpy of :meth:`refresh`, the same values), in the cycle's storage too, with their rows' 1 / a_ii,
+        and the coarsest LU is made again.  The full refresh copied every level's values and laid the cycle's
+        blocks out anew: 0.6 s a change of rho at 1e6 unknowns (the 3D block), with the copies of A and
+        of CG's product made before it.
+        """
+        from pyamg.multilevel import coarse_grid_solver
+        levels = self.ml.levels
+        if not (hand_written() and self._cycle is not None and self._pencils is not None and rho is not None
+                and len(levels) > 1 and sp.issparse(A) and A.format == "csr" and _same_values(A, levels[0].A)):
+            return False
+        entries = [pencil.changed_entries() for pencil in self._pencils]
+        if any(e is None for e in entries) or any(np.may_share_memory(level.A.data, pencil.K_data)
+                                                   for level, pencil in zip(levels[1:], self._pencils)):
+            return False              # D dense on a level, or a level still holds its pencil's K: refresh anew
+        if self._fine_entries is None:
+            self._fine_entries = entry_positions(levels[0].A, self._D)
+            if self._fine_entries is None:
+                return False
+        self._cycle.update_entries(0, levels[0].A, self._fine_entries)
+        for lvl, (pencil, changed) in enumerate(zip(self._pencils, entries), 1):
+            pencil.update(levels[lvl].A, rho - self._rho)
+            if lvl < len(levels) - 1:
+                self._cycle.update_entries(lvl, levels[lvl].A, changed)
+        self.ml.coarse_solver = coarse_grid_solver(self.COARSE)  # its cached factors belonged to the old A
+        self._cycle.coarse_solver = self.ml.coarse_solver
+        return True
+
+    #: ``self(r, out=z)`` writes the cycle into z (what :func:`admmkit.linalg.cg.pcg` asks for)
+    writes_into = True
+
+    def __call__(self, r: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+        """z = V-cycle(r), starting from zero (no residual norms, unlike ml.solve); into ``out`` if given.
 
         With numba, :class:`admmkit.linalg.vcycle.VCycle` (the same values, its products row-parallel);
         without, or under :func:`admmkit.kernels.library_kernels`, pyamg's own cycle.
@@ -160,12 +201,16 @@ class AMGPreconditioner:
             if self._cycle is None:
                 from .vcycle import VCycle
                 self._cycle = VCycle(self.ml, values=self.cycle_values, blocks3d=self.cycle_blocks3d)
-            return self._cycle(r)
-        z = np.zeros_like(r)
+            return self._cycle(r, out=out)
         if len(self.ml.levels) == 1:
-            return self.ml.coarse_solver(self.ml.levels[0].A, r)
-        self.ml._MultilevelSolver__solve(0, z, r, "V")  # pyamg's cycle, without ml.solve's two residual norms
-        return z
+            z = self.ml.coarse_solver(self.ml.levels[0].A, r)
+        else:
+            z = np.zeros_like(r)
+            self.ml._MultilevelSolver__solve(0, z, r, "V")  # pyamg's cycle, without ml.solve's two residual norms
+        if out is None:
+            return z
+        out[...] = z
+        return out
 
 
 @contextmanager
@@ -190,6 +235,33 @@ def short_spectral_radius(steps: int | None):
         yield
     finally:
         smooth.approximate_spectral_radius = original
+
+
+def entry_positions(pattern: sp.csr_matrix, M: sp.csr_matrix) -> np.ndarray | None:
+    """Where M's stored entries sit in the values of the sorted CSR ``pattern``, or None if one lies outside it.
+
+    Reads only the pattern rows M touches (D couples the few contact dofs: at 1e6 unknowns this
+    replaced keys for all 14e6 entries of K, twice, about 0.4 s).
+    """
+    if M.nnz == 0:
+        return np.empty(0, dtype=np.int64)
+    rows = np.repeat(np.arange(M.shape[0]), np.diff(M.indptr))
+    touched = np.unique(rows)
+    starts, lengths = pattern.indptr[touched], np.diff(pattern.indptr)[touched]
+    at = np.repeat(starts - np.concatenate(([0], np.cumsum(lengths)[:-1])), lengths) + np.arange(lengths.sum())
+    width = pattern.shape[1] + 1
+    keys_union = np.repeat(touched, lengths).astype(np.int64) * width + pattern.indices[at]
+    keys = rows.astype(np.int64) * width + M.indices
+    pos = np.minimum(np.searchsorted(keys_union, keys), keys_union.size - 1)
+    if keys_union.size == 0 or not np.array_equal(keys_union[pos], keys):
+        return None
+    return at[pos]
+
+
+def _same_values(A, B) -> bool:
+    """A and B hold their values in the same memory (scipy's constructors make views of the arrays they
+    are given, not the arrays themselves)."""
+    return A.data.shape == B.data.shape and np.may_share_memory(A.data, B.data)
 
 
 def _symmetric_csr(A) -> sp.csr_matrix:
@@ -221,7 +293,8 @@ class PencilMatrix:
             positions = self._positions(D)
             if positions is not None:
                 self.K_data = K.data          # the pattern's own values: K (never written)
-                self.D_data = np.zeros_like(K.data)
+                self.D_data = np.zeros(K.data.shape, dtype=K.data.dtype)  # calloc: pages D never touches
+                # stay unwritten (zeros_like wrote all 360 MB at 1e6 unknowns in 3D, 0.34 s at 3e5)
                 self.D_data[positions] = D.data
                 self._D_entries = np.sort(positions[D.data != 0])   # where D_data is nonzero, from D's own entries
                 return
@@ -241,24 +314,8 @@ class PencilMatrix:
         return self.at(0.0)
 
     def _positions(self, M: sp.csr_matrix) -> np.ndarray | None:
-        """Where M's stored entries sit in the (CSR) pattern's values, or None if one lies outside it.
-
-        Reads only the pattern rows M touches (D couples the few contact dofs: at 1e6 unknowns this
-        replaced keys for all 14e6 entries of K, twice, about 0.4 s).
-        """
-        if M.nnz == 0:
-            return np.empty(0, dtype=np.int64)
-        rows = np.repeat(np.arange(M.shape[0]), np.diff(M.indptr))
-        touched = np.unique(rows)
-        starts, lengths = self.pattern.indptr[touched], np.diff(self.pattern.indptr)[touched]
-        at = np.repeat(starts - np.concatenate(([0], np.cumsum(lengths)[:-1])), lengths) + np.arange(lengths.sum())
-        width = self.shape_blocks + 1
-        keys_union = np.repeat(touched, lengths).astype(np.int64) * width + self.pattern.indices[at]
-        keys = rows.astype(np.int64) * width + M.indices
-        pos = np.minimum(np.searchsorted(keys_union, keys), keys_union.size - 1)
-        if keys_union.size == 0 or not np.array_equal(keys_union[pos], keys):
-            return None
-        return at[pos]
+        """Where M's stored entries sit in the (CSR) pattern's values, or None if one lies outside it."""
+        return entry_positions(self.pattern, M)
 
     def _keys(self, M) -> np.ndarray:
         rows = np.repeat(np.arange(M.indptr.size - 1), np.diff(M.indptr))
@@ -282,6 +339,23 @@ class PencilMatrix:
         data = np.zeros_like(self.pattern.data)
         data[pos] = M.data
         return data
+
+    def changed_entries(self) -> np.ndarray | None:
+        """The positions in the pattern's values (CSR) where D is nonzero, the only ones a change of rho
+        changes; None for a BSR pattern."""
+        if getattr(self, "_D_entries", None) is None:
+            self._D_entries = np.flatnonzero(self.D_data) if self.D_data.ndim == 1 else np.empty(0, dtype=int)
+        return self._D_entries if self.D_data.ndim == 1 else None
+
+    def update(self, A, rho: float):
+        """A matrix ``at`` returned, made K + rho D for this rho in place: only D's entries are rewritten,
+        as K + rho D (the values of ``at(rho)`` bit for bit, without a copy of K's values).  Returns A."""
+        entries = self.changed_entries()
+        if entries is None:
+            np.add(self.K_data, rho * self.D_data, out=A.data)
+        else:
+            A.data[entries] = self.K_data[entries] + rho * self.D_data[entries]
+        return A
 
     def at(self, rho: float):
         """The sparse matrix K + rho D (CSR or BSR); where D is sparse in the pattern (contact: 4e3 of 14e6

@@ -50,13 +50,18 @@ def pcg(matvec, b: np.ndarray, x0: np.ndarray, precond, *, tol: float, maxiter: 
     Stops when sqrt(r'Pr) <= tol * sqrt(|x'b|): with P a good preconditioner
     sqrt(r'Pr) is within mesh-independent constants of the energy norm of the
     error ||x - x*||_A, and x'b -> ||x*||_A^2, so the test is a relative energy
-    error.  Returns (x, iterations, achieved ratio, starting ratio, r) where the
+    error.  A ``matvec`` or ``precond`` with the attribute ``writes_into`` is
+    called as ``f(v, out=buffer)`` and must fill the buffer (one per solve).  Returns (x, iterations, achieved ratio, starting ratio, r) where the
     ratios are sqrt(r'Pr)/sqrt(|x'b|) at the end and the start and r = b - A x
     is CG's (recursively updated) residual.
     """
     x = np.array(x0, dtype=float)
     r = b - matvec(x) if np.any(x) else np.array(b, dtype=float)
-    z = precond(r)
+    # products and preconditioners that write into a given array (``writes_into``) get one buffer each for
+    # the whole solve: a new 8 MB array per iteration cost page faults (1e6 unknowns, 3D block: 20 % of CG)
+    into_A, into_P = getattr(matvec, "writes_into", False), getattr(precond, "writes_into", False)
+    Ap = np.empty_like(r) if into_A else None
+    z = precond(r, out=np.empty_like(r)) if into_P else precond(r)
     rz = float(r @ z)
     scale = lambda: math.sqrt(max(abs(float(x @ b)), 1e-300))  # noqa: E731
     start_ratio = math.sqrt(max(rz, 0.0)) / scale() if np.any(x) else 1.0
@@ -67,13 +72,13 @@ def pcg(matvec, b: np.ndarray, x0: np.ndarray, precond, *, tol: float, maxiter: 
         ratio = math.sqrt(max(rz, 0.0)) / scale() if np.any(x) else math.inf
         if ratio <= tol or rz <= 0.0:
             break
-        Ap = matvec(p)
+        Ap = matvec(p, out=Ap) if into_A else matvec(p)
         pAp = float(p @ Ap)
         if not (pAp > 0.0):
             raise np.linalg.LinAlgError(f"CG broke down: p'Ap = {pAp} (matrix or preconditioner not SPD)")
         alpha = rz / pAp
         cg_step(x, r, p, Ap, alpha)
-        z = precond(r)
+        z = precond(r, out=z) if into_P else precond(r)
         rz_new = float(r @ z)
         cg_direction(p, z, rz_new / rz)
         rz = rz_new

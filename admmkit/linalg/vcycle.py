@@ -241,21 +241,45 @@ class VCycle:
         self._inverse = [_inverse_diagonal(level.A.indices, (level.A if self.block[lvl] else self.A[lvl]).data, at,
                                            values, checked=kept[lvl])
                          for lvl, (level, at) in enumerate(zip(levels[:-1], self._diagonal))]
+        # work arrays, one per level and kept from cycle to cycle (a refresh keeps them too): x of the coarse
+        # levels (each is read by its parent's ascent before the next cycle writes it) and every level's
+        # coarse right-hand side; new 8 MB arrays in every cycle cost page faults (3D block, 1e6 unknowns)
+        self._work = (pattern_of._work if pattern_of is not None else
+                      [(np.empty(level.A.shape[0]) if lvl else None, np.empty(level.P.shape[1]))
+                       for lvl, level in enumerate(levels[:-1])])
 
     @property
     def first(self) -> BlockLevel | None:
         """The finest level in 2 x 2 node blocks, if it is stored so."""
         return self.block[0] if self.block and type(self.block[0]) is BlockLevel else None
 
+    def update_entries(self, lvl: int, A: sp.csr_matrix, positions: np.ndarray) -> None:
+        """Level ``lvl``'s values at ``positions`` of its CSR pattern taken from A (the level's matrix, changed
+        only there), in the cycle's storage, and 1 / a_ii of the rows whose diagonal is among them: the values
+        :meth:`refreshed` would give, without laying out the whole level again."""
+        values = A.data[positions]
+        block = self.block[lvl]
+        if block is not None:
+            block.data[block.block_positions(A, positions)] = values   # rounded to the cycle's precision
+        elif not np.may_share_memory(self.A[lvl].data, A.data):
+            self.A[lvl].data[positions] = values
+        rows = np.searchsorted(A.indptr, positions, side="right") - 1
+        rows = rows[A.indices[positions] == rows]
+        self._inverse[lvl][rows] = 1.0 / A.data[self._diagonal[lvl][rows]].astype(self.values).astype(np.float64)
+
     def refreshed(self, ml) -> VCycle:
         """The cycle of the same hierarchy after a Galerkin refresh (new A on every level, the same P)."""
         return VCycle(ml, self.values, P=self.P, pattern_of=self, blocks3d=self.blocks3d)
 
-    def __call__(self, r: np.ndarray) -> np.ndarray:
-        """The V-cycle applied to r from a zero initial guess (a new array)."""
+    def __call__(self, r: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+        """The V-cycle applied to r from a zero initial guess (a new array, or written into ``out``)."""
         if not self.levels:
-            return self.coarse_solver(self.coarse_A, r)
-        return self._level(0, np.ascontiguousarray(r, dtype=float))
+            z = self.coarse_solver(self.coarse_A, r)
+            if out is None:
+                return z
+            out[...] = z
+            return out
+        return self._level(0, np.ascontiguousarray(r, dtype=float), out)
 
     def _correction(self, lvl: int, coarse_b: np.ndarray) -> np.ndarray:
         """The coarse-grid correction of level ``lvl``: the next level's cycle, or the coarsest solve."""
@@ -263,13 +287,16 @@ class VCycle:
             return np.asarray(self.coarse_solver(self.coarse_A, coarse_b), dtype=float)
         return self._level(lvl + 1, coarse_b)
 
-    def _level(self, lvl: int, b: np.ndarray) -> np.ndarray:
+    def _level(self, lvl: int, b: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+        """Level ``lvl``'s part of the cycle for the right-hand side b; x in ``out`` (the finest level), in the
+        level's work array (the coarse ones) or new."""
+        x, coarse_b = self._work[lvl]
+        x = out if out is not None else x if x is not None else np.empty(b.shape[0])
         block = self.block[lvl]
         if block is not None:      # the level's passes in blocks (the CSR kernels' values)
-            return block.cycle(b, self._inverse[lvl], self._bandwidth[lvl], lambda c: self._correction(lvl, c))
+            return block.cycle(b, self._inverse[lvl], self._bandwidth[lvl], lambda c: self._correction(lvl, c),
+                               x=x, coarse_b=coarse_b)
         A, P = self.A[lvl], self.P[lvl]
-        x = np.empty(A.shape[0])
-        coarse_b = np.empty(P.shape[1])
         diagonal, inverse = self._diagonal[lvl], self._inverse[lvl]
         _forward_restrict(A.indptr, A.indices, A.data, diagonal, inverse, b, x,
                           P.indptr, P.indices, P.data, coarse_b, self._bandwidth[lvl])

@@ -171,6 +171,29 @@ def _block_values(indptr, indices, data, block_indptr, block_indices, out, full)
                 out[_u(4 * k + 2 * r + (j & 1))] = data[_u(jj)]
 
 
+@njit(cache=True)
+def _block_positions(indptr, indices, block_indptr, block_indices, R, positions, out):
+    """out[q]: where the entry at ``positions[q]`` of a CSR matrix sits in the values of its R x R blocks
+    (-1 if its block is not stored)."""
+    n = indptr.shape[0] - 1
+    for q in range(positions.shape[0]):
+        p = positions[_u(q)]
+        lo, hi = 0, n                   # the row of p: indptr[lo] <= p < indptr[hi]
+        while hi - lo > 1:
+            mid = (lo + hi) // 2
+            if indptr[_u(mid)] <= p:
+                lo = mid
+            else:
+                hi = mid
+        i, j = lo, indices[_u(p)]
+        I, J = i // R, j // R
+        out[_u(q)] = -1
+        for k in range(block_indptr[_u(I)], block_indptr[_u(I + 1)]):
+            if block_indices[_u(k)] == J:
+                out[_u(q)] = R * R * k + R * (i - R * I) + (j - R * J)
+                break
+
+
 # ---------------------------------------------------------------- the level
 class BlockLevel:
     """The finest level's A in 2 x 2 blocks and P in 2 x 3 blocks, values in ``values`` precision.
@@ -222,15 +245,31 @@ class BlockLevel:
         """The level of a new A on the same pattern (same blocks, same P)."""
         return type(self)(A, None, self.data.dtype, pattern=self)
 
+    def block_positions(self, A: sp.csr_matrix, positions: np.ndarray) -> np.ndarray:
+        """Where the entries at ``positions`` of the CSR matrix A (on this level's pattern) sit in ``data``;
+        found once for a set of positions and kept (a refresh for a new rho rewrites the same ones)."""
+        cached = getattr(self, "_positions", None)
+        if cached is not None and cached[0] is positions:
+            return cached[1]
+        found = np.empty(positions.size, dtype=np.int64)
+        _block_positions(np.asarray(A.indptr, dtype=np.int64), A.indices, self.indptr, self.indices, self.R,
+                         np.asarray(positions, dtype=np.int64), found)
+        if found.size and found.min() < 0:
+            raise ValueError("an entry lies outside the level's block pattern")
+        self._positions = (positions, found)
+        return found
+
     def valid(self) -> bool:
         """Every block row holds its diagonal block (the sweeps divide by a_ii)."""
         return bool(np.all(self.block_diagonal >= 0))
 
-    def cycle(self, b: np.ndarray, inverse: np.ndarray, bandwidth: int, correction) -> np.ndarray:
-        """The level's part of a V-cycle from zero: descent, ``correction(coarse_b)``, ascent (a new x)."""
+    def cycle(self, b: np.ndarray, inverse: np.ndarray, bandwidth: int, correction, x: np.ndarray | None = None,
+              coarse_b: np.ndarray | None = None) -> np.ndarray:
+        """The level's part of a V-cycle from zero: descent, ``correction(coarse_b)``, ascent (x new, or the
+        array ``x`` overwritten; ``coarse_b`` likewise)."""
         lag = (bandwidth + self.R - 1) // self.R             # in block rows
-        x = np.empty(self.shape[0])
-        coarse_b = np.empty(self.P_shape[1])
+        x = np.empty(self.shape[0]) if x is None else x
+        coarse_b = np.empty(self.P_shape[1]) if coarse_b is None else coarse_b
         self.descent(self.indptr, self.indices, self.data, self.block_diagonal, inverse, b, x,
                      self.P_indptr, self.P_indices, self.P_data, coarse_b, lag)
         coarse_x = correction(coarse_b)

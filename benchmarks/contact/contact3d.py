@@ -94,7 +94,7 @@ def probe_in_subprocess(h: float, which: str, timeout: float) -> dict:
     """:func:`probe` of ``which`` ("direct" or "amg") in a fresh process (its own peak memory)."""
     env = dict(os.environ, OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1", MKL_NUM_THREADS="1", ADMMKIT_PROBE=which)
     env["PYTHONPATH"] = str(Path(__file__).resolve().parents[2]) + os.pathsep + env.get("PYTHONPATH", "")
-    cmd = [sys.executable, "-m", "benchmarks.contact3d", repr(h)]
+    cmd = [sys.executable, "-m", "admmkit.benchmarks.contact.contact3d", repr(h)]
     start = time.perf_counter()
     try:
         proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, env=env)
