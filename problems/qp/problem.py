@@ -212,11 +212,12 @@ class QP(Problem):
             self._x_rel_prev, self._x_rel, self._x_last = xp, a * x_new + (1.0 - a) * xp, x_new      # (Q4)
         return x_new
 
-    def segment(self, x, z, lam, Ax, rho, alpha, order, count, read=False, accel=None):
+    def segment(self, x, z, lam, Ax, rho, alpha, order, count, read=False, accel=None, check=None):
         """``count`` iterations in one compiled call (:mod:`admmkit.loop.segments`; ``read``: the last is a read one;
-        ``accel``: Anderson's steps between them), or None where it does not apply."""
+        ``accel``: Anderson's steps between them; ``check``: OSQP's test and rule made in the kernel where they go
+        on, :mod:`admmkit.problems.qp.segment_checks`), or None where it does not apply."""
         from .segment import run_segment
-        return run_segment(self, x, z, lam, Ax, rho, alpha, order, count, read, accel)
+        return run_segment(self, x, z, lam, Ax, rho, alpha, order, count, read, accel, check)
 
     def after_segment(self, x, x_prev, x_rel, x_rel_prev, done: int) -> None:
         """The x-step's bookkeeping after a segment of ``done`` iterations ended at x (its x-step's output)."""
