@@ -97,7 +97,7 @@ def test_another_rule_or_fixed_rho(monkeypatch):
 def test_python_tests_only_where_the_loop_must_look(monkeypatch):
     """With OSQP's test and rule in the segment, the loop's Python tests the iterate only at a change of rho and at
     the end (before: every 25 iterations); the history rows of the iterations tested in the kernel have NaN norms."""
-    qp = random_qp(40, 60, seed=1)
+    qp = random_qp(40, 60, kind="equality", seed=3)
     tested = []
     fired = QPTermination.fired
 
