@@ -53,9 +53,11 @@ arrays of ``admmkit.loop.anderson_kernel``, updated in place), and its steps
 must be the loop's bit for bit.  Other accelerators (restarted fast ADMM)
 run every iteration in Python.
 
-The first iteration of a run always runs in Python, so that what the
-plug-in's own steps return is checked (``admmkit.loop.checks.check_step``)
-before a segment, which bypasses them, runs.
+The first iteration of a run runs in Python, so that what the plug-in's
+own steps return is checked (``admmkit.loop.checks.check_step``) before a
+segment, which bypasses them, runs; unless the plug-in sets
+``trusted_steps = True`` (its steps are the package's own, checked by its
+tests: the QP plug-in), whose segments may start at the first iteration.
 
 What a segment changes, and nothing else: its iterations get history rows
 with rho and the time at the segment's end, and NaN for every norm (a lean
@@ -95,8 +97,8 @@ class FastForward:
     ``segments`` and ``iterations`` count the calls and the iterations they ran, ``seconds`` their time.
     """
 
-    __slots__ = ("problem", "run", "enabled", "reads", "tests", "pending", "segments", "iterations", "seconds",
-                 "accel")
+    __slots__ = ("problem", "run", "enabled", "reads", "tests", "start", "pending", "segments", "iterations",
+                 "seconds", "accel")
 
     def __init__(self, run, enabled: bool = True, accel=None) -> None:
         problem = run.problem
@@ -108,6 +110,7 @@ class FastForward:
             self.enabled = self.enabled and accel.kernel_state() is not None and _takes(type(problem), "accel")
         self.reads = self.enabled and _takes(type(problem), "read")
         self.tests = (self.reads and accel is None and run.callback is None and _takes(type(problem), "check"))
+        self.start = 0 if getattr(problem, "trusted_steps", False) is True else 1   # the first iteration a segment runs
         self.pending = None             # (x_j, the read iteration's outputs) when the segment ran it
         self.segments = self.iterations = 0
         self.seconds = 0.0
@@ -121,7 +124,7 @@ class FastForward:
     def __call__(self, k: int, x, z, lam, Ax, rho: float):
         """(x, z, lam, Ax, k) after the iterations k .. j - 1 that nobody reads (j: :meth:`next_read`); where the
         plug-in runs the read iteration j too, its outputs wait for :meth:`serve`."""
-        if not self.enabled or k == 0:      # the first iteration runs in Python: its steps' returns are checked
+        if not self.enabled or k < self.start:     # the first iteration in Python: its steps' returns are checked
             return x, z, lam, Ax, k
         run = self.run
         if self.tests:                      # to the last iteration: the plug-in ends where the loop must look

@@ -68,6 +68,10 @@ class QP(Problem):
     scaling = 0).
     """
 
+    #: its steps are this package's own (tests/problems check them): the loop's segments may start at the first
+    #: iteration (:mod:`admmkit.loop.segments`)
+    trusted_steps = True
+
     def __init__(self, P, q, A, l, u, r: float = 0.0, *, sigma: float = 1e-6, backend: str = "auto",
                  name: str = "qp", xstep: str = "auto", scaling: int = 0, row_weights: str = "uniform",
                  x_relaxation: float = 1.0, allow_nonconvex: bool = False):

@@ -132,3 +132,20 @@ def test_maros_meszaros(name, eps, monkeypatch):
     inside, outside, python = three_ways(qp, monkeypatch, eps_abs=eps, eps_rel=eps)
     same_run(inside, outside)
     same_run(inside, python)
+
+
+def test_the_first_iteration_runs_in_the_segment_too(monkeypatch):
+    """The QP's steps are trusted (``QP.trusted_steps``): no iteration of a plain solve runs its steps in Python,
+    and the run is the Python loop's."""
+    from admmkit.problems.qp.problem import QP
+    qp = random_qp(30, 40, seed=17)
+
+    def no_python_step(*args):
+        raise AssertionError("an x-step ran in Python")
+    fast = solve_qp(qp, compiled=True)
+    assert fast.counters["compiled_iterations"] == fast.iterations
+    monkeypatch.setattr(QP, "x_step", no_python_step)
+    again = solve_qp(qp, compiled=True)
+    monkeypatch.undo()
+    same_run(again, fast)
+    same_run(fast, solve_qp(qp, compiled=False))
