@@ -220,8 +220,11 @@ class QP(Problem):
         """``count`` iterations in one compiled call (:mod:`admmkit.loop.segments`; ``read``: the last is a read one;
         ``accel``: Anderson's steps between them; ``check``: OSQP's test and rule made in the kernel where they go
         on, :mod:`admmkit.problems.qp.segment_checks`), or None where it does not apply."""
+        if check is not None:
+            from .segment_checks import checked_segment
+            return checked_segment(self, x, z, lam, Ax, rho, alpha, order, count, read, accel, check)
         from .segment import run_segment
-        return run_segment(self, x, z, lam, Ax, rho, alpha, order, count, read, accel, check)
+        return run_segment(self, x, z, lam, Ax, rho, alpha, order, count, read, accel)
 
     def after_segment(self, x, x_prev, x_rel, x_rel_prev, done: int) -> None:
         """The x-step's bookkeeping after a segment of ``done`` iterations ended at x (its x-step's output)."""

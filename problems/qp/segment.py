@@ -43,9 +43,9 @@ def compiled_pays(n: int, m: int, nnz: int) -> bool:
 
 def kernels_loaded() -> bool:
     """Whether this process has the QP's compiled segment (and with it numba and the other kernels) loaded."""
-    from . import segment_checks          # the segment that tests in its kernel calls _xz_kkt from there
-    return any(d is not None and bool(d.overloads)
-               for d in (_xz_kkt._dispatcher, segment_checks.segment_tested._dispatcher))
+    from admmkit.kernels import KERNELS      # the segment that tests in its kernel (segment_checks) calls _xz_kkt
+    tested = KERNELS.get(__name__.rsplit(".", 1)[0] + ".segment_checks", [])
+    return any(k._dispatcher is not None and bool(k._dispatcher.overloads) for k in (_xz_kkt, *tested))
 
 
 def choose_compiled(setting, qp) -> tuple[bool, bool]:
@@ -168,7 +168,7 @@ _NO_INTS, _NO_MATRIX = np.zeros(0, dtype=np.int64), np.zeros((0, 0))
 
 
 def run_segment(qp, x, z, lam, Ax, rho: float, alpha: float, order: str, count: int, read: bool = False,
-                accel=None, check=None):
+                accel=None):
     """``count`` iterations of ``qp`` from (x, z, lam, Ax) in one compiled call, or None where the kernel does
     not apply (order "zx", the reduced x-step, a backend other than qdldl, compiled code not chosen).
 
@@ -177,18 +177,13 @@ def run_segment(qp, x, z, lam, Ax, rho: float, alpha: float, order: str, count: 
     (:mod:`admmkit.loop.segments`); a sixth item, (x, z, lam, A x) it started from and its relaxed vector (None
     when alpha = 1), is returned, None unless all ``count`` iterations were done.  ``accel``: Anderson's
     ``kernel_state()`` (:mod:`admmkit.loop.segments`), whose steps follow the iterations (not a read last one's).
-    ``check``: an :class:`admmkit.loop.segments.SegmentChecks` (with ``read``, without ``accel``): the tests and
-    OSQP's rule in the kernel, the segment ending where the loop must look
-    (:func:`admmkit.problems.qp.segment_checks.tested_segment`).
+    (With the loop's tests and OSQP's rule in the kernel: :func:`admmkit.problems.qp.segment_checks.checked_segment`.)
     """
     if order != "xz" or qp.xstep != "kkt" or not compiled_now():
         return None
     factors = qp._solver.ldl(rho)
     if factors is None:
         return None
-    if check is not None and read and accel is None:
-        from .segment_checks import tested_segment
-        return tested_segment(qp, factors, x, z, lam, Ax, rho, alpha, count, check)
     x, z, lam, Ax = (np.array(v, dtype=np.float64) for v in (x, z, lam, Ax))
     a = qp.x_relaxation
     x_rel = np.array(qp._x_rel if a != 1.0 and qp._x_rel is not None else x, dtype=np.float64)

@@ -8,13 +8,13 @@ OSQP's 25 iterations and its check cost about 40 us.  A segment given
 makes, at every tested iteration, the decision the loop would make there
 *when it is "go on"*:
 
-- OSQP's residuals of the iterate (:func:`admmkit.problems.qp.residual_kernel._residuals`,
+- OSQP's residuals of the iterate (``residual_kernel._residuals``,
   the very kernel the Python test calls, so the same bits) and the test of
   :class:`admmkit.problems.qp.termination.QPTermination` on them: primal,
   dual and gap tests at eps_abs, eps_rel; when they fail, the candidates
   (I1), (I2) of the infeasibility tests (the kernels of ``infeasibility_kernel``
   on the same dy and dx);
-- for :class:`admmkit.problems.qp.polish_stop.PolishingTermination`, also its
+- for ``polish_stop.PolishingTermination``, also its
   gate (the test at ``gate`` x the tolerances, from the iteration of its next try on);
 - the loop's divergence and stall tests, conservatively: every entry of
   r = A x - z finite and below 1e100 in size, and one above 1e-100;
@@ -37,20 +37,22 @@ import math
 
 import numpy as np
 
-from admmkit.kernels import kernel
+from admmkit.kernels import compiled_now, kernel
 from admmkit.linalg.compiled import csc_matvec
 
 from .infeasibility_kernel import dual_candidate, dual_update_change, primal_candidate
 from .residual_kernel import _residuals
 from .segment import _xz_kkt
 
-#: False: the segment makes no test and no rule update in its kernel (it ends at every iteration the loop reads,
+#: ``False``: the segment makes no test and no rule update in its kernel (it ends at every iteration the loop reads,
 #: as before this module): the switch the tests compare the two with
 TESTS_IN_KERNEL = True
 #: OSQPRule's floor in the ratio's denominators (``termination.osqp_relative_residuals``: DIVISION_TOL of OSQP)
 RATIO_TOL = 1e-30
-#: |r_i| at or above this, or all |r_i| at or below STALL_FLOOR: the loop's own divergence and stall tests decide
-DIVERGENCE_CEILING, STALL_FLOOR = 1e100, 1e-100
+#: the size of an entry of r = A x - z from which the loop's own divergence test decides
+DIVERGENCE_CEILING = 1e100
+#: the size below which every entry of r must be for the loop's own stall test to decide
+STALL_FLOOR = 1e-100
 
 
 @kernel(cache=True)
@@ -129,7 +131,7 @@ def segment_tested(count, first, every, knows_test, m, eps_abs, eps_rel, gap, in
                    a, sigma, Lp, Li, Lx, Dinv, perm, Rinv, q, free, w_free,
                    x, x_prev, x_rel, x_rel_prev, z, lam, Ax, rhs, sol, work, z_last, lam_last, Ax_last, hat,
                    no_w, no_ints, no_matrix):
-    """Up to ``count`` iterations from iteration ``first`` (:func:`admmkit.problems.qp.segment._xz_kkt`'s), each
+    """Up to ``count`` iterations from iteration ``first`` (``segment._xz_kkt``'s), each
     tested one ((k + 1) % every == 0) and each one OSQP's rule reads (``interval`` > 0) decided by :func:`go_on`;
     ``knows_test``: the run's test is one :func:`go_on` makes (else the segment ends at the first tested iteration);
     returns (done, kept): the segment ends after a "Python must look" iteration, at ``count``, or before a
@@ -165,26 +167,26 @@ def segment_tested(count, first, every, knows_test, m, eps_abs, eps_rel, gap, in
 
 def test_parameters(qp, stop) -> tuple:
     """(knows_test, eps_abs, eps_rel, gap, infeasibility, eps_prim_inf, eps_dual_inf, gate, polish_from) of the
-    run's stopping rule for :func:`segment_tested`: known when it is this QP's :class:`QPTermination` or
-    :class:`PolishingTermination` itself (a subclass may test more: the segment then ends at a tested iteration)."""
-    from .polish_stop import PolishingTermination
-    from .termination import QPTermination
-    kind = type(stop)
-    if (kind is QPTermination or kind is PolishingTermination) and stop.qp is qp:
-        gate, polish_from = (stop.gate, stop.next_try) if kind is PolishingTermination else (0.0, 0)
-        return (True, stop.eps_abs, stop.eps_rel, stop.gap, stop.infeasibility, stop.eps_prim_inf,
-                stop.eps_dual_inf, float(gate), int(polish_from))
-    return False, 1.0, 1.0, True, True, 1.0, 1.0, 0.0, 0
+    run's stopping rule for :func:`segment_tested`: known when the rule says it is (``kernel_test``: this QP's
+    ``QPTermination`` or ``PolishingTermination`` itself; a subclass may test more, and the segment then ends at a
+    tested iteration)."""
+    known = getattr(stop, "kernel_test", None)
+    numbers = known(qp) if callable(known) and TESTS_IN_KERNEL else None
+    if numbers is None:
+        return False, 1.0, 1.0, True, True, 1.0, 1.0, 0.0, 0
+    eps_abs, eps_rel, gap, infeasibility, eps_prim_inf, eps_dual_inf, gate, polish_from = numbers
+    return (True, float(eps_abs), float(eps_rel), bool(gap), bool(infeasibility), float(eps_prim_inf),
+            float(eps_dual_inf), float(gate), int(polish_from))
 
 
 def rule_parameters(qp, policy) -> tuple | None:
     """(interval, tolerance, rho_min, rho_max) when ``policy`` is :class:`admmkit.policies.OSQPRule` itself with OSQP's
-    normalisation of this QP (:func:`segment_tested` then makes its update), else None."""
+    normalisation of this QP (``termination.osqp_relative_residuals``; :func:`segment_tested` then makes its update),
+    else None."""
     from admmkit.policies import OSQPRule
-
-    from .termination import _RelativeResiduals
     residuals = getattr(policy, "residuals", None)
-    if type(policy) is OSQPRule and type(residuals) is _RelativeResiduals and residuals.qp is qp:
+    if (TESTS_IN_KERNEL and type(policy) is OSQPRule and getattr(type(residuals), "osqp_ratios", False) is True
+            and residuals.qp is qp):
         return policy.interval, policy.tolerance, policy.rho_min, policy.rho_max
     return None
 
@@ -212,16 +214,23 @@ def _data(qp) -> tuple:
 _NO_W, _NO_INTS, _NO_MATRIX = np.zeros(0), np.zeros(0, dtype=np.int64), np.zeros((0, 0))
 
 
-def tested_segment(qp, factors, x, z, lam, Ax, rho: float, alpha: float, count: int, check):
-    """:func:`admmkit.problems.qp.segment.run_segment` with ``check`` (:class:`admmkit.loop.segments.SegmentChecks`):
-    up to ``count`` iterations from iteration ``check.first``, the tests and OSQP's rule made in the kernel where
-    they go on; (x, z, lam, Ax, done, last) as ``run_segment(..., read=True)`` returns them, ``last`` the read
-    iteration's inputs (None when a non-finite step ended the segment early)."""
-    from .segment import _scratch
-    test = test_parameters(qp, check.stop) if TESTS_IN_KERNEL else test_parameters(None, None)
-    rule = rule_parameters(qp, check.policy) if TESTS_IN_KERNEL else None
+def checked_segment(qp, x, z, lam, Ax, rho: float, alpha: float, order: str, count: int, read: bool, accel, check):
+    """``QP.segment`` given ``check`` (:class:`admmkit.loop.segments.SegmentChecks`): up to ``count`` iterations from
+    iteration ``check.first``, the tests and OSQP's rule made in the kernel where they go on; (x, z, lam, Ax, done,
+    last) as ``run_segment(..., read=True)`` returns them, ``last`` the read iteration's inputs (None when a
+    non-finite step ended the segment early).  Where the kernel does not apply (not order "xz" with the KKT form on
+    qdldl, compiled code not chosen, an accelerator), :func:`admmkit.problems.qp.segment.run_segment` up to the next
+    iteration the loop reads."""
+    from .segment import _scratch, run_segment
+    first = check.first
+    factors = qp._solver.ldl(rho) if order == "xz" and qp.xstep == "kkt" and compiled_now() else None
+    if factors is None or accel is not None or not read:
+        upto = min(first + check.every - 1 - first % check.every, check.policy.unchanged_until(first))
+        return run_segment(qp, x, z, lam, Ax, rho, alpha, order, min(count, upto - first + 1), read, accel)
+    test = test_parameters(qp, check.stop)
+    rule = rule_parameters(qp, check.policy)
     if rule is None:                    # another rule: the segment ends at the first iteration it reads
-        count = min(count, check.policy.unchanged_until(check.first) - check.first + 1)
+        count = min(count, check.policy.unchanged_until(first) - first + 1)
         rule = (0, 1.0, 0.0, math.inf)
     x, z, lam, Ax = (np.array(v, dtype=np.float64) for v in (x, z, lam, Ax))
     a = qp.x_relaxation
@@ -230,7 +239,7 @@ def tested_segment(qp, factors, x, z, lam, Ax, rho: float, alpha: float, count: 
     rhs, sol, work = _scratch(qp)
     m = z.shape[0]
     kept = (np.empty(m), np.empty(m), np.empty(m), np.empty(m))
-    done, whole = segment_tested(count, check.first, check.every, *test[:1], m, *test[1:], *rule, float(rho),
+    done, whole = segment_tested(count, first, check.every, *test[:1], m, *test[1:], *rule, float(rho),
                                  float(alpha), *_data(qp), a, qp.sigma, *factors, qp.inverse_penalty(rho), qp.qs,
                                  qp._free, qp._w_free_over_penalty, x, x_prev, x_rel, x_rel_prev, z, lam, Ax,
                                  rhs, sol, work, *kept, _NO_W, _NO_INTS, _NO_MATRIX)
