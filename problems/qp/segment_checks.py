@@ -17,7 +17,8 @@ makes, at every tested iteration, the decision the loop would make there
 - for ``polish_stop.PolishingTermination``, also its
   gate (the test at ``gate`` x the tolerances, from the iteration of its next try on);
 - the loop's divergence and stall tests, conservatively: every entry of
-  r = A x - z finite and below 1e100 in size, and one above 1e-100;
+  r = A x - z finite and below 1e100 in size, and one above 1e-100 (so a QP
+  without constraint rows is tested in Python);
 - at an iteration OSQP's rule reads (:class:`admmkit.policies.OSQPRule` with
   OSQP's normalisation, ``osqp_relative_residuals`` of this QP), its estimate,
   clamped, and its tolerance test, with Python's operations.
@@ -70,7 +71,7 @@ def go_on(test, m, eps_abs, eps_rel, gap, infeasibility, eps_prim_inf, eps_dual_
         if not (r < DIVERGENCE_CEILING) or not np.isfinite(lam[i]):
             return False
         worst = max(worst, r)
-    if m > 0 and not worst > STALL_FLOOR:
+    if not worst > STALL_FLOOR:                     # (no constraint row: the stall test reads x's change, Python's)
         return False
     for j in range(x_rel.shape[0]):
         if not np.isfinite(x_rel[j]):

@@ -149,3 +149,16 @@ def test_the_first_iteration_runs_in_the_segment_too(monkeypatch):
     monkeypatch.undo()
     same_run(again, fast)
     same_run(fast, solve_qp(qp, compiled=False))
+
+
+def test_a_qp_without_constraint_rows(monkeypatch):
+    """m = 0: r is empty, the loop's stall test reads x's change, so every test runs in Python; the same run."""
+    import scipy.sparse as sp
+    from admmkit.problems.qp import QP
+    rng = np.random.default_rng(18)
+    M = rng.standard_normal((6, 6))
+    qp = QP(sp.csc_matrix(M @ M.T + np.eye(6)), rng.standard_normal(6), sp.csc_matrix((0, 6)), np.zeros(0),
+            np.zeros(0))
+    inside, outside, python = three_ways(qp, monkeypatch, eps_abs=1e-8, eps_rel=1e-8)
+    same_run(inside, outside)
+    same_run(inside, python)
