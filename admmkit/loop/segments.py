@@ -29,6 +29,21 @@ record from the segment's numbers instead of running its steps in Python
 (:meth:`FastForward.serve`): the same bits, about 25 us less per test on a
 small QP.
 
+A plug-in whose ``segment`` also takes ``check`` makes the loop's decisions at
+tested iterations itself where they are "go on": ``check`` is a
+:class:`SegmentChecks` (the tested iterations, the index of the segment's
+first iteration, the stopping rule and the policy), ``count`` runs to the
+last iteration, and the segment ends after the first iteration where the
+loop's Python must look (the rule would fire, the policy would change rho or
+reads a record the plug-in does not compute, a norm is out of range), which
+it returns as the read one, as above.  It must end there whenever the loop
+would not go on, so the run (iterates, iterations, status, rho) is the one
+without it; only the history rows of the iterations tested in the segment
+have NaN norms.  The QP plug-in does so for OSQP's test and rule
+(``admmkit.problems.qp.segment_checks``).  Not with a callback (it sees every
+tested record) nor an accelerator; under a time limit a segment runs at most
+TIME_LIMIT_CHECKS tested iterations.
+
 With an accelerator, the loop takes its step after every iteration: a
 plug-in whose ``segment`` takes ``accel`` takes those steps itself, between
 the iterations it runs (all but a read last one, whose step the loop takes):
@@ -38,9 +53,11 @@ arrays of ``admmkit.loop.anderson_kernel``, updated in place), and its steps
 must be the loop's bit for bit.  Other accelerators (restarted fast ADMM)
 run every iteration in Python.
 
-The first iteration of a run always runs in Python, so that what the
-plug-in's own steps return is checked (``admmkit.loop.checks.check_step``)
-before a segment, which bypasses them, runs.
+The first iteration of a run runs in Python, so that what the plug-in's
+own steps return is checked (``admmkit.loop.checks.check_step``) before a
+segment, which bypasses them, runs; unless the plug-in sets
+``trusted_steps = True`` (its steps are the package's own, checked by its
+tests: the QP plug-in), whose segments may start at the first iteration.
 
 What a segment changes, and nothing else: its iterations get history rows
 with rho and the time at the segment's end, and NaN for every norm (a lean
@@ -59,6 +76,19 @@ perf = time.perf_counter
 AVAILABLE = importlib.util.find_spec("numba") is not None
 #: a segment shorter than this is not worth the call
 MIN_SEGMENT = 2
+#: under a time limit, a segment that tests in its kernel runs at most this many tested iterations (the limit is
+#: tested when a segment ends)
+TIME_LIMIT_CHECKS = 4
+
+
+class SegmentChecks:
+    """What a segment that makes the loop's tests needs: the iterations k with (k + 1) % ``every`` == 0 are tested,
+    the segment's first iteration is ``first``, and the run's stopping rule ``stop`` and ``policy``."""
+
+    __slots__ = ("every", "first", "stop", "policy")
+
+    def __init__(self, every: int, first: int, stop, policy) -> None:
+        self.every, self.first, self.stop, self.policy = every, first, stop, policy
 
 
 class FastForward:
@@ -67,7 +97,8 @@ class FastForward:
     ``segments`` and ``iterations`` count the calls and the iterations they ran, ``seconds`` their time.
     """
 
-    __slots__ = ("problem", "run", "enabled", "reads", "pending", "segments", "iterations", "seconds", "accel")
+    __slots__ = ("problem", "run", "enabled", "reads", "tests", "start", "pending", "segments", "iterations",
+                 "seconds", "accel")
 
     def __init__(self, run, enabled: bool = True, accel=None) -> None:
         problem = run.problem
@@ -78,6 +109,8 @@ class FastForward:
         if accel is not None:           # an accelerator: only a segment that takes its steps itself
             self.enabled = self.enabled and accel.kernel_state() is not None and _takes(type(problem), "accel")
         self.reads = self.enabled and _takes(type(problem), "read")
+        self.tests = (self.reads and accel is None and run.callback is None and _takes(type(problem), "check"))
+        self.start = 0 if getattr(problem, "trusted_steps", False) is True else 1   # the first iteration a segment runs
         self.pending = None             # (x_j, the read iteration's outputs) when the segment ran it
         self.segments = self.iterations = 0
         self.seconds = 0.0
@@ -91,14 +124,23 @@ class FastForward:
     def __call__(self, k: int, x, z, lam, Ax, rho: float):
         """(x, z, lam, Ax, k) after the iterations k .. j - 1 that nobody reads (j: :meth:`next_read`); where the
         plug-in runs the read iteration j too, its outputs wait for :meth:`serve`."""
-        if not self.enabled or k == 0:      # the first iteration runs in Python: its steps' returns are checked
+        if not self.enabled or k < self.start:     # the first iteration in Python: its steps' returns are checked
             return x, z, lam, Ax, k
-        count = self.next_read(k) - k + self.reads          # with the read iteration, if the plug-in runs it
+        run = self.run
+        if self.tests:                      # to the last iteration: the plug-in ends where the loop must look
+            count = run.max_iter - k
+            if run.time_limit is not None:
+                count = min(count, self.next_read(k) - k + 1 + (TIME_LIMIT_CHECKS - 1) * run.check_every)
+        else:
+            count = self.next_read(k) - k + self.reads          # with the read iteration, if the plug-in runs it
         if count < (1 if self.reads else MIN_SEGMENT):
             return x, z, lam, Ax, k
         t0 = perf()
         extra = {} if self.accel is None else {"accel": self.accel.kernel_state()}
-        if self.reads:
+        if self.tests:
+            out = self.problem.segment(x, z, lam, Ax, rho, run.alpha, run.order, count, read=True,
+                                       check=SegmentChecks(run.check_every, k, run.stop, run.policy))
+        elif self.reads:
             out = self.problem.segment(x, z, lam, Ax, rho, self.run.alpha, self.run.order, count, read=True, **extra)
         else:
             out = self.problem.segment(x, z, lam, Ax, rho, self.run.alpha, self.run.order, count, **extra)
@@ -110,7 +152,7 @@ class FastForward:
             self.enabled = False
             return x, z, lam, Ax, k
         x, z, lam, Ax, done = out[:5]
-        if self.reads and done == count:               # the read iteration ran: its inputs go to the loop
+        if self.reads and out[5] is not None:          # the read iteration ran: its inputs go to the loop
             x_j, z_j, lam_j, Ax_j, hat = out[5]
             self.pending = (x_j, (x, z, lam, Ax, hat))
             x, z, lam, Ax, done = x_j, z_j, lam_j, Ax_j, done - 1

@@ -65,6 +65,14 @@ class PolishingTermination(QPTermination):
         self.name += f"+polish(gate={self.gate:g})"
         self.names[SOLVED] = self.name
 
+    def kernel_test(self, qp: QP) -> tuple | None:
+        """:meth:`QPTermination.kernel_test` with the gate and the iteration of the next try (the segment ends where
+        a try may come, :func:`admmkit.problems.qp.segment_checks.go_on`); None for a subclass or another QP."""
+        if type(self) is not PolishingTermination or self.qp is not qp:
+            return None
+        return (self.eps_abs, self.eps_rel, self.gap, self.infeasibility, self.eps_prim_inf, self.eps_dual_inf,
+                self.gate, int(self.next_try))
+
     def reset(self) -> None:
         """Forget the last check and the tries (a rule object can serve several runs)."""
         super().reset()

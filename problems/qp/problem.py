@@ -69,6 +69,10 @@ class QP(Problem):
     scaling = 0).
     """
 
+    #: its steps are this package's own (tests/problems check them): the loop's segments may start at the first
+    #: iteration (:mod:`admmkit.loop.segments`)
+    trusted_steps = True
+
     def __init__(self, P, q, A, l, u, r: float = 0.0, *, sigma: float = 1e-6, backend: str = "auto",
                  name: str = "qp", xstep: str = "auto", scaling: int = 0, row_weights: str = "uniform",
                  x_relaxation: float = 1.0, allow_nonconvex: bool = False):
@@ -244,9 +248,13 @@ class QP(Problem):
             self._x_rel_prev, self._x_rel, self._x_last = xp, a * x_new + (1.0 - a) * xp, x_new      # (Q4)
         return x_new
 
-    def segment(self, x, z, lam, Ax, rho, alpha, order, count, read=False, accel=None):
+    def segment(self, x, z, lam, Ax, rho, alpha, order, count, read=False, accel=None, check=None):
         """``count`` iterations in one compiled call (:mod:`admmkit.loop.segments`; ``read``: the last is a read one;
-        ``accel``: Anderson's steps between them), or None where it does not apply."""
+        ``accel``: Anderson's steps between them; ``check``: OSQP's test and rule made in the kernel where they go
+        on, :mod:`admmkit.problems.qp.segment_checks`), or None where it does not apply."""
+        if check is not None:
+            from .segment_checks import checked_segment
+            return checked_segment(self, x, z, lam, Ax, rho, alpha, order, count, read, accel, check)
         from .segment import run_segment
         return run_segment(self, x, z, lam, Ax, rho, alpha, order, count, read, accel)
 

@@ -16,7 +16,7 @@ from admmkit.kernels import kernel
 
 from admmkit.linalg.compiled import csc_matvec
 
-from .residuals import ZERO_DEADZONE
+from .kkt import ZERO_DEADZONE
 
 
 @kernel(cache=True)

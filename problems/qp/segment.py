@@ -43,8 +43,9 @@ def compiled_pays(n: int, m: int, nnz: int) -> bool:
 
 def kernels_loaded() -> bool:
     """Whether this process has the QP's compiled segment (and with it numba and the other kernels) loaded."""
-    dispatcher = _xz_kkt._dispatcher
-    return dispatcher is not None and bool(dispatcher.overloads)
+    from admmkit.kernels import KERNELS      # the segment that tests in its kernel (segment_checks) calls _xz_kkt
+    tested = KERNELS.get(__name__.rsplit(".", 1)[0] + ".segment_checks", [])
+    return any(k._dispatcher is not None and bool(k._dispatcher.overloads) for k in (_xz_kkt, *tested))
 
 
 def choose_compiled(setting, qp) -> tuple[bool, bool]:
@@ -176,6 +177,7 @@ def run_segment(qp, x, z, lam, Ax, rho: float, alpha: float, order: str, count: 
     (:mod:`admmkit.loop.segments`); a sixth item, (x, z, lam, A x) it started from and its relaxed vector (None
     when alpha = 1), is returned, None unless all ``count`` iterations were done.  ``accel``: Anderson's
     ``kernel_state()`` (:mod:`admmkit.loop.segments`), whose steps follow the iterations (not a read last one's).
+    (With the loop's tests and OSQP's rule in the kernel: :func:`admmkit.problems.qp.segment_checks.checked_segment`.)
     """
     if order != "xz" or qp.xstep != "kkt" or not compiled_now():
         return None

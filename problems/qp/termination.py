@@ -77,6 +77,9 @@ class _RelativeResiduals:
     def __init__(self, qp: QP) -> None:
         self.qp = qp
 
+    #: the ratios :func:`admmkit.problems.qp.segment_checks.go_on` computes in the segment for OSQPRule
+    osqp_ratios = True
+
     def __call__(self, rec: IterationRecord) -> tuple[float, float]:
         res = _iterate(self.qp, rec, scaled=True)
         return (res["scaled_primal"] / (res["scaled_primal_scale"] + DIVISION_TOL),
@@ -342,6 +345,16 @@ class QPTermination(StoppingRule):
         Ax, z = (Axb / qp.scaling.E, rec.z / qp.scaling.E) if qp.scaled else (Axb, rec.z)
         self.row_test = scale.row_test(Ax, z, self.eps_abs, self.eps_rel)
         return self.row_test
+
+    def kernel_test(self, qp: QP) -> tuple | None:
+        """This test's numbers for the segment that makes it in its kernel
+        (:func:`admmkit.problems.qp.segment_checks.go_on`): (eps_abs, eps_rel, gap, infeasibility, eps_prim_inf,
+        eps_dual_inf, gate, polish_from), gate 0 (no polishing); None for a subclass (it may test more) or a
+        test of another QP."""
+        if type(self) is not QPTermination or self.qp is not qp:
+            return None
+        return (self.eps_abs, self.eps_rel, self.gap, self.infeasibility, self.eps_prim_inf, self.eps_dual_inf,
+                0.0, 0)
 
     def reset(self) -> None:
         """Forget the last check (a rule object can serve several runs)."""
