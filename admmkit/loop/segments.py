@@ -41,8 +41,10 @@ would not go on, so the run (iterates, iterations, status, rho) is the one
 without it; only the history rows of the iterations tested in the segment
 have NaN norms.  The QP plug-in does so for OSQP's test and rule
 (``admmkit.problems.qp.segment_checks``).  Not with a callback (it sees every
-tested record) nor an accelerator; under a time limit a segment runs at most
-TIME_LIMIT_CHECKS tested iterations.
+tested record) unless the callback has ``every_tested = False`` (it is content
+with the records of the iterations that run in Python: a deadline, a
+statistic of rho), nor with an accelerator; under a time limit a segment runs
+at most TIME_LIMIT_CHECKS tested iterations.
 
 With an accelerator, the loop takes its step after every iteration: a
 plug-in whose ``segment`` takes ``accel`` takes those steps itself, between
@@ -109,7 +111,8 @@ class FastForward:
         if accel is not None:           # an accelerator: only a segment that takes its steps itself
             self.enabled = self.enabled and accel.kernel_state() is not None and _takes(type(problem), "accel")
         self.reads = self.enabled and _takes(type(problem), "read")
-        self.tests = (self.reads and accel is None and run.callback is None and _takes(type(problem), "check"))
+        sees_tests = run.callback is not None and getattr(run.callback, "every_tested", True)
+        self.tests = self.reads and accel is None and not sees_tests and _takes(type(problem), "check")
         self.start = 0 if getattr(problem, "trusted_steps", False) is True else 1   # the first iteration a segment runs
         self.pending = None             # (x_j, the read iteration's outputs) when the segment ran it
         self.segments = self.iterations = 0

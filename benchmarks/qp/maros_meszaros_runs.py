@@ -122,6 +122,8 @@ def run_admmkit_at(qp: QP, variant: str, rule: str, order: str, eps: list[float]
         return clock() > deadline
 
     watch.every_record = False      # it reads tested iterations (and rho, fixed in between): segments may run
+    watch.every_tested = bool(looser)   # only the deadline and rho's largest value: the segment may test too
+    # (rho_max then sees the rho of the records the loop reads, the final one included)
     policy = None if rule == "fixed" else rule     # "osqp": OSQP's rule as OSQP runs it (solve_qp's default)
     res = solve_qp(run_qp, settings, policy=policy, callback=watch, acceleration=acceleration)
     total = clock() - t0

@@ -147,7 +147,7 @@ def segment_tested(count, first, every, knows_test, m, eps_abs, eps_rel, gap, in
         got = _xz_kkt(chunk, rho, alpha, a, sigma, Lp, Li, Lx, Dinv, perm, Rinv, q, lo, up, free, w_free,
                       x, x_prev, x_rel, x_rel_prev, z, lam, Ax, rhs, sol, work, True, z_last, lam_last, Ax_last, hat,
                       False, no_w, 1.0, 0.0, no_w, no_w, no_ints, no_w, no_w, no_w, no_w, no_matrix, no_matrix,
-                      no_matrix, no_w, no_ints, no_w, no_matrix, no_w)
+                      no_matrix, no_w, no_matrix, no_w, no_matrix, no_w)        # Anderson's acc scratch: 2-D
         done += got
         if got < chunk:
             return done, False

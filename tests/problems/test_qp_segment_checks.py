@@ -124,6 +124,21 @@ def test_a_watcher_of_the_tested_records_still_sees_each(monkeypatch):
     assert [k for k in seen if (k + 1) % 25 == 0] == list(range(24, res.iterations, 25))
 
 
+def test_a_callback_content_with_fewer_records_keeps_the_test_in_the_kernel(monkeypatch):
+    """A callback with every_tested = False (a deadline, as admmkit bench qp's) is given the records the loop reads
+    in Python only, the tests stay in the kernel, and the run is the one without the callback."""
+    qp = random_qp(40, 60, kind="equality", seed=3)
+    seen = []
+
+    def watch(rec):
+        seen.append(rec.k)
+    watch.every_record, watch.every_tested = False, False
+    plain = solve_qp(qp, eps_abs=1e-8, eps_rel=1e-8, compiled=True)
+    res = solve_qp(qp, eps_abs=1e-8, eps_rel=1e-8, callback=watch, compiled=True)
+    same_run(res, plain)
+    assert res.iterations > 200 and len(seen) <= res.rho_changes + 2 and seen[-1] == res.iterations - 1
+
+
 @pytest.mark.skipif(not MM.is_dir(), reason="Maros-Meszaros data not present")
 @pytest.mark.parametrize("name", ["HS118", "HS21", "QPCBLEND", "DUAL1", "PRIMALC1", "QSHIP04S"])
 @pytest.mark.parametrize("eps", [1e-3, 1e-6])
