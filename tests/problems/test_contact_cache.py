@@ -12,7 +12,7 @@ import pytest
 
 import admmkit
 from admmkit import RelativeChange, policies
-from admmkit.problems.contact import assemble, contact_problem
+from admmkit.problems.contact import contact_problem
 from admmkit.problems.contact.model import operator_cache as oc
 from admmkit.problems.contact.model.scene import SCENES_DIR
 from admmkit.problems.contact.model.scene_file import load_scene

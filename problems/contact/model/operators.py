@@ -9,16 +9,16 @@ NGSolve, when it is asked for.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import scipy.sparse as sp
 
-if TYPE_CHECKING:                     # names for the annotations only
-    import ngsolve as ng
+from admmkit.problems.contact.model.scene import Scene
+from admmkit.problems.contact.solvers.friction import Friction
 
-    from admmkit.problems.contact.model.scene import Scene
-    from admmkit.problems.contact.solvers.friction import Friction
+if TYPE_CHECKING:                     # NGSolve's names for the annotations only
+    import ngsolve as ng
 
 
 @dataclass
@@ -33,8 +33,8 @@ class ContactOperators:
     xc: np.ndarray            # (n_c, 2) contact node coordinates
     normals: np.ndarray       # (n_c, 2) unit directions of u.n (the body's outward normals or scene.contact_normal)
     free: np.ndarray          # (n_free,) indices of the free dofs in the full dof vector
-    mesh: ng.Mesh
-    fes: ng.comp.FESpace
+    mesh: Any                 # the ngsolve.Mesh (Any: this module imports no NGSolve)
+    fes: Any                  # the ngsolve VectorH1 space of the displacement
     scene: Scene
     T: sp.csr_matrix | None = None     # ((d-1) n_c, n_free): u_free -> u.t at the contact nodes, by component
     tangents: np.ndarray | None = None  # (n_c, d-1, d) unit tangents t = (-n_y, n_x) in 2D (friction.tangent_frames)
