@@ -173,7 +173,8 @@ def report(rows: list[dict], repeats: int, argv_line: str) -> str:
              f"Produced by `{argv_line}`; each figure is the median wall time of {repeats} fresh processes "
              "(interleaved, after one warm-up round), BLAS on one thread. `import` and `solve` are the children's "
              "own phases; `admmkit CPU` the median CPU seconds (user + system) of the admmkit process, which other "
-             "load on the machine inflates less than its wall time. See the module docstring of admmkit.benchmarks.framework.first_call.", "",
+             "load on the machine inflates less than its wall time. See the module docstring of "
+             "admmkit.benchmarks.framework.first_call.", "",
              "| case | admmkit (s) | OSQP (s) | ratio | admmkit import (s) | admmkit solve (s) | OSQP solve (s) | status "
              "| admmkit CPU (s) |",
              "|---|---:|---:|---:|---:|---:|---:|---|---:|"]

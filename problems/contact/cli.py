@@ -27,7 +27,8 @@ def register(subparsers) -> None:
                                           "\n\ntypical: ~1 s for ex1 at h = 1/40 on a quiet machine (3.5 s at load "
                                           "5 on 2 cores, most of it importing ngsolve and scipy; no numba for a "
                                           "small body), 0.18 GB; the same scene again 37 % less CPU, 0.09 GB (its "
-                                          "operators from the cache, no ngsolve; --no-cache bypasses it); ~16 s for block3d_coulomb at h = 1/8, 0.3-0.4 GB; "
+                                          "operators from the cache, no ngsolve; --no-cache bypasses it); "
+                                          "~16 s for block3d_coulomb at h = 1/8, 0.3-0.4 GB; "
                                           "the time grows with the unknowns (bench scale: 1e6 in ~15 s "
                                           "with --mode iterative, 2.4 GB). needs: ngsolve; --mode iterative pyamg; "
                                           "--plot matplotlib; --vtk meshio (all installed with admmkit)")

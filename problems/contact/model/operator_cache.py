@@ -201,8 +201,9 @@ def load(path: Path, key: str, scene) -> "StoredOperators":
 
 
 class StoredOperators(ContactOperators):
-    """Operators read from the cache: the arrays of :class:`ContactOperators`, the mesh and the space rebuilt
-    with NGSolve only when something asks for them (and checked against the stored counts and vertices)."""
+    """Operators read from the cache: the arrays of :class:`~admmkit.problems.contact.ContactOperators`, the
+    mesh and the space rebuilt with NGSolve only when something asks for them (and checked against the stored
+    counts and vertices)."""
 
     def __init__(self, arrays: dict[str, np.ndarray], scene):
         from admmkit.problems.contact.solvers.friction import friction_of
@@ -242,7 +243,7 @@ class StoredOperators(ContactOperators):
         return self._n_cells
 
     def dof_coordinates(self) -> np.ndarray | None:
-        """The free dofs' coordinates, as stored (see :meth:`ContactOperators.dof_coordinates`)."""
+        """The free dofs' coordinates, as stored (see ``ContactOperators.dof_coordinates``)."""
         return self._coordinates
 
     @property
