@@ -1,6 +1,18 @@
-"""Shared test fixtures: a tiny problem written against the public protocol only."""
+"""Shared test fixtures: a tiny problem written against the public protocol only.
+
+The contact plug-in's operator cache (problems/contact/model/operator_cache.py) goes to a folder of this test
+process (inherited by the processes it starts), never to the user's ~/.cache/admmkit.
+"""
+import atexit
+import os
+import shutil
+import tempfile
+
 import numpy as np
 import pytest
+
+os.environ["ADMMKIT_CACHE_DIR"] = tempfile.mkdtemp(prefix="admmkit-test-cache-")
+atexit.register(shutil.rmtree, os.environ["ADMMKIT_CACHE_DIR"], True)
 
 from admmkit import Problem
 

@@ -13,7 +13,8 @@ the benchmark times ``admmkit.linalg.linsolve.factorize(K, backend)`` followed b
 ``solve(f)`` (what one linear elastic solve without contact costs), and SADMM
 (rho_0 = 1e3, the paper's stopping rule): contact-problem set-up +
 ``admmkit.solve``, median of ``repeats`` runs each building a fresh contact
-problem, in the condensed and the full mode.  The ratio SADMM / (factor +
+problem, in the condensed and the full mode, the two measured in alternation
+round by round (:func:`interleaved`).  The ratio SADMM / (factor +
 solve) says how many linear solves the contact problem costs.  The condensed
 set-up is split with :attr:`admmkit.problems.contact.solvers.schur.BoundarySchur.timings`.
 
@@ -40,7 +41,7 @@ from admmkit.io import write_text
 
 from admmkit.problems.contact.model.assembly import assemble
 from admmkit.problems.contact.solvers.problem import contact_problem
-from admmkit.benchmarks.runner.machine import machine_info, median_time
+from admmkit.benchmarks.runner.machine import machine_info
 from admmkit.benchmarks.runner.report import h_label
 from admmkit.problems.contact.model.scene import example1, example2
 from admmkit.problems.contact.solvers.schur import available_schur_backends
@@ -66,41 +67,69 @@ def load_kernels(ops) -> None:
         contact_problem(ops, mode="condensed", backend="superlu", compiled=True)
 
 
+def factor_solve_once(K, f, backend="auto") -> tuple[float, float]:
+    """(wall, CPU) seconds of one factorize(K, backend) + one solve(f)."""
+    t0, c0 = time.perf_counter(), time.process_time()
+    factorize(K, backend=backend)(f)
+    return time.perf_counter() - t0, time.process_time() - c0
+
+
 def time_factor_solve(K, f, backend="auto", repeats=3):
     """Median (wall, CPU) seconds of factorize(K, backend) + one solve(f), after one untimed
     warm-up (the first factorisations in a process were up to 2x slower)."""
-    def once():
-        return factorize(K, backend=backend)(f)
-    once()
-    timing = median_time(once, repeats)
-    return timing.wall, timing.cpu
+    factor_solve_once(K, f, backend)
+    runs = [factor_solve_once(K, f, backend) for _ in range(repeats)]
+    return statistics.median(r[0] for r in runs), statistics.median(r[1] for r in runs)
+
+
+def sadmm_once(ops, mode, backend="auto", rho=1e3) -> dict:
+    """One contact_problem(ops, mode, backend) + admmkit.solve (SADMM): seconds (total, CPU, set-up), the result
+    and, in the condensed mode, the set-up split (:attr:`BoundarySchur.timings` and the rest)."""
+    t0, c0 = time.perf_counter(), time.process_time()
+    problem = contact_problem(ops, mode=mode, backend=backend)
+    t1 = time.perf_counter()
+    sadmm_order, sadmm_rule = policies.method("sadmm")   # policies/paper_methods.py
+    result = admmkit.solve(problem, rho=rho, policy=sadmm_rule, order=sadmm_order,
+                           stop=RelativeChange(1e-5), max_iter=20_000)
+    t2, c2 = time.perf_counter(), time.process_time()
+    run = {"total": t2 - t0, "cpu": c2 - c0, "setup": t1 - t0, "result": result}
+    if mode == "condensed":
+        split = dict(problem.schur.timings)
+        split["u0 + compliance"] = (t1 - t0) - sum(split.values())
+        run["split"] = split
+    return run
+
+
+def summary(runs: list[dict]) -> dict:
+    """The medians of :func:`sadmm_once`'s runs and the last run's counts."""
+    last = runs[-1]["result"]
+    out = {"total": statistics.median(r["total"] for r in runs), "cpu": statistics.median(r["cpu"] for r in runs),
+           "setup": statistics.median(r["setup"] for r in runs), "iterations": last.iterations,
+           "status": last.status.value, "factorizations": last.factorizations, "rho_changes": last.rho_changes}
+    if "split" in runs[-1]:
+        out["split"] = {k: statistics.median(r["split"][k] for r in runs) for k in SETUP_STEPS}
+    return out
 
 
 def time_sadmm(ops, mode, backend="auto", rho=1e3, repeats=3):
     """Median seconds of contact_problem(ops, mode, backend) + admmkit.solve (SADMM), with the set-up split."""
-    setups, totals, cpus, results, splits = [], [], [], [], []
+    return summary([sadmm_once(ops, mode, backend, rho) for _ in range(repeats)])
+
+
+def interleaved(ops, modes, backend="auto", rho=1e3, repeats=3) -> tuple[tuple[float, float], dict[str, dict]]:
+    """((wall, CPU) of factor + solve, {mode: SADMM summary}), measured round by round: each round one
+    factor + solve, then one SADMM run per mode, after one untimed factor + solve (as before: the first
+    factorisations in a process were up to 2x slower). A change of load on the shared machine then hits the
+    reference and SADMM alike; measured one after the other, a ratio at h = 1/40 read 1.29 in one run and 2.07
+    in the next (CPU, Example 2, 28 November, load 5-7)."""
+    factor_solve_once(ops.K, ops.f, backend)
+    base, runs = [], {mode: [] for mode in modes}
     for _ in range(repeats):
-        t0, c0 = time.perf_counter(), time.process_time()
-        problem = contact_problem(ops, mode=mode, backend=backend)
-        t1 = time.perf_counter()
-        sadmm_order, sadmm_rule = policies.method("sadmm")   # policies/paper_methods.py
-        result = admmkit.solve(problem, rho=rho, policy=sadmm_rule, order=sadmm_order,
-                               stop=RelativeChange(1e-5), max_iter=20_000)
-        t2, c2 = time.perf_counter(), time.process_time()
-        setups.append(t1 - t0)
-        totals.append(t2 - t0)
-        cpus.append(c2 - c0)
-        results.append(result)
-        if mode == "condensed":
-            split = dict(problem.schur.timings)
-            split["u0 + compliance"] = (t1 - t0) - sum(split.values())
-            splits.append(split)
-    out = {"total": statistics.median(totals), "cpu": statistics.median(cpus), "setup": statistics.median(setups),
-           "iterations": results[-1].iterations, "status": results[-1].status.value,
-           "factorizations": results[-1].factorizations, "rho_changes": results[-1].rho_changes}
-    if splits:
-        out["split"] = {k: statistics.median(s[k] for s in splits) for k in SETUP_STEPS}
-    return out
+        base.append(factor_solve_once(ops.K, ops.f, backend))
+        for mode in modes:
+            runs[mode].append(sadmm_once(ops, mode, backend, rho))
+    wall, cpu = statistics.median(b[0] for b in base), statistics.median(b[1] for b in base)
+    return (wall, cpu), {mode: summary(r) for mode, r in runs.items()}
 
 
 def run_bench(out=None, hs=DEFAULT_HS, repeats=3, examples=("ex1", "ex2"), modes=("condensed", "full"),
@@ -123,10 +152,10 @@ def run_bench(out=None, hs=DEFAULT_HS, repeats=3, examples=("ex1", "ex2"), modes
                     load_kernels(ops)
                 row = {"example": ex, "h": h, "n_free": ops.n_free, "n_c": ops.n_c, "worlds": {}}
                 for backend in worlds:
-                    base, base_cpu = time_factor_solve(ops.K, ops.f, backend, repeats)
+                    (base, base_cpu), sadmm = interleaved(ops, modes, backend, rho, repeats)
                     w = {"factor_solve": base, "factor_solve_cpu": base_cpu, "modes": {}}
                     for mode in modes:
-                        s = time_sadmm(ops, mode, backend, rho, repeats)
+                        s = sadmm[mode]
                         s["ratio"] = s["total"] / base
                         s["ratio_cpu"] = s["cpu"] / base_cpu
                         w["modes"][mode] = s
@@ -155,7 +184,8 @@ def write_markdown(path: Path, rows, repeats, rho, wall, command, blas_threads=1
              "`factor+solve`: `admmkit.linalg.linsolve.factorize(K, backend)` then one `solve(f)`, median of "
              f"{repeats} after a warm-up. `SADMM`: contact-problem set-up + `admmkit.solve` with rho_0 = {rho:g}, "
              "tau = 2, c_max = 100 and the paper's stop (||u^{k+1}-u^k||_K <= 1e-5 ||u^{k+1}||_K), median of "
-             f"{repeats}, a fresh contact problem each repeat. `ratio` = SADMM / (factor+solve), both with the "
+             f"{repeats}, a fresh contact problem each repeat. The two are measured in alternation, round by round, "
+             "so that a change of load hits both. `ratio` = SADMM / (factor+solve), both with the "
              "same backend: `cholmod` (scikit-sparse, needs SuiteSparse headers to install) and `superlu` "
              "(scipy, what a machine with only pip has). The condensed set-up factorises K once, contact dofs "
              "last, and reads the Schur complement off the factor (`problems/contact/solvers/schur.py`); the full mode "

@@ -18,7 +18,16 @@ report their own phases (import, read, solve), from ``time.perf_counter``.
   ``solver=ADMMKIT()`` against ``solver=cp.OSQP``;
 - ``admmkit --help`` and a whole ``admmkit solve contact --scene ex1 --h 1/40``
   process (no OSQP counterpart; FreeFEM++ took 0.48 s for the same SADMM on
-  this machine in issue #49's measurement, not rerun here).
+  this machine in issue #49's measurement, not rerun here), twice: with an
+  empty operator cache (``ADMMKIT_CACHE_DIR`` an empty folder: NGSolve
+  imported, the scene assembled and stored) and with the entry the warm-up
+  stored (read back, no NGSolve; problems/contact/model/operator_cache.py);
+- ``import numpy, scipy.sparse.linalg, scipy.linalg``: the floor of the warm
+  contact process (the factorisation needs SuperLU).
+
+The children run with Python's bytecode cache on (``PYTHONDONTWRITEBYTECODE``
+removed from their environment), as an installed package has it: the warm-up
+round writes what is missing.
 
 Writes ``first_call.md``, ``first_call.csv`` and ``first_call.png`` to ``--out``.
 """
@@ -27,6 +36,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import resource
 import statistics
 import subprocess
 import sys
@@ -67,6 +77,8 @@ CHILD = {
                   "x = cp.Variable(3); p = cp.Problem(cp.Minimize(cp.sum_squares(x - np.array([1., 2., 3.]))), "
                   "[cp.sum(x) == 1, x >= 0]); p.solve(solver=cp.OSQP); t2 = time.perf_counter(); "
                   "import json; print(json.dumps({'import': t1 - t0, 'solve': t2 - t1, 'status': p.status}))",
+    "floor_imports": "import time; t = time.perf_counter(); import numpy, scipy.sparse.linalg, scipy.linalg; "
+                     "import json; print(json.dumps({'import': time.perf_counter() - t}))",
 }
 #: the rows of the table: (label, admmkit child, OSQP child or None)
 ROWS = [("import", "admmkit_import", "osqp_import"),
@@ -74,7 +86,9 @@ ROWS = [("import", "admmkit_import", "osqp_import"),
         ("HS21, empty kernel cache", "admmkit_hs21_cold", None),
         ("cvxpy, 3-variable projection", "admmkit_cvxpy", "osqp_cvxpy"),
         ("admmkit --help", "admmkit_help", None),
-        ("solve contact --scene ex1 --h 1/40", "admmkit_contact", None)]
+        ("solve contact --scene ex1 --h 1/40, empty operator cache", "admmkit_contact_cold", None),
+        ("solve contact --scene ex1 --h 1/40, operator cache warm", "admmkit_contact", None),
+        ("import numpy, scipy.sparse.linalg, scipy.linalg", "floor_imports", None)]
 
 
 def command(name: str, hs21: Path) -> list[str]:
@@ -82,7 +96,7 @@ def command(name: str, hs21: Path) -> list[str]:
     py = sys.executable
     if name == "admmkit_help":
         return [py, "-m", "admmkit", "--help"]
-    if name == "admmkit_contact":
+    if name.startswith("admmkit_contact"):
         return [py, "-m", "admmkit", "solve", "contact", "--scene", "ex1", "--h", "1/40", "-q"]
     code = CHILD[name.removesuffix("_cold")]
     return [py, "-c", code, str(hs21)] if "hs21" in name else [py, "-c", code]
@@ -92,13 +106,14 @@ def run_child(name: str, hs21: Path, env: dict) -> dict:
     """One fresh process: its wall time from the parent, and the phases it printed."""
     child_env = dict(env)
     cold = None
-    if name.endswith("_cold"):
-        cold = tempfile.TemporaryDirectory(prefix="numba-empty-")
-        child_env["NUMBA_CACHE_DIR"] = cold.name
+    if name.endswith("_cold"):      # an empty kernel cache (HS21) or operator cache (contact): a fresh one each run
+        cold = tempfile.TemporaryDirectory(prefix="admmkit-empty-")
+        child_env["ADMMKIT_CACHE_DIR" if "contact" in name else "NUMBA_CACHE_DIR"] = cold.name
     try:
-        start = time.perf_counter()
+        before, start = resource.getrusage(resource.RUSAGE_CHILDREN), time.perf_counter()
         done = subprocess.run(command(name, hs21), env=child_env, capture_output=True, text=True)
-        wall = time.perf_counter() - start
+        wall, after = time.perf_counter() - start, resource.getrusage(resource.RUSAGE_CHILDREN)
+        cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
     finally:
         if cold is not None:
             cold.cleanup()
@@ -107,22 +122,26 @@ def run_child(name: str, hs21: Path, env: dict) -> dict:
     phases = {}
     if name in CHILD or name.removesuffix("_cold") in CHILD:
         phases = json.loads(done.stdout.strip().splitlines()[-1])
-    return {"wall": wall, **phases}
+    return {"wall": wall, "cpu": cpu, **phases}
 
 
 def measure(hs21: Path, repeats: int, progress: bool = True) -> dict[str, list[dict]]:
     """{child: [one dict per repeat]}, the children interleaved round by round after one warm-up round."""
     env = {**os.environ, "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
+    env.pop("PYTHONDONTWRITEBYTECODE", None)    # bytecode cached, as in an installed package
+    env.pop("ADMMKIT_NO_CACHE", None)
     names = [n for row in ROWS for n in row[1:] if n]
-    for name in names:                          # warm-up: numba's cache filled, files in the page cache
-        if not name.endswith("_cold"):
-            run_child(name, hs21, env)
-    runs: dict[str, list[dict]] = {n: [] for n in names}
-    for r in range(repeats):
-        for name in names:
-            runs[name].append(run_child(name, hs21, env))
-        if progress:
-            print(f"  round {r + 1}/{repeats} done", file=sys.stderr, flush=True)
+    with tempfile.TemporaryDirectory(prefix="admmkit-operators-") as operators:
+        env["ADMMKIT_CACHE_DIR"] = operators    # the warm contact rows read the entry the warm-up stores here
+        for name in names:                      # warm-up: numba's and the operator cache filled, the page cache
+            if not name.endswith("_cold"):
+                run_child(name, hs21, env)
+        runs: dict[str, list[dict]] = {n: [] for n in names}
+        for r in range(repeats):
+            for name in names:
+                runs[name].append(run_child(name, hs21, env))
+            if progress:
+                print(f"  round {r + 1}/{repeats} done", file=sys.stderr, flush=True)
     return runs
 
 
@@ -141,6 +160,7 @@ def table_rows(runs: dict[str, list[dict]]) -> list[dict]:
         rows.append({"case": label, "admmkit_s": a, "osqp_s": b, "ratio": a / b if theirs else float("nan"),
                      "admmkit_import_s": median(runs[ours], "import"), "admmkit_solve_s": median(runs[ours], "solve"),
                      "osqp_solve_s": median(runs[theirs], "solve") if theirs else float("nan"),
+                     "admmkit_cpu_s": median(runs[ours], "cpu"),
                      "status": runs[ours][-1].get("status", "")})
     return rows
 
@@ -152,13 +172,17 @@ def report(rows: list[dict], repeats: int, argv_line: str) -> str:
     lines = ["# First call: fresh processes, admmkit against OSQP", "",
              f"Produced by `{argv_line}`; each figure is the median wall time of {repeats} fresh processes "
              "(interleaved, after one warm-up round), BLAS on one thread. `import` and `solve` are the children's "
-             "own phases. See the module docstring of admmkit.benchmarks.framework.first_call.", "",
-             "| case | admmkit (s) | OSQP (s) | ratio | admmkit import (s) | admmkit solve (s) | OSQP solve (s) | status |",
-             "|---|---:|---:|---:|---:|---:|---:|---|"]
+             "own phases; `admmkit CPU` the median CPU seconds (user + system) of the admmkit process, which other "
+             "load on the machine inflates less than its wall time. See the module docstring of "
+             "admmkit.benchmarks.framework.first_call.", "",
+             "| case | admmkit (s) | OSQP (s) | ratio | admmkit import (s) | admmkit solve (s) | OSQP solve (s) | status "
+             "| admmkit CPU (s) |",
+             "|---|---:|---:|---:|---:|---:|---:|---|---:|"]
     for r in rows:
         lines.append(f"| {r['case']} | {f(r['admmkit_s'])} | {f(r['osqp_s'])} | "
                      f"{f(r['ratio'], bold=True)} | {f(r['admmkit_import_s'])} | "
-                     f"{f(r['admmkit_solve_s'])} | {f(r['osqp_solve_s'])} | {r['status']} |")
+                     f"{f(r['admmkit_solve_s'])} | {f(r['osqp_solve_s'])} | {r['status']} | "
+                     f"{f(r.get('admmkit_cpu_s', float('nan')))} |")
     info = machine_info()
     lines += ["", "Machine: " + ", ".join(f"{k} {info[k]}" for k in ("date", "cpu", "nproc", "python", "numpy",
                                                                         "osqp") if k in info), ""]
@@ -172,7 +196,7 @@ def chart(rows: list[dict], path: Path) -> None:
     import matplotlib.pyplot as plt
 
     from admmkit.io import atomic_path
-    fig, ax = plt.subplots(figsize=(8, 3.6))
+    fig, ax = plt.subplots(figsize=(9, 4.6))
     ys = range(len(rows))
     ax.barh([y + 0.2 for y in ys], [r["admmkit_s"] for r in rows], height=0.4, label="admmkit", color="C0")
     ax.barh([y - 0.2 for y in ys], [0 if r["osqp_s"] != r["osqp_s"] else r["osqp_s"] for r in rows], height=0.4,

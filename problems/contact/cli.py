@@ -7,6 +7,7 @@
 """
 from __future__ import annotations
 
+import functools
 from pathlib import Path
 
 from admmkit.cli.adaptive import add_adaptive_options, balance_gamma, balance_line, check_adaptive_flags, estimator_name
@@ -23,9 +24,11 @@ def register(subparsers) -> None:
     p = subparsers.add_parser("contact", help="elastic contact with a rigid foundation, with or without friction "
                                               "(NGSolve, 2D and 3D)",
                               description="Solve a contact scene with ADMM1, ADMM2, SADMM or any penalty policy."
-                                          "\n\ntypical: ~1 s for ex1 at h = 1/40 on a quiet machine (5.8 s at load "
-                                          "10 on 2 cores, most of it importing ngsolve and scipy; no numba for a "
-                                          "small body), 0.18 GB; ~16 s for block3d_coulomb at h = 1/8, 0.3-0.4 GB; "
+                                          "\n\ntypical: ~1 s for ex1 at h = 1/40 on a quiet machine (3.5 s at load "
+                                          "5 on 2 cores, most of it importing ngsolve and scipy; no numba for a "
+                                          "small body), 0.18 GB; the same scene again 37 % less CPU, 0.09 GB (its "
+                                          "operators from the cache, no ngsolve; --no-cache bypasses it); "
+                                          "~16 s for block3d_coulomb at h = 1/8, 0.3-0.4 GB; "
                                           "the time grows with the unknowns (bench scale: 1e6 in ~15 s "
                                           "with --mode iterative, 2.4 GB). needs: ngsolve; --mode iterative pyamg; "
                                           "--plot matplotlib; --vtk meshio (all installed with admmkit)")
@@ -64,11 +67,15 @@ def register(subparsers) -> None:
     add_output_file(p, "--vtk", "FILE.vtu", "write a VTU file for ParaView and meshio: displacement at the "
                     "mesh vertices, contact pressure, gap and status on Gamma_C (with friction also the "
                     "tangential traction, slip and stick/slip zone)", extensions=(".vtu",))
+    p.add_argument("--no-cache", action="store_true",
+                   help="assemble the scene with NGSolve even when the operator cache holds it, and store nothing "
+                        "(also ADMMKIT_NO_CACHE=1; the cache: ~/.cache/admmkit or ADMMKIT_CACHE_DIR, docs/contact.md)")
     p.set_defaults(func=run)
 
 
-def scene_names() -> dict[str, str]:
-    """{name: "2-D, frictionless", ...} of every scene file in problems/contact/scenes (dimension, tangential law)."""
+@functools.lru_cache(maxsize=1)
+def _scene_names() -> tuple:
+    """:func:`scene_names` as pairs, read once per process (the parser's help and ``--scene`` both ask)."""
     import tomllib
     from admmkit.problems.contact.model.scene import SCENES_DIR
     out = {}
@@ -76,7 +83,12 @@ def scene_names() -> dict[str, str]:
         data = tomllib.loads(path.read_text(encoding="utf-8"))
         data = data.get("scene", data)
         out[path.stem] = f"{data.get('dim', 2)}-D, {data.get('tangential', 'frictionless')}"
-    return out
+    return tuple(out.items())
+
+
+def scene_names() -> dict[str, str]:
+    """{name: "2-D, frictionless", ...} of every scene file in problems/contact/scenes (dimension, tangential law)."""
+    return dict(_scene_names())
 
 
 def scene_file(name: str) -> Path:
@@ -88,9 +100,10 @@ def scene_file(name: str) -> Path:
         raise ValueError(f"--scene: {name!r} is a directory, not a TOML scene file")
     if path.is_file():
         return path
+    bundled = SCENES_DIR / f"{name}.toml"
+    if "/" not in name and "\\" not in name and bundled.is_file():
+        return bundled
     known = scene_names()
-    if name in known:
-        return SCENES_DIR / f"{name}.toml"
     if path.suffix or "/" in name or "\\" in name:      # it looks like a file: say that it is not there
         raise ValueError(f"--scene: no such scene file {name}")
     raise ValueError(f"--scene: unknown scene {name!r}; give one of {', '.join(known)} or the path of a TOML "
@@ -182,16 +195,16 @@ def run(args) -> int:
         from admmkit.problems.contact.solvers.estimate import balanced_residual_stop
         model, stop, gamma_arg = *balanced_residual_stop(scene, gamma), None
     else:
-        model, stop, gamma_arg = scene, (None if gamma else stop), gamma
+        model, stop, gamma_arg = _operators(args, scene), (None if gamma else stop), gamma
     with progress(args, args.max_iter) as show:
         sol = solve_scene(model, name, args.rho, mode="condensed" if gamma else args.mode,
                           stop=stop, max_iter=args.max_iter, order=order, callback=show, balance=gamma_arg)
     stop = sol.stop
     ops, r = sol.ops, sol.result
     args.resolved = {"policy": name, "order": r.order, "policy_repr": r.policy, "stop": stop.name}
-    cells = "tetrahedra" if ops.mesh.dim == 3 else "triangles"
+    cells = "tetrahedra" if ops.dim == 3 else "triangles"
     print(f"problem      contact/{scene.name or args.scene}: h = {scene.h:.6g}, P{scene.order} {scene.mesh_kind}, "
-          f"{ops.mesh.ne} {cells}, tangential {scene.tangential}")
+          f"{ops.n_cells} {cells}, tangential {scene.tangential}")
     print(f"size         n_free {ops.n_free}   n_c {ops.n_c}   mode {sol.mode}   setup {sol.setup_time:.4f} s")
     print_summary(r, name, args.rho)
     if gamma is not None:
@@ -220,6 +233,19 @@ def run(args) -> int:
     if args.vtk:
         print(f"vtk          {write_vtu(args.vtk, ops, r.x, vtu_fields(ops, fields))}")
     return exit_code(r) if sol.converged else 1   # with Coulomb friction: the outer fixed point too
+
+
+def _operators(args, scene):
+    """The scene's operators through the operator cache (model/operator_cache.py): read back without NGSolve when
+    a run before stored them, else assembled (and stored); a 3D scene, or ``--no-cache``, as it is (assembled by
+    solve_scene). The memory check of an explicit mode comes first, as solve_scene does it for a scene."""
+    from admmkit.problems.contact.model.operator_cache import cacheable, cached_operators
+    from admmkit.problems.contact.model.memory import check_memory
+    if args.no_cache or not cacheable(scene):
+        return scene
+    if args.mode in ("full", "condensed", "iterative"):
+        check_memory(scene, args.mode)
+    return cached_operators(scene, scene_file(str(args.scene)))
 
 
 def register_demo(commands) -> None:

@@ -111,3 +111,27 @@ def test_bench_tiny(tmp_path):
         assert set(world["modes"]["condensed"]["split"]) == {"ordering", "factorisation", "schur", "u0 + compliance"}
     text = out.read_text()
     assert "ratio condensed" in text and "## Backend `superlu`" in text
+
+
+def test_bench_contact_measures_the_reference_and_sadmm_in_alternation(monkeypatch):
+    """Round by round (one factor + solve, then one SADMM per mode), after one untimed factor + solve: a change
+    of load on the machine hits both sides of the ratio (before, all references were timed, then all SADMM runs)."""
+    from types import SimpleNamespace
+
+    from admmkit.benchmarks.contact import contact_speed
+    calls = []
+
+    def factor_solve_once(K, f, backend="auto"):
+        calls.append("ref")
+        return 2.0, 1.0
+
+    def sadmm_once(ops, mode, backend="auto", rho=1e3):
+        calls.append(mode)
+        result = SimpleNamespace(iterations=3, status=SimpleNamespace(value="converged"), factorizations=1,
+                                 rho_changes=0)
+        return {"total": 4.0, "cpu": 3.0, "setup": 1.0, "result": result}
+    monkeypatch.setattr(contact_speed, "factor_solve_once", factor_solve_once)
+    monkeypatch.setattr(contact_speed, "sadmm_once", sadmm_once)
+    (wall, cpu), runs = contact_speed.interleaved(SimpleNamespace(K=None, f=None), ("condensed", "full"), repeats=3)
+    assert calls == ["ref"] + ["ref", "condensed", "full"] * 3
+    assert (wall, cpu) == (2.0, 1.0) and runs["condensed"]["total"] == 4.0 and runs["full"]["cpu"] == 3.0

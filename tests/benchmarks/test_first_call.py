@@ -33,3 +33,31 @@ def test_a_fresh_import_process_reports_its_phase():
     run = first_call.run_child("admmkit_import", None, {"PATH": "", **dict(__import__("os").environ)})
     assert run["wall"] >= run["import"] > 0
     assert first_call.command("admmkit_help", None)[:3] == [sys.executable, "-m", "admmkit"]
+
+
+def test_solve_contact_is_timed_with_an_empty_and_a_warm_operator_cache(monkeypatch, tmp_path):
+    """The cold row gets a fresh empty ADMMKIT_CACHE_DIR each run (NGSolve imported, the scene assembled), the
+    warm row the folder the warm-up filled; both rows and the imports' floor are in the table, with CPU time."""
+    import os
+    seen = []
+
+    class Done:
+        returncode, stdout, stderr = 0, "", ""
+
+    def fake_run(argv, env, **kwargs):
+        folder = env.get("ADMMKIT_CACHE_DIR")
+        seen.append((argv, folder, os.path.isdir(folder) and os.listdir(folder) == []))
+        return Done()
+    monkeypatch.setattr(first_call.subprocess, "run", fake_run)
+    env = {"ADMMKIT_CACHE_DIR": str(tmp_path)}
+    (tmp_path / "entry.npz").write_text("stored by the warm-up")
+    cold, warm = (first_call.run_child(name, None, env) for name in ("admmkit_contact_cold", "admmkit_contact"))
+    assert cold["cpu"] >= 0 and warm["cpu"] >= 0
+    (argv_cold, dir_cold, empty_cold), (argv_warm, dir_warm, empty_warm) = seen
+    assert argv_cold == argv_warm and argv_cold[3:5] == ["solve", "contact"]
+    assert dir_cold != str(tmp_path) and empty_cold and not os.path.exists(dir_cold)   # removed after the run
+    assert dir_warm == str(tmp_path) and not empty_warm
+    cases = [row[0] for row in first_call.ROWS]
+    assert {"solve contact --scene ex1 --h 1/40, empty operator cache",
+            "solve contact --scene ex1 --h 1/40, operator cache warm",
+            "import numpy, scipy.sparse.linalg, scipy.linalg"} <= set(cases)

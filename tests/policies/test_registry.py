@@ -132,3 +132,20 @@ def test_a_solve_reads_the_entry_points_once_per_process(monkeypatch):
     for _ in range(2):
         assert solve_qp(qp, compiled=False).converged
     assert scans == []
+
+
+def test_a_builtin_rule_by_name_scans_no_other_package(monkeypatch):
+    """``make_policy("summable")`` (every ``solve contact`` names SADMM's rule) reads admmkit's own distribution,
+    not every installed package's entry points (20-30 ms a scan, twice per process before; issue #49)."""
+    import admmkit.policy
+    scans = []
+    real = admmkit.policy.entry_points
+    monkeypatch.setattr(admmkit.policy, "entry_points", lambda **kw: scans.append(kw) or real(**kw))
+    monkeypatch.delitem(admmkit.policy._REGISTRY, "summable", raising=False)
+    if not admmkit.policy.own_rules():
+        pytest.skip("admmkit is not installed as a distribution here")
+    assert type(admmkit.make_policy("summable")).__name__ == "Summable"
+    assert scans == []
+    with pytest.raises(ValueError):                    # a name nobody declares: then every package is searched
+        admmkit.make_policy("no_such_rule_anywhere")
+    assert scans

@@ -9,8 +9,6 @@ that are not clamped). All matrices act on the free (non-Dirichlet) dofs.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import ngsolve as ng
 import numpy as np
 import scipy.sparse as sp
@@ -18,90 +16,11 @@ import scipy.sparse as sp
 from admmkit.linalg.submatrix import principal_submatrix
 
 from admmkit.problems.contact.model.fastpaths import component_map, free_dofs
+from admmkit.problems.contact.model.operators import ContactOperators  # noqa: F401  (its home before; re-exported)
 from admmkit.problems.fe import ngsolve_tasks
-from admmkit.problems.contact.solvers.friction import Friction, friction_of, tangent_frames
+from admmkit.problems.contact.solvers.friction import friction_of, tangent_frames
 from admmkit.problems.contact.model.mesh import geometry_mesh, structured_rectangle, unstructured_rectangle
 from admmkit.problems.contact.model.scene import Scene
-
-
-@dataclass
-class ContactOperators:
-    """K, f, B, mc, g on the free dofs, with the NGSolve handles to map back."""
-
-    K: sp.csr_matrix          # (n_free, n_free) stiffness, SPD
-    f: np.ndarray             # (n_free,) load
-    B: sp.csr_matrix          # (n_c, n_free): u_free -> u.n at the contact nodes
-    mc: np.ndarray            # (n_c,) lumped boundary mass (quadrature weights) on Gamma_C
-    g: np.ndarray             # (n_c,) gap at the contact nodes
-    xc: np.ndarray            # (n_c, 2) contact node coordinates
-    normals: np.ndarray       # (n_c, 2) unit directions of u.n (the body's outward normals or scene.contact_normal)
-    free: np.ndarray          # (n_free,) indices of the free dofs in the full dof vector
-    mesh: ng.Mesh
-    fes: ng.comp.FESpace
-    scene: Scene
-    T: sp.csr_matrix | None = None     # ((d-1) n_c, n_free): u_free -> u.t at the contact nodes, by component
-    tangents: np.ndarray | None = None  # (n_c, d-1, d) unit tangents t = (-n_y, n_x) in 2D (friction.tangent_frames)
-    friction: Friction | None = None    # the friction law at the contact nodes (None: frictionless or stick)
-
-    @property
-    def n_free(self) -> int:
-        """Number of free dofs."""
-        return self.K.shape[0]
-
-    @property
-    def n_c(self) -> int:
-        """Number of contact nodes."""
-        return self.B.shape[0]
-
-    @property
-    def h(self) -> float:
-        """Mesh size of the scene."""
-        return self.scene.h
-
-    def full_vector(self, u_free: np.ndarray) -> np.ndarray:
-        """All dofs (zero on the clamped boundary) from the free ones."""
-        u = np.zeros(self.fes.ndof)
-        u[self.free] = u_free
-        return u
-
-    def to_gridfunction(self, u_free: np.ndarray) -> ng.GridFunction:
-        """NGSolve GridFunction of the displacement given by the free dofs."""
-        gf = ng.GridFunction(self.fes)
-        gf.vec.FV().NumPy()[:] = self.full_vector(u_free)
-        return gf
-
-    def dof_coordinates(self) -> np.ndarray | None:
-        """(n_free, d): a point for each free dof, for the nested dissection of the condensed set-up.
-
-        P1: the vertex the dof sits at (the dofs are the vertices, component by component). P2: the
-        vertex for a vertex dof (H1 numbers them first), and for an edge dof the centroid of its basis
-        function, int(phi x) / int(phi): the bubble is a multiple of lambda_a lambda_b, so this is the
-        edge's midpoint moved a fifth of the way to the mean of the opposite vertices (a dissection needs
-        locality, not exact points). Three linear forms assembled by NGSolve, where a loop over the mesh's
-        nodes cost about 3 us per dof. VectorH1 numbers its components one after the other, each as H1 of
-        the same order. None for any other space.
-        """
-        points = np.asarray(self.mesh.ngmesh.Coordinates())
-        dim = points.shape[1]
-        if self.fes.ndof == dim * points.shape[0]:
-            return np.tile(points, (dim, 1))[self.free]
-        order = getattr(self.scene, "order", None)
-        if order != 2:
-            return None
-        scalar = ng.H1(self.mesh, order=2)
-        if dim * scalar.ndof != self.fes.ndof:
-            return None
-        v = scalar.TestFunction()
-        moments = []
-        for weight in (ng.CF(1.0), ng.x, ng.y, ng.z)[:dim + 1]:
-            form = ng.LinearForm(weight * v * ng.dx(bonus_intorder=2)).Assemble()
-            moments.append(form.vec.FV().NumPy().copy())
-        mass = moments[0]                    # NGSolve's edge bubbles are scaled negative; the ratio does not care
-        if not np.all(np.abs(mass) > 0):
-            return None
-        centroids = np.column_stack([m / mass for m in moments[1:]])
-        centroids[:points.shape[0]] = points          # H1 numbers the vertices first, in order: their own points
-        return np.tile(centroids, (dim, 1))[self.free]
 
 
 def lame(E: float, nu: float) -> tuple[float, float]:
@@ -246,8 +165,7 @@ def assemble(scene: Scene, mesh: ng.Mesh | None = None) -> ContactOperators:
     if not np.all(np.isfinite(g)):
         raise ValueError(f"gap: not finite at the contact nodes {xc[~np.isfinite(g)].tolist()}")
 
-    flags = _stick_components(scene, normals) if scene.tangential == "stick" else {}
-    fes = ng.VectorH1(mesh, order=scene.order, dirichlet="|".join(scene.dirichlet), **flags)
+    fes = displacement_space(scene, mesh, normals)
     u, v = fes.TnT()
     mu, lam = lame(scene.E, scene.nu)
     eps = lambda w: ng.Sym(ng.Grad(w))  # noqa: E731
@@ -269,6 +187,13 @@ def assemble(scene: Scene, mesh: ng.Mesh | None = None) -> ContactOperators:
     return ContactOperators(K=K, f=f, B=B, mc=mc, g=g, xc=xc, normals=normals, free=free,
                             mesh=mesh, fes=fes, scene=scene, T=T, tangents=tangents,
                             friction=friction_of(scene, xc))
+
+
+def displacement_space(scene: Scene, mesh: ng.Mesh, normals: np.ndarray) -> ng.comp.FESpace:
+    """The scene's VectorH1 space on ``mesh``: its order, clamped on the Dirichlet labels (and, with
+    ``tangential = "stick"``, the tangential component clamped on Gamma_C; ``normals`` at the contact nodes)."""
+    flags = _stick_components(scene, normals) if scene.tangential == "stick" else {}
+    return ng.VectorH1(mesh, order=scene.order, dirichlet="|".join(scene.dirichlet), **flags)
 
 
 def free_system(fes: ng.comp.FESpace, a: ng.BilinearForm, load: np.ndarray):

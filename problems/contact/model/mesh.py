@@ -13,8 +13,12 @@ array interface, about 7x faster at a million unknowns.
 """
 from __future__ import annotations
 
-import ngsolve as ng
+from typing import TYPE_CHECKING
+
 import numpy as np
+
+if TYPE_CHECKING:      # NGSolve is imported by the functions that mesh: the scene modules read BOUNDARY_NAMES only
+    import ngsolve as ng
 
 BOUNDARY_NAMES = ("bottom", "right", "top", "left")
 
@@ -31,6 +35,7 @@ def structured_rectangle(L: float, H: float, h: float) -> ng.Mesh:
     mapping=lambda x, y: (L*x, H*y))`` (tests/test_iterative.py compares them),
     built from arrays instead of one Python call per point and element.
     """
+    import ngsolve as ng
     from netgen.meshing import Mesh
     nx, ny = grid_counts(L, H, h)
     mesh = Mesh()
@@ -58,6 +63,7 @@ def structured_rectangle(L: float, H: float, h: float) -> ng.Mesh:
 
 def unstructured_rectangle(L: float, H: float, h: float) -> ng.Mesh:
     """Netgen (OCC) triangulation of the rectangle with maxh = h."""
+    import ngsolve as ng
     from netgen.occ import OCCGeometry, Rectangle, X, Y
     face = Rectangle(L, H).Face()
     face.edges.Min(Y).name = "bottom"
@@ -69,4 +75,5 @@ def unstructured_rectangle(L: float, H: float, h: float) -> ng.Mesh:
 
 def geometry_mesh(geometry, h: float) -> ng.Mesh:
     """Mesh a netgen geometry object (OCCGeometry, SplineGeometry, ...) with maxh = h."""
+    import ngsolve as ng
     return ng.Mesh(geometry.GenerateMesh(maxh=h))

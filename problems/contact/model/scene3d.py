@@ -30,10 +30,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Any, Mapping
+from typing import TYPE_CHECKING, Any, Mapping
 
-import ngsolve as ng
 import numpy as np
+
+if TYPE_CHECKING:      # block_mesh imports NGSolve when it meshes: reading a scene file needs none
+    import ngsolve as ng
 
 from admmkit.problems.expressions import as_function, expression, finite_positive
 from admmkit.problems.contact.model.memory import InsufficientMemory, available_memory, dofs3d, estimate_memory3d, memory_need3d  # noqa: F401  (memory_need3d: this scene's)
@@ -55,6 +57,7 @@ def block_counts(Lx: float, Ly: float, Lz: float, h: float) -> tuple[int, int, i
 
 def block_mesh(Lx: float, Ly: float, Lz: float, h: float) -> ng.Mesh:
     """Structured tetrahedral mesh of the block (0, Lx) x (0, Ly) x (0, Lz) (module docstring)."""
+    import ngsolve as ng
     from netgen.meshing import FaceDescriptor, Mesh
     nx, ny, nz = block_counts(Lx, Ly, Lz, h)
     mesh = Mesh(dim=3)

@@ -47,7 +47,8 @@ def contact_status(ops, p: np.ndarray) -> np.ndarray:
 
 
 def _dim(ops) -> int:
-    return int(ops.mesh.dim)
+    dim = getattr(ops, "dim", None)          # ContactOperators know it without the mesh (the operator cache)
+    return int(ops.mesh.dim if dim is None else dim)
 
 
 def _order(ops) -> int:

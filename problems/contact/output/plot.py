@@ -6,7 +6,7 @@ import numpy as np
 
 from admmkit.figures import pyplot, save_figure
 
-from admmkit.problems.contact.model.assembly import ContactOperators
+from admmkit.problems.contact.model.operators import ContactOperators
 
 
 def vertex_displacement(ops: ContactOperators, u_free: np.ndarray):

@@ -12,7 +12,7 @@ import scipy.sparse as sp
 
 from admmkit import Problem
 
-from admmkit.problems.contact.model.assembly import ContactOperators
+from admmkit.problems.contact.model.operators import ContactOperators
 from admmkit.problems.contact.solvers.friction import friction_z_step, stick_slip
 
 

@@ -11,7 +11,7 @@ import numpy as np
 
 from admmkit.blocks.iterative import node_blocks
 
-from admmkit.problems.contact.model.assembly import ContactOperators
+from admmkit.problems.contact.model.operators import ContactOperators
 
 
 def rigid_body_modes(points: np.ndarray, component: np.ndarray) -> np.ndarray:

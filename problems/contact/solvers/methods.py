@@ -11,7 +11,7 @@ import admmkit
 from admmkit import RelativeChange
 from admmkit.policies.paper_methods import PAPER_METHODS as METHODS, method  # noqa: F401  (re-exported)
 
-from admmkit.problems.contact.model.assembly import ContactOperators, assemble
+from admmkit.problems.contact.model.operators import ContactOperators
 from admmkit.problems.contact.solvers.coulomb import CoulombReport, coulomb_fixed_point, warm_z0
 from admmkit.problems.contact.model.memory import check_memory
 from admmkit.problems.contact.solvers.problem import contact_problem
@@ -112,15 +112,18 @@ def solve_scene(scene, method_name: str = "sadmm", rho: float = 1e3, *,
     """
     import time
 
-    from admmkit.problems.contact.model.assembly3d import assemble3d
     from admmkit.problems.contact.model.scene3d import Scene3D
     default_order, policy = method(method_name)
     if isinstance(scene, Scene) and mode in ("full", "condensed", "iterative"):
         check_memory(scene, mode)
-    if isinstance(scene, Scene3D):
+    if isinstance(scene, ContactOperators):
+        ops = scene
+    elif isinstance(scene, Scene3D):
+        from admmkit.problems.contact.model.assembly3d import assemble3d
         ops = assemble3d(scene)
     else:
-        ops = scene if isinstance(scene, ContactOperators) else assemble(scene)
+        from admmkit.problems.contact.model.assembly import assemble     # NGSolve: imported when it assembles
+        ops = assemble(scene)
     t0 = time.perf_counter()
     problem = contact_problem(ops, mode=mode)
     setup = time.perf_counter() - t0

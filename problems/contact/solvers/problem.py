@@ -48,7 +48,7 @@ from admmkit.linalg.linsolve import CachedFactorization
 from admmkit.blocks.operators import LinearMap
 from admmkit.blocks.xstep import QuadraticXStep
 
-from admmkit.problems.contact.model.assembly import ContactOperators
+from admmkit.problems.contact.model.operators import ContactOperators
 from admmkit.problems.contact.solvers.base import _ContactBase
 from admmkit.problems.contact.solvers.schur import SCHUR_BACKENDS, BoundarySchur
 
@@ -301,9 +301,9 @@ def auto_mode(ops: ContactOperators, backend: str = "auto") -> str:
     3D scene the iterative mode beat both direct modes from between 1.8e4 and
     4.2e4 unknowns on (docs/results/scale/contact3d.md).
     """
-    m = ops.n_c * (ops.mesh.dim if ops.friction is not None else 1)   # rows of A: normal (and tangential) parts
+    m = ops.n_c * (ops.dim if ops.friction is not None else 1)   # rows of A: normal (and tangential) parts
     direct = "condensed" if m <= CONDENSED_MAX_NC and backend in ("auto",) + SCHUR_BACKENDS else "full"
-    dim = ops.mesh.dim
+    dim = ops.dim
     if dim == 3 and ops.n_free >= ITERATIVE_MIN_N_3D:
         return "iterative"
     if dim == 2 and direct == "full" and ops.n_free >= ITERATIVE_MIN_N_2D:

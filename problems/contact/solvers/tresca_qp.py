@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from admmkit.problems.contact.model.assembly import ContactOperators
+from admmkit.problems.contact.model.operators import ContactOperators
 
 
 def tresca_cvxpy(ops: ContactOperators, s: np.ndarray | None = None, tol: float = 1e-12):
