@@ -168,6 +168,7 @@ COMMAND_HELP = {
     "bench.precision": "work-precision: true error against time, every method and peer",
     "bench.qp": "every penalty rule, with and without OSQP's machinery, and OSQP on a folder of QPs",
     "bench.qp-agreement": "random feasible QPs against cvxpy + Clarabel",
+    "bench.anderson-cost": "what an Anderson step adds to an iteration of the compiled QP segment",
     "bench.qp-fidelity": "admmkit's OSQP preset against OSQP 1.x, problem by problem (Maros-Meszaros)",
     "bench.qp-speed": "a whole QP solve (compiled and Python) against OSQP 1.x's C, problem by problem",
     "bench.rules": "rank the penalty rules (and yours) on every family, with acceleration",

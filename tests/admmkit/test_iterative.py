@@ -321,7 +321,7 @@ def test_auto_mode_follows_the_measured_crossovers():
     from types import SimpleNamespace
 
     from admmkit.problems.contact.solvers.problem import auto_mode
-    fake = lambda n, n_c, dim: SimpleNamespace(n_free=n, n_c=n_c, mesh=SimpleNamespace(dim=dim), scene=None,  # noqa: E731
+    fake = lambda n, n_c, dim: SimpleNamespace(n_free=n, n_c=n_c, dim=dim, mesh=SimpleNamespace(dim=dim), scene=None,  # noqa: E731
                                                friction=None)
     assert auto_mode(fake(1_000_000, 1000, 2)) == "condensed"     # the condensed mode won at every 2D size measured
     assert auto_mode(fake(50_000, 5000, 2)) == "full"
