@@ -79,7 +79,13 @@ def sweep_cases(N: int = SWEEP_N, rhos=RHOS, policy_names=None, max_iter: int = 
     """The sweep's cases: every policy x order x rho0 on the radial scene with h = 4/N (a policy's cases one group)."""
     return [{"target": "obstacle_sweep", "N": N, "policy": name, "order": order, "rho0": rho0, "max_iter": max_iter,
              "group": name}
-            for name in policy_names or admmkit.policy_names() for order in ORDERS for rho0 in rhos]
+            for name in policy_names or _one_rho_rules() for order in ORDERS for rho0 in rhos]
+
+
+def _one_rho_rules() -> list[str]:
+    """The registered rules with one rho (a rule with a penalty per row needs a QP: the obstacle takes one rho)."""
+    from admmkit.benchmarks.fixtures.methods import per_row
+    return [name for name in admmkit.policy_names() if not per_row(name)]
 
 
 _SCENE: dict = {}

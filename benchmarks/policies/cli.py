@@ -27,9 +27,12 @@ def _policies(args) -> int:
                          f"module:Class or path/to/file.py:Class")
     for rule in rules:                       # a rule that does not load or breaks the protocol: before any case runs
         try:
-            admmkit.make_policy(rule)
+            made = admmkit.make_policy(rule)
         except (TypeError, ValueError) as err:
             raise ValueError(f"--rules: {err}") from None
+        if getattr(made, "per_row", False):
+            raise ValueError(f"--rules: {rule} sets a penalty per row; the contact and obstacle problems of bench "
+                             f"policies take one rho (run it with bench rules --families qp)")
     run(args.out, rules=rules, quick=args.quick, command=args.command_line, progress=args.progress,
         executor=executor_of(args), report_only=args.report_only)
     return 0

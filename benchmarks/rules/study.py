@@ -38,7 +38,7 @@ import admmkit
 from admmkit.loop.acceleration import ACCELERATORS
 from admmkit.benchmarks.policies import study as policies_fe
 from admmkit.benchmarks.stability import study as stability
-from admmkit.benchmarks.fixtures.methods import method_label, policy_version
+from admmkit.benchmarks.fixtures.methods import method_label, per_row, policy_version
 from admmkit.benchmarks.rules.cases import DATA_ENV
 from admmkit.benchmarks.runner.sweep import Executor, run_or_report
 
@@ -107,7 +107,8 @@ def build_cases(rules, accel, families=FAMILIES, *, quick: bool = False, data: P
     cases = []
     versions = {rule: policy_version(method_label(rule, "zx")) for rule in rules}
     for family in families:
-        for base in _problem_cases(family, rules, quick, data, presets):
+        takes = rules if family == "qp" else [r for r in rules if not per_row(r)]    # one rho outside the QPs
+        for base in _problem_cases(family, takes, quick, data, presets):
             for a in accel:
                 cases.append(base | {"family": family, "acceleration": a, "policy_version": versions[base["rule"]],
                                      "group": f"{family}:{base['group']}"})
@@ -197,6 +198,10 @@ def run(out="out/rules", *, rules=None, acceleration=("none", "anderson"), famil
             raise ValueError(f"--data: folder of Maros-Meszaros MAT files not found: {data_dir}")
         families.remove("qp")
         notes.append(f"qp left out: no Maros-Meszaros folder at {DEFAULT_DATA} (give --data DIR)")
+    rows_only = [r for r in rules if per_row(r)]
+    if rows_only and any(f != "qp" for f in families):
+        notes.append(f"{', '.join(rows_only)}: a penalty per row, run on the qp family only (the other families' "
+                     "problems take one rho)")
     cases = build_cases(rules, accel, families, quick=quick, data=data_dir.resolve(), presets=presets)
     records, wall = run_or_report(cases, "admmkit.benchmarks.rules.cases:run_case", out, report_only=report_only,
                                   env={DATA_ENV: str(data_dir.resolve()), stability.CACHE_ENV: str(out / "cache")},

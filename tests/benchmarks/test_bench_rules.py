@@ -141,3 +141,17 @@ def test_bad_input_is_one_line_before_any_case(args, names, rule_file, tmp_path,
     assert cost.startswith("bench rules: about 13 min")          # announced once its packages were checked
     assert code == 2 and len(err) == 1 and names.format(file=rule_file) in err[0]
     assert not (tmp_path / "o" / "results.jsonl").exists()
+
+
+def test_a_rule_with_a_penalty_per_row_runs_on_the_qps_only():
+    """rowwise sets a penalty per row: the FE and framework families' problems take one rho, so its cases are the qp
+    family's only, every-rule lists of the FE studies leave it out, and bench policies refuses it at once."""
+    from admmkit.benchmarks.fixtures.methods import admm_methods, per_row
+    from admmkit.benchmarks.rules.study import build_cases
+    from admmkit.cli import main
+    assert per_row("rowwise") and not per_row("osqp")
+    assert not any(m.startswith("rowwise/") for m in admm_methods())
+    assert {"rowwise/xz", "rowwise/zx"} <= set(admm_methods(rows=True))
+    cases = build_cases(["osqp", "rowwise"], ["none"], ["framework", "obstacle"], quick=True)
+    assert cases and {c["rule"] for c in cases} == {"osqp"}
+    assert main(["bench", "policies", "--quick", "--rules", "rowwise"]) == 2

@@ -63,7 +63,7 @@ def square_case(case):
 
 # ---------------------------------------------------------------- methods
 def test_every_registered_policy_is_benchmarked_in_both_orders():
-    labels = methods.admm_methods()
+    labels = methods.admm_methods(rows=True)             # with the rules that set a penalty per row (QPs)
     assert labels[:3] == ["admm1", "admm2", "sadmm"]
     for name in admmkit.policy_names():
         if name in methods.skipped_policies():
