@@ -33,7 +33,6 @@ Writes ``first_call.md``, ``first_call.csv`` and ``first_call.png`` to ``--out``
 """
 from __future__ import annotations
 
-import argparse
 import json
 import os
 import resource
@@ -215,9 +214,10 @@ def chart(rows: list[dict], path: Path) -> None:
 
 def main(argv: list[str] | None = None, prog: str = "admmkit bench first-call") -> int:
     """Parse the options, measure, print the table and write it where ``--out`` says."""
-    parser = argparse.ArgumentParser(prog=prog, description="Fresh processes side by side with OSQP: import, "
-                                     "first HS21 solve with cached and with empty kernel cache, the cvxpy route, "
-                                     "admmkit --help, a whole solve contact. Typical: 1-2 min on 2 cores.")
+    from admmkit.cli import Parser           # a usage error is one line (admmkit.cli)
+    parser = Parser(prog=prog, description="Fresh processes side by side with OSQP: import, "
+                    "first HS21 solve with cached and with empty kernel cache, the cvxpy route, "
+                    "admmkit --help, a whole solve contact. Typical: 1-2 min on 2 cores.")
     parser.add_argument("--out", default="out/first_call", help="output folder (default out/first_call)")
     parser.add_argument("--data", default="../shared/data/maros_meszaros",
                         help="folder holding HS21.mat (default ../shared/data/maros_meszaros)")

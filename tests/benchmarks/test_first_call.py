@@ -61,3 +61,13 @@ def test_solve_contact_is_timed_with_an_empty_and_a_warm_operator_cache(monkeypa
     assert {"solve contact --scene ex1 --h 1/40, empty operator cache",
             "solve contact --scene ex1 --h 1/40, operator cache warm",
             "import numpy, scipy.sparse.linalg, scipy.linalg"} <= set(cases)
+
+
+def test_a_usage_error_is_one_line(tmp_path, capsys):
+    """A missing HS21.mat or a bad --repeats: one line on stderr naming the option, exit 2, no usage block."""
+    from admmkit.cli import main
+    assert main(["bench", "first-call", "--data", str(tmp_path), "--out", str(tmp_path / "out")]) == 2
+    assert main(["bench", "first-call", "--repeats", "0"]) == 2
+    lines = capsys.readouterr().err.strip().splitlines()
+    err = [e for e in lines if e.startswith("admmkit: error:")]        # beside the study's one-line cost note
+    assert len(err) == 2 and "--data" in err[0] and "--repeats" in err[1] and not any(e.startswith("usage:") for e in lines)
