@@ -163,6 +163,15 @@ def _scratch(qp):
     return held
 
 
+def segment_state(qp, x, z, lam, Ax):
+    """The arrays a segment iterates on, as new float64 arrays: (x, z, lam, Ax, x_rel, x_prev, x_rel_prev), x_rel
+    the QP's relaxed x (Q4) where it keeps one, and its work vectors (rhs, sol, work), made once per QP."""
+    x, z, lam, Ax = (np.array(v, dtype=np.float64) for v in (x, z, lam, Ax))
+    a = qp.x_relaxation
+    x_rel = np.array(qp._x_rel if a != 1.0 and qp._x_rel is not None else x, dtype=np.float64)
+    return (x, z, lam, Ax, x_rel, np.empty_like(x), np.empty_like(x)), _scratch(qp)
+
+
 #: placeholders for the kernel's Anderson arrays when it takes no steps (one compiled signature)
 _NO_INTS, _NO_MATRIX = np.zeros(0, dtype=np.int64), np.zeros((0, 0))
 
@@ -184,11 +193,8 @@ def run_segment(qp, x, z, lam, Ax, rho: float, alpha: float, order: str, count: 
     factors = qp._solver.ldl(rho)
     if factors is None:
         return None
-    x, z, lam, Ax = (np.array(v, dtype=np.float64) for v in (x, z, lam, Ax))
+    (x, z, lam, Ax, x_rel, x_prev, x_rel_prev), (rhs, sol, work) = segment_state(qp, x, z, lam, Ax)
     a = qp.x_relaxation
-    x_rel = np.array(qp._x_rel if a != 1.0 and qp._x_rel is not None else x, dtype=np.float64)
-    x_prev, x_rel_prev = np.empty_like(x), np.empty_like(x)
-    rhs, sol, work = _scratch(qp)
     m = z.shape[0]
     kept = (np.empty(m), np.empty(m), np.empty(m), np.empty(m)) if read else (work[:0],) * 4
     if accel is None:

@@ -65,7 +65,7 @@ def go_on(test, m, eps_abs, eps_rel, gap, infeasibility, eps_prim_inf, eps_dual_
     """Whether the loop would go on after the iteration ``k`` whose outputs are (x_rel, z, lam, Ax): True only
     when the test (if ``test``: k is a tested iteration) and OSQP's rule (if ``interval`` > 0 and k is one it reads) certainly leave the
     run and rho as they are (see the module docstring); False: the loop's Python must look."""
-    worst, best = 0.0, math.inf
+    worst = 0.0
     for i in range(m):                                              # the loop's divergence and stall tests
         r = abs(Ax[i] - z[i])
         if not (r < DIVERGENCE_CEILING) or not np.isfinite(lam[i]):
@@ -222,7 +222,7 @@ def checked_segment(qp, x, z, lam, Ax, rho: float, alpha: float, order: str, cou
     non-finite step ended the segment early).  Where the kernel does not apply (not order "xz" with the KKT form on
     qdldl, compiled code not chosen, an accelerator), :func:`admmkit.problems.qp.segment.run_segment` up to the next
     iteration the loop reads."""
-    from .segment import _scratch, run_segment
+    from .segment import run_segment, segment_state
     first = check.first
     factors = qp._solver.ldl(rho) if order == "xz" and qp.xstep == "kkt" and compiled_now() else None
     if factors is None or accel is not None or not read:
@@ -233,11 +233,8 @@ def checked_segment(qp, x, z, lam, Ax, rho: float, alpha: float, order: str, cou
     if rule is None:                    # another rule: the segment ends at the first iteration it reads
         count = min(count, check.policy.unchanged_until(first) - first + 1)
         rule = (0, 1.0, 0.0, math.inf)
-    x, z, lam, Ax = (np.array(v, dtype=np.float64) for v in (x, z, lam, Ax))
+    (x, z, lam, Ax, x_rel, x_prev, x_rel_prev), (rhs, sol, work) = segment_state(qp, x, z, lam, Ax)
     a = qp.x_relaxation
-    x_rel = np.array(qp._x_rel if a != 1.0 and qp._x_rel is not None else x, dtype=np.float64)
-    x_prev, x_rel_prev = np.empty_like(x), np.empty_like(x)
-    rhs, sol, work = _scratch(qp)
     m = z.shape[0]
     kept = (np.empty(m), np.empty(m), np.empty(m), np.empty(m))
     done, whole = segment_tested(count, first, check.every, *test[:1], m, *test[1:], *rule, float(rho),
