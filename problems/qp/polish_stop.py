@@ -7,8 +7,12 @@ solution to round-off, however loose the iterate was.  So admmkit's preset
 polishes *before* the test holds:
 
 - at a check where OSQP's test holds at ``gate`` times the tolerances (the
-  iterate is near the solution, and its active set likely right), and at
-  most once every ``every`` iterations, the iterate is polished;
+  iterate is near the solution, and its active set likely right), the
+  iterate is polished; while the tries fail, the waits between them are
+  ``every`` iterations and then ``backoff`` times the wait before (2: 100,
+  200, 400, ... iterations), since a try costs a factorisation of the reduced KKT system
+  (a PRIMAL4 try about as much as its 50 iterations) and a failed one says
+  the active set is still moving (iteration-based: deterministic);
 - a try is skipped when the active set it would guess is the one of the
   last try, which failed (the same reduced system again);
 - the polished point (x, z = clip(A x, l, u), y) of the user's problem,
@@ -48,19 +52,24 @@ class PolishingTermination(QPTermination):
     """:class:`QPTermination`, and at a check near the solution a polished point that passes the same test.
 
     ``gate`` (>= 1): polish when the test holds at ``gate`` x (eps_abs, eps_rel);
-    ``every`` (>= 1): iterations between two tries; ``delta``, ``refine``: the
+    ``every`` (>= 1): iterations before the next try, multiplied by ``backoff`` (>= 1) after each failed try
+    (``backoff = 1``: a try every ``every`` iterations, the rule before issue #50's timing); ``delta``, ``refine``: the
     polishing system's regularisation and refinement steps.  After a stop on a
     polished point, ``polished`` is (x, z, y, info) of the user's problem
     (None otherwise) and ``last`` the residuals of that point.
     """
 
     def __init__(self, qp: QP, eps_abs: float = 1e-3, eps_rel: float = 1e-3, *, gate: float = 1e3,
-                 every: int = 100, delta: float = 1e-6, refine: int = 3, **options):
+                 every: int = 100, backoff: float = 2.0, delta: float = 1e-6, refine: int = 3, **options):
         super().__init__(qp, eps_abs, eps_rel, **options)
         if not (np.isfinite(gate) and gate >= 1):
             raise ValueError(f"gate must be a finite number >= 1, got {gate!r}")
         if isinstance(every, bool) or not isinstance(every, (int, np.integer)) or every < 1:
             raise ValueError(f"every must be an integer >= 1, got {every!r}")
+        if isinstance(backoff, bool) or not (isinstance(backoff, (int, float, np.floating)) and np.isfinite(backoff)
+                                                    and backoff >= 1):
+            raise ValueError(f"backoff must be a finite number >= 1, got {backoff!r}")
+        self.backoff = float(backoff)
         self.gate, self.every, self.delta, self.refine = float(gate), int(every), float(delta), int(refine)
         self.name += f"+polish(gate={self.gate:g})"
         self.names[SOLVED] = self.name
@@ -79,6 +88,7 @@ class PolishingTermination(QPTermination):
         self.polished = None
         self.tries = 0
         self.next_try = 0
+        self.failures = 0                    # failed tries: the next waits every x backoff^failures iterations
         self.failed = None
 
     def passes(self, res: dict, factor: float = 1.0) -> bool:
@@ -106,7 +116,7 @@ class PolishingTermination(QPTermination):
             return name
         if rec.k < self.next_try or not self.passes(self.last, self.gate):
             return None
-        self.next_try = rec.k + self.every
+        self.next_try = rec.k + int(self.every * self.backoff ** self.failures)
         qp = self.qp
         yb = rec.lam_z if qp.w is None else qp.w * rec.lam_z
         guess = active_set(qp, rec.z, yb)
@@ -116,12 +126,14 @@ class PolishingTermination(QPTermination):
         x, y, info = polish(qp, qp.relaxed_x(rec.x), rec.z, yb, delta=self.delta, refine=self.refine)
         self.failed = guess
         if x is None:
+            self.failures += 1
             return None
         y = np.where(np.isinf(qp.u), np.minimum(y, 0.0), y)       # no multiplier pushes against an infinite bound
         y = np.where(np.isinf(qp.l), np.maximum(y, 0.0), y)
         z = np.clip(qp.A @ x, qp.l, qp.u)
         res = osqp_residuals(qp, x, z, y)
         if not self.passes(res):
+            self.failures += 1
             return None
         self.last, self.polished = res, (x, z, y, info)
         self.outcome, self.certificate = SOLVED, None

@@ -56,10 +56,12 @@ class QPSettings:
     polish_refine_iter: int = 3
     delta: float = 1e-6                # regularisation of the polishing system
     # polishing during the run (problems.qp.polish_stop): at a check where the test holds at polish_gate x the
-    # tolerances, at most every polish_interval iterations, polish; a polished point that passes the test ends the run
+    # tolerances, polish; the next try waits polish_interval iterations, that wait multiplied by polish_backoff after
+    # each failed try; a polished point that passes the test ends the run
     early_polish: bool = False
     polish_gate: float = 1e3
     polish_interval: int = 100
+    polish_backoff: float = 2.0
     time_limit: float | None = None    # seconds (benchmarks only)
     # compiled code (numba): "auto" where the QP is large enough to pay for numba's import and its kernels' load
     # or compile (problems.qp.segment.compiled_pays), True always, False every iteration in Python (the helper
@@ -79,6 +81,9 @@ class QPSettings:
             raise ValueError(f"adaptive_rho_fraction must be a number in (0, 1), got {self.adaptive_rho_fraction!r}")
         if self.polish_gate < 1:
             raise ValueError(f"polish_gate must be >= 1, got {self.polish_gate!r}")
+        backoff = number("polish_backoff", self.polish_backoff, "finite, >= 1")
+        if not (math.isfinite(backoff) and backoff >= 1):
+            raise ValueError(f"polish_backoff must be a finite number >= 1, got {self.polish_backoff!r}")
         if self.adaptive_rho_tolerance < 1:
             raise ValueError(f"adaptive_rho_tolerance must be >= 1, got {self.adaptive_rho_tolerance!r}")
         for name in ("sigma", "eps_abs", "eps_rel"):

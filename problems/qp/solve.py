@@ -181,7 +181,8 @@ def termination_for(qp: QP, settings: QPSettings) -> QPTermination:
     if settings.early_polish:
         from .polish_stop import PolishingTermination
         return PolishingTermination(qp, settings.eps_abs, settings.eps_rel, gate=settings.polish_gate,
-                                    every=settings.polish_interval, delta=settings.delta,
+                                    every=settings.polish_interval, backoff=settings.polish_backoff,
+                                    delta=settings.delta,
                                     refine=settings.polish_refine_iter, **options)
     return QPTermination(qp, settings.eps_abs, settings.eps_rel, **options)
 

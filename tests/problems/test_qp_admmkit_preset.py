@@ -62,7 +62,41 @@ def test_a_polished_point_that_misses_the_test_does_not_stop_the_run(monkeypatch
     assert early.iterations == plain.iterations and np.array_equal(early.x, plain.x)
 
 
+@pytest.mark.parametrize("backoff", [1.0, 2.0, 3.0])
+def test_each_failed_polishing_try_multiplies_the_wait_for_the_next(monkeypatch, backoff):
+    """Tries refused every time (as above) come at iterations k0, k0 + every, k0 + every (1 + backoff), ...: with
+    backoff 1 every ``every`` iterations (the rule before), and fewer tries the larger the backoff."""
+    from admmkit.problems.qp import polish_stop
+    at = []
+
+    def refused(qp, xb, zb, yb, **kwargs):
+        at.append(len(at))
+        return None, None, {"status": "failed"}
+    monkeypatch.setattr(polish_stop, "polish", refused)
+    monkeypatch.setattr(polish_stop, "active_set", lambda qp, z, y: bytes([len(at) % 256]))   # a new guess each time
+    seen = []
+    original = polish_stop.PolishingTermination.fired
+
+    def fired(self, rec):
+        before = len(at)
+        out = original(self, rec)
+        if len(at) > before:
+            seen.append(rec.k)
+        return out
+    monkeypatch.setattr(polish_stop.PolishingTermination, "fired", fired)
+    qp = hs118_like()
+    res = solve_qp(qp, admmkit_settings(1e-9, 0.0, adaptive_rho="interval", polish_gate=1e9, polish_interval=25,
+                                        polish_backoff=backoff, max_iter=1000))
+    assert res.polish is None and len(seen) >= 3
+    gaps = np.diff(seen)
+    wait = 25.0
+    for gap in gaps:             # each gap is the wait rounded up to the next check (every 25 iterations)
+        assert int(wait) <= gap < int(wait) + 25
+        wait *= backoff
+
+
 @pytest.mark.parametrize("changes, name", [({"polish_gate": 0.5}, "polish_gate"), ({"polish_interval": 0}, "polish_interval"),
+                                           ({"polish_backoff": 0.5}, "polish_backoff"),
                                            ({"early_polish": "yes"}, "early_polish"),
                                            ({"adaptive_rho": "time"}, "adaptive_rho"),
                                            ({"adaptive_rho_fraction": 1.5}, "adaptive_rho_fraction")])
