@@ -177,3 +177,20 @@ def test_a_nonconvex_problem_is_skipped_with_the_reason():
     why = skip_reason(MM / "VALUES.mat")
     assert why is not None and "not a convex QP" in why and "-1.27e-05" in why
     assert skip_reason(MM / "HS21.mat") is None
+
+
+def test_a_worker_loads_the_qp_kernels_once_before_its_first_timed_case(monkeypatch):
+    """bench qp's worker warms admmkit's kernels before its first case (no case's time holds their load) and only
+    once; afterwards compiled="auto" takes the compiled path on a small QP too."""
+    from admmkit.benchmarks.qp import maros_meszaros
+    from admmkit.problems.qp.segment import AVAILABLE, compiled_pays
+    calls = []
+    monkeypatch.setattr(maros_meszaros, "_WARM", [])
+    import admmkit.benchmarks.framework.warm_up as warm_up
+    original = warm_up.qp_kernels
+    monkeypatch.setattr(warm_up, "qp_kernels", lambda: (calls.append(1), original())[1])
+    maros_meszaros.warm_worker()
+    maros_meszaros.warm_worker()
+    assert calls == [1]
+    if AVAILABLE:
+        assert compiled_pays(2, 3, 5)            # HS21's size: compiled once the kernels are in the process
