@@ -58,17 +58,31 @@ License of the code ported here (SuiteSparse AMD, BSD 3-clause)::
 
 The names of the C code are kept (Pe, Iw, Len, Nv, Elen, Degree, W, Head,
 Next, Last, wflg, ...) so that the port can be read against it; EMPTY is -1
-and FLIP(i) = -i - 2 as there.  Why this port: qdldl's wheel builds AMD
-without optimisation (its setup.py passes -O3 to the Python wrapper only), so
-its ordering costs more than its factorisation; see TIMING below.
+and FLIP(i) = -i - 2 as there.  The subscripts of the minimum degree loop
+are cast to unsigned (``_u``): numba then skips its negative-index test,
+which made the loop 1.5x faster (PRIMAL3's KKT matrix: 13.5 -> 8.5 ms).
 
-TIMING
+Why this port: qdldl's wheel builds AMD without optimisation (its setup.py
+passes -O3 to the Python wrapper only), so its ordering costs more than its
+factorisation.  Measured (one run, OMP_NUM_THREADS=1, best of 7, the 2-core
+machine under load from other jobs, so +-20%) on the upper-triangle KKT
+matrices [[P + sigma I, A'], [A, -I/rho]] of the 78 Maros-Meszaros problems
+with n + m <= 3000: ``qdldl.Solver(U, upper=True)`` against this module's
+:func:`amd_order` followed by :func:`admmkit.linalg.ldl.ldl_factor` in that
+order (the same permutation and the same factor bits): qdldl's time over ours
+has median 1.2, maximum 3.0 (PRIMAL3: 44.7 ms against 14.9 ms; PRIMAL4,
+n + m = 3053: 28.9 against 13.1; QSCSD6 3.4 against 1.9; CVXQP3_M, where the
+factorisation dominates, 16.9 against 12.8), and 0.15-0.4 on the problems
+qdldl does in under 0.1 ms (HS118: 0.04 against 0.10 ms: the Python-side
+checks of the two calls, some 50 microseconds); 214 ms against 128 ms over
+all 78.  The same AMD C source compiled with gcc -O3 orders PRIMAL3 in
+11.9 ms (this port: 12.6 ms; median ratio over the 78, 1.2).
 """
 from __future__ import annotations
 
 import numpy as np
 
-from admmkit.kernels import AVAILABLE, njit
+from admmkit.kernels import AVAILABLE, _u, njit
 
 EMPTY = -1
 #: AMD's default controls: rows of degree above DENSE * sqrt(n) (at least 16) are "dense"; aggressive absorption
@@ -88,45 +102,62 @@ def amd_order(indptr, indices, n: int) -> np.ndarray:
     if isinstance(n, (bool, np.bool_)) or not isinstance(n, (int, np.integer)) or n < 0:
         raise ValueError(f"n must be an integer >= 0, got {n!r}")
     n = int(n)
-    indptr = np.ascontiguousarray(indptr)
-    indices = np.ascontiguousarray(indices)
+    indptr, indices = np.asarray(indptr), np.asarray(indices)
     for name, a in (("indptr", indptr), ("indices", indices)):
         if a.ndim != 1 or not (a.size == 0 or np.issubdtype(a.dtype, np.integer)):
             raise ValueError(f"{name} must be a 1-d integer array, got dtype {a.dtype} and shape {a.shape}")
-    indptr, indices = indptr.astype(np.int64), indices.astype(np.int64)
-    if indptr.shape != (n + 1,) or indptr[0] != 0 or np.any(np.diff(indptr) < 0) or indptr[n] > indices.size:
-        raise ValueError(f"indptr must have length n + 1 = {n + 1}, start at 0, not decrease and end at most at "
-                         f"len(indices) = {indices.size}")
-    nz = int(indptr[n])
-    if nz and (indices[:nz].min() < 0 or indices[:nz].max() >= n):
-        raise ValueError(f"indices must lie in 0..n-1 = {n - 1}")
+    if indptr.shape != (n + 1,):
+        raise ValueError(f"indptr must have length n + 1 = {n + 1}, got {indptr.size}")
     if n == 0:
         return np.empty(0, np.int64)
     if not AVAILABLE:   # pragma: no cover - numba is a dependency
         raise RuntimeError("admmkit.linalg.amd needs numba")
-    return _amd_order(n, indptr, indices[:nz])[0]
+    Ap = np.ascontiguousarray(indptr, dtype=np.int64)
+    Ai = np.ascontiguousarray(indices, dtype=np.int64)
+    status = _valid(n, Ap, Ai)
+    if status == INVALID_POINTERS:
+        raise ValueError(f"indptr must start at 0, not decrease and end at most at len(indices) = {Ai.size}")
+    if status == INVALID_INDICES:
+        raise ValueError(f"indices must lie in 0..n-1 = {n - 1}")
+    return _amd_order(n, Ap, Ai, status == JUMBLED)[0]
+
+
+#: _valid's answers: amd_valid's AMD_OK and AMD_OK_BUT_JUMBLED, and its AMD_INVALID told apart
+OK, JUMBLED, INVALID_POINTERS, INVALID_INDICES = 0, 1, -1, -2
 
 
 @njit(cache=True)
-def _amd_order(n, Ap, Ai):
-    """amd_order: sort (amd_preprocess) if jumbled, count A + A' (amd_aat), allocate, order (amd_1).
+def _valid(n, Ap, Ai):
+    """amd_valid: OK, JUMBLED (a column with unsorted or repeated row indices), or what makes (Ap, Ai) invalid."""
+    if Ap[0] != 0 or Ap[n] > Ai.shape[0]:
+        return INVALID_POINTERS
+    for j in range(n):
+        if Ap[j] > Ap[j + 1]:
+            return INVALID_POINTERS
+    status = OK
+    for j in range(n):
+        ilast = EMPTY
+        for p in range(Ap[j], Ap[j + 1]):
+            i = Ai[p]
+            if i < 0 or i >= n:
+                return INVALID_INDICES
+            if i <= ilast:
+                status = JUMBLED
+            ilast = i
+    return status
+
+
+@njit(cache=True)
+def _amd_order(n, Ap, Ai, jumbled):
+    """amd_order on a valid pattern: sort (amd_preprocess) if ``jumbled``, count A + A' (amd_aat), allocate,
+    order (amd_1).
 
     Returns the permutation and the number of garbage collections of AMD's workspace (Info[AMD_NCMPA])."""
-    if _jumbled(n, Ap, Ai):
+    if jumbled:
         Ap, Ai = _preprocess(n, Ap, Ai)
     Len, nzaat = _aat(n, Ap, Ai)
     slen = nzaat + nzaat // 5 + 7 * n           # the matrix, elbow room, and the 6 size-n arrays of AMD_1
     return _amd_1(n, Ap, Ai, Len, slen)
-
-
-@njit(cache=True)
-def _jumbled(n, Ap, Ai):
-    """amd_valid's AMD_OK_BUT_JUMBLED: some column has unsorted or repeated row indices."""
-    for j in range(n):
-        for p in range(Ap[j] + 1, Ap[j + 1]):
-            if Ai[p] <= Ai[p - 1]:
-                return True
-    return False
 
 
 @njit(cache=True)
@@ -268,8 +299,8 @@ def _clear_flag(wflg, wbig, W, n):
     """clear_flag: reset W (keeping its zeros) when wflg would overflow; W[0..n-1] < wflg afterwards."""
     if wflg < 2 or wflg >= wbig:
         for x in range(n):
-            if W[x] != 0:
-                W[x] = 1
+            if W[_u(x)] != 0:
+                W[_u(x)] = 1
         wflg = 2
     return wflg
 
@@ -277,14 +308,14 @@ def _clear_flag(wflg, wbig, W, n):
 @njit(cache=True)
 def _unlink(i, Head, Next, Last, Degree):
     """Remove variable i from its degree list."""
-    ilast = Last[i]
-    inext = Next[i]
+    ilast = Last[_u(i)]
+    inext = Next[_u(i)]
     if inext != EMPTY:
-        Last[inext] = ilast
+        Last[_u(inext)] = ilast
     if ilast != EMPTY:
-        Next[ilast] = inext
+        Next[_u(ilast)] = inext
     else:
-        Head[Degree[i]] = inext
+        Head[Degree[_u(i)]] = inext
 
 
 @njit(cache=True)
@@ -292,27 +323,27 @@ def _compress(n, Pe, Iw, Len, pme1, pfree):
     """Garbage collection of Iw: pack every live list to the front, then the element under construction
     (Iw[pme1..pfree-1]); return its new start and the new pfree."""
     for j in range(n):                           # the first entry of each list saved in Pe, replaced by FLIP(j)
-        pn = Pe[j]
+        pn = Pe[_u(j)]
         if pn >= 0:
-            Pe[j] = Iw[pn]
-            Iw[pn] = _flip(j)
+            Pe[_u(j)] = Iw[_u(pn)]
+            Iw[_u(pn)] = _flip(j)
     psrc = 0
     pdst = 0
     pend = pme1 - 1
     while psrc <= pend:
-        j = _flip(Iw[psrc])
+        j = _flip(Iw[_u(psrc)])
         psrc += 1
         if j >= 0:
-            Iw[pdst] = Pe[j]
-            Pe[j] = pdst
+            Iw[_u(pdst)] = Pe[_u(j)]
+            Pe[_u(j)] = pdst
             pdst += 1
-            for _ in range(Len[j] - 1):
-                Iw[pdst] = Iw[psrc]
+            for _ in range(Len[_u(j)] - 1):
+                Iw[_u(pdst)] = Iw[_u(psrc)]
                 pdst += 1
                 psrc += 1
     p1 = pdst
     for psrc in range(pme1, pfree):
-        Iw[pdst] = Iw[psrc]
+        Iw[_u(pdst)] = Iw[_u(psrc)]
         pdst += 1
     return p1, pdst
 
@@ -338,244 +369,244 @@ def _amd_2(n, Pe, Iw, Len, iwlen, pfree, dense, aggressive):
 
     # degree lists; empty rows eliminated at once, dense ones set aside (ordered last)
     for i in range(n):
-        deg = Degree[i]
+        deg = Degree[_u(i)]
         if deg == 0:
-            Elen[i] = _flip(1)
+            Elen[_u(i)] = _flip(1)
             nel += 1
-            Pe[i] = EMPTY
-            W[i] = 0
+            Pe[_u(i)] = EMPTY
+            W[_u(i)] = 0
         elif deg > dense:
-            Nv[i] = 0
-            Elen[i] = EMPTY
+            Nv[_u(i)] = 0
+            Elen[_u(i)] = EMPTY
             nel += 1
-            Pe[i] = EMPTY
+            Pe[_u(i)] = EMPTY
         else:
-            inext = Head[deg]
+            inext = Head[_u(deg)]
             if inext != EMPTY:
-                Last[inext] = i
-            Next[i] = inext
-            Head[deg] = i
+                Last[_u(inext)] = i
+            Next[_u(i)] = inext
+            Head[_u(deg)] = i
 
     while nel < n:
         # the pivot: a supervariable of minimum approximate degree
         deg = mindeg
         while deg < n:
-            me = Head[deg]
+            me = Head[_u(deg)]
             if me != EMPTY:
                 break
             deg += 1
         mindeg = deg
-        inext = Next[me]
+        inext = Next[_u(me)]
         if inext != EMPTY:
-            Last[inext] = EMPTY
-        Head[deg] = inext
-        elenme = Elen[me]
-        nvpiv = Nv[me]
+            Last[_u(inext)] = EMPTY
+        Head[_u(deg)] = inext
+        elenme = Elen[_u(me)]
+        nvpiv = Nv[_u(me)]
         nel += nvpiv
 
         # the new element Lme: the variables of me and of the elements adjacent to me
-        Nv[me] = -nvpiv
+        Nv[_u(me)] = -nvpiv
         degme = 0
         if elenme == 0:                          # built in place
-            pme1 = Pe[me]
+            pme1 = Pe[_u(me)]
             pme2 = pme1 - 1
-            for p in range(pme1, pme1 + Len[me]):
-                i = Iw[p]
-                nvi = Nv[i]
+            for p in range(pme1, pme1 + Len[_u(me)]):
+                i = Iw[_u(p)]
+                nvi = Nv[_u(i)]
                 if nvi > 0:
                     degme += nvi
-                    Nv[i] = -nvi
+                    Nv[_u(i)] = -nvi
                     pme2 += 1
-                    Iw[pme2] = i
+                    Iw[_u(pme2)] = i
                     _unlink(i, Head, Next, Last, Degree)
         else:                                    # built in the free space Iw[pfree...]
-            p = Pe[me]
+            p = Pe[_u(me)]
             pme1 = pfree
-            slenme = Len[me] - elenme
+            slenme = Len[_u(me)] - elenme
             for knt1 in range(1, elenme + 2):
                 if knt1 > elenme:
                     e = me
                     pj = p
                     ln = slenme
                 else:
-                    e = Iw[p]
+                    e = Iw[_u(p)]
                     p += 1
-                    pj = Pe[e]
-                    ln = Len[e]
+                    pj = Pe[_u(e)]
+                    ln = Len[_u(e)]
                 for knt2 in range(1, ln + 1):
-                    i = Iw[pj]
+                    i = Iw[_u(pj)]
                     pj += 1
-                    nvi = Nv[i]
+                    nvi = Nv[_u(i)]
                     if nvi > 0:
                         if pfree >= iwlen:       # no room: compress Iw
-                            Pe[me] = p
-                            Len[me] -= knt1
-                            if Len[me] == 0:
-                                Pe[me] = EMPTY
-                            Pe[e] = pj
-                            Len[e] = ln - knt2
-                            if Len[e] == 0:
-                                Pe[e] = EMPTY
+                            Pe[_u(me)] = p
+                            Len[_u(me)] -= knt1
+                            if Len[_u(me)] == 0:
+                                Pe[_u(me)] = EMPTY
+                            Pe[_u(e)] = pj
+                            Len[_u(e)] = ln - knt2
+                            if Len[_u(e)] == 0:
+                                Pe[_u(e)] = EMPTY
                             ncmpa += 1
                             pme1, pfree = _compress(n, Pe, Iw, Len, pme1, pfree)
-                            pj = Pe[e]
-                            p = Pe[me]
+                            pj = Pe[_u(e)]
+                            p = Pe[_u(me)]
                         degme += nvi
-                        Nv[i] = -nvi
-                        Iw[pfree] = i
+                        Nv[_u(i)] = -nvi
+                        Iw[_u(pfree)] = i
                         pfree += 1
                         _unlink(i, Head, Next, Last, Degree)
                 if e != me:                      # e is absorbed into me
-                    Pe[e] = _flip(me)
-                    W[e] = 0
+                    Pe[_u(e)] = _flip(me)
+                    W[_u(e)] = 0
             pme2 = pfree - 1
-        Degree[me] = degme
-        Pe[me] = pme1
-        Len[me] = pme2 - pme1 + 1
-        Elen[me] = _flip(nvpiv + degme)
+        Degree[_u(me)] = degme
+        Pe[_u(me)] = pme1
+        Len[_u(me)] = pme2 - pme1 + 1
+        Elen[_u(me)] = _flip(nvpiv + degme)
         wflg = _clear_flag(wflg, wbig, W, n)
 
         # scan 1: W[e] - wflg = |Le \ Lme| for every element e adjacent to a variable of Lme
         for pme in range(pme1, pme2 + 1):
-            i = Iw[pme]
-            eln = Elen[i]
+            i = Iw[_u(pme)]
+            eln = Elen[_u(i)]
             if eln > 0:
-                nvi = -Nv[i]
+                nvi = -Nv[_u(i)]
                 wnvi = wflg - nvi
-                for p in range(Pe[i], Pe[i] + eln):
-                    e = Iw[p]
-                    we = W[e]
+                for p in range(Pe[_u(i)], Pe[_u(i)] + eln):
+                    e = Iw[_u(p)]
+                    we = W[_u(e)]
                     if we >= wflg:
                         we -= nvi
                     elif we != 0:
-                        we = Degree[e] + wnvi
-                    W[e] = we
+                        we = Degree[_u(e)] + wnvi
+                    W[_u(e)] = we
 
         # scan 2: approximate degrees, element absorption, mass elimination, hash buckets
         for pme in range(pme1, pme2 + 1):
-            i = Iw[pme]
-            p1 = Pe[i]
-            p2 = p1 + Elen[i] - 1
+            i = Iw[_u(pme)]
+            p1 = Pe[_u(i)]
+            p2 = p1 + Elen[_u(i)] - 1
             pn = p1
             hash = 0
             deg = 0
             for p in range(p1, p2 + 1):
-                e = Iw[p]
-                we = W[e]
+                e = Iw[_u(p)]
+                we = W[_u(e)]
                 if we != 0:
                     dext = we - wflg
                     if dext > 0 or not aggressive:
                         deg += dext
-                        Iw[pn] = e
+                        Iw[_u(pn)] = e
                         pn += 1
                         hash += e
                     else:                        # |Le \ Lme| = 0: absorb e into me
-                        Pe[e] = _flip(me)
-                        W[e] = 0
-            Elen[i] = pn - p1 + 1
+                        Pe[_u(e)] = _flip(me)
+                        W[_u(e)] = 0
+            Elen[_u(i)] = pn - p1 + 1
             p3 = pn
-            p4 = p1 + Len[i]
+            p4 = p1 + Len[_u(i)]
             for p in range(p2 + 1, p4):
-                j = Iw[p]
-                nvj = Nv[j]
+                j = Iw[_u(p)]
+                nvj = Nv[_u(j)]
                 if nvj > 0:
                     deg += nvj
-                    Iw[pn] = j
+                    Iw[_u(pn)] = j
                     pn += 1
                     hash += j
-            if Elen[i] == 1 and p3 == pn:        # mass elimination: i only touches me
-                Pe[i] = _flip(me)
-                nvi = -Nv[i]
+            if Elen[_u(i)] == 1 and p3 == pn:        # mass elimination: i only touches me
+                Pe[_u(i)] = _flip(me)
+                nvi = -Nv[_u(i)]
                 degme -= nvi
                 nvpiv += nvi
                 nel += nvi
-                Nv[i] = 0
-                Elen[i] = EMPTY
+                Nv[_u(i)] = 0
+                Elen[_u(i)] = EMPTY
             else:
-                Degree[i] = min(Degree[i], deg)
-                Iw[pn] = Iw[p3]                  # me goes first in i's list
-                Iw[p3] = Iw[p1]
-                Iw[p1] = me
-                Len[i] = pn - p1 + 1
+                Degree[_u(i)] = min(Degree[_u(i)], deg)
+                Iw[_u(pn)] = Iw[_u(p3)]                  # me goes first in i's list
+                Iw[_u(p3)] = Iw[_u(p1)]
+                Iw[_u(p1)] = me
+                Len[_u(i)] = pn - p1 + 1
                 hash = hash % n
-                j = Head[hash]
+                j = Head[_u(hash)]
                 if j <= EMPTY:                   # degree list empty: the bucket's head is FLIP(Head)
-                    Next[i] = _flip(j)
-                    Head[hash] = _flip(i)
+                    Next[_u(i)] = _flip(j)
+                    Head[_u(hash)] = _flip(i)
                 else:                            # else Last[Head[hash]] is the bucket's head
-                    Next[i] = Last[j]
-                    Last[j] = i
-                Last[i] = hash
-        Degree[me] = degme
+                    Next[_u(i)] = Last[_u(j)]
+                    Last[_u(j)] = i
+                Last[_u(i)] = hash
+        Degree[_u(me)] = degme
         lemax = max(lemax, degme)
         wflg += lemax
         wflg = _clear_flag(wflg, wbig, W, n)
 
         # supervariable detection: within each hash bucket, merge variables of identical pattern
         for pme in range(pme1, pme2 + 1):
-            i = Iw[pme]
-            if Nv[i] < 0:
-                hash = Last[i]
-                j = Head[hash]
+            i = Iw[_u(pme)]
+            if Nv[_u(i)] < 0:
+                hash = Last[_u(i)]
+                j = Head[_u(hash)]
                 if j == EMPTY:
                     i = EMPTY
                 elif j < EMPTY:
                     i = _flip(j)
-                    Head[hash] = EMPTY
+                    Head[_u(hash)] = EMPTY
                 else:
-                    i = Last[j]
-                    Last[j] = EMPTY
-                while i != EMPTY and Next[i] != EMPTY:
-                    ln = Len[i]
-                    eln = Elen[i]
-                    for p in range(Pe[i] + 1, Pe[i] + ln):
-                        W[Iw[p]] = wflg
+                    i = Last[_u(j)]
+                    Last[_u(j)] = EMPTY
+                while i != EMPTY and Next[_u(i)] != EMPTY:
+                    ln = Len[_u(i)]
+                    eln = Elen[_u(i)]
+                    for p in range(Pe[_u(i)] + 1, Pe[_u(i)] + ln):
+                        W[Iw[_u(p)]] = wflg
                     jlast = i
-                    j = Next[i]
+                    j = Next[_u(i)]
                     while j != EMPTY:
-                        ok = Len[j] == ln and Elen[j] == eln
-                        p = Pe[j] + 1
-                        while ok and p <= Pe[j] + ln - 1:
-                            if W[Iw[p]] != wflg:
+                        ok = Len[_u(j)] == ln and Elen[_u(j)] == eln
+                        p = Pe[_u(j)] + 1
+                        while ok and p <= Pe[_u(j)] + ln - 1:
+                            if W[Iw[_u(p)]] != wflg:
                                 ok = False
                             p += 1
                         if ok:                   # j is absorbed into i
-                            Pe[j] = _flip(i)
-                            Nv[i] += Nv[j]
-                            Nv[j] = 0
-                            Elen[j] = EMPTY
-                            j = Next[j]
-                            Next[jlast] = j
+                            Pe[_u(j)] = _flip(i)
+                            Nv[_u(i)] += Nv[_u(j)]
+                            Nv[_u(j)] = 0
+                            Elen[_u(j)] = EMPTY
+                            j = Next[_u(j)]
+                            Next[_u(jlast)] = j
                         else:
                             jlast = j
-                            j = Next[j]
+                            j = Next[_u(j)]
                     wflg += 1
-                    i = Next[i]
+                    i = Next[_u(i)]
 
         # restore the degree lists; drop the non-principal variables from Lme
         p = pme1
         nleft = n - nel
         for pme in range(pme1, pme2 + 1):
-            i = Iw[pme]
-            nvi = -Nv[i]
+            i = Iw[_u(pme)]
+            nvi = -Nv[_u(i)]
             if nvi > 0:
-                Nv[i] = nvi
-                deg = min(Degree[i] + degme - nvi, nleft - nvi)
-                inext = Head[deg]
+                Nv[_u(i)] = nvi
+                deg = min(Degree[_u(i)] + degme - nvi, nleft - nvi)
+                inext = Head[_u(deg)]
                 if inext != EMPTY:
-                    Last[inext] = i
-                Next[i] = inext
-                Last[i] = EMPTY
-                Head[deg] = i
+                    Last[_u(inext)] = i
+                Next[_u(i)] = inext
+                Last[_u(i)] = EMPTY
+                Head[_u(deg)] = i
                 mindeg = min(mindeg, deg)
-                Degree[i] = deg
-                Iw[p] = i
+                Degree[_u(i)] = deg
+                Iw[_u(p)] = i
                 p += 1
-        Nv[me] = nvpiv
-        Len[me] = p - pme1
-        if Len[me] == 0:                         # a root of the assembly tree
-            Pe[me] = EMPTY
-            W[me] = 0
+        Nv[_u(me)] = nvpiv
+        Len[_u(me)] = p - pme1
+        if Len[_u(me)] == 0:                         # a root of the assembly tree
+            Pe[_u(me)] = EMPTY
+            W[_u(me)] = 0
         if elenme != 0:
             pfree = p
 
