@@ -60,7 +60,8 @@ The names of the C code are kept (Pe, Iw, Len, Nv, Elen, Degree, W, Head,
 Next, Last, wflg, ...) so that the port can be read against it; EMPTY is -1
 and FLIP(i) = -i - 2 as there.  The subscripts of the minimum degree loop
 are cast to unsigned (``_u``): numba then skips its negative-index test,
-which made the loop 1.5x faster (PRIMAL3's KKT matrix: 13.5 -> 8.5 ms).
+which made the loop 1.5x faster (PRIMAL3's KKT matrix, one run: 13.5 -> 8.5
+ms, where SuiteSparse's C compiled with gcc -O3 took 8.5 ms).
 
 Why this port: qdldl's wheel builds AMD without optimisation (its setup.py
 passes -O3 to the Python wrapper only), so its ordering costs more than its
@@ -76,7 +77,8 @@ factorisation dominates, 16.9 against 12.8), and 0.15-0.4 on the problems
 qdldl does in under 0.1 ms (HS118: 0.04 against 0.10 ms: the Python-side
 checks of the two calls, some 50 microseconds); 214 ms against 128 ms over
 all 78.  The same AMD C source compiled with gcc -O3 orders PRIMAL3 in
-11.9 ms (this port: 12.6 ms; median ratio over the 78, 1.2).
+11.9 ms in that run (this port: 12.6 ms; this port's time over the C's,
+median 1.2 over the 78).
 """
 from __future__ import annotations
 
