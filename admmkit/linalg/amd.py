@@ -82,6 +82,8 @@ median 1.2 over the 78).
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from admmkit.kernels import AVAILABLE, _u, njit
@@ -149,17 +151,21 @@ def _valid(n, Ap, Ai):
     return status
 
 
-@njit(cache=True)
 def _amd_order(n, Ap, Ai, jumbled):
-    """amd_order on a valid pattern: sort (amd_preprocess) if ``jumbled``, count A + A' (amd_aat), allocate,
-    order (amd_1).
+    """amd_order on a valid pattern: sort (amd_preprocess) if ``jumbled``, count A + A' (amd_aat), allocate and
+    build A + A' (amd_1), order (amd_2).
 
-    Returns the permutation and the number of garbage collections of AMD's workspace (Info[AMD_NCMPA])."""
+    Returns the permutation and the number of garbage collections of AMD's workspace (Info[AMD_NCMPA]).  The
+    steps are called from here, not from one kernel: numba optimises a kernel again inside every kernel that
+    calls it, and the nesting tripled the first compilation (about 45 s on a loaded 2-core machine).
+    """
     if jumbled:
         Ap, Ai = _preprocess(n, Ap, Ai)
     Len, nzaat = _aat(n, Ap, Ai)
-    slen = nzaat + nzaat // 5 + 7 * n           # the matrix, elbow room, and the 6 size-n arrays of AMD_1
-    return _amd_1(n, Ap, Ai, Len, slen)
+    iwlen = int(nzaat) + int(nzaat) // 5 + n    # the matrix and elbow room (amd_order's slen less amd_1's 6n)
+    Pe, Iw, pfree = _amd_1(n, Ap, Ai, Len, iwlen)
+    dense = min(n, max(16, int(DENSE * math.sqrt(n))))
+    return _amd_2(n, Pe, Iw, Len, iwlen, pfree, dense, AGGRESSIVE)
 
 
 @njit(cache=True)
@@ -233,9 +239,8 @@ def _aat(n, Ap, Ai):
 
 
 @njit(cache=True)
-def _amd_1(n, Ap, Ai, Len, slen):
-    """amd_1: the adjacency lists of A + A' (Pe, Iw) in AMD's order of construction, then amd_2."""
-    iwlen = slen - 6 * n
+def _amd_1(n, Ap, Ai, Len, iwlen):
+    """amd_1: the adjacency lists of A + A' (Pe, Iw[:pfree]) in AMD's order of construction; returns Pe, Iw, pfree."""
     Pe = np.empty(n, np.int64)
     Sp = np.empty(n, np.int64)
     Tp = np.empty(n, np.int64)
@@ -285,9 +290,7 @@ def _amd_1(n, Ap, Ai, Len, slen):
             Sp[i] += 1
             Iw[Sp[j]] = i
             Sp[j] += 1
-    dense = int(DENSE * np.sqrt(float(n)))
-    dense = min(n, max(16, dense))
-    return _amd_2(n, Pe, Iw, Len, iwlen, pfree, dense, AGGRESSIVE)
+    return Pe, Iw, pfree
 
 
 @njit(cache=True)
