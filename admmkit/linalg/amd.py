@@ -70,15 +70,18 @@ machine under load from other jobs, so +-20%) on the upper-triangle KKT
 matrices [[P + sigma I, A'], [A, -I/rho]] of the 78 Maros-Meszaros problems
 with n + m <= 3000: ``qdldl.Solver(U, upper=True)`` against this module's
 :func:`amd_order` followed by :func:`admmkit.linalg.ldl.ldl_factor` in that
-order (the same permutation and the same factor bits): qdldl's time over ours
-has median 1.2, maximum 3.0 (PRIMAL3: 44.7 ms against 14.9 ms; PRIMAL4,
-n + m = 3053: 28.9 against 13.1; QSCSD6 3.4 against 1.9; CVXQP3_M, where the
-factorisation dominates, 16.9 against 12.8), and 0.15-0.4 on the problems
-qdldl does in under 0.1 ms (HS118: 0.04 against 0.10 ms: the Python-side
-checks of the two calls, some 50 microseconds); 214 ms against 128 ms over
-all 78.  The same AMD C source compiled with gcc -O3 orders PRIMAL3 in
-11.9 ms in that run (this port: 12.6 ms; this port's time over the C's,
-median 1.2 over the 78).
+order (the same permutation and the same factor bits).  qdldl's time over
+ours: median 1.23, maximum 2.87 (PRIMAL3: 46.0 ms against 16.1 ms; also
+PRIMAL4, n + m = 3053: 36.7 against 12.7; QSCSD6 3.2 against 2.0); about 1
+(0.84-1.3 from run to run) where the factorisation dominates (CVXQP3_M:
+11.6 against 13.3 ms in that run; the numeric factorisations alone, in
+another run: qdldl's update 10.5 ms, ldl's 9.6 ms); 0.13-0.4 on the 16 problems qdldl does in under 0.1 ms (HS118:
+0.04 against 0.11 ms: the Python-side checks of the two calls); 208 ms
+against 123 ms over all 78.  The same AMD C source compiled with gcc -O3
+orders PRIMAL3 in 13.4 ms in that run (this port: 12.7 ms; this port's time
+over the C's, median 1.3 over the 78).  The kernels' first compilation, in
+a fresh install, takes about 18 s on that machine (numba's cache keeps them;
+a later process loads them in about 0.02 s each).
 """
 from __future__ import annotations
 
