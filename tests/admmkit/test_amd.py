@@ -140,6 +140,15 @@ def test_permutation_and_factors_are_qdldls_on_random_patterns(case):
     assert np.array_equal(F.d.view(np.uint64), np.asarray(D, np.float64).view(np.uint64))
 
 
+def test_empty_columns_and_no_diagonal_give_qdldls_order():
+    qdldl = qdldl_or_skip()
+    U = random_upper(n=300, degree=3, dense_rows=2, isolated=40, seed=9)
+    strict = sp.triu(U, k=1, format="csc")              # AMD ignores the diagonal: the 40 isolated columns now empty
+    strict.sort_indices()
+    assert (np.diff(strict.indptr) + np.diff(strict.tocsr().indptr) == 0).sum() >= 40
+    assert np.array_equal(amd_order(strict.indptr, strict.indices, 300), qdldl.Solver(U, upper=True).factors()[2])
+
+
 def test_dense_rows_are_ordered_last():
     U = random_upper(n=400, degree=4, dense_rows=3, seed=1)
     S = full(U)
