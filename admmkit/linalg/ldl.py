@@ -224,15 +224,8 @@ def _etree(Up, Ui):
 
 @njit(cache=True)
 def _factor(Up, Ui, Ux, parent, Lp, Li, Lx, d):
-    """Fill (Li, Lx) and d row by row (QDLDL_factor); return -1, or the step of a zero pivot.
-
-    The operations are QDLDL_factor's in its order (the same bits as qdldl's factors for the same order, the
-    rows of each column of A in ascending order): the nonzeros of row k visited as QDLDL does, and L[k, j]
-    = y_j * (1 / d_j) with the reciprocal QDLDL keeps (Dinv), not y_j / d_j.  Duplicate entries of A are
-    summed (QDLDL keeps the last one).
-    """
+    """Fill (Li, Lx) and d row by row (QDLDL's numeric phase); return -1, or the step of a zero pivot."""
     n = d.shape[0]
-    dinv = np.empty(n, np.float64)               # 1 / d, as QDLDL_factor's Dinv
     y = np.zeros(n, np.float64)                  # row k of L D, scattered
     in_row = np.zeros(n, np.bool_)
     pattern = np.empty(n, np.int64)              # the nonzeros of row k, in topological order (from the end)
@@ -257,12 +250,12 @@ def _factor(Up, Ui, Ux, parent, Lp, Li, Lx, d):
                 length -= 1
                 top -= 1
                 pattern[top] = path[length]
-        for t in range(top, n):                  # y_j final once its descendants are done: L[k, j] = y_j (1 / d_j)
+        for t in range(top, n):                  # y_j final once its descendants are done: L[k, j] = y_j / d_j
             j = _u(pattern[t])
             yj = y[j]
             for p in range(_u(Lp[j]), _u(filled[j])):
                 y[_u(Li[p])] -= Lx[p] * yj
-            lkj = yj * dinv[j]
+            lkj = yj / d[j]
             Li[filled[j]] = k
             Lx[filled[j]] = lkj
             filled[j] += 1
@@ -271,5 +264,4 @@ def _factor(Up, Ui, Ux, parent, Lp, Li, Lx, d):
             in_row[j] = False
         if d[k] == 0.0 or not np.isfinite(d[k]):
             return k
-        dinv[k] = 1.0 / d[k]
     return -1
