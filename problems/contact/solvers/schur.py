@@ -58,13 +58,11 @@ import functools
 import time
 
 import numpy as np
-import scipy.linalg as sla
 import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 
 from admmkit.loop.blas import limit_blas
-from admmkit.linalg.ldl import ldl_analyse, ldl_factor
 
+from admmkit.problems.contact.solvers import lapack
 from admmkit.problems.contact.solvers.dissection import (contact_last_order, minimum_degree_ordering,  # noqa: F401
                                                          permute_symmetric)
 
@@ -124,8 +122,7 @@ class _SuperLUSchur:
         self.order = order
         Kp = permute_symmetric(K, order, compiled)
         try:
-            self._lu = spla.splu(Kp, permc_spec="NATURAL", diag_pivot_thresh=0.0,
-                                 options=dict(SymmetricMode=True))
+            self._lu = lapack.splu_natural(Kp)     # splu without importing scipy.sparse.linalg (lapack.py)
         except RuntimeError as err:
             raise np.linalg.LinAlgError(f"K is singular (is the body clamped?): {err}") from None
         t2 = time.perf_counter()
@@ -145,6 +142,7 @@ class _LDLSchur:
     """P K P' = (I + L) D (I + L)' by :func:`admmkit.linalg.ldl.ldl_factor` in the given order (contact dofs last)."""
 
     def __init__(self, K: sp.csc_matrix, order: np.ndarray, m: int, timings: dict, analysis=None, compiled=True):
+        from admmkit.linalg.ldl import ldl_factor
         t1 = time.perf_counter()
         self.order = order
         try:
@@ -169,7 +167,7 @@ class _LDLSchur:
         y = self._factor.forward(fp)
         z = y / self._factor.d
         m = self.L_cc.shape[0]
-        x_c = sla.solve_triangular(self.L_cc, z[-m:], trans="T", lower=True, unit_diagonal=True, check_finite=False)
+        x_c = lapack.solve_triangular(self.L_cc, z[-m:], trans="T", lower=True, unit_diagonal=True)
         return float(y @ z), x_c, y
 
     def solve_load(self, y: np.ndarray, s: float, v: np.ndarray) -> np.ndarray:
@@ -177,7 +175,7 @@ class _LDLSchur:
         (I + L_cc)^{-1} v on the trailing block alone, then one backward substitution."""
         m = v.shape[0]
         w = s * y
-        w[-m:] += sla.solve_triangular(self.L_cc, v, lower=True, unit_diagonal=True, check_finite=False)
+        w[-m:] += lapack.solve_triangular(self.L_cc, v, lower=True, unit_diagonal=True)
         return self._factor.backward(w / self._factor.d)
 
 
@@ -192,6 +190,7 @@ def _ordered_factorisation(K, inner, contact, timings, coordinates, backend, com
     if backend == "auto" and (compiled is not True or K.shape[0] > LDL_MAX_DOFS):
         backend = "superlu"
     elif backend == "auto":   # the elimination tree and L's column counts tell how long the updates run
+        from admmkit.linalg.ldl import ldl_analyse
         analysis = ldl_analyse(K, order)
         backend = "ldl" if analysis.mean_column_length <= LDL_MAX_COLUMN_LENGTH else "superlu"
     timings["ordering"] = time.perf_counter() - t0
@@ -301,5 +300,5 @@ class BoundarySchur:
         factorising S, solving and multiplying took 4.3 n_c^3.
         """
         Bc = sp.csr_matrix(B)[:, self.contact_dofs].toarray()
-        W = sla.solve_triangular(self._impl.R, Bc.T, trans="T", lower=False, check_finite=False)
+        W = lapack.solve_triangular(self._impl.R, Bc.T, trans="T", lower=False)
         return W.T @ W
