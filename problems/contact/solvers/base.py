@@ -16,6 +16,11 @@ from admmkit.problems.contact.model.operators import ContactOperators
 from admmkit.problems.contact.solvers.friction import friction_z_step, stick_slip
 
 
+def constraint_matrix(ops: ContactOperators) -> sp.spmatrix:
+    """A: B frictionless (or stick), [B; T] with friction."""
+    return ops.B if ops.friction is None else sp.vstack([ops.B, ops.T]).tocsr()
+
+
 class _ContactBase(Problem):
     """What all modes share: the z-step, the M_c inner product, diagnostics.
 
@@ -31,11 +36,8 @@ class _ContactBase(Problem):
         self.ops = ops
         self.mc, self.g = ops.mc, ops.g
         self.friction = ops.friction
-        if self.friction is None:
-            self.A, self.w = ops.B, ops.mc
-        else:
-            self.A = sp.vstack([ops.B, ops.T]).tocsr()
-            self.w = np.tile(ops.mc, self.A.shape[0] // ops.n_c)
+        self.A = constraint_matrix(ops)
+        self.w = ops.mc if self.friction is None else np.tile(ops.mc, self.A.shape[0] // ops.n_c)
         self._AAt = None   # A A', built on the first adjoint_norm (only order xz needs it)
 
     def z_step(self, Ax, lam, rho, z):

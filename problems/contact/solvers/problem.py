@@ -193,7 +193,8 @@ class CondensedContact(_ContactBase):
         self.n = self.A.shape[0] + 1
         # "auto", "cholmod", "ldl" or "superlu"; the last two order by nested dissection where the dofs have
         # coordinates; compiled: numba's kernels where they pay ("auto"), always (True: "auto" may take "ldl"), never
-        self.schur = BoundarySchur(ops.K, self.A, backend=backend, coordinates=_coordinates(ops), compiled=compiled)
+        self.schur = BoundarySchur(ops.K, self.A, backend=backend, coordinates=_coordinates(ops), compiled=compiled,
+                                   order=getattr(ops, "condensed_order", None))   # stored by the operator cache
         self.e0, u0_c = self.schur.load(ops.f)     # ||u0||_K^2 = f'K^{-1}f and u0 = K^{-1} f on the contact dofs
         self._A_c = sp.csr_matrix(self.A)[:, self.schur.contact_dofs]
         self.d0 = self._A_c @ u0_c                 # A K^{-1} f (A touches the contact dofs only)

@@ -182,10 +182,12 @@ class _LDLSchur:
 _ORDERED = {"ldl": _LDLSchur, "superlu": _SuperLUSchur}   # the backends that take our order
 
 
-def _ordered_factorisation(K, inner, contact, timings, coordinates, backend, compiled="auto"):
-    """Order the dofs (contact_last_order), pick "ldl" or "superlu" for "auto", factorise."""
+def _ordered_factorisation(K, inner, contact, timings, coordinates, backend, compiled="auto", order=None):
+    """Order the dofs (contact_last_order, unless ``order`` gives it), pick "ldl" or "superlu" for "auto",
+    factorise."""
     t0 = time.perf_counter()
-    order = contact_last_order(K, inner, contact, coordinates, compiled)
+    if order is None:
+        order = contact_last_order(K, inner, contact, coordinates, compiled)
     analysis = None
     if backend == "auto" and (compiled is not True or K.shape[0] > LDL_MAX_DOFS):
         backend = "superlu"
@@ -195,6 +197,42 @@ def _ordered_factorisation(K, inner, contact, timings, coordinates, backend, com
         backend = "ldl" if analysis.mean_column_length <= LDL_MAX_COLUMN_LENGTH else "superlu"
     timings["ordering"] = time.perf_counter() - t0
     return _ORDERED[backend](K, order, contact.size, timings, analysis, compiled), backend
+
+
+def _csc(K: sp.spmatrix) -> sp.csc_matrix:
+    """K in CSC: K is symmetric, so its CSR arrays are those of K' = K in CSC (no copy)."""
+    if getattr(K, "format", None) == "csr":
+        return sp.csc_matrix((K.data, K.indices, K.indptr), shape=K.shape)
+    return sp.csc_matrix(K)
+
+
+def _split_dofs(K: sp.csc_matrix, B: sp.spmatrix) -> tuple[np.ndarray, np.ndarray]:
+    """(contact, inner): the dofs B touches, sorted, and the others."""
+    contact = np.unique(sp.csr_matrix(B).indices)
+    is_inner = np.ones(K.shape[0], dtype=bool)
+    is_inner[contact] = False
+    return contact, np.flatnonzero(is_inner)
+
+
+def _fits(order: np.ndarray, n: int, contact: np.ndarray) -> bool:
+    """Whether ``order`` is an order of n dofs that ends with ``contact``."""
+    order = np.asarray(order)
+    if order.shape != (n,) or order.dtype.kind not in "iu" or not np.array_equal(order[n - contact.size:], contact):
+        return False
+    seen = np.zeros(n, dtype=bool)
+    if order.size and (order.min() < 0 or order.max() >= n):
+        return False
+    seen[order] = True
+    return bool(seen.all())
+
+
+def contact_last(K: sp.spmatrix, B: sp.spmatrix, coordinates: np.ndarray | None = None,
+                 compiled="auto") -> np.ndarray:
+    """The order in which :class:`BoundarySchur` factorises K with ``ldl`` or ``superlu``: the inner dofs by
+    nested dissection (with ``coordinates``) or minimum degree, the dofs B touches last."""
+    K = _csc(K)
+    contact, inner = _split_dofs(K, B)
+    return contact_last_order(K, inner, contact, coordinates, compiled)
 
 
 class BoundarySchur:
@@ -218,10 +256,16 @@ class BoundarySchur:
     same order as without them), True (the kernels, and "auto" may take
     ``ldl``: see the module docstring) or False (no numba unless ``backend``
     is "ldl").
+
+    ``order``: the order :func:`contact_last` gives for these K, B and
+    coordinates, computed before (the operator cache stores it: a warm
+    ``solve contact`` process does not order again); used by ``ldl`` and
+    ``superlu`` when it is a permutation of K's dofs that ends with the dofs
+    B touches, else ignored.
     """
 
     def __init__(self, K: sp.spmatrix, B: sp.spmatrix, backend: str = "auto", blas_threads: int | None = 1,
-                 coordinates: np.ndarray | None = None, compiled="auto"):
+                 coordinates: np.ndarray | None = None, compiled="auto", order: np.ndarray | None = None):
         if backend not in ("auto",) + SCHUR_BACKENDS:
             raise ValueError(f"schur backend must be 'auto' or one of {', '.join(SCHUR_BACKENDS)}, got {backend!r}")
         if compiled not in ("auto", True, False):
@@ -231,12 +275,10 @@ class BoundarySchur:
             backend = "cholmod"
         elif backend != "auto" and backend not in installed:
             raise ValueError(f"schur backend {backend!r} is not installed here (installed: {', '.join(installed)})")
-        # K is symmetric, so its CSR arrays are those of K' = K in CSC: no copy
-        K = sp.csc_matrix((K.data, K.indices, K.indptr), shape=K.shape) if getattr(K, "format", None) == "csr" else sp.csc_matrix(K)
-        self.contact_dofs = np.unique(sp.csr_matrix(B).indices)
-        is_inner = np.ones(K.shape[0], dtype=bool)
-        is_inner[self.contact_dofs] = False
-        inner = np.flatnonzero(is_inner)
+        K = _csc(K)
+        self.contact_dofs, inner = _split_dofs(K, B)
+        if order is not None and not _fits(order, K.shape[0], self.contact_dofs):
+            order = None
         self.timings: dict[str, float] = {}
         try:
             with limit_blas(blas_threads):
@@ -244,7 +286,7 @@ class BoundarySchur:
                     self._impl = _CholmodSchur(K, inner, self.contact_dofs, self.timings)
                 else:
                     self._impl, backend = _ordered_factorisation(K, inner, self.contact_dofs, self.timings,
-                                                                 coordinates, backend, compiled)
+                                                                 coordinates, backend, compiled, order)
         except np.linalg.LinAlgError:
             raise
         except Exception as err:  # CHOLMOD reports a non-positive-definite K as CholmodNotPositiveDefiniteError
