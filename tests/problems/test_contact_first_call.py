@@ -142,3 +142,19 @@ def test_the_plain_library_path_gives_the_same_iterates(example, monkeypatch):
     direct = run(contact_problem(ops, "condensed", backend="superlu"))
     monkeypatch.setattr(lapack, "DIRECT", False)
     same_bits(run(contact_problem(ops, "condensed", backend="superlu")), direct)
+
+
+def test_kkt_and_objective_share_k_u_and_see_a_changed_u():
+    """The result's objective, kkt and kkt_relative compute K u once (base._product), never from a stale u."""
+    ops = assemble(example1(h=1 / 10))
+    problem = contact_problem(ops, "condensed")
+    r = run(problem)
+    u, lam = r.x.copy(), r.lam
+
+    def stationarity(v):
+        return float(np.abs(ops.K @ v - ops.f + problem.A.T @ (problem.w * lam)).max() / np.abs(ops.f).max())
+    assert problem.kkt(u, r.z, lam)["stationarity"] == stationarity(u)
+    assert problem.objective(u, r.z) == float(0.5 * u @ (ops.K @ u) - ops.f @ u)
+    u[0] += 1.0                                            # the same array, changed in place
+    assert problem.kkt(u, r.z, lam)["stationarity"] == stationarity(u)
+    assert problem.objective(u, r.z) == float(0.5 * u @ (ops.K @ u) - ops.f @ u)

@@ -198,7 +198,7 @@ class CondensedContact(_ContactBase):
         self.e0, u0_c = self.schur.load(ops.f)     # ||u0||_K^2 = f'K^{-1}f and u0 = K^{-1} f on the contact dofs
         self._A_c = sp.csr_matrix(self.A)[:, self.schur.contact_dofs]
         self.d0 = self._A_c @ u0_c                 # A K^{-1} f (A touches the contact dofs only)
-        self.C = self.schur.compliance(self.A)     # A K^{-1} A'
+        self.C = self.schur.compliance(self.A, self._A_c)     # A K^{-1} A'
         # the dense m x m factors of M_c^{-1} + rho C, one per rho, as many as fit DENSE_FACTORS_BYTES (at least 2,
         # at most 32; least recently used out): a grown 3D contact boundary does not hold 32 of them
         self.factors = DenseFactors(lambda rho: np.diag(1.0 / self.w) + rho * self.C,

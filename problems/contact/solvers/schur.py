@@ -128,7 +128,7 @@ class _SuperLUSchur:
         t2 = time.perf_counter()
         # no pivoting and K symmetric: L = U' D^{-1} with D = diag(U), so S = L_cc U_cc = U_cc' D_c^{-1} U_cc
         # (reading U alone halves the copy of the factors, which scipy only gives whole)
-        U_cc = sp.csc_matrix(self._lu.U)[:, -m:][-m:, :].toarray()
+        U_cc = trailing_block(self._lu.U, m)
         d = np.diag(U_cc)[:, None]
         self.S = U_cc.T @ (U_cc / d)
         self.R = U_cc / np.sqrt(d)                      # S = R'R, R upper triangular (D > 0: K is SPD)
@@ -136,6 +136,19 @@ class _SuperLUSchur:
 
     def solve_permuted(self, b: np.ndarray) -> np.ndarray:
         return self._lu.solve(b)
+
+
+def trailing_block(U, m: int) -> np.ndarray:
+    """The dense trailing m x m block of a square CSC matrix U, read off its arrays (the same values as
+    ``U[:, -m:][-m:, :].toarray()``, without scipy's two indexing steps)."""
+    n = U.shape[0]
+    start, stop = U.indptr[n - m], U.indptr[n]
+    rows, values = U.indices[start:stop], U.data[start:stop]
+    columns = np.repeat(np.arange(m), np.diff(U.indptr[n - m:]))
+    keep = rows >= n - m
+    block = np.zeros((m, m))
+    block[rows[keep] - (n - m), columns[keep]] = values[keep]
+    return block
 
 
 class _LDLSchur:
@@ -334,13 +347,14 @@ class BoundarySchur:
         rhs[self.contact_dofs] = v
         return s * data + self.solve(rhs)
 
-    def compliance(self, B: sp.spmatrix) -> np.ndarray:
+    def compliance(self, B: sp.spmatrix, B_c: sp.spmatrix | None = None) -> np.ndarray:
         """C = B K^{-1} B' = B_c S^{-1} B_c' = W'W with W = R^{-T} B_c' (dense, n_c x n_c, SPD).
 
         R is S's Cholesky factor, read off the factorisation of K (S = R'R):
         one triangular solve and one symmetric product, 2 n_c^3 flops where
-        factorising S, solving and multiplying took 4.3 n_c^3.
+        factorising S, solving and multiplying took 4.3 n_c^3.  ``B_c``: B's
+        columns of the contact dofs when the caller has them already.
         """
-        Bc = sp.csr_matrix(B)[:, self.contact_dofs].toarray()
+        Bc = (sp.csr_matrix(B)[:, self.contact_dofs] if B_c is None else B_c).toarray()
         W = lapack.solve_triangular(self._impl.R, Bc.T, trans="T", lower=False)
         return W.T @ W
