@@ -4,10 +4,11 @@ The condensed mode needs SuperLU (the factorisation of K in the contact-last
 order, :mod:`admmkit.problems.contact.solvers.schur`) and LAPACK's potrf,
 potrs and trtrs (the dense x-step, the compliance).  Importing
 ``scipy.sparse.linalg`` for them imports ``scipy.linalg`` too, whose import
-parses the docstrings of its functions: together 0.27 s of a warm
-``solve contact`` process's 2.3 s at load 4 on 2 cores, about 0.1 s of 0.68 s
-on a quiet machine (issue #49), for two compiled modules that load in a few
-milliseconds.
+parses the docstrings of its functions: at load 4 on 2 cores ``import numpy,
+scipy.sparse.linalg`` took 1.11 s against 0.84 s for ``import numpy,
+scipy.sparse``, for two compiled modules that load in a few milliseconds.
+Without them a warm ``solve contact`` process took 0.73-0.84 of its time
+before (wall, three runs at load 3-6; issue #49, docs/contact.md).
 
 So the two compiled modules that hold the routines,
 ``scipy.sparse.linalg._dsolve._superlu`` and ``scipy.linalg._flapack``, are
