@@ -158,3 +158,20 @@ def test_kkt_and_objective_share_k_u_and_see_a_changed_u():
     u[0] += 1.0                                            # the same array, changed in place
     assert problem.kkt(u, r.z, lam)["stationarity"] == stationarity(u)
     assert problem.objective(u, r.z) == float(0.5 * u @ (ops.K @ u) - ops.f @ u)
+
+
+def test_a_process_that_loads_the_modules_directly_can_import_scipy_linalg_after():
+    """The direct load first (no scipy.linalg in the process), the library imported after: both work, same bits."""
+    code = ("import sys, numpy as np, scipy.sparse as sp\n"
+            "from admmkit.problems.contact.solvers import lapack\n"
+            "A = (sp.random(30, 30, density=0.2, random_state=2) + 8 * sp.eye(30)).tocsc(); A = (A + A.T).tocsc()\n"
+            "b = np.arange(30.0); M = A.toarray()\n"
+            "x, (c, low) = lapack.splu_natural(A.copy()).solve(b), lapack.cho_factor(M)\n"
+            "direct = 'scipy.linalg' not in sys.modules and 'scipy.sparse.linalg' not in sys.modules\n"
+            "import scipy.linalg as sla, scipy.sparse.linalg as spla\n"
+            "y = spla.splu(A, permc_spec='NATURAL', diag_pivot_thresh=0.0, options=dict(SymmetricMode=True)).solve(b)\n"
+            "print(direct, np.array_equal(x, y), np.array_equal(np.triu(c), np.triu(sla.cho_factor(M)[0])))")
+    done = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=120,
+                          env={**os.environ, "OMP_NUM_THREADS": "1"})
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.split() == ["True", "True", "True"]
