@@ -55,8 +55,8 @@ FORMAT = 1
 #: the modules whose source decides the operators
 SOURCES = tuple(f"admmkit.problems.contact.{name}" for name in (
     "model.assembly", "model.operators", "model.mesh", "model.fastpaths", "model.scene", "model.scene_file",
-    "model.operator_cache", "solvers.friction", "solvers.dissection", "solvers.schur")) + ("admmkit.problems.expressions", "admmkit.problems.fe",
-                                                    "admmkit.linalg.submatrix")
+    "model.operator_cache", "solvers.friction", "solvers.dissection", "solvers.schur")) + (
+    "admmkit.problems.expressions", "admmkit.problems.fe", "admmkit.linalg.submatrix")
 #: the sparse matrices stored as their CSR arrays, and the dense arrays (None fields are left out)
 MATRICES = ("K", "B", "T")
 ARRAYS = ("f", "mc", "g", "xc", "normals", "free", "tangents", "coordinates", "vertices", "condensed_order")
@@ -275,7 +275,8 @@ class StoredOperators(ContactOperators):
         return self._space
 
 
-def cached_operators(scene, scene_file, *, use_cache: bool = True, report=None, mode: str = "auto") -> ContactOperators:
+def cached_operators(scene, scene_file, *, use_cache: bool = True, report=None,
+                     mode: str = "auto") -> ContactOperators:
     """The operators of ``scene`` (read from ``scene_file``): from the cache when it holds a valid entry, else
     assembled (and stored when the scene is cacheable and the cache is on).
 

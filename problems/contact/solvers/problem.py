@@ -37,10 +37,8 @@ Two modes give the same iterates (to round-off):
 """
 from __future__ import annotations
 
-from collections import deque
-
 import math
-from collections import OrderedDict
+from collections import OrderedDict, deque
 
 import numpy as np
 import scipy.sparse as sp
