@@ -22,8 +22,11 @@ report their own phases (import, read, solve), from ``time.perf_counter``.
   empty operator cache (``ADMMKIT_CACHE_DIR`` an empty folder: NGSolve
   imported, the scene assembled and stored) and with the entry the warm-up
   stored (read back, no NGSolve; problems/contact/model/operator_cache.py);
-- ``import numpy, scipy.sparse.linalg, scipy.linalg``: the floor of the warm
-  contact process (the factorisation needs SuperLU).
+- ``import numpy, scipy.sparse.linalg, scipy.linalg``: issue #49's floor of the
+  warm contact process, which imported them for SuperLU and LAPACK until
+  28 November; ``import numpy, scipy.sparse``: its floor since, SuperLU and
+  LAPACK being called from their compiled modules without those two imports
+  (problems/contact/solvers/lapack.py).
 
 The children run with Python's bytecode cache on (``PYTHONDONTWRITEBYTECODE``
 removed from their environment), as an installed package has it: the warm-up
@@ -78,6 +81,8 @@ CHILD = {
                   "import json; print(json.dumps({'import': t1 - t0, 'solve': t2 - t1, 'status': p.status}))",
     "floor_imports": "import time; t = time.perf_counter(); import numpy, scipy.sparse.linalg, scipy.linalg; "
                      "import json; print(json.dumps({'import': time.perf_counter() - t}))",
+    "sparse_imports": "import time; t = time.perf_counter(); import numpy, scipy.sparse; "
+                      "import json; print(json.dumps({'import': time.perf_counter() - t}))",
 }
 #: the rows of the table: (label, admmkit child, OSQP child or None)
 ROWS = [("import", "admmkit_import", "osqp_import"),
@@ -87,7 +92,8 @@ ROWS = [("import", "admmkit_import", "osqp_import"),
         ("admmkit --help", "admmkit_help", None),
         ("solve contact --scene ex1 --h 1/40, empty operator cache", "admmkit_contact_cold", None),
         ("solve contact --scene ex1 --h 1/40, operator cache warm", "admmkit_contact", None),
-        ("import numpy, scipy.sparse.linalg, scipy.linalg", "floor_imports", None)]
+        ("import numpy, scipy.sparse.linalg, scipy.linalg", "floor_imports", None),
+        ("import numpy, scipy.sparse", "sparse_imports", None)]
 
 
 def command(name: str, hs21: Path) -> list[str]:

@@ -195,7 +195,8 @@ def run(args) -> int:
         from admmkit.problems.contact.solvers.estimate import balanced_residual_stop
         model, stop, gamma_arg = *balanced_residual_stop(scene, gamma), None
     else:
-        model, stop, gamma_arg = _operators(args, scene), (None if gamma else stop), gamma
+        mode = "condensed" if gamma else args.mode
+        model, stop, gamma_arg = _operators(args, scene, mode), (None if gamma else stop), gamma
     with progress(args, args.max_iter) as show:
         sol = solve_scene(model, name, args.rho, mode="condensed" if gamma else args.mode,
                           stop=stop, max_iter=args.max_iter, order=order, callback=show, balance=gamma_arg)
@@ -235,17 +236,18 @@ def run(args) -> int:
     return exit_code(r) if sol.converged else 1   # with Coulomb friction: the outer fixed point too
 
 
-def _operators(args, scene):
+def _operators(args, scene, mode: str):
     """The scene's operators through the operator cache (model/operator_cache.py): read back without NGSolve when
     a run before stored them, else assembled (and stored); a 3D scene, or ``--no-cache``, as it is (assembled by
-    solve_scene). The memory check of an explicit mode comes first, as solve_scene does it for a scene."""
+    solve_scene). The memory check of an explicit mode comes first, as solve_scene does it for a scene. ``mode``:
+    the one solve_scene is given (with the condensed one, the entry also holds the set-up's order)."""
     from admmkit.problems.contact.model.operator_cache import cacheable, cached_operators
     from admmkit.problems.contact.model.memory import check_memory
     if args.no_cache or not cacheable(scene):
         return scene
     if args.mode in ("full", "condensed", "iterative"):
         check_memory(scene, args.mode)
-    return cached_operators(scene, scene_file(str(args.scene)))
+    return cached_operators(scene, scene_file(str(args.scene)), mode=mode)
 
 
 def register_demo(commands) -> None:

@@ -257,3 +257,15 @@ def test_fired_at_the_iteration_count(argv, capsys):
     fired = int(out.split("fired at iteration ")[1].split()[0].rstrip(",)"))
     count = int(next(line for line in out.splitlines() if line.startswith("iterations")).split()[1])
     assert fired == count
+
+
+def test_a_fraction_is_the_float_fractions_gives():
+    """--h 1/40 divides two integers without importing fractions (issue #49): the same float, the same errors."""
+    import argparse
+    from fractions import Fraction
+    from admmkit.cli.options import positive_float
+    for text in ("1/40", "1/3", "7/200", "+1/7", " 1/40", "10000000000000000000001/3", "1_0/3"):
+        assert positive_float(text) == float(Fraction(text)), text
+    for text in ("1/0", "1 / 40", "/3", "1/", "--1/3", "1/-3", "-1/3", "1e3/7", "2/3e0", "0.1/3"):
+        with pytest.raises(argparse.ArgumentTypeError):
+            positive_float(text)

@@ -62,6 +62,40 @@ def test_a_warm_entry_gives_the_assemblys_arrays_and_iterates_bit_for_bit(cache)
         assert np.array_equal(bits(u), bits(v))
 
 
+@pytest.mark.parametrize("name", ["ex1.toml", "ex1_tresca.toml"])
+def test_a_warm_entry_holds_the_condensed_order_and_the_set_up_does_not_order_again(cache, monkeypatch, name):
+    """Fails before: every warm process ordered the dofs again (nested dissection, issue #49)."""
+    from admmkit.problems.contact.solvers import schur
+    path = SCENES_DIR / name
+    scene = load_scene(path, h=1 / 10)
+    cold = oc.cached_operators(scene, path)
+    assert cold.condensed_order is not None
+    cold.condensed_order = None                                      # ordered here, as without the cache
+    plain = run(contact_problem(cold, mode="condensed"))
+    warm = oc.cached_operators(scene, path)
+    assert isinstance(warm, oc.StoredOperators) and warm.condensed_order is not None
+
+    def no_ordering(*args, **kwargs):
+        raise AssertionError("the warm set-up ordered again")
+    monkeypatch.setattr(schur, "contact_last_order", no_ordering)
+    problem = contact_problem(warm, mode="condensed")
+    assert np.array_equal(problem.schur.order, warm.condensed_order)
+    result = run(problem)
+    assert result.iterations == plain.iterations
+    for u, v in ((result.x, plain.x), (result.z, plain.z), (result.lam, plain.lam)):
+        assert np.array_equal(bits(u), bits(v))
+    # an order that does not end with the contact dofs is ignored, never used
+    warm.condensed_order = warm.condensed_order[::-1].copy()
+    monkeypatch.undo()
+    assert not np.array_equal(contact_problem(warm, mode="condensed").schur.order, warm.condensed_order)
+
+
+def test_no_order_is_stored_for_a_full_mode_solve(cache):
+    scene = load_scene(EX1, h=1 / 10)
+    oc.cached_operators(scene, EX1, mode="full")
+    assert oc.cached_operators(scene, EX1).condensed_order is None
+
+
 def test_a_warm_process_imports_no_ngsolve_and_prints_what_a_cold_one_prints(tmp_path):
     """Fails before the cache: every process imported NGSolve to assemble."""
     code = ("import contextlib, io, sys, json, admmkit.cli\n"

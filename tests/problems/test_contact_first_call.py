@@ -77,3 +77,101 @@ def test_compiled_is_checked_in_every_mode():
     for mode in ("full", "condensed", "auto"):
         with pytest.raises(ValueError, match="compiled must be 'auto', True or False, got 'yes'"):
             contact_problem(ops, mode, compiled="yes")
+
+
+#: what a warm ``solve contact`` process (operators from the cache) no longer imports (issue #49)
+NOT_WARM = ("scipy.linalg", "scipy.sparse.linalg", "admmkit.linalg.linsolve", "admmkit.blocks.xstep", "fractions",
+            "admmkit.problems.contact.model.scene3d", "ngsolve", "numba")
+
+
+def test_a_warm_process_imports_no_scipy_linalg(tmp_path):
+    """Fails before: SuperLU came from scipy.sparse.linalg and LAPACK from scipy.linalg (0.1 s of 0.68 s)."""
+    code = ("import contextlib, io, sys, json, admmkit.cli\n"
+            "out = io.StringIO()\n"
+            "with contextlib.redirect_stdout(out):\n"
+            "    code = admmkit.cli.main(['solve', 'contact', '--scene', 'ex1', '--h', '1/10', '-q'])\n"
+            f"print(json.dumps({{'code': code, 'loaded': [m for m in {list(NOT_WARM)!r} if m in sys.modules]}}))")
+    env = {**os.environ, "OMP_NUM_THREADS": "1", "ADMMKIT_CACHE_DIR": str(tmp_path)}
+    env.pop("ADMMKIT_NO_CACHE", None)
+    runs = []
+    for _ in range(2):                                   # the first assembles and stores, the second reads back
+        done = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=300,
+                              env=env)
+        assert done.returncode == 0, done.stderr
+        runs.append(json.loads(done.stdout.strip().splitlines()[-1]))
+    assert runs[0]["code"] == 0 and "ngsolve" in runs[0]["loaded"]
+    assert runs[1] == {"code": 0, "loaded": []}
+
+
+def test_the_direct_routines_give_the_librarys_bits():
+    """lapack.py's SuperLU and LAPACK calls against scipy.sparse.linalg.splu, cho_factor, dpotrs, solve_triangular."""
+    import scipy.linalg as sla
+    import scipy.sparse as sp
+    import scipy.sparse.linalg as spla
+    from admmkit.problems.contact.solvers import lapack
+    rng = np.random.default_rng(0)
+    A = sp.random(60, 60, density=0.1, random_state=1, format="csc")
+    A = (A + A.T + 10 * sp.eye(60)).tocsc()
+    b = rng.standard_normal(60)
+    lu, ref = lapack.splu_natural(A.copy()), spla.splu(A, permc_spec="NATURAL", diag_pivot_thresh=0.0,
+                                                       options=dict(SymmetricMode=True))
+    assert np.array_equal(lu.solve(b), ref.solve(b)) and (lu.U != ref.U).nnz == 0 and (lu.L != ref.L).nnz == 0
+    M = A.toarray()
+    c, lower = lapack.cho_factor(M)
+    c_ref, lower_ref = sla.cho_factor(M)
+    assert lower == lower_ref and np.array_equal(np.triu(c), np.triu(c_ref))
+    assert np.array_equal(lapack.cho_solve(c, lower, b), sla.lapack.dpotrs(c_ref, b, lower=lower_ref)[0])
+    R = np.triu(c)
+    for a in (R, np.asfortranarray(R), R.T):
+        for trans in ("N", "T"):
+            for rhs in (b, rng.standard_normal((60, 3)), rng.standard_normal((3, 60)).T):
+                lo = a is R.T
+                assert np.array_equal(lapack.solve_triangular(a, rhs, trans=trans, lower=lo),
+                                      sla.solve_triangular(a, rhs, trans=trans, lower=lo, check_finite=False))
+    with pytest.raises(np.linalg.LinAlgError, match="not positive definite"):
+        lapack.cho_factor(-M)
+    with pytest.raises(ValueError):
+        lapack.cho_factor(np.full((2, 2), np.nan))
+
+
+@pytest.mark.parametrize("example", [example1, example2])
+def test_the_plain_library_path_gives_the_same_iterates(example, monkeypatch):
+    """lapack.DIRECT = False (scipy.linalg and scipy.sparse.linalg as usual): the same bits."""
+    from admmkit.problems.contact.solvers import lapack
+    ops = assemble(example(h=1 / 20))
+    direct = run(contact_problem(ops, "condensed", backend="superlu"))
+    monkeypatch.setattr(lapack, "DIRECT", False)
+    same_bits(run(contact_problem(ops, "condensed", backend="superlu")), direct)
+
+
+def test_kkt_and_objective_share_k_u_and_see_a_changed_u():
+    """The result's objective, kkt and kkt_relative compute K u once (base._product), never from a stale u."""
+    ops = assemble(example1(h=1 / 10))
+    problem = contact_problem(ops, "condensed")
+    r = run(problem)
+    u, lam = r.x.copy(), r.lam
+
+    def stationarity(v):
+        return float(np.abs(ops.K @ v - ops.f + problem.A.T @ (problem.w * lam)).max() / np.abs(ops.f).max())
+    assert problem.kkt(u, r.z, lam)["stationarity"] == stationarity(u)
+    assert problem.objective(u, r.z) == float(0.5 * u @ (ops.K @ u) - ops.f @ u)
+    u[0] += 1.0                                            # the same array, changed in place
+    assert problem.kkt(u, r.z, lam)["stationarity"] == stationarity(u)
+    assert problem.objective(u, r.z) == float(0.5 * u @ (ops.K @ u) - ops.f @ u)
+
+
+def test_a_process_that_loads_the_modules_directly_can_import_scipy_linalg_after():
+    """The direct load first (no scipy.linalg in the process), the library imported after: both work, same bits."""
+    code = ("import sys, numpy as np, scipy.sparse as sp\n"
+            "from admmkit.problems.contact.solvers import lapack\n"
+            "A = (sp.random(30, 30, density=0.2, random_state=2) + 8 * sp.eye(30)).tocsc(); A = (A + A.T).tocsc()\n"
+            "b = np.arange(30.0); M = A.toarray()\n"
+            "x, (c, low) = lapack.splu_natural(A.copy()).solve(b), lapack.cho_factor(M)\n"
+            "direct = 'scipy.linalg' not in sys.modules and 'scipy.sparse.linalg' not in sys.modules\n"
+            "import scipy.linalg as sla, scipy.sparse.linalg as spla\n"
+            "y = spla.splu(A, permc_spec='NATURAL', diag_pivot_thresh=0.0, options=dict(SymmetricMode=True)).solve(b)\n"
+            "print(direct, np.array_equal(x, y), np.array_equal(np.triu(c), np.triu(sla.cho_factor(M)[0])))")
+    done = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=120,
+                          env={**os.environ, "OMP_NUM_THREADS": "1"})
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.split() == ["True", "True", "True"]

@@ -156,3 +156,11 @@ def test_load_and_solve_load_match_solves_with_K(ops, backend):
     rhs[schur.contact_dofs] += v
     u_ref = sp.linalg.spsolve(sp.csc_matrix(ops.K), rhs)
     assert np.linalg.norm(schur.solve_load(-0.5, v) - u_ref) <= 1e-10 * np.linalg.norm(u_ref)
+
+
+def test_trailing_block_reads_scipys_slices():
+    import scipy.sparse as sp
+    from admmkit.problems.contact.solvers.schur import trailing_block
+    U = sp.random(40, 40, density=0.2, random_state=3, format="csc") + sp.eye(40, format="csc")
+    for m in (1, 7, 40):
+        assert np.array_equal(trailing_block(sp.csc_array(U), m), U[:, -m:][-m:, :].toarray())

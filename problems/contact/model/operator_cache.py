@@ -55,11 +55,11 @@ FORMAT = 1
 #: the modules whose source decides the operators
 SOURCES = tuple(f"admmkit.problems.contact.{name}" for name in (
     "model.assembly", "model.operators", "model.mesh", "model.fastpaths", "model.scene", "model.scene_file",
-    "model.operator_cache", "solvers.friction")) + ("admmkit.problems.expressions", "admmkit.problems.fe",
-                                                    "admmkit.linalg.submatrix")
+    "model.operator_cache", "solvers.friction", "solvers.dissection", "solvers.schur")) + (
+    "admmkit.problems.expressions", "admmkit.problems.fe", "admmkit.linalg.submatrix")
 #: the sparse matrices stored as their CSR arrays, and the dense arrays (None fields are left out)
 MATRICES = ("K", "B", "T")
-ARRAYS = ("f", "mc", "g", "xc", "normals", "free", "tangents", "coordinates", "vertices")
+ARRAYS = ("f", "mc", "g", "xc", "normals", "free", "tangents", "coordinates", "vertices", "condensed_order")
 #: the environment variables of the cache
 CACHE_DIR_ENV, NO_CACHE_ENV = "ADMMKIT_CACHE_DIR", "ADMMKIT_NO_CACHE"
 
@@ -163,6 +163,7 @@ def _to_arrays(ops: ContactOperators) -> dict[str, np.ndarray]:
     mesh = ops.mesh
     values = {"f": ops.f, "mc": ops.mc, "g": ops.g, "xc": ops.xc, "normals": ops.normals, "free": ops.free,
               "tangents": ops.tangents, "coordinates": coordinates,
+              "condensed_order": getattr(ops, "condensed_order", None),
               "vertices": np.asarray(mesh.ngmesh.Coordinates(), dtype=float)}
     out |= {name: np.asarray(v) for name, v in values.items() if v is not None}
     out["counts"] = np.array([mesh.dim, mesh.ne, mesh.nv, ops.fes.ndof], dtype=np.int64)
@@ -217,6 +218,7 @@ class StoredOperators(ContactOperators):
         for name in ("f", "mc", "g", "xc", "normals", "free"):
             setattr(self, name, arrays[name])
         self.tangents = arrays.get("tangents")
+        self.condensed_order = arrays.get("condensed_order")    # the condensed set-up's order (None: not stored)
         self.scene = scene
         self.friction = friction_of(scene, self.xc)
         self._coordinates = arrays.get("coordinates")
@@ -273,9 +275,14 @@ class StoredOperators(ContactOperators):
         return self._space
 
 
-def cached_operators(scene, scene_file, *, use_cache: bool = True, report=None) -> ContactOperators:
+def cached_operators(scene, scene_file, *, use_cache: bool = True, report=None,
+                     mode: str = "auto") -> ContactOperators:
     """The operators of ``scene`` (read from ``scene_file``): from the cache when it holds a valid entry, else
     assembled (and stored when the scene is cacheable and the cache is on).
+
+    When the solve's ``mode`` (as given to ``solve_scene``) will be the condensed one with SuperLU, the entry
+    also holds the condensed set-up's order of the dofs (``condensed_order``, :func:`condensed_order`): a
+    process that reads the entry back factorises in it without ordering again (the same order, so the same bits).
 
     ``use_cache=False`` or ``ADMMKIT_NO_CACHE=1``: assembled, nothing read or written.  ``report(text)`` receives
     the notes (default: printed to stderr): an entry rebuilt, a folder that could not be written.
@@ -291,6 +298,7 @@ def cached_operators(scene, scene_file, *, use_cache: bool = True, report=None) 
         except ValueError as err:
             report(f"operator cache entry {path} {err}: assembled again and rewritten")
     ops = _assemble(scene)
+    ops.condensed_order = condensed_order(ops, mode)
     try:
         store(path, key, ops)
     except OSError as err:
@@ -302,3 +310,16 @@ def _assemble(scene) -> ContactOperators:
     """The assembly (NGSolve imported here)."""
     from admmkit.problems.contact.model.assembly import assemble
     return assemble(scene)
+
+
+def condensed_order(ops: ContactOperators, mode: str = "auto") -> np.ndarray | None:
+    """The order the condensed set-up factorises K in (:func:`admmkit.problems.contact.solvers.schur.contact_last`)
+    when a solve in ``mode`` runs the condensed mode with SuperLU (or ``ldl``), else None (CHOLMOD orders itself)."""
+    from admmkit.problems.contact.solvers.base import constraint_matrix
+    from admmkit.problems.contact.solvers.problem import _coordinates, auto_mode
+    from admmkit.problems.contact.solvers.schur import available_schur_backends, contact_last
+    if mode not in ("auto", "condensed") or available_schur_backends()[0] == "cholmod":
+        return None
+    if mode == "auto" and auto_mode(ops) != "condensed":
+        return None
+    return contact_last(ops.K, constraint_matrix(ops), _coordinates(ops))

@@ -224,6 +224,14 @@ def _geometry_labels(geometry) -> list[str]:
                      "accepted: None (rectangle), netgen.occ.OCCGeometry, netgen.geom2d.SplineGeometry")
 
 
+def is_scene3d(scene) -> bool:
+    """Whether ``scene`` is a 3D ``Scene3D`` (problems/contact/model/scene3d.py), asked without importing its
+    module: a Scene3D exists only once that module is imported, which a 2D run does not do (issue #49)."""
+    import sys
+    scene3d = sys.modules.get("admmkit.problems.contact.model.scene3d")
+    return scene3d is not None and isinstance(scene, scene3d.Scene3D)
+
+
 # ---------------------------------------------------------------- the paper's examples
 def example1(h: float = 1 / 40, **changes) -> Scene:
     """Paper's Example 1: (0,2)x(0,1), clamped at x=0, top traction (0,-10), g = 0.01,

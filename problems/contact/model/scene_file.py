@@ -10,7 +10,6 @@ from pathlib import Path
 
 from admmkit.problems.contact.solvers.friction import TANGENTIAL
 from admmkit.problems.contact.model.scene import SCENES_DIR, Scene
-from admmkit.problems.contact.model.scene3d import Scene3D
 from admmkit.problems.scene_toml import scene_table
 
 
@@ -89,6 +88,7 @@ def load_scene(path, **changes):
     data.pop("dim", None)
     try:
         if dim == 3:
+            from admmkit.problems.contact.model.scene3d import Scene3D     # imported for a 3D scene only
             data["tractions"] = {k: tuple(v) for k, v in data.get("tractions", {}).items()} or Scene3D().tractions
             return Scene3D(**(data | changes))
         return Scene(**(data | changes))

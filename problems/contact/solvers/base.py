@@ -16,6 +16,11 @@ from admmkit.problems.contact.model.operators import ContactOperators
 from admmkit.problems.contact.solvers.friction import friction_z_step, stick_slip
 
 
+def constraint_matrix(ops: ContactOperators) -> sp.spmatrix:
+    """A: B frictionless (or stick), [B; T] with friction."""
+    return ops.B if ops.friction is None else sp.vstack([ops.B, ops.T]).tocsr()
+
+
 class _ContactBase(Problem):
     """What all modes share: the z-step, the M_c inner product, diagnostics.
 
@@ -31,11 +36,8 @@ class _ContactBase(Problem):
         self.ops = ops
         self.mc, self.g = ops.mc, ops.g
         self.friction = ops.friction
-        if self.friction is None:
-            self.A, self.w = ops.B, ops.mc
-        else:
-            self.A = sp.vstack([ops.B, ops.T]).tocsr()
-            self.w = np.tile(ops.mc, self.A.shape[0] // ops.n_c)
+        self.A = constraint_matrix(ops)
+        self.w = ops.mc if self.friction is None else np.tile(ops.mc, self.A.shape[0] // ops.n_c)
         self._AAt = None   # A A', built on the first adjoint_norm (only order xz needs it)
 
     def z_step(self, Ax, lam, rho, z):
@@ -55,9 +57,21 @@ class _ContactBase(Problem):
         v = self.w * y
         return float(np.sqrt(max(v @ (self._AAt @ v), 0.0)))
 
+    def _product(self, name: str, M, v: np.ndarray) -> np.ndarray:
+        """M @ v, kept per ``name`` for the last v (its bytes compared): the objective, kkt and kkt_relative of
+        one result ask for K u and A'M lam at the same u and lam, one sparse product each instead of three."""
+        held = self.__dict__.setdefault("_products", {})
+        last = held.get(name)
+        if last is not None and last[0].dtype == v.dtype and last[0].shape == v.shape \
+                and last[0].tobytes() == v.tobytes():
+            return last[1]
+        product = M @ v
+        held[name] = (np.array(v, copy=True), product)
+        return product
+
     def objective(self, u, z):
         """J(u) = 1/2 u'Ku - f'u, plus the Tresca term sum_i mc_i s_i |u_t,i - w_i| with friction."""
-        J = float(0.5 * u @ (self.ops.K @ u) - self.ops.f @ u)
+        J = float(0.5 * u @ self._product("Ku", self.ops.K, u) - self.ops.f @ u)
         if self.friction is not None:
             J += float(self.mc @ (self.friction.s * np.linalg.norm(self.slip(u), axis=0)))
         return J
@@ -82,7 +96,7 @@ class _ContactBase(Problem):
         ops, n_c = self.ops, self.ops.n_c
         un = ops.B @ u
         lam_n = lam[:n_c]
-        stat = ops.K @ u - ops.f + self.A.T @ (self.w * lam)
+        stat = self._product("Ku", ops.K, u) - ops.f + self._product("A'M lam", self.A.T, self.w * lam)
         out = {
             "stationarity": float(np.abs(stat).max() / max(np.abs(ops.f).max(), 1e-300)),
             "penetration": float(np.maximum(un - self.g, 0.0).max(initial=0.0)),
@@ -115,7 +129,7 @@ class _ContactBase(Problem):
         ops, n_c = self.ops, self.ops.n_c
         inf = lambda v: float(np.abs(v).max(initial=0.0))  # noqa: E731
         un, lam_n = ops.B @ u, lam[:n_c]
-        Ku, Alam = ops.K @ u, self.A.T @ (self.w * lam)
+        Ku, Alam = self._product("Ku", ops.K, u), self._product("A'M lam", self.A.T, self.w * lam)
         u_scale = max(inf(self.g), inf(un), 1e-300)
         lam_scale = max(inf(lam_n), 1e-300)
         out = {

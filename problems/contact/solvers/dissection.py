@@ -37,7 +37,6 @@ from __future__ import annotations
 
 import numpy as np
 import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 
 from admmkit.kernels import AVAILABLE, compiled_now, njit
 
@@ -119,6 +118,7 @@ def minimum_degree_ordering(A: sp.spmatrix) -> np.ndarray:
     the factorisation in either order took 15-17 ms.  Returns ``order`` with
     ``A[order][:, order]`` the reordered matrix.
     """
+    import scipy.sparse.linalg as spla    # here only: the nested dissection path imports no scipy.linalg (lapack.py)
     ilu = spla.spilu(sp.csc_matrix(A), drop_tol=1.0, fill_factor=1.0, permc_spec="MMD_AT_PLUS_A",
                      diag_pivot_thresh=0.0, options=dict(SymmetricMode=True))
     return np.argsort(ilu.perm_c)   # perm_c[j] is the new position of column j

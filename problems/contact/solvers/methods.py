@@ -15,7 +15,7 @@ from admmkit.problems.contact.model.operators import ContactOperators
 from admmkit.problems.contact.solvers.coulomb import CoulombReport, coulomb_fixed_point, warm_z0
 from admmkit.problems.contact.model.memory import check_memory
 from admmkit.problems.contact.solvers.problem import contact_problem
-from admmkit.problems.contact.model.scene import Scene
+from admmkit.problems.contact.model.scene import Scene, is_scene3d
 
 
 @dataclass
@@ -112,13 +112,12 @@ def solve_scene(scene, method_name: str = "sadmm", rho: float = 1e3, *,
     """
     import time
 
-    from admmkit.problems.contact.model.scene3d import Scene3D
     default_order, policy = method(method_name)
     if isinstance(scene, Scene) and mode in ("full", "condensed", "iterative"):
         check_memory(scene, mode)
     if isinstance(scene, ContactOperators):
         ops = scene
-    elif isinstance(scene, Scene3D):
+    elif is_scene3d(scene):
         from admmkit.problems.contact.model.assembly3d import assemble3d
         ops = assemble3d(scene)
     else:

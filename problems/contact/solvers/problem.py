@@ -37,18 +37,14 @@ Two modes give the same iterates (to round-off):
 """
 from __future__ import annotations
 
-from collections import deque
+import math
+from collections import OrderedDict, deque
 
 import numpy as np
-import scipy.linalg as sla
 import scipy.sparse as sp
-from scipy.linalg.lapack import dpotrs
-
-from admmkit.linalg.linsolve import CachedFactorization
-from admmkit.blocks.operators import LinearMap
-from admmkit.blocks.xstep import QuadraticXStep
 
 from admmkit.problems.contact.model.operators import ContactOperators
+from admmkit.problems.contact.solvers import lapack
 from admmkit.problems.contact.solvers.base import _ContactBase
 from admmkit.problems.contact.solvers.schur import SCHUR_BACKENDS, BoundarySchur
 
@@ -69,18 +65,68 @@ class DenseCholesky:
     """The Cholesky factor of a dense SPD matrix (LAPACK's potrf), solved by LAPACK's potrs directly.
 
     cho_solve's checks cost 0.25 ms at n_c = 600 and its wrapper ~40 us at n_c = 80 (a third of an
-    iteration); the loop checks the iterates for non-finite values anyway.
+    iteration); the loop checks the iterates for non-finite values anyway.  Both routines are scipy's,
+    called without importing scipy.linalg (:mod:`admmkit.problems.contact.solvers.lapack`).
     """
 
     __slots__ = ("factor", "lower")
     ldl = refactor = None        # what admmkit.linalg.linsolve.CachedFactorization asks of a solve
 
     def __init__(self, matrix: np.ndarray):
-        self.factor, self.lower = sla.cho_factor(matrix)
+        self.factor, self.lower = lapack.cho_factor(matrix)
 
     def __call__(self, rhs: np.ndarray) -> np.ndarray:
         """The solution of matrix @ x = rhs."""
-        return dpotrs(self.factor, rhs, lower=self.lower)[0]
+        return lapack.cho_solve(self.factor, self.lower, rhs)
+
+
+class DenseFactors:
+    """The dense Cholesky factors of matrix(rho), one per rho, the least recently used dropped beyond
+    ``max_cached``: :class:`admmkit.linalg.linsolve.CachedFactorization`'s bookkeeping for a dense factor.
+
+    Kept here because importing admmkit.linalg.linsolve imports scipy.sparse.linalg and with it scipy.linalg,
+    about 0.1 s of a fresh ``solve contact`` process on a quiet machine (issue #49), which the condensed mode
+    does not otherwise need.  ``factorizations`` and ``solves`` count the work done.
+    """
+
+    def __init__(self, matrix, max_cached: int = 32):
+        self.matrix = matrix
+        self.max_cached = max_cached
+        self.factorizations = 0
+        self.solves = 0
+        self._cache: OrderedDict[float, DenseCholesky] = OrderedDict()
+
+    def __len__(self) -> int:
+        """Number of factors currently held."""
+        return len(self._cache)
+
+    def __contains__(self, rho) -> bool:
+        """Whether the factor for this rho is currently held."""
+        return float(rho) in self._cache
+
+    def _factor(self, rho: float) -> DenseCholesky:
+        """The held factor of matrix(rho), factorised first if it is not held."""
+        key = float(rho)
+        if not (math.isfinite(key) and key > 0):
+            raise ValueError(f"rho must be a finite number > 0, got {rho!r}")
+        if key in self._cache:
+            self._cache.move_to_end(key)
+        else:
+            self._cache[key] = DenseCholesky(self.matrix(key))
+            self.factorizations += 1
+            if len(self._cache) > self.max_cached:
+                self._cache.popitem(last=False)
+        return self._cache[key]
+
+    def prepare(self, rho: float) -> None:
+        """Factorise matrix(rho) now unless it is held (a change of rho)."""
+        self._factor(rho)
+
+    def solve(self, rho: float, rhs: np.ndarray) -> np.ndarray:
+        """Solve ``matrix(rho) @ x = rhs``, factorising matrix(rho) if it is not held."""
+        x = self._factor(rho)(rhs)
+        self.solves += 1
+        return x
 
 
 #: the memory the condensed mode's dense factors of M_c^{-1} + rho C may hold together (bytes)
@@ -103,6 +149,8 @@ class FullContact(_ContactBase):
     mode = "full"
 
     def __init__(self, ops: ContactOperators, backend: str = "auto"):
+        from admmkit.blocks.operators import LinearMap        # with scipy.sparse.linalg: imported for this mode only
+        from admmkit.blocks.xstep import QuadraticXStep
         super().__init__(ops)
         self.n = ops.n_free
         # f(u) = 1/2 u'Ku - f'u, A = B (or [B; T]) in the boundary mass: one factorisation of K + rho A'MA per rho
@@ -143,15 +191,16 @@ class CondensedContact(_ContactBase):
         self.n = self.A.shape[0] + 1
         # "auto", "cholmod", "ldl" or "superlu"; the last two order by nested dissection where the dofs have
         # coordinates; compiled: numba's kernels where they pay ("auto"), always (True: "auto" may take "ldl"), never
-        self.schur = BoundarySchur(ops.K, self.A, backend=backend, coordinates=_coordinates(ops), compiled=compiled)
+        self.schur = BoundarySchur(ops.K, self.A, backend=backend, coordinates=_coordinates(ops), compiled=compiled,
+                                   order=getattr(ops, "condensed_order", None))   # stored by the operator cache
         self.e0, u0_c = self.schur.load(ops.f)     # ||u0||_K^2 = f'K^{-1}f and u0 = K^{-1} f on the contact dofs
         self._A_c = sp.csr_matrix(self.A)[:, self.schur.contact_dofs]
         self.d0 = self._A_c @ u0_c                 # A K^{-1} f (A touches the contact dofs only)
-        self.C = self.schur.compliance(self.A)     # A K^{-1} A'
+        self.C = self.schur.compliance(self.A, self._A_c)     # A K^{-1} A'
         # the dense m x m factors of M_c^{-1} + rho C, one per rho, as many as fit DENSE_FACTORS_BYTES (at least 2,
         # at most 32; least recently used out): a grown 3D contact boundary does not hold 32 of them
-        self.factors = CachedFactorization(lambda rho: np.diag(1.0 / self.w) + rho * self.C, factor=DenseCholesky,
-                                           max_cached=dense_factors_held(self.C.shape[0]))
+        self.factors = DenseFactors(lambda rho: np.diag(1.0 / self.w) + rho * self.C,
+                                    max_cached=dense_factors_held(self.C.shape[0]))
         self._recent_Cw: deque = deque(maxlen=2)  # (x, C w) of the last x-steps: one C-matvec per iteration
 
     def update_rho(self, rho):
@@ -314,11 +363,10 @@ def auto_mode(ops: ContactOperators, backend: str = "auto") -> str:
 def _direct_would_not_fit(ops: ContactOperators, mode: str) -> bool:
     """Whether the memory estimate of a direct mode exceeds the available memory."""
     from admmkit.problems.contact.model.memory import available_memory, memory_need, memory_need3d
-    from admmkit.problems.contact.model.scene import Scene
-    from admmkit.problems.contact.model.scene3d import Scene3D
+    from admmkit.problems.contact.model.scene import Scene, is_scene3d
     if isinstance(ops.scene, Scene):
         need = memory_need(ops.scene, mode)
-    elif isinstance(ops.scene, Scene3D):
+    elif is_scene3d(ops.scene):
         need = memory_need3d(ops.scene, mode)
     else:
         return False

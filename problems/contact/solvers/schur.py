@@ -58,13 +58,11 @@ import functools
 import time
 
 import numpy as np
-import scipy.linalg as sla
 import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 
 from admmkit.loop.blas import limit_blas
-from admmkit.linalg.ldl import ldl_analyse, ldl_factor
 
+from admmkit.problems.contact.solvers import lapack
 from admmkit.problems.contact.solvers.dissection import (contact_last_order, minimum_degree_ordering,  # noqa: F401
                                                          permute_symmetric)
 
@@ -124,14 +122,13 @@ class _SuperLUSchur:
         self.order = order
         Kp = permute_symmetric(K, order, compiled)
         try:
-            self._lu = spla.splu(Kp, permc_spec="NATURAL", diag_pivot_thresh=0.0,
-                                 options=dict(SymmetricMode=True))
+            self._lu = lapack.splu_natural(Kp)     # splu without importing scipy.sparse.linalg (lapack.py)
         except RuntimeError as err:
             raise np.linalg.LinAlgError(f"K is singular (is the body clamped?): {err}") from None
         t2 = time.perf_counter()
         # no pivoting and K symmetric: L = U' D^{-1} with D = diag(U), so S = L_cc U_cc = U_cc' D_c^{-1} U_cc
         # (reading U alone halves the copy of the factors, which scipy only gives whole)
-        U_cc = sp.csc_matrix(self._lu.U)[:, -m:][-m:, :].toarray()
+        U_cc = trailing_block(self._lu.U, m)
         d = np.diag(U_cc)[:, None]
         self.S = U_cc.T @ (U_cc / d)
         self.R = U_cc / np.sqrt(d)                      # S = R'R, R upper triangular (D > 0: K is SPD)
@@ -141,10 +138,24 @@ class _SuperLUSchur:
         return self._lu.solve(b)
 
 
+def trailing_block(U, m: int) -> np.ndarray:
+    """The dense trailing m x m block of a square CSC matrix U, read off its arrays (the same values as
+    ``U[:, -m:][-m:, :].toarray()``, without scipy's two indexing steps)."""
+    n = U.shape[0]
+    start, stop = U.indptr[n - m], U.indptr[n]
+    rows, values = U.indices[start:stop], U.data[start:stop]
+    columns = np.repeat(np.arange(m), np.diff(U.indptr[n - m:]))
+    keep = rows >= n - m
+    block = np.zeros((m, m))
+    block[rows[keep] - (n - m), columns[keep]] = values[keep]
+    return block
+
+
 class _LDLSchur:
     """P K P' = (I + L) D (I + L)' by :func:`admmkit.linalg.ldl.ldl_factor` in the given order (contact dofs last)."""
 
     def __init__(self, K: sp.csc_matrix, order: np.ndarray, m: int, timings: dict, analysis=None, compiled=True):
+        from admmkit.linalg.ldl import ldl_factor
         t1 = time.perf_counter()
         self.order = order
         try:
@@ -169,7 +180,7 @@ class _LDLSchur:
         y = self._factor.forward(fp)
         z = y / self._factor.d
         m = self.L_cc.shape[0]
-        x_c = sla.solve_triangular(self.L_cc, z[-m:], trans="T", lower=True, unit_diagonal=True, check_finite=False)
+        x_c = lapack.solve_triangular(self.L_cc, z[-m:], trans="T", lower=True, unit_diagonal=True)
         return float(y @ z), x_c, y
 
     def solve_load(self, y: np.ndarray, s: float, v: np.ndarray) -> np.ndarray:
@@ -177,25 +188,64 @@ class _LDLSchur:
         (I + L_cc)^{-1} v on the trailing block alone, then one backward substitution."""
         m = v.shape[0]
         w = s * y
-        w[-m:] += sla.solve_triangular(self.L_cc, v, lower=True, unit_diagonal=True, check_finite=False)
+        w[-m:] += lapack.solve_triangular(self.L_cc, v, lower=True, unit_diagonal=True)
         return self._factor.backward(w / self._factor.d)
 
 
 _ORDERED = {"ldl": _LDLSchur, "superlu": _SuperLUSchur}   # the backends that take our order
 
 
-def _ordered_factorisation(K, inner, contact, timings, coordinates, backend, compiled="auto"):
-    """Order the dofs (contact_last_order), pick "ldl" or "superlu" for "auto", factorise."""
+def _ordered_factorisation(K, inner, contact, timings, coordinates, backend, compiled="auto", order=None):
+    """Order the dofs (contact_last_order, unless ``order`` gives it), pick "ldl" or "superlu" for "auto",
+    factorise."""
     t0 = time.perf_counter()
-    order = contact_last_order(K, inner, contact, coordinates, compiled)
+    if order is None:
+        order = contact_last_order(K, inner, contact, coordinates, compiled)
     analysis = None
     if backend == "auto" and (compiled is not True or K.shape[0] > LDL_MAX_DOFS):
         backend = "superlu"
     elif backend == "auto":   # the elimination tree and L's column counts tell how long the updates run
+        from admmkit.linalg.ldl import ldl_analyse
         analysis = ldl_analyse(K, order)
         backend = "ldl" if analysis.mean_column_length <= LDL_MAX_COLUMN_LENGTH else "superlu"
     timings["ordering"] = time.perf_counter() - t0
     return _ORDERED[backend](K, order, contact.size, timings, analysis, compiled), backend
+
+
+def _csc(K: sp.spmatrix) -> sp.csc_matrix:
+    """K in CSC: K is symmetric, so its CSR arrays are those of K' = K in CSC (no copy)."""
+    if getattr(K, "format", None) == "csr":
+        return sp.csc_matrix((K.data, K.indices, K.indptr), shape=K.shape)
+    return sp.csc_matrix(K)
+
+
+def _split_dofs(K: sp.csc_matrix, B: sp.spmatrix) -> tuple[np.ndarray, np.ndarray]:
+    """(contact, inner): the dofs B touches, sorted, and the others."""
+    contact = np.unique(sp.csr_matrix(B).indices)
+    is_inner = np.ones(K.shape[0], dtype=bool)
+    is_inner[contact] = False
+    return contact, np.flatnonzero(is_inner)
+
+
+def _fits(order: np.ndarray, n: int, contact: np.ndarray) -> bool:
+    """Whether ``order`` is an order of n dofs that ends with ``contact``."""
+    order = np.asarray(order)
+    if order.shape != (n,) or order.dtype.kind not in "iu" or not np.array_equal(order[n - contact.size:], contact):
+        return False
+    seen = np.zeros(n, dtype=bool)
+    if order.size and (order.min() < 0 or order.max() >= n):
+        return False
+    seen[order] = True
+    return bool(seen.all())
+
+
+def contact_last(K: sp.spmatrix, B: sp.spmatrix, coordinates: np.ndarray | None = None,
+                 compiled="auto") -> np.ndarray:
+    """The order in which :class:`BoundarySchur` factorises K with ``ldl`` or ``superlu``: the inner dofs by
+    nested dissection (with ``coordinates``) or minimum degree, the dofs B touches last."""
+    K = _csc(K)
+    contact, inner = _split_dofs(K, B)
+    return contact_last_order(K, inner, contact, coordinates, compiled)
 
 
 class BoundarySchur:
@@ -219,10 +269,16 @@ class BoundarySchur:
     same order as without them), True (the kernels, and "auto" may take
     ``ldl``: see the module docstring) or False (no numba unless ``backend``
     is "ldl").
+
+    ``order``: the order :func:`contact_last` gives for these K, B and
+    coordinates, computed before (the operator cache stores it: a warm
+    ``solve contact`` process does not order again); used by ``ldl`` and
+    ``superlu`` when it is a permutation of K's dofs that ends with the dofs
+    B touches, else ignored.
     """
 
     def __init__(self, K: sp.spmatrix, B: sp.spmatrix, backend: str = "auto", blas_threads: int | None = 1,
-                 coordinates: np.ndarray | None = None, compiled="auto"):
+                 coordinates: np.ndarray | None = None, compiled="auto", order: np.ndarray | None = None):
         if backend not in ("auto",) + SCHUR_BACKENDS:
             raise ValueError(f"schur backend must be 'auto' or one of {', '.join(SCHUR_BACKENDS)}, got {backend!r}")
         if compiled not in ("auto", True, False):
@@ -232,12 +288,10 @@ class BoundarySchur:
             backend = "cholmod"
         elif backend != "auto" and backend not in installed:
             raise ValueError(f"schur backend {backend!r} is not installed here (installed: {', '.join(installed)})")
-        # K is symmetric, so its CSR arrays are those of K' = K in CSC: no copy
-        K = sp.csc_matrix((K.data, K.indices, K.indptr), shape=K.shape) if getattr(K, "format", None) == "csr" else sp.csc_matrix(K)
-        self.contact_dofs = np.unique(sp.csr_matrix(B).indices)
-        is_inner = np.ones(K.shape[0], dtype=bool)
-        is_inner[self.contact_dofs] = False
-        inner = np.flatnonzero(is_inner)
+        K = _csc(K)
+        self.contact_dofs, inner = _split_dofs(K, B)
+        if order is not None and not _fits(order, K.shape[0], self.contact_dofs):
+            order = None
         self.timings: dict[str, float] = {}
         try:
             with limit_blas(blas_threads):
@@ -245,7 +299,7 @@ class BoundarySchur:
                     self._impl = _CholmodSchur(K, inner, self.contact_dofs, self.timings)
                 else:
                     self._impl, backend = _ordered_factorisation(K, inner, self.contact_dofs, self.timings,
-                                                                 coordinates, backend, compiled)
+                                                                 coordinates, backend, compiled, order)
         except np.linalg.LinAlgError:
             raise
         except Exception as err:  # CHOLMOD reports a non-positive-definite K as CholmodNotPositiveDefiniteError
@@ -293,13 +347,14 @@ class BoundarySchur:
         rhs[self.contact_dofs] = v
         return s * data + self.solve(rhs)
 
-    def compliance(self, B: sp.spmatrix) -> np.ndarray:
+    def compliance(self, B: sp.spmatrix, B_c: sp.spmatrix | None = None) -> np.ndarray:
         """C = B K^{-1} B' = B_c S^{-1} B_c' = W'W with W = R^{-T} B_c' (dense, n_c x n_c, SPD).
 
         R is S's Cholesky factor, read off the factorisation of K (S = R'R):
         one triangular solve and one symmetric product, 2 n_c^3 flops where
-        factorising S, solving and multiplying took 4.3 n_c^3.
+        factorising S, solving and multiplying took 4.3 n_c^3.  ``B_c``: B's
+        columns of the contact dofs when the caller has them already.
         """
-        Bc = sp.csr_matrix(B)[:, self.contact_dofs].toarray()
-        W = sla.solve_triangular(self._impl.R, Bc.T, trans="T", lower=False, check_finite=False)
+        Bc = (sp.csr_matrix(B)[:, self.contact_dofs] if B_c is None else B_c).toarray()
+        W = lapack.solve_triangular(self._impl.R, Bc.T, trans="T", lower=False)
         return W.T @ W
