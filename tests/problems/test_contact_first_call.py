@@ -175,3 +175,29 @@ def test_a_process_that_loads_the_modules_directly_can_import_scipy_linalg_after
                           env={**os.environ, "OMP_NUM_THREADS": "1"})
     assert done.returncode == 0, done.stderr
     assert done.stdout.split() == ["True", "True", "True"]
+
+
+def test_a_scipy_whose_private_routines_differ_falls_back_to_the_library(monkeypatch):
+    """A direct routine that does not take the arguments (another scipy version: here a stand-in that raises
+    TypeError) turns DIRECT off; the call and later ones give the library's result."""
+    import scipy.sparse as sp
+    import scipy.sparse.linalg as spla
+    from admmkit.problems.contact.solvers import lapack
+
+    class Changed:
+        def __getattr__(self, name):
+            def routine(*args, **kwargs):
+                raise TypeError(f"{name}() got an unexpected keyword argument")
+            return routine
+    monkeypatch.setattr(lapack, "DIRECT", True)
+    monkeypatch.setattr(lapack, "_extension", lambda package, name: Changed() if lapack.DIRECT else None)
+    A = (sp.random(30, 30, density=0.2, random_state=2, format="csc") + 10 * sp.eye(30)).tocsc()
+    A = (A + A.T).tocsc()
+    b = np.arange(30.0)
+    lu = lapack.splu_natural(A.copy())
+    assert lapack.DIRECT is False
+    ref = spla.splu(A, permc_spec="NATURAL", diag_pivot_thresh=0.0, options=dict(SymmetricMode=True))
+    assert np.array_equal(lu.solve(b), ref.solve(b))
+    monkeypatch.setattr(lapack, "DIRECT", True)
+    c, lower = lapack.cho_factor(A.toarray())
+    assert lapack.DIRECT is False and np.allclose(np.triu(c).T @ np.triu(c), A.toarray())

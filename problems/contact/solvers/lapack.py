@@ -22,7 +22,10 @@ package is imported already, its own module is used.
 ``DIRECT = False``, a scipy whose files are laid out otherwise, or an input
 these shortcuts do not cover (not float64, empty, indices beyond 32 bits)
 take the library functions: the plain path, compared with this one bit for bit
-in tests/problems/test_contact_first_call.py.
+in tests/problems/test_contact_first_call.py.  The routines and their arguments
+are scipy's private ones: where a direct call does not take them (TypeError or
+AttributeError: a scipy that changed them), ``DIRECT`` turns False and that
+call and every later one take the library functions.
 """
 from __future__ import annotations
 
@@ -64,6 +67,13 @@ def _extension(package: str, name: str):
     return _loaded[full]
 
 
+def _library_from_now_on() -> None:
+    """A direct call did not take scipy's private arguments: the library functions from now on."""
+    global DIRECT
+    DIRECT = False
+    _loaded.clear()
+
+
 def _flapack():
     """scipy.linalg._flapack (None: use scipy.linalg)."""
     return _extension("scipy.linalg", "_flapack")
@@ -81,9 +91,13 @@ def splu_natural(A: sp.csc_matrix):
         return spla.splu(A, permc_spec="NATURAL", diag_pivot_thresh=0.0, options=dict(SymmetricMode=True))
     A.sum_duplicates()                                   # as splu does (a no-op on a canonical matrix)
     options = dict(DiagPivotThresh=0.0, ColPerm="NATURAL", PanelSize=None, Relax=None, SymmetricMode=True)
-    return superlu.gstrf(A.shape[0], A.nnz, A.data, A.indices.astype(np.intc, copy=False),
-                         A.indptr.astype(np.intc, copy=False), csc_construct_func=sp.csc_array, ilu=False,
-                         options=options)
+    try:
+        return superlu.gstrf(A.shape[0], A.nnz, A.data, A.indices.astype(np.intc, copy=False),
+                             A.indptr.astype(np.intc, copy=False), csc_construct_func=sp.csc_array, ilu=False,
+                             options=options)
+    except (TypeError, AttributeError):
+        _library_from_now_on()
+        return splu_natural(A)
 
 
 def cho_factor(a: np.ndarray) -> tuple[np.ndarray, bool]:
@@ -96,7 +110,11 @@ def cho_factor(a: np.ndarray) -> tuple[np.ndarray, bool]:
         import scipy.linalg as sla
         return sla.cho_factor(a)
     # cho_factor overwrites a only when it made a1 a copy of it, never for a float64 array
-    c, info = lapack.dpotrf(a1, lower=False, overwrite_a=False, clean=False)
+    try:
+        c, info = lapack.dpotrf(a1, lower=False, overwrite_a=False, clean=False)
+    except (TypeError, AttributeError):
+        _library_from_now_on()
+        return cho_factor(a)
     if info > 0:
         raise np.linalg.LinAlgError(f"{info}-th leading minor of the array is not positive definite")
     if info < 0:
@@ -110,7 +128,11 @@ def cho_solve(c: np.ndarray, lower: bool, rhs: np.ndarray) -> np.ndarray:
     if lapack is None:
         from scipy.linalg.lapack import dpotrs
         return dpotrs(c, rhs, lower=lower)[0]
-    return lapack.dpotrs(c, rhs, lower=lower)[0]
+    try:
+        return lapack.dpotrs(c, rhs, lower=lower)[0]
+    except (TypeError, AttributeError):
+        _library_from_now_on()
+        return cho_solve(c, lower, rhs)
 
 
 def solve_triangular(a: np.ndarray, b: np.ndarray, trans: int | str = 0, lower: bool = False,
@@ -124,11 +146,15 @@ def solve_triangular(a: np.ndarray, b: np.ndarray, trans: int | str = 0, lower: 
             or a1.ndim != 2 or a1.shape[0] != a1.shape[1] or a1.shape[0] != b1.shape[0] or b1.size == 0):
         import scipy.linalg as sla
         return sla.solve_triangular(a, b, trans=trans, lower=lower, unit_diagonal=unit_diagonal, check_finite=False)
-    if a1.flags.f_contiguous:
-        x, info = lapack.dtrtrs(a1, b1, overwrite_b=False, lower=lower, trans=trans, unitdiag=unit_diagonal)
-    else:   # the transposed system, as solve_triangular does: trtrs expects Fortran order
-        x, info = lapack.dtrtrs(a1.T, b1, overwrite_b=False, lower=not lower, trans=not trans,
-                                unitdiag=unit_diagonal)
+    try:
+        if a1.flags.f_contiguous:
+            x, info = lapack.dtrtrs(a1, b1, overwrite_b=False, lower=lower, trans=trans, unitdiag=unit_diagonal)
+        else:   # the transposed system, as solve_triangular does: trtrs expects Fortran order
+            x, info = lapack.dtrtrs(a1.T, b1, overwrite_b=False, lower=not lower, trans=not trans,
+                                    unitdiag=unit_diagonal)
+    except (TypeError, AttributeError):
+        _library_from_now_on()
+        return solve_triangular(a, b, trans, lower, unit_diagonal)
     if info > 0:
         raise np.linalg.LinAlgError(f"singular matrix: resolution failed at diagonal {info - 1}")
     if info < 0:
