@@ -70,7 +70,9 @@ machine under load from other jobs, so +-20%) on the upper-triangle KKT
 matrices [[P + sigma I, A'], [A, -I/rho]] of the 78 Maros-Meszaros problems
 with n + m <= 3000: ``qdldl.Solver(U, upper=True)`` against this module's
 :func:`amd_order` followed by :func:`admmkit.linalg.ldl.ldl_factor` in that
-order (the same permutation and the same factor bits).  qdldl's time over
+order (the same permutation; ldl_factor divides by D where qdldl multiplies by
+1 / D, so its factor differs in the last bits; the QP's held KKT factor,
+``admmkit.problems.qp.kkt_factor``, redoes qdldl's own phases and its bits).  qdldl's time over
 ours: median 1.23, maximum 2.87 (PRIMAL3: 46.0 ms against 16.1 ms; also
 PRIMAL4, n + m = 3053: 36.7 against 12.7; QSCSD6 3.2 against 2.0); about 1
 (0.84-1.3 from run to run) where the factorisation dominates (CVXQP3_M:

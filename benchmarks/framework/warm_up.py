@@ -10,7 +10,8 @@ line per group of kernels and the time it took:
   KKT matrix, the segment, the residuals, the infeasibility certificates, the
   symmetry test, the KKT and neutral residuals of the result);
 - the building blocks' segment (:class:`admmkit.SplitProblem`, a LASSO);
-- the sparse LDL' factorisation (:mod:`admmkit.linalg.ldl`).
+- the sparse LDL' factorisation (:mod:`admmkit.linalg.ldl`) and AMD's ordering
+  (:mod:`admmkit.linalg.amd`).
 
 The kernels are those every route uses: the QP's matrices have int32
 indices whatever route they come by (docs/qp.md, "First call").  Not
@@ -55,18 +56,20 @@ def split_kernels() -> None:
 
 
 def ldl_kernels() -> None:
-    """The sparse LDL' factorisation and its solve (:mod:`admmkit.linalg.ldl`)."""
+    """The sparse LDL' factorisation and its solve (:mod:`admmkit.linalg.ldl`), and AMD's ordering
+    (:mod:`admmkit.linalg.amd`: about 18 s to compile)."""
     import scipy.sparse as sp
 
+    from admmkit.linalg.amd import amd_order
     from admmkit.linalg.ldl import ldl_factor
     A = sp.diags([-np.ones(29), 4 * np.ones(30), -np.ones(29)], [-1, 0, 1], format="csc")
-    ldl_factor(A).solve(np.ones(30))
+    ldl_factor(A, amd_order(A.indptr, A.indices, 30)).solve(np.ones(30))
 
 
 #: (name, what it runs), in the order they are warmed
 GROUPS = (("QP plug-in (solve_qp, the cvxpy and qpsolvers routes)", qp_kernels),
           ("building blocks (SplitProblem's compiled segment)", split_kernels),
-          ("sparse LDL' (admmkit.linalg.ldl)", ldl_kernels))
+          ("sparse LDL' and AMD's ordering (admmkit.linalg.ldl, admmkit.linalg.amd)", ldl_kernels))
 
 
 def kernels_ready() -> int:

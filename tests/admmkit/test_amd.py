@@ -1,5 +1,5 @@
-"""admmkit.linalg.amd (a port of SuiteSparse AMD) gives qdldl's own permutation, and the compiled LDL
-(admmkit.linalg.ldl) in that order gives qdldl's factors bit for bit.
+"""admmkit.linalg.amd (a port of SuiteSparse AMD) gives qdldl's own permutation, and qdldl's phases as kernels
+(admmkit.linalg.ldl.qdldl_symbolic, qdldl_numeric) in that order give qdldl's factors bit for bit.
 
 The Maros-Meszaros tests skip when ../shared/data/maros_meszaros is absent; the comparisons skip without qdldl.
 """
@@ -11,7 +11,7 @@ import pytest
 import scipy.sparse as sp
 
 from admmkit.linalg.amd import _amd_order, amd_order
-from admmkit.linalg.ldl import ldl_factor
+from admmkit.linalg.ldl import ldl_factor, qdldl_numeric, qdldl_symbolic
 
 MM = Path(__file__).resolve().parents[3] / "shared" / "data" / "maros_meszaros"
 needs_mm = pytest.mark.skipif(not MM.is_dir(), reason=f"Maros-Meszaros data not found at {MM}")
@@ -39,6 +39,21 @@ def full(U):
     K = sp.csc_matrix(U + sp.triu(U, k=1).T)
     K.sort_indices()
     return K
+
+
+def qdldl_factor(U, perm):
+    """(Lp, Li, Lx, D) of the upper triangle U in the order perm, by qdldl's phases as kernels."""
+    Kp, Ki = U.indptr.astype(np.int64), U.indices.astype(np.int64)
+    Cp, Ci, to_C, parent, Lp = qdldl_symbolic(Kp, Ki, np.asarray(perm, np.int64))
+    Cx = np.zeros(Ci.shape[0])
+    Cx[to_C[to_C >= 0]] = U.data[to_C >= 0]
+    n = U.shape[0]
+    Li, Lx = np.empty(Lp[-1], np.int64), np.empty(Lp[-1])
+    D, Dinv, y = np.empty(n), np.empty(n), np.empty(n)
+    marked = np.zeros(n, np.bool_)
+    scratch = [np.empty(n, np.int64) for _ in range(3)]
+    assert qdldl_numeric(Cp, Ci, Cx, parent, Lp, Li, Lx, D, Dinv, y, marked, *scratch) == -1
+    return Lp, Li, Lx, D
 
 
 @pytest.fixture(scope="module")
@@ -76,11 +91,12 @@ def test_ldl_in_qdldls_order_is_qdldls_factor_bit_for_bit(maros_meszaros):
     differ = []
     for name, U in maros_meszaros:
         L, D, perm = qdldl.Solver(U, upper=True).factors()
-        F = ldl_factor(full(U), amd_order(U.indptr, U.indices, U.shape[0]))
+        order = amd_order(U.indptr, U.indices, U.shape[0])
+        Lp, Li, Lx, d = qdldl_factor(U, order)
         L = sp.csc_matrix(L)
-        same = (np.array_equal(F.order, perm) and np.array_equal(F.Lp, L.indptr) and np.array_equal(F.Li, L.indices)
-                and np.array_equal(F.Lx.view(np.uint64), np.asarray(L.data, np.float64).view(np.uint64))
-                and np.array_equal(F.d.view(np.uint64), np.asarray(D, np.float64).view(np.uint64)))
+        same = (np.array_equal(order, perm) and np.array_equal(Lp, L.indptr) and np.array_equal(Li, L.indices)
+                and np.array_equal(Lx.view(np.uint64), np.asarray(L.data, np.float64).view(np.uint64))
+                and np.array_equal(d.view(np.uint64), np.asarray(D, np.float64).view(np.uint64)))
         if not same:
             differ.append(name)
     assert differ == []
@@ -134,10 +150,10 @@ def test_permutation_and_factors_are_qdldls_on_random_patterns(case):
     perm = amd_order(U.indptr, U.indices, U.shape[0])
     assert np.array_equal(np.sort(perm), np.arange(U.shape[0]))
     assert np.array_equal(perm, qdldl.Solver(U, upper=True).factors()[2])
-    F = ldl_factor(full(U), perm)
+    Lp, Li, Lx, d = qdldl_factor(U, perm)
     L, D, _ = qdldl.Solver(U, upper=True).factors()
-    assert np.array_equal(F.Lx.view(np.uint64), np.asarray(L.data, np.float64).view(np.uint64))
-    assert np.array_equal(F.d.view(np.uint64), np.asarray(D, np.float64).view(np.uint64))
+    assert np.array_equal(Lx.view(np.uint64), np.asarray(L.data, np.float64).view(np.uint64))
+    assert np.array_equal(d.view(np.uint64), np.asarray(D, np.float64).view(np.uint64))
 
 
 def test_empty_columns_and_no_diagonal_give_qdldls_order():
