@@ -141,3 +141,22 @@ def test_a_solve_keeps_one_history_row_per_iteration():
     assert res.counters["compiled_iterations"] > 1
     assert len(res.history) == res.iterations and np.array_equal(res.history["k"], np.arange(res.iterations))
     assert res.history.complete_rows()[-1] == res.iterations - 1          # the last row complete
+
+
+@pytest.mark.parametrize("kind", ("dense", "diagonal", "nonfinite", "asymmetric", "empty"))
+def test_p_facts_in_one_call_are_numpys(kind):
+    from admmkit.problems.qp.sparse_kernels import p_checks
+    from admmkit.problems.qp.validate import _canonical, _symmetry_defect
+    rng = np.random.default_rng(5)
+    B = rng.standard_normal((6, 6))
+    P = {"dense": B + B.T, "diagonal": np.diag(rng.standard_normal(6)), "nonfinite": B + B.T,
+         "asymmetric": B, "empty": np.zeros((6, 6))}[kind]
+    if kind == "nonfinite":
+        P[2, 3] = np.inf
+    M = _canonical(sp.csc_matrix(P))
+    with compiled_code(True):
+        finite, defect, scale, diagonal = p_checks(M.indptr, M.indices, M.data)
+    assert finite == bool(np.all(np.isfinite(M.data)))
+    if finite:
+        assert (defect, scale) == _symmetry_defect(M)
+        assert diagonal == bool(np.all(M.indices == np.repeat(np.arange(6), np.diff(M.indptr))))
