@@ -337,7 +337,8 @@ def _etree_of(Up, Ui):
 def qdldl_numeric(Cp, Ci, Cx, parent, Lp, Li, Lx, D, Dinv, y, marked, pattern, path, next_slot):
     """QDLDL_factor on the permuted upper triangle (Cp, Ci, Cx): L (Li, Lx in Lp's columns), D and 1 / D, with
     qdldl's operations in its order; ``y``, ``marked``, ``pattern``, ``path``, ``next_slot`` are scratch of
-    length n.  Returns -1, or the step whose pivot is zero (then the factor is not usable)."""
+    length n.  Returns -1, or the step whose pivot is zero (then the factor is not usable).  Indices are read
+    as unsigned (``_u``: no negative-index test; the arithmetic is unchanged)."""
     n = D.shape[0]
     for i in range(n):
         marked[i] = False
@@ -350,8 +351,8 @@ def qdldl_numeric(Cp, Ci, Cx, parent, Lp, Li, Lx, D, Dinv, y, marked, pattern, p
     Dinv[0] = 1.0 / D[0]
     for k in range(1, n):
         count = 0
-        for p in range(Cp[k], Cp[k + 1]):
-            b = Ci[p]
+        for p in range(_u(Cp[k]), _u(Cp[k + 1])):
+            b = _u(Ci[p])
             if b == k:
                 D[k] = Cx[p]
                 continue
@@ -362,21 +363,21 @@ def qdldl_numeric(Cp, Ci, Cx, parent, Lp, Li, Lx, D, Dinv, y, marked, pattern, p
                 length = 1
                 node = parent[b]
                 while node != -1 and node < k:
-                    if marked[node]:
+                    if marked[_u(node)]:
                         break
-                    marked[node] = True
-                    path[length] = node
+                    marked[_u(node)] = True
+                    path[_u(length)] = node
                     length += 1
-                    node = parent[node]
+                    node = parent[_u(node)]
                 while length > 0:
                     length -= 1
-                    pattern[count] = path[length]
+                    pattern[_u(count)] = path[_u(length)]
                     count += 1
         for t in range(count - 1, -1, -1):
-            j = pattern[t]
-            end = next_slot[j]
+            j = _u(pattern[_u(t)])
+            end = _u(next_slot[j])
             yj = y[j]
-            for p in range(_u(Lp[j]), _u(end)):
+            for p in range(_u(Lp[j]), end):
                 y[_u(Li[p])] -= Lx[p] * yj
             Li[end] = k
             Lx[end] = yj * Dinv[j]
