@@ -273,7 +273,7 @@ def _factor(Up, Ui, Ux, parent, Lp, Li, Lx, d):
 # the matrix's upper triangle in qdldl's order (AMD's, read once from ``factors()``): the symbolic phase once,
 # the numeric one at each new rho, with the operations of QDLDL_factor in its order (the permuted matrix
 # built as qdldl's ``symperm`` builds it, L = y / D as y * (1 / D)), so the factor is qdldl's bit for bit
-# (tests/admmkit/test_ldl.py compares them on the Maros-Meszaros KKT matrices).
+# (tests/problems/test_qp_kkt_factor.py compares them on generated and Maros-Meszaros KKT matrices).
 
 
 @kernel(cache=True)
