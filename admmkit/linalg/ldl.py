@@ -45,7 +45,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from admmkit.kernels import AVAILABLE, _u, njit
+from admmkit.kernels import AVAILABLE, _u, kernel, njit
 
 from admmkit.linalg.compiled import ldl_backward, ldl_forward, ldl_solve
 
@@ -264,4 +264,128 @@ def _factor(Up, Ui, Ux, parent, Lp, Li, Lx, d):
             in_row[j] = False
         if d[k] == 0.0 or not np.isfinite(d[k]):
             return k
+    return -1
+
+
+# -- qdldl's own factor, refactorised here ----------------------------------------------------------------------
+# qdldl's wrapper hands its factor out only as a new scipy matrix (``Solver.factors()``: about 75 us, more than
+# the factorisation of a small QP's KKT matrix, at every change of rho).  These two kernels redo its work on
+# the matrix's upper triangle in qdldl's order (AMD's, read once from ``factors()``): the symbolic phase once,
+# the numeric one at each new rho, with the operations of QDLDL_factor in its order (the permuted matrix
+# built as qdldl's ``symperm`` builds it, L = y / D as y * (1 / D)), so the factor is qdldl's bit for bit
+# (tests/problems/test_qp_kkt_factor.py compares them on generated and Maros-Meszaros KKT matrices).
+
+
+@kernel(cache=True)
+def qdldl_symbolic(Kp, Ki, perm):
+    """The symbolic phase of qdldl on the upper triangle (Kp, Ki) of K in the order ``perm``: the upper triangle
+    (Cp, Ci) of P K P' in qdldl's entry order, ``to_C`` (entry p of K is entry to_C[p] of it, -1 below the
+    diagonal), the elimination tree ``parent`` and L's column pointers ``Lp``."""
+    n = perm.shape[0]
+    pinv = np.empty(n, np.int64)
+    for j in range(n):
+        pinv[perm[j]] = j
+    w = np.zeros(n, np.int64)
+    for j in range(n):                                  # csc_symperm: count the entries of each column of C
+        for p in range(Kp[j], Kp[j + 1]):
+            i = Ki[p]
+            if i <= j:
+                w[max(pinv[i], pinv[j])] += 1
+    Cp = np.zeros(n + 1, np.int64)
+    for j in range(n):
+        Cp[j + 1] = Cp[j] + w[j]
+        w[j] = Cp[j]
+    Ci = np.empty(Cp[n], np.int64)
+    to_C = np.full(Kp[n], -1, np.int64)
+    for j in range(n):                                  # ... and place them, K's columns in order
+        for p in range(Kp[j], Kp[j + 1]):
+            i = Ki[p]
+            if i <= j:
+                i2, j2 = pinv[i], pinv[j]
+                q = w[max(i2, j2)]
+                w[max(i2, j2)] += 1
+                Ci[q] = min(i2, j2)
+                to_C[p] = q
+    parent, counts = _etree_of(Cp, Ci)
+    Lp = np.zeros(n + 1, np.int64)
+    for j in range(n):
+        Lp[j + 1] = Lp[j] + counts[j]
+    return Cp, Ci, to_C, parent, Lp
+
+
+@kernel(cache=True)
+def _etree_of(Up, Ui):
+    """QDLDL_etree: the elimination tree (parent, -1 at a root) and L's column counts of the upper triangle."""
+    n = Up.shape[0] - 1
+    parent = np.full(n, -1, np.int64)
+    counts = np.zeros(n, np.int64)
+    visited = np.full(n, -1, np.int64)
+    for k in range(n):
+        visited[k] = k
+        for p in range(Up[k], Up[k + 1]):
+            i = Ui[p]
+            while visited[i] != k:
+                if parent[i] == -1:
+                    parent[i] = k
+                counts[i] += 1
+                visited[i] = k
+                i = parent[i]
+    return parent, counts
+
+
+@kernel(cache=True)
+def qdldl_numeric(Cp, Ci, Cx, parent, Lp, Li, Lx, D, Dinv, y, marked, pattern, path, next_slot):
+    """QDLDL_factor on the permuted upper triangle (Cp, Ci, Cx): L (Li, Lx in Lp's columns), D and 1 / D, with
+    qdldl's operations in its order; ``y``, ``marked``, ``pattern``, ``path``, ``next_slot`` are scratch of
+    length n.  Returns -1, or the step whose pivot is zero (then the factor is not usable).  Indices are read
+    as unsigned (``_u``: no negative-index test; the arithmetic is unchanged)."""
+    n = D.shape[0]
+    for i in range(n):
+        marked[i] = False
+        y[i] = 0.0
+        D[i] = 0.0
+        next_slot[i] = Lp[i]
+    D[0] = Cx[0]
+    if D[0] == 0.0:
+        return 0
+    Dinv[0] = 1.0 / D[0]
+    for k in range(1, n):
+        count = 0
+        for p in range(_u(Cp[k]), _u(Cp[k + 1])):
+            b = _u(Ci[p])
+            if b == k:
+                D[k] = Cx[p]
+                continue
+            y[b] = Cx[p]
+            if not marked[b]:                           # the path from b up the tree to the part of row k found
+                marked[b] = True
+                path[0] = b
+                length = 1
+                node = parent[b]
+                while node != -1 and node < k:
+                    if marked[_u(node)]:
+                        break
+                    marked[_u(node)] = True
+                    path[_u(length)] = node
+                    length += 1
+                    node = parent[_u(node)]
+                while length > 0:
+                    length -= 1
+                    pattern[_u(count)] = path[_u(length)]
+                    count += 1
+        for t in range(count - 1, -1, -1):
+            j = _u(pattern[_u(t)])
+            end = _u(next_slot[j])
+            yj = y[j]
+            for p in range(_u(Lp[j]), end):
+                y[_u(Li[p])] -= Lx[p] * yj
+            Li[end] = k
+            Lx[end] = yj * Dinv[j]
+            D[k] -= yj * Lx[end]
+            next_slot[j] = end + 1
+            y[j] = 0.0
+            marked[j] = False
+        if D[k] == 0.0:
+            return k
+        Dinv[k] = 1.0 / D[k]
     return -1

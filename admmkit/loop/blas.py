@@ -28,7 +28,11 @@ def _current_controller():
 
 
 def limit_blas(threads: int | None):
-    """A context manager running BLAS with ``threads`` threads (None: leave it as it is)."""
+    """A context manager running BLAS with ``threads`` threads (None: leave it as it is; nothing to do either when
+    every BLAS already runs that many: threadpoolctl's limit would set and restore them, about 10 us)."""
     if threads is None:
         return contextlib.nullcontext()
-    return _current_controller().limit(limits=threads, user_api="blas")
+    controller = _current_controller()
+    if all(lib.num_threads == threads for lib in controller.lib_controllers if lib.user_api == "blas"):
+        return contextlib.nullcontext()
+    return controller.limit(limits=threads, user_api="blas")

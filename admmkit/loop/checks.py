@@ -54,6 +54,8 @@ def rho_in_range(rho) -> bool:
 def is_number(value) -> bool:
     """Whether ``value`` is one real number: an int, a float, a numpy scalar or a 0-d array of one
     (not a bool, not text: ``"1"`` is not taken for 1)."""
+    if type(value) is float or type(value) is int:       # the common case, without the ABC check (a bool's type
+        return True                                       # is bool, not int)
     if isinstance(value, (bool, np.bool_)):
         return False
     if isinstance(value, np.ndarray):

@@ -35,7 +35,9 @@ class History:
         if mode not in MODES:
             raise ValueError(f"history must be 'lean' or 'full', got {mode!r}")
         self.mode = mode
-        self._rows: list[tuple] = []     # (k, rho, primal_unit, dual_unit, time, lazy values, rho_next)
+        self._entries: list = []         # rows (k, rho, primal_unit, dual_unit, time, lazy values, rho_next), and
+        self._runs = 0                   # ... runs of unread rows (_Unread) not yet written out, ``_runs`` of them
+        self._count = 0                  # the rows in all
         #: {k: w}: the row weights a per-row rule set after iteration k (``admmkit.RowPenalties``); its row's
         #: ``rho_changed`` is True (one event), ``rho_next`` its rho
         self.row_weights: dict[int, np.ndarray] = {}
@@ -49,22 +51,38 @@ class History:
         if self.mode == "full":
             rec.complete()
         d, ctx = rec._d, rec._ctx
-        self._rows.append((d[0], d[1], ctx.primal_unit, ctx.dual_unit, d[2], rec._vals, rho_next))
+        self._entries.append((d[0], d[1], ctx.primal_unit, ctx.dual_unit, d[2], rec._vals, rho_next))
+        self._count += 1
 
     def append_unread(self, k: int, count: int, rho: float, ctx, t: float) -> None:
         """Add the rows of iterations k .. k + count - 1 that ran without records (:mod:`admmkit.loop.segments`):
-        rho unchanged, no norm computed, ``t`` (seconds since the start) at the segment's end."""
-        vals = [None] * len(LAZY_FIELDS)
-        pu, du = ctx.primal_unit, ctx.dual_unit
-        self._rows.extend((i, rho, pu, du, t, vals, rho) for i in range(k, k + count))
+        rho unchanged, no norm computed, ``t`` (seconds since the start) at the segment's end.  Kept as one run,
+        written out as rows when the history is first read (a solve that reads none builds none)."""
+        self._entries.append(_Unread(k, count, rho, ctx.primal_unit, ctx.dual_unit, t))
+        self._runs += 1
+        self._count += count
+
+    @property
+    def _rows(self) -> list[tuple]:
+        """Every row, the unread runs written out (once)."""
+        if self._runs:
+            rows: list[tuple] = []
+            for entry in self._entries:
+                if type(entry) is _Unread:
+                    rows.extend(entry.rows())
+                else:
+                    rows.append(entry)
+            self._entries, self._runs = rows, 0
+        return self._entries
 
     def replace_last(self, rec: IterationRecord) -> None:
         """Refresh the last row from ``rec`` (the loop completes the last record of a run)."""
-        k, rho, pu, du, t, _, rho_next = self._rows[-1]
-        self._rows[-1] = (k, rho, pu, du, t, rec._vals, rho_next)
+        entries = self._entries if type(self._entries[-1]) is not _Unread else self._rows
+        k, rho, pu, du, t, _, rho_next = entries[-1]
+        entries[-1] = (k, rho, pu, du, t, rec._vals, rho_next)
 
     def __len__(self) -> int:
-        return len(self._rows)
+        return self._count
 
     def _row(self, row: tuple) -> tuple:
         k, rho, primal_unit, dual_unit, t, vals, rho_next = row
@@ -155,6 +173,21 @@ class History:
             body.append("<tr>" + "".join(f"<td>{_cell(row[c])}</td>" for c in cols) + "</tr>")
         return (f"<div><b>History</b> ({html.escape(self.mode)}, {n} iterations; columns: "
                 f"{', '.join(COLUMNS)})<table><tr>{head}</tr>{''.join(body)}</table></div>")
+
+
+class _Unread:
+    """``count`` rows from iteration ``k`` on that ran in a compiled segment: rho unchanged, no norm computed."""
+
+    __slots__ = ("k", "count", "rho", "primal_unit", "dual_unit", "t")
+
+    def __init__(self, k: int, count: int, rho: float, primal_unit: float, dual_unit: float, t: float) -> None:
+        self.k, self.count, self.rho, self.primal_unit, self.dual_unit, self.t = k, count, rho, primal_unit, dual_unit, t
+
+    def rows(self):
+        """The rows, as :meth:`History.append` writes them (the lazy values all None: one shared list)."""
+        vals = [None] * len(LAZY_FIELDS)
+        rho, pu, du, t = self.rho, self.primal_unit, self.dual_unit, self.t
+        return [(i, rho, pu, du, t, vals, rho) for i in range(self.k, self.k + self.count)]
 
 
 def _cell(value) -> str:

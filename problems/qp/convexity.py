@@ -40,14 +40,19 @@ def smallest_eigenvalue(P: sp.spmatrix) -> float:
         return float(err.eigenvalues[0]) if len(err.eigenvalues) else float("nan")
 
 
-def check_convex(P: sp.csc_matrix) -> None:
-    """Raise ValueError with the smallest eigenvalue found if the symmetric P is not positive semidefinite."""
+def check_convex(P: sp.csc_matrix, *, scale: float | None = None, diagonal: bool | None = None) -> None:
+    """Raise ValueError with the smallest eigenvalue found if the symmetric P is not positive semidefinite.
+
+    ``scale`` (max |P_ij|) and ``diagonal`` (P has no entry off the diagonal), when the caller knows them already
+    (the QP's construction: ``validate._p_facts``), are not computed again."""
     n = P.shape[0]
     if P.nnz == 0 or n == 0:
         return
-    scale = float(np.max(np.abs(P.data)))
+    scale = float(np.max(np.abs(P.data))) if scale is None else scale
     delta = SHIFT * max(scale, 1e-300)
-    if np.all(P.indices == np.repeat(np.arange(n), np.diff(P.indptr))):      # diagonal: its entries are the eigenvalues
+    if diagonal is None:
+        diagonal = bool(np.all(P.indices == np.repeat(np.arange(n), np.diff(P.indptr))))
+    if diagonal:                                                # diagonal: its entries are the eigenvalues
         indefinite = bool(np.any(P.data < -delta))
     elif n <= DENSE_MAX and 4 * P.nnz >= n * n:                # small and dense: LAPACK's Cholesky
         dense = P.toarray()

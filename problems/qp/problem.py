@@ -345,8 +345,8 @@ class QP(Problem):
 
     # -- diagnostics ----------------------------------------------------------
     def objective(self, x, z):
-        """1/2 x'Px + q'x + r at the user's x."""
-        return float(0.5 * x @ (self.P @ x) + self.q @ x + self.r)
+        """1/2 x'Px + q'x + r at the user's x (P x compiled where chosen: scipy's sum, the same bits)."""
+        return float(0.5 * x @ products.apply_A(self.P, x) + self.q @ x + self.r)
 
     def kkt(self, x, z, lam):
         """KKT residuals (inf-norms) of the user's QP at the user's x and the loop's (z, lam), OSQP's definitions and

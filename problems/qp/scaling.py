@@ -26,6 +26,8 @@ import scipy.sparse as sp
 from admmkit.kernels import compiled_now
 from admmkit.loop.segments import AVAILABLE as NUMBA      # numba installed (asked once, without importing it)
 
+from .csc import csc_of
+
 #: OSQP_MIN_SCALING, OSQP_MAX_SCALING
 MIN_SCALING, MAX_SCALING = 1e-4, 1e4
 #: a row of A whose inf-norm is below TINY_ROW (and not 0) is divided by it, as a power of 2, before the Ruiz
@@ -99,8 +101,7 @@ class _Entries:
     def __init__(self, M: sp.csc_matrix):
         M = _csc(M)
         if M.has_canonical_format and M.data.all():     # a validated QP's matrix: its data copied, its pattern shared
-            M = sp.csc_matrix((M.data.copy(), M.indices, M.indptr), shape=M.shape)
-            M.has_canonical_format = True
+            M = csc_of(M.data.copy(), M.indices, M.indptr, M.shape)
         else:
             M = M.copy()
             M.sum_duplicates()

@@ -118,10 +118,16 @@ class QPSettings:
 
 def _check_names(changes: dict) -> None:
     """TypeError naming the unknown settings among ``changes`` and listing the known ones."""
-    known = [f.name for f in dataclasses.fields(QPSettings)]
+    known = _KNOWN
+    if all(name in known for name in changes):
+        return
     unknown = sorted(set(changes) - set(known))
     if unknown:
         raise TypeError(f"unknown QP setting(s) {', '.join(unknown)}; known: {', '.join(known)}")
+
+
+#: the settings' names, in their order
+_KNOWN = {f.name: None for f in dataclasses.fields(QPSettings)}
 
 
 def osqp_settings(**changes) -> QPSettings:

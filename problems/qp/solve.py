@@ -47,6 +47,9 @@ RHO_MIN, RHO_MAX = 1e-6, 1e6
 INACCURATE_FACTOR = 10.0
 
 
+#: the fields of an admmkit Result, which a QPResult copies
+_RESULT_FIELDS = tuple(f.name for f in dataclasses.fields(Result))
+
 #: the QP's statuses are admmkit's (``admmkit.Status`` has the infeasibility verdicts a stopping rule can give)
 QPStatus = Status
 
@@ -264,7 +267,7 @@ def _qp_result(qp: QP, settings: QPSettings, res: Result, stop: QPTermination, r
             polish_info = {"status": "failed", "reason": f"not run: the run ended {termination or res.status.value}"}
     neutral = neutral_residuals(qp, x, y) if finite else None
     warnings = stop.scale.warnings(x, stop.eps_abs, stop.eps_rel, stop.row_test) if finite else []
-    fields = {f.name: getattr(res, f.name) for f in dataclasses.fields(Result)}
+    fields = {name: getattr(res, name) for name in _RESULT_FIELDS}
     fields.update(x=x, z=z, lam=y, status=status, message=message, objective=objective, kkt=kkt,
                   certificate=stop.certificate if termination else None)
     return QPResult(**fields, termination=termination, residuals=residuals, neutral=neutral, polish=polish_info,

@@ -79,6 +79,24 @@ def symmetry_defect(indptr, indices, data):
 
 
 @kernel(cache=True)
+def p_checks(indptr, indices, data):
+    """(finite, max |P_ij - P_ji|, max |P_ij|, diagonal) of the canonical CSC matrix P: what the QP's construction
+    asks of P (:func:`admmkit.problems.qp.validate._validate`), in one call; a P with a non-finite entry returns
+    (False, 0, 0, False) at once."""
+    n = indptr.shape[0] - 1
+    for p in range(indptr[n]):
+        if not np.isfinite(data[p]):
+            return False, 0.0, 0.0, False
+    defect, scale = symmetry_defect(indptr, indices, data)
+    diagonal = True
+    for j in range(n):
+        for p in range(indptr[j], indptr[j + 1]):
+            if indices[p] != j:
+                diagonal = False
+    return True, defect, scale, diagonal
+
+
+@kernel(cache=True)
 def kkt_arrays(n, m, Pp, Pi, Px, sigma, Ap, Ai, Ax, upper):
     """CSC arrays (indptr, indices, data) of K = [[P + sigma I, A'], [A, 1]] and the positions of K_{n+i, n+i}.
 

@@ -251,6 +251,8 @@ class ScaleCheck:
 
     def warnings(self, x: np.ndarray, eps_abs: float, eps_rel: float, row_test: bool | None) -> list[str]:
         """The sentences for ``QPResult.warnings`` at the answer x: which rows and columns, and why."""
+        if not (self.void_rows.size or self.span_columns.size or self.may_be_blind(eps_abs)):
+            return []           # no span rows, and no row tiny at x = 0, so none tiny at x: nothing to say
         out = []
         nu, top = self.nu, self.nu[self.live].max(initial=0.0)
         held = {None: "", True: "; the run also met the row-normalised test (R1')",

@@ -64,6 +64,19 @@ def _symmetry_defect(P: sp.csc_matrix) -> tuple[float, float]:
     return float(abs(P - P.T).max()), float(np.max(np.abs(P.data)))
 
 
+def _p_facts(P: sp.csc_matrix) -> tuple[bool, float, float, bool | None]:
+    """(finite, max |P - P'|, max |P|, diagonal or None: not asked) of canonical CSC ``P``: one compiled call
+    where compiled code pays (``sparse_kernels.p_checks``), else numpy and :func:`_symmetry_defect`."""
+    if NUMBA and P.nnz and compiled_pays(P.shape[0], 0, P.nnz):
+        from .sparse_kernels import p_checks
+        finite, defect, scale, diagonal = p_checks(P.indptr, P.indices, P.data)
+        return bool(finite), float(defect), float(scale), bool(diagonal)
+    if not np.all(np.isfinite(P.data)):
+        return False, 0.0, 0.0, None
+    defect, scale = _symmetry_defect(P)
+    return True, defect, scale, None
+
+
 def _validate(P, q, A, l, u, allow_nonconvex: bool = False):
     """Check types, shapes, symmetry, convexity, finiteness and l <= u; return (P, q, A, l, u) as csc/arrays.
 
@@ -78,14 +91,14 @@ def _validate(P, q, A, l, u, allow_nonconvex: bool = False):
         raise ValueError(f"P must be square (n x n), got shape {P.shape}")
     if n == 0:
         raise ValueError("the QP needs at least one variable: P, q and A must have n >= 1 columns, got n = 0")
-    if not np.all(np.isfinite(P.data)):
+    P = _canonical(P)                   # (raises nothing: the checks below come in the order they always did)
+    finite, asym, scale, diagonal = _p_facts(P)
+    if not finite:
         raise ValueError("P must have finite entries")
-    P = _canonical(P)
-    asym, scale = _symmetry_defect(P)
     if asym > 1e-10 * max(1.0, scale):
         raise ValueError(f"P must be symmetric; max |P - P'| = {asym:.3g}")
     try:
-        check_convex(P)
+        check_convex(P, scale=scale, diagonal=diagonal)
     except ValueError as err:
         if not allow_nonconvex:
             raise ValueError(f"{err}; allow_nonconvex=True solves it anyway, as OSQP does") from None

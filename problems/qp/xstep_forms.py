@@ -6,9 +6,11 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
+from admmkit.kernels import compiled_now
 from admmkit.linalg.linsolve import CachedFactorization, available_backends
 from admmkit.loop.segments import AVAILABLE as NUMBA      # numba installed (asked once, without importing it)
 
+from .csc import csc_of
 from .rows import FREE_ROW_PENALTY
 
 XSTEPS = ("auto", "reduced", "kkt")
@@ -44,11 +46,13 @@ def x_step_backend(backend: str, xstep: str) -> str:
     return backend
 
 
-def x_step_solver(qp, backend: str) -> CachedFactorization:
+def x_step_solver(qp, backend: str):
     """The x-step matrix of ``qp`` (its scaled data, its ``xstep`` form) for any rho, factorised once per rho.
 
     reduced: P + sigma I + rho A'MA, with a free row's term at FREE_ROW_PENALTY instead (Q5);
-    kkt: [[P + sigma I, A'], [A, -R^-1]] with R = ``qp.penalty(rho)``.
+    kkt: [[P + sigma I, A'], [A, -R^-1]] with R = ``qp.penalty(rho)``; with qdldl and compiled code, held as
+    arrays that a kernel refactorises (:class:`admmkit.problems.qp.kkt_factor.KKTFactor`, ``kkt_factor.ENABLED``),
+    else a ``CachedFactorization``.
     """
     if qp.xstep == "reduced":
         base = (qp.Ps + qp.sigma * sp.identity(qp.n, format="csc")).tocsc()
@@ -68,6 +72,10 @@ def x_step_solver(qp, backend: str) -> CachedFactorization:
     def matrix(rho):            # K0 itself, its -R^-1 diagonal rewritten: every backend copies what it factorises
         K0.data[slots] = -1.0 / qp.penalty(rho)
         return K0
+    if kkt_backend == "qdldl" and NUMBA and compiled_now():
+        from . import kkt_factor
+        if kkt_factor.ENABLED:          # qdldl's factor held as arrays, refactorised by a kernel (the same bits)
+            return kkt_factor.KKTFactor(matrix)
     # in place: a new rho refactorises the one factorisation numerically (OSQP's update_rho), without a new ordering
     return CachedFactorization(matrix, backend=kkt_backend, in_place=True)
 
@@ -128,9 +136,7 @@ def _kkt_pattern(qp, upper: bool):
         P, A = qp.Ps, qp.As
         indptr, indices, data, slots = kkt_arrays(n, m, P.indptr, P.indices, P.data, qp.sigma,
                                                   A.indptr, A.indices, A.data, upper)
-        K0 = sp.csc_matrix((data, indices, indptr), shape=(n + m, n + m))
-        K0.has_sorted_indices = True
-        return K0, slots
+        return csc_of(data, indices, indptr, (n + m, n + m)), slots      # canonical: no constructor checks
     P, A = qp.Ps.tocoo(), qp.As.tocoo()
     keep = P.row <= P.col if upper else slice(None)
     diag = np.arange(n)
