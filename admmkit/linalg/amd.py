@@ -94,7 +94,8 @@ import numpy as np
 from admmkit.kernels import AVAILABLE, _u, njit
 
 EMPTY = -1
-#: AMD's default controls: rows of degree above DENSE * sqrt(n) (at least 16) are "dense"; aggressive absorption
+#: AMD's default controls, as qdldl's (rows of degree above DENSE * sqrt(n), at least 16, are dense; aggressive
+#: absorption on)
 DENSE = 10.0
 AGGRESSIVE = True
 
@@ -131,7 +132,7 @@ def amd_order(indptr, indices, n: int) -> np.ndarray:
     return _amd_order(n, Ap, Ai, status == JUMBLED)[0]
 
 
-#: _valid's answers: amd_valid's AMD_OK and AMD_OK_BUT_JUMBLED, and its AMD_INVALID told apart
+#: what _valid answers, as amd_valid's AMD_OK and AMD_OK_BUT_JUMBLED, and its AMD_INVALID told apart
 OK, JUMBLED, INVALID_POINTERS, INVALID_INDICES = 0, 1, -1, -2
 
 

@@ -34,19 +34,33 @@ from .problem import QP
 from .residuals import neutral_residuals
 
 
+#: factorise (P1) by the QP's kernels where the process runs its compiled code (False: qdldl's wrapper always)
+COMPILED_FACTOR = True
+
+
 def _worst(res: dict) -> float:
     return max(res["primal"], res["dual"], res["gap"])
 
 
 def _reduced_solver(K: sp.csc_matrix):
     """``solve(b)`` with K^-1, K the regularised (quasi-definite) matrix of (P1): qdldl's LDL' when installed, else
-    SuperLU in symmetric mode (minimum degree on K + K', no pivoting)."""
+    SuperLU in symmetric mode (minimum degree on K + K', no pivoting).  Where this process runs the QP's compiled
+    code already, qdldl's factor is made by the QP's own kernels (:class:`admmkit.problems.qp.kkt_factor.KKTFactor`:
+    AMD's compiled port and qdldl's phases, the same factor and solve bit for bit, 1.4-3.5x faster to order than
+    qdldl's wheel, which builds AMD without optimisation)."""
     try:
         import qdldl
     except ImportError:
         lu = spla.splu(K, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options={"SymmetricMode": True})
         return lu.solve
-    return qdldl.Solver(sp.triu(K, format="csc"), upper=True).solve
+    upper = sp.triu(K, format="csc")
+    from .segment import kernels_loaded
+    if COMPILED_FACTOR and kernels_loaded():
+        from .kkt_factor import KKTFactor
+        factor = KKTFactor(lambda rho: upper)
+        factor.prepare(1.0)
+        return lambda b: factor.solve(1.0, b)
+    return qdldl.Solver(upper, upper=True).solve
 
 
 def polish(qp: QP, xb: np.ndarray, zb: np.ndarray, yb: np.ndarray, delta: float = 1e-6, refine: int = 3):

@@ -161,3 +161,28 @@ def test_the_preset_runs_the_rule_rowwise_and_names_it(eps):
     assert res.status is Status.CONVERGED and neutral_satisfied(neutral_residuals(qp, res.x, res.y), eps)
     with pytest.raises(ValueError, match="adaptive_rho must be one of 'interval', 'kkt_error', 'rowwise'"):
         admmkit_settings(adaptive_rho="per-row")
+
+
+def test_polishing_system_factorised_by_the_qp_kernels_is_qdldls_bit_for_bit(monkeypatch):
+    """Where the process runs the QP's compiled code, (P1) is factorised by its kernels (AMD's port, qdldl's phases):
+    the solve equals qdldl's wrapper's bit for bit."""
+    qdldl = pytest.importorskip("qdldl")
+    import scipy.sparse as sp
+    from admmkit.problems.qp import polish as polish_module
+    from admmkit.problems.qp.generate import random_qp
+    from admmkit.problems.qp.segment import AVAILABLE, kernels_loaded
+    if not AVAILABLE:
+        pytest.skip("numba is not installed: qdldl's wrapper always")
+    solve_qp(random_qp(30, 40, seed=1), compiled=True)          # the QP's kernels in this process
+    assert kernels_loaded()
+    rng = np.random.default_rng(4)
+    n, k = 40, 25
+    B = sp.random(n, n, density=0.1, random_state=rng)
+    P = (B @ B.T + sp.eye(n)).tocsc()
+    A = sp.random(k, n, density=0.2, random_state=rng, format="csc")
+    K = sp.bmat([[P + 1e-6 * sp.eye(n), A.T], [A, -1e-6 * sp.eye(k)]], format="csc")
+    b = rng.standard_normal(n + k)
+    reference = qdldl.Solver(sp.triu(K, format="csc"), upper=True).solve(b)
+    assert np.array_equal(polish_module._reduced_solver(K)(b), reference)
+    monkeypatch.setattr(polish_module, "COMPILED_FACTOR", False)
+    assert np.array_equal(polish_module._reduced_solver(K)(b), reference)

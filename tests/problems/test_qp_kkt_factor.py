@@ -60,13 +60,21 @@ def test_held_factor_is_qdldls_bit_for_bit(index):
             assert np.array_equal(factor.solve(rho, b), solver.solve(b))
 
 
-def test_order_read_off_qdldls_factor_is_the_same(monkeypatch):
-    run = _osqp_form(random_qp(15, 25, seed=3))
+@pytest.mark.parametrize("size", [(15, 25), (60, 90)])
+def test_order_read_off_qdldls_factor_is_the_same(monkeypatch, size):
+    """The three ways to qdldl's order give one permutation: AMD's compiled port (from AMD_COMPILED_MIN_NNZ
+    entries on), qdldl's routine called directly, and the order read off qdldl's factor."""
+    run = _osqp_form(random_qp(*size, seed=3))
+    threshold = kkt_factor.AMD_COMPILED_MIN_NNZ
     with compiled_code(True):
         K = run._solver.matrix(1.0)
+        chosen = kkt_factor.amd_order(K)
+        monkeypatch.setattr(kkt_factor, "AMD_COMPILED_MIN_NNZ", None)
         direct = kkt_factor.amd_order(K)
         monkeypatch.setattr(kkt_factor, "AMD_DIRECT", False)
-        assert np.array_equal(kkt_factor.amd_order(K), direct)
+        assert np.array_equal(kkt_factor.amd_order(K), direct) and np.array_equal(chosen, direct)
+    if size == (60, 90):
+        assert K.nnz >= threshold                                  # the compiled port was the one chosen
 
 
 @pytest.mark.parametrize("name", ("HS118", "QAFIRO", "CVXQP1_S"))
