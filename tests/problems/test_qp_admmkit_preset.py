@@ -131,15 +131,16 @@ def test_polishing_solves_its_reduced_system_with_or_without_qdldl(monkeypatch):
     import sys
     from admmkit.problems.qp import polish as polish_module
     K = polish_module.sp.csc_matrix(np.array([[2.0, 0.0, 1.0], [0.0, 3.0, 1.0], [1.0, 1.0, -1e-6]]))
+    U = polish_module.sp.triu(K, format="csc")                 # the solver is given the upper triangle
     b = np.array([1.0, -2.0, 0.5])
     reduced_solver = polish_module._reduced_solver
 
-    def superlu_only(K):                                   # import qdldl raises ImportError inside the polish only
+    def superlu_only(U):                                   # import qdldl raises ImportError inside the polish only
         with monkeypatch.context() as m:
             m.setitem(sys.modules, "qdldl", None)
-            return reduced_solver(K)
-    with_qdldl, without = reduced_solver(K)(b), superlu_only(K)(b)
-    assert type(superlu_only(K).__self__).__name__ == "SuperLU"
+            return reduced_solver(U)
+    with_qdldl, without = reduced_solver(U)(b), superlu_only(U)(b)
+    assert type(superlu_only(U).__self__).__name__ == "SuperLU"
     assert np.allclose(with_qdldl, without, rtol=1e-12, atol=0) and np.allclose(K @ without, b, atol=1e-12)
     monkeypatch.setattr(polish_module, "_reduced_solver", superlu_only)
     qp = hs118_like()
@@ -182,7 +183,27 @@ def test_polishing_system_factorised_by_the_qp_kernels_is_qdldls_bit_for_bit(mon
     A = sp.random(k, n, density=0.2, random_state=rng, format="csc")
     K = sp.bmat([[P + 1e-6 * sp.eye(n), A.T], [A, -1e-6 * sp.eye(k)]], format="csc")
     b = rng.standard_normal(n + k)
-    reference = qdldl.Solver(sp.triu(K, format="csc"), upper=True).solve(b)
-    assert np.array_equal(polish_module._reduced_solver(K)(b), reference)
+    U = sp.triu(K, format="csc")
+    reference = qdldl.Solver(U, upper=True).solve(b)
+    assert np.array_equal(polish_module._reduced_solver(U)(b), reference)
     monkeypatch.setattr(polish_module, "COMPILED_FACTOR", False)
-    assert np.array_equal(polish_module._reduced_solver(K)(b), reference)
+    assert np.array_equal(polish_module._reduced_solver(U)(b), reference)
+
+
+def test_the_reduced_systems_upper_triangle_is_scipys_assembly():
+    """reduced_upper builds triu(bmat([[P, A_act'], [A_act, None]]) + diags(delta, -delta)) entry for entry and in
+    its order, for no, some and every row active."""
+    import scipy.sparse as sp
+    from admmkit.problems.qp.polish import reduced_upper
+    qp = hs118_like(seed=3)
+    qp._build()
+    rng = np.random.default_rng(0)
+    for act in (np.array([], dtype=np.int64), np.flatnonzero(rng.random(qp.m) < 0.4), np.arange(qp.m)):
+        A_act = sp.csr_matrix(qp.As)[act]
+        K0 = sp.bmat([[qp.Ps, A_act.T], [A_act, None]], format="csc") if act.size else sp.csc_matrix(qp.Ps)
+        reg = sp.diags(np.r_[np.full(qp.n, 1e-6), np.full(act.size, -1e-6)], format="csc")
+        reference = sp.triu((K0 + reg).tocsc(), format="csc")
+        reference.sort_indices()
+        U = reduced_upper(qp, act, 1e-6)
+        assert np.array_equal(U.indptr, reference.indptr) and np.array_equal(U.indices, reference.indices)
+        assert np.array_equal(U.data, reference.data)
