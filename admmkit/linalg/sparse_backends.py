@@ -12,7 +12,6 @@ import weakref
 
 import numpy as np
 import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 
 # Order used by backend="auto": the first one installed wins.  Measured by
 # benchmarks/contact/linsolve_backends.py (docs/results/linsolve.md; 2-core Xeon) on
@@ -72,6 +71,7 @@ def _resolve(backend: str) -> str:
 # for a 1-D right-hand side b.
 
 def _factor_superlu(A):
+    import scipy.sparse.linalg as spla      # here, not at the import: it imports scipy.linalg (about 0.1-0.25 s)
     lu = spla.splu(A, permc_spec="MMD_AT_PLUS_A", options=dict(SymmetricMode=True))
     return lu.solve
 

@@ -80,7 +80,7 @@ def test_compiled_is_checked_in_every_mode():
 
 
 #: what a warm ``solve contact`` process (operators from the cache) no longer imports (issue #49)
-NOT_WARM = ("scipy.linalg", "scipy.sparse.linalg", "admmkit.linalg.linsolve", "admmkit.blocks.xstep", "fractions",
+NOT_WARM = ("scipy.linalg", "scipy.sparse.linalg", "admmkit.blocks.xstep", "fractions",
             "admmkit.problems.contact.model.scene3d", "ngsolve", "numba")
 
 

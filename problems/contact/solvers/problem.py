@@ -37,12 +37,12 @@ Two modes give the same iterates (to round-off):
 """
 from __future__ import annotations
 
-import math
-from collections import OrderedDict, deque
+from collections import deque
 
 import numpy as np
 import scipy.sparse as sp
 
+from admmkit.linalg.linsolve import CachedFactorization
 from admmkit.problems.contact.model.operators import ContactOperators
 from admmkit.problems.contact.solvers import lapack
 from admmkit.problems.contact.solvers.base import _ContactBase
@@ -78,55 +78,6 @@ class DenseCholesky:
     def __call__(self, rhs: np.ndarray) -> np.ndarray:
         """The solution of matrix @ x = rhs."""
         return lapack.cho_solve(self.factor, self.lower, rhs)
-
-
-class DenseFactors:
-    """The dense Cholesky factors of matrix(rho), one per rho, the least recently used dropped beyond
-    ``max_cached``: :class:`admmkit.linalg.linsolve.CachedFactorization`'s bookkeeping for a dense factor.
-
-    Kept here because importing admmkit.linalg.linsolve imports scipy.sparse.linalg and with it scipy.linalg,
-    about 0.1 s of a fresh ``solve contact`` process on a quiet machine (issue #49), which the condensed mode
-    does not otherwise need.  ``factorizations`` and ``solves`` count the work done.
-    """
-
-    def __init__(self, matrix, max_cached: int = 32):
-        self.matrix = matrix
-        self.max_cached = max_cached
-        self.factorizations = 0
-        self.solves = 0
-        self._cache: OrderedDict[float, DenseCholesky] = OrderedDict()
-
-    def __len__(self) -> int:
-        """Number of factors currently held."""
-        return len(self._cache)
-
-    def __contains__(self, rho) -> bool:
-        """Whether the factor for this rho is currently held."""
-        return float(rho) in self._cache
-
-    def _factor(self, rho: float) -> DenseCholesky:
-        """The held factor of matrix(rho), factorised first if it is not held."""
-        key = float(rho)
-        if not (math.isfinite(key) and key > 0):
-            raise ValueError(f"rho must be a finite number > 0, got {rho!r}")
-        if key in self._cache:
-            self._cache.move_to_end(key)
-        else:
-            self._cache[key] = DenseCholesky(self.matrix(key))
-            self.factorizations += 1
-            if len(self._cache) > self.max_cached:
-                self._cache.popitem(last=False)
-        return self._cache[key]
-
-    def prepare(self, rho: float) -> None:
-        """Factorise matrix(rho) now unless it is held (a change of rho)."""
-        self._factor(rho)
-
-    def solve(self, rho: float, rhs: np.ndarray) -> np.ndarray:
-        """Solve ``matrix(rho) @ x = rhs``, factorising matrix(rho) if it is not held."""
-        x = self._factor(rho)(rhs)
-        self.solves += 1
-        return x
 
 
 #: the memory the condensed mode's dense factors of M_c^{-1} + rho C may hold together (bytes)
@@ -199,8 +150,8 @@ class CondensedContact(_ContactBase):
         self.C = self.schur.compliance(self.A, self._A_c)     # A K^{-1} A'
         # the dense m x m factors of M_c^{-1} + rho C, one per rho, as many as fit DENSE_FACTORS_BYTES (at least 2,
         # at most 32; least recently used out): a grown 3D contact boundary does not hold 32 of them
-        self.factors = DenseFactors(lambda rho: np.diag(1.0 / self.w) + rho * self.C,
-                                    max_cached=dense_factors_held(self.C.shape[0]))
+        self.factors = CachedFactorization(lambda rho: np.diag(1.0 / self.w) + rho * self.C, factor=DenseCholesky,
+                                           max_cached=dense_factors_held(self.C.shape[0]))
         self._recent_Cw: deque = deque(maxlen=2)  # (x, C w) of the last x-steps: one C-matvec per iteration
 
     def update_rho(self, rho):
