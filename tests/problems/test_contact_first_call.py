@@ -201,3 +201,17 @@ def test_a_scipy_whose_private_routines_differ_falls_back_to_the_library(monkeyp
     monkeypatch.setattr(lapack, "DIRECT", True)
     c, lower = lapack.cho_factor(A.toarray())
     assert lapack.DIRECT is False and np.allclose(np.triu(c).T @ np.triu(c), A.toarray())
+
+
+def test_the_condensed_modes_dense_factors_live_in_the_one_factor_cache():
+    """The dense factors of M_c^-1 + rho C are held by CachedFactorization (the one cache a change of rho reaches),
+    with its whole interface: bench stability empties it between cases (``clear``), which a stand-in lacked."""
+    from admmkit.linalg.linsolve import CachedFactorization
+    problem = contact_problem(assemble(example1(h=1 / 10)), "condensed")
+    assert isinstance(problem.factors, CachedFactorization)
+    problem.update_rho(10.0)
+    assert len(problem.factors) == 1 and 10.0 in problem.factors
+    problem.factors.clear()
+    assert len(problem.factors) == 0
+    res = run(problem)
+    assert res.status.value == "converged" and problem.factors.factorizations >= 1
