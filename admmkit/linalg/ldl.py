@@ -306,31 +306,11 @@ def qdldl_symbolic(Kp, Ki, perm):
                 w[max(i2, j2)] += 1
                 Ci[q] = min(i2, j2)
                 to_C[p] = q
-    parent, counts = _etree_of(Cp, Ci)
+    parent, counts = _etree(Cp, Ci)                   # QDLDL_etree
     Lp = np.zeros(n + 1, np.int64)
     for j in range(n):
         Lp[j + 1] = Lp[j] + counts[j]
     return Cp, Ci, to_C, parent, Lp
-
-
-@kernel(cache=True)
-def _etree_of(Up, Ui):
-    """QDLDL_etree: the elimination tree (parent, -1 at a root) and L's column counts of the upper triangle."""
-    n = Up.shape[0] - 1
-    parent = np.full(n, -1, np.int64)
-    counts = np.zeros(n, np.int64)
-    visited = np.full(n, -1, np.int64)
-    for k in range(n):
-        visited[k] = k
-        for p in range(Up[k], Up[k + 1]):
-            i = Ui[p]
-            while visited[i] != k:
-                if parent[i] == -1:
-                    parent[i] = k
-                counts[i] += 1
-                visited[i] = k
-                i = parent[i]
-    return parent, counts
 
 
 @kernel(cache=True)
