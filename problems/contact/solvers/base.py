@@ -58,12 +58,11 @@ class _ContactBase(Problem):
         return float(np.sqrt(max(v @ (self._AAt @ v), 0.0)))
 
     def _product(self, name: str, M, v: np.ndarray) -> np.ndarray:
-        """M @ v, kept per ``name`` for the last v (its bytes compared): the objective, kkt and kkt_relative of
-        one result ask for K u and A'M lam at the same u and lam, one sparse product each instead of three."""
+        """M @ v, kept per ``name`` for the last v (compared entry for entry): the objective, kkt and kkt_relative
+        of one result ask for K u and A'M lam at the same u and lam, one sparse product each instead of three."""
         held = self.__dict__.setdefault("_products", {})
         last = held.get(name)
-        if last is not None and last[0].dtype == v.dtype and last[0].shape == v.shape \
-                and last[0].tobytes() == v.tobytes():
+        if last is not None and last[0].dtype == v.dtype and np.array_equal(last[0], v):
             return last[1]
         product = M @ v
         held[name] = (np.array(v, copy=True), product)
