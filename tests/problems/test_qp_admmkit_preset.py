@@ -73,7 +73,7 @@ def test_each_failed_polishing_try_multiplies_the_wait_for_the_next(monkeypatch,
         at.append(len(at))
         return None, None, {"status": "failed"}
     monkeypatch.setattr(polish_stop, "polish", refused)
-    monkeypatch.setattr(polish_stop, "active_set", lambda qp, z, y: bytes([len(at) % 256]))   # a new guess each time
+    monkeypatch.setattr(polish_stop, "active_set", lambda qp, z, y: (bytes([len(at) % 256]), 0))   # a new guess each time
     seen = []
     original = polish_stop.PolishingTermination.fired
 
@@ -93,6 +93,38 @@ def test_each_failed_polishing_try_multiplies_the_wait_for_the_next(monkeypatch,
     for gap in gaps:             # each gap is the wait rounded up to the next check (every 25 iterations)
         assert int(wait) <= gap < int(wait) + 25
         wait *= backoff
+
+
+@pytest.mark.parametrize("surplus, tries", [(1, 1), (0, "many")])
+def test_after_a_degenerate_try_fails_later_degenerate_guesses_are_skipped(monkeypatch, surplus, tries):
+    """A guess with more active rows than unknowns (k = n + 1) is tried once; after it failed, the next degenerate
+    guesses are not tried (the tries made with k = n keep coming every ``polish_interval`` iterations)."""
+    from admmkit.problems.qp import polish_stop
+    at = []
+
+    def refused(qp, xb, zb, yb, **kwargs):
+        at.append(len(at))
+        return None, None, {"status": "failed"}
+    monkeypatch.setattr(polish_stop, "polish", refused)
+    monkeypatch.setattr(polish_stop, "active_set", lambda qp, z, y: (bytes([len(at) % 256]), qp.n + surplus))
+    qp = hs118_like()
+    res = solve_qp(qp, admmkit_settings(1e-9, 0.0, adaptive_rho="interval", polish_gate=1e9, polish_interval=25,
+                                        polish_backoff=1.0, max_iter=1000))
+    assert res.polish is None
+    assert res.iterations == 200                      # the run's length does not depend on the tries refused
+    assert len(at) == 1 if tries == 1 else len(at) >= 5
+
+
+def test_the_guessed_active_set_counts_its_rows():
+    from admmkit.problems.qp.polish_stop import active_set
+    qp = hs118_like()
+    z = np.clip(np.zeros(qp.m), qp.l, qp.u)
+    y = np.zeros(qp.m)
+    y[:3], y[3:5] = -1.0, 1.0                         # rows 0-2 pushed down to l, rows 3-4 up to u
+    z[:5] = np.r_[qp.l[:3], qp.u[3:5]]
+    guess, rows = active_set(qp, z, y)
+    assert rows == 5 and isinstance(guess, bytes)
+    assert active_set(qp, z, np.zeros(qp.m))[1] == 0
 
 
 @pytest.mark.parametrize("changes, name", [({"polish_gate": 0.5}, "polish_gate"), ({"polish_interval": 0}, "polish_interval"),
