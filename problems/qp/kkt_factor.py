@@ -83,17 +83,23 @@ class KKTFactor:
     """The factor of ``matrix(rho)`` (the KKT matrix's upper triangle, one pattern for every rho) for the last rho
     asked, with ``CachedFactorization``'s interface as the QP uses it: ``prepare``, ``refresh``, ``solve``, ``ldl``,
     ``clear``, ``rho in factor``, and the counters ``factorizations``, ``solves``, ``factor_time``,
-    ``solve_time``."""
+    ``solve_time``.  ``order``: a fill-reducing permutation to factorise in (None: AMD's, :func:`amd_order`)."""
 
     backend = "qdldl"
 
-    def __init__(self, matrix) -> None:
+    def __init__(self, matrix, order: np.ndarray | None = None) -> None:
         self.matrix = matrix
+        self._given_order = order
         self.factorizations = self.solves = 0
         self.factor_time = self.solve_time = 0.0
         self._rho = None                # the rho the held factor is of (None: none held)
         self._symbolic = None           # (Cp, Ci, to_C, parent, Lp, perm), once per pattern
         self._arrays = None             # (Lp, Li, Lx, Dinv, perm): what the compiled solves read
+
+    @property
+    def order(self) -> np.ndarray | None:
+        """The permutation the factor is made in (None before the first factorisation)."""
+        return None if self._symbolic is None else self._symbolic[5]
 
     def __contains__(self, rho) -> bool:
         """Whether the held factor is of this rho."""
@@ -117,8 +123,8 @@ class KKTFactor:
         self.factorizations += 1
 
     def _analyse(self, K) -> None:
-        """qdldl's order of K (AMD's: :func:`amd_order`) and the symbolic phase in it."""
-        perm = amd_order(K)
+        """qdldl's order of K (AMD's: :func:`amd_order`, unless one was given) and the symbolic phase in it."""
+        perm = amd_order(K) if self._given_order is None else np.asarray(self._given_order, dtype=np.int64)
         Cp, Ci, to_C, parent, Lp = qdldl_symbolic(K.indptr, K.indices, perm)
         n = perm.shape[0]
         self._symbolic = (Cp, Ci, to_C, parent, Lp, perm, np.flatnonzero(to_C >= 0))

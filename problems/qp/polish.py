@@ -42,13 +42,13 @@ def _worst(res: dict) -> float:
     return max(res["primal"], res["dual"], res["gap"])
 
 
-def _reduced_solver(upper: sp.csc_matrix):
+def _reduced_solver(upper: sp.csc_matrix, order: np.ndarray | None = None):
     """``solve(b)`` with K^-1, K the regularised (quasi-definite) matrix of (P1) given by its upper triangle
     ``upper`` (CSC): qdldl's LDL' when installed, else SuperLU in symmetric mode (minimum degree on K + K', no
     pivoting).  Where this process runs the QP's compiled
     code already, qdldl's factor is made by the QP's own kernels (:class:`admmkit.problems.qp.kkt_factor.KKTFactor`:
     AMD's compiled port and qdldl's phases, the same factor and solve bit for bit, 1.4-3.5x faster to order than
-    qdldl's wheel, which builds AMD without optimisation)."""
+    qdldl's wheel, which builds AMD without optimisation), in ``order`` where one is given (else AMD's)."""
     try:
         import qdldl
     except ImportError:
@@ -58,7 +58,7 @@ def _reduced_solver(upper: sp.csc_matrix):
     from .segment import kernels_loaded
     if COMPILED_FACTOR and kernels_loaded():
         from .kkt_factor import KKTFactor
-        factor = KKTFactor(lambda rho: upper)
+        factor = KKTFactor(lambda rho: upper, order)
         factor.prepare(1.0)
         return lambda b: factor.solve(1.0, b)
     return qdldl.Solver(upper, upper=True).solve
@@ -104,8 +104,25 @@ def reduced_upper(qp: QP, act: np.ndarray, delta: float) -> sp.csc_matrix:
     return sp.csc_matrix((data, indices, indptr), shape=(n + k, n + k))
 
 
-def polish(qp: QP, xb: np.ndarray, zb: np.ndarray, yb: np.ndarray, delta: float = 1e-6, refine: int = 3):
+def induced_order(order: np.ndarray, n: int, act: np.ndarray, m: int) -> np.ndarray:
+    """The order of (P1)'s unknowns (x, then the rows ``act`` of A) that a fill-reducing order of the whole KKT
+    matrix [[P, A'], [A, .]] (``order``, of its n + m unknowns) induces: its entries kept where they are x or an
+    active row, renumbered.  Eliminating a subset in the order induced by a larger matrix fills no more than that
+    matrix's factor does on the subset, so a try factorises at most what a change of rho refactorises."""
+    order = np.asarray(order, dtype=np.int64)
+    new = np.full(n + m, -1, dtype=np.int64)
+    new[:n] = np.arange(n)
+    new[n + act] = n + np.arange(act.size)
+    mapped = new[order]
+    return mapped[mapped >= 0]
+
+
+def polish(qp: QP, xb: np.ndarray, zb: np.ndarray, yb: np.ndarray, delta: float = 1e-6, refine: int = 3,
+           order: np.ndarray | None = None):
     """Polish the loop's iterate (xb, zb, yb = M lam); return (x, y, info) in the user's problem or (None, None, info).
+
+    ``order``: a fill-reducing order of the x-step's KKT matrix (n + m unknowns, x first) whose induced order
+    (:func:`induced_order`) factorises (P1) where the QP's kernels do; None: AMD's order of (P1), as OSQP's polish.
 
     ``info``: ``status`` "succeeded" (the polished point is better under the neutral criteria) or "failed",
     the active-set sizes, and the neutral residuals before and after.
@@ -124,7 +141,8 @@ def polish(qp: QP, xb: np.ndarray, zb: np.ndarray, yb: np.ndarray, delta: float 
         y[act] = v[n:]
         return np.r_[P @ v[:n] + A.T @ y, (A @ v[:n])[act]]
     try:
-        solve = _reduced_solver(reduced_upper(qp, act, delta))
+        sub = None if order is None or len(order) != n + qp.m else induced_order(order, n, act, qp.m)
+        solve = _reduced_solver(reduced_upper(qp, act, delta), sub)
         sol = solve(rhs)
         for _ in range(refine):                                   # iterative refinement against K0
             sol = sol + solve(rhs - K0_times(sol))

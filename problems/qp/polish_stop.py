@@ -137,7 +137,8 @@ class PolishingTermination(QPTermination):
             self.skipped += 1
             return None
         self.tries += 1
-        x, y, info = polish(qp, qp.relaxed_x(rec.x), rec.z, yb, delta=self.delta, refine=self.refine)
+        x, y, info = polish(qp, qp.relaxed_x(rec.x), rec.z, yb, delta=self.delta, refine=self.refine,
+                            order=getattr(qp._solver, "order", None))
         self.failed = guess
         if x is None:
             self.failures += 1

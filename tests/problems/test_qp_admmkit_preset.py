@@ -167,10 +167,10 @@ def test_polishing_solves_its_reduced_system_with_or_without_qdldl(monkeypatch):
     b = np.array([1.0, -2.0, 0.5])
     reduced_solver = polish_module._reduced_solver
 
-    def superlu_only(U):                                   # import qdldl raises ImportError inside the polish only
+    def superlu_only(U, order=None):                       # import qdldl raises ImportError inside the polish only
         with monkeypatch.context() as m:
             m.setitem(sys.modules, "qdldl", None)
-            return reduced_solver(U)
+            return reduced_solver(U, order)
     with_qdldl, without = reduced_solver(U)(b), superlu_only(U)(b)
     assert type(superlu_only(U).__self__).__name__ == "SuperLU"
     assert np.allclose(with_qdldl, without, rtol=1e-12, atol=0) and np.allclose(K @ without, b, atol=1e-12)
@@ -239,3 +239,73 @@ def test_the_reduced_systems_upper_triangle_is_scipys_assembly():
         U = reduced_upper(qp, act, 1e-6)
         assert np.array_equal(U.indptr, reference.indptr) and np.array_equal(U.indices, reference.indices)
         assert np.array_equal(U.data, reference.data)
+
+
+def _kkt_and_reduced(seed=5, n=40, m=60, active=25):
+    """A random KKT upper triangle [[P + I, A'], [A, -I]] (n + m unknowns), and a random set of ``active`` rows."""
+    import scipy.sparse as sp
+    rng = np.random.default_rng(seed)
+    B = sp.random(n, n, density=0.08, random_state=rng)
+    P = (B @ B.T + sp.eye(n)).tocsc()
+    A = sp.random(m, n, density=0.08, random_state=rng, format="csc")
+    full = sp.triu(sp.bmat([[P, A.T], [A, -sp.eye(m)]], format="csc"), format="csc")
+    full.sort_indices()
+    act = np.sort(rng.choice(m, active, replace=False))
+    rows = A.tocsr()[act]
+    sub = sp.triu(sp.bmat([[P + 1e-6 * sp.eye(n), rows.T], [rows, -1e-6 * sp.eye(active)]], format="csc"),
+                  format="csc")
+    sub.sort_indices()
+    return full, sub, n, m, act
+
+
+def test_the_induced_order_fills_the_reduced_factor_no_more_than_the_whole_one():
+    """induced_order keeps x and the active rows in the whole order's sequence, renumbered; factorised in it, (P1)'s
+    factor has no more entries than the whole KKT matrix's in its order, and solves (P1) as AMD's order does."""
+    from admmkit.problems.qp.generate import random_qp
+    from admmkit.problems.qp.kkt_factor import KKTFactor, amd_order
+    from admmkit.problems.qp.polish import _reduced_solver, induced_order
+    from admmkit.problems.qp.segment import AVAILABLE, kernels_loaded
+    if not AVAILABLE:
+        pytest.skip("numba is not installed: qdldl's wrapper, in AMD's order")
+    solve_qp(random_qp(30, 40, seed=1), compiled=True)          # the QP's kernels in this process: the order is used
+    assert kernels_loaded()
+    full, sub, n, m, act = _kkt_and_reduced()
+    order = amd_order(full)
+    induced = induced_order(order, n, act, m)
+    assert np.array_equal(np.sort(induced), np.arange(n + act.size))
+    position = {v: i for i, v in enumerate(order)}
+    back = np.r_[np.arange(n), n + act]                    # (P1)'s unknown -> the whole matrix's
+    assert np.all(np.diff([position[v] for v in back[induced]]) > 0)
+    whole, reduced = KKTFactor(lambda rho: full), KKTFactor(lambda rho: sub, induced)
+    whole.prepare(1.0)
+    reduced.prepare(1.0)
+    assert np.array_equal(reduced.order, induced)
+    assert reduced.ldl(1.0)[0][-1] <= whole.ldl(1.0)[0][-1]
+    b = np.random.default_rng(1).standard_normal(n + act.size)
+    K = sub + sub.T - __import__("scipy.sparse", fromlist=["diags"]).diags(sub.diagonal())
+    x = _reduced_solver(sub, induced)(b)
+    assert np.allclose(K @ x, b, atol=1e-9 * np.abs(b).max())
+    y = _reduced_solver(sub)(b)                            # AMD's order of (P1): the same solution to round-off
+    assert not np.array_equal(x, y) and np.allclose(x, y, rtol=1e-6, atol=1e-9)
+
+
+def test_polishing_during_the_run_factorises_in_the_x_steps_order(monkeypatch):
+    """The preset's tries hand polish() the order of the x-step's KKT factor (a try then factorises no more than a
+    change of rho does); polish() without it (OSQP's polish at the end) orders (P1) by AMD."""
+    from admmkit.problems.qp import polish_stop
+    from admmkit.problems.qp.generate import random_qp
+    from admmkit.problems.qp.segment import AVAILABLE
+    if not AVAILABLE:
+        pytest.skip("numba is not installed: no compiled KKT factor")
+    seen = []
+    original = polish_stop.polish
+
+    def recording(qp, *args, **kwargs):
+        seen.append((kwargs.get("order"), getattr(qp._solver, "order", None), qp.n + qp.m))
+        return original(qp, *args, **kwargs)
+    monkeypatch.setattr(polish_stop, "polish", recording)
+    qp = random_qp(60, 80, seed=2)
+    res = solve_qp(qp, admmkit_settings(1e-6, 0.0, compiled=True, xstep="kkt"))
+    assert res.status is Status.CONVERGED and seen
+    for given, held, size in seen:
+        assert given is not None and given is held and given.shape == (size,)
