@@ -61,7 +61,26 @@ def support(y: np.ndarray, l: np.ndarray, u: np.ndarray, project: bool = True) -
 
 
 def osqp_residuals(qp, x: np.ndarray, z: np.ndarray, y: np.ndarray, Ax: np.ndarray | None = None) -> dict:
-    """(R1)-(R3) at (x, z, y) of the user's problem: residuals and the norms the relative tolerances scale with."""
+    """(R1)-(R3) at (x, z, y) of the user's problem: residuals and the norms the relative tolerances scale with.
+
+    Where numba is installed and no ``Ax`` is given, the norms come from one compiled pass
+    (``sparse_kernels.osqp_norms``: the same values bit for bit, a small QP's 0.1 ms of numpy calls in a few us)
+    and the three dot products from numpy, as below."""
+    if NUMBA and Ax is None:
+        from .sparse_kernels import osqp_norms
+        P, A = qp.P, qp.A
+        x = np.asarray(x, dtype=float)
+        primal, primal_scale, dual, dual_scale, Px, up, y_pos, lo, y_neg = osqp_norms(
+            P.indptr, P.indices, P.data, qp.q, A.indptr, A.indices, A.data, qp.l, qp.u,
+            np.asarray(x, dtype=float), np.asarray(z, dtype=float), np.asarray(y, dtype=float), ZERO_DEADZONE)
+        quad, lin, sup = float(x @ Px), float(qp.q @ x), float(up @ y_pos + lo @ y_neg)
+        return {"primal": primal, "primal_scale": primal_scale, "dual": dual, "dual_scale": dual_scale,
+                "gap": quad + lin + sup, "gap_scale": max(abs(quad), abs(lin), abs(sup))}
+    return _osqp_residuals_numpy(qp, x, z, y, Ax)
+
+
+def _osqp_residuals_numpy(qp, x, z, y, Ax=None) -> dict:
+    """:func:`osqp_residuals` in numpy steps (without numba, or with a given A x)."""
     Ax = qp.A @ x if Ax is None else Ax
     Px = qp.P @ x
     Aty = qp.At @ y

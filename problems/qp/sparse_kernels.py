@@ -217,6 +217,56 @@ def kkt_inf_norms(Pp, Pi, Px, q, Ap, Ai, Ax, l, u, x, z, y):
 
 
 @kernel(cache=True)
+def osqp_norms(Pp, Pi, Px, q, Ap, Ai, Ax, l, u, x, z, y, deadzone):
+    """The norms of :func:`admmkit.problems.qp.kkt.osqp_residuals` in one pass, and the vectors its three dot
+    products read: (primal, primal_scale, dual, dual_scale, P x, up, y_pos, lo, y_neg), up = u where y_pos != 0
+    (else 0), lo likewise, y_pos and y_neg projected as (R3) projects them.
+
+    The user's P (n x n) and A (m x n) in CSC, the user's x, z and y.  Products are summed as scipy sums them,
+    maxima taken as ``np.max(np.abs(...))`` and Python's ``max`` take them (NaN included), so every value is the
+    numpy steps' bit for bit; the dot products (x'Px, q'x, S(y)) are left to numpy's, which may sum in another
+    order than a loop."""
+    n, m = x.shape[0], z.shape[0]
+    Axv = np.zeros(m)
+    for j in range(n):
+        for p in range(Ap[j], Ap[j + 1]):
+            Axv[Ai[p]] += Ax[p] * x[j]
+    up, lo, y_pos, y_neg = np.empty(m), np.empty(m), np.empty(m), np.empty(m)
+    primal = ax_top = z_top = 0.0
+    for i in range(m):
+        primal = _worse(primal, Axv[i] - z[i])
+        ax_top = _worse(ax_top, Axv[i])
+        z_top = _worse(z_top, z[i])
+        vp, vn = max(y[i], 0.0), min(y[i], 0.0)
+        vp = vp if (np.isfinite(u[i]) and abs(vp) >= deadzone) else 0.0
+        vn = vn if (np.isfinite(l[i]) and abs(vn) >= deadzone) else 0.0
+        y_pos[i], y_neg[i] = vp, vn
+        up[i] = u[i] if vp != 0 else 0.0
+        lo[i] = l[i] if vn != 0 else 0.0
+    Pxv = np.zeros(n)
+    for j in range(n):
+        for p in range(Pp[j], Pp[j + 1]):
+            Pxv[Pi[p]] += Px[p] * x[j]
+    dual = px_top = aty_top = q_top = 0.0
+    for j in range(n):
+        s = 0.0
+        for p in range(Ap[j], Ap[j + 1]):
+            s += Ax[p] * y[Ai[p]]
+        dual = _worse(dual, (Pxv[j] + q[j]) + s)
+        px_top = _worse(px_top, Pxv[j])
+        aty_top = _worse(aty_top, s)
+        q_top = _worse(q_top, q[j])
+    return (primal, _pymax(ax_top, z_top), dual, _pymax(_pymax(px_top, aty_top), q_top), Pxv, up, y_pos, lo,
+            y_neg)
+
+
+@kernel(cache=True)
+def _pymax(a, b):
+    """Python's max(a, b): b only where b > a (a NaN first stays, a NaN second does not)."""
+    return b if b > a else a
+
+
+@kernel(cache=True)
 def neutral_norms(Pp, Pi, Px, q, Ap, Ai, Ax, l, u, x, y):
     """(primal, dual, gap) of :func:`admmkit.problems.qp.residuals.neutral_residuals` in one pass.
 

@@ -84,6 +84,29 @@ def test_kkt_and_neutral_measures_are_the_numpy_steps(seed, monkeypatch):
     assert got_neutral["gap"] == pytest.approx(ref["gap"], rel=1e-12, abs=1e-12)
 
 
+@pytest.mark.parametrize("seed", range(30))
+def test_osqps_residuals_are_the_numpy_steps_bit_for_bit(seed, monkeypatch):
+    """osqp_residuals' compiled norms and numpy's dot products equal the numpy steps, every entry bit for bit, with
+    multipliers inside OSQP's dead zone, pushing against infinite bounds, and a NaN."""
+    qp = awkward_qp(seed)
+    rng = np.random.default_rng(seed)
+    x, z, y = rng.standard_normal(qp.n), rng.standard_normal(qp.m), rng.standard_normal(qp.m)
+    y[rng.random(qp.m) < 0.3] = 1e-16 * rng.choice([-1.0, 1.0])
+    cases = [(x, z, y)]
+    if qp.m > 1:
+        y_nan = y.copy()
+        y_nan[-1] = np.nan
+        cases.append((x, z, y_nan))
+    for case in cases:
+        got = kkt.osqp_residuals(qp, *case)
+        with monkeypatch.context() as m:
+            m.setattr(kkt, "NUMBA", False)
+            ref = kkt.osqp_residuals(qp, *case)
+        assert got.keys() == ref.keys()
+        for key in ref:
+            assert np.array_equal(got[key], ref[key], equal_nan=True), key
+
+
 @pytest.mark.parametrize("seed", range(20))
 def test_the_infeasibility_tests_decide_as_the_numpy_steps(seed, monkeypatch):
     from admmkit.problems.qp import infeasibility
