@@ -100,8 +100,9 @@ def main(argv=None, prog: str = "admmkit bench anderson-cost") -> int:
     args = parser.parse_args(argv)
     if not (0 < args.eps < math.inf) or args.max_iter < 1 or args.repeat < 1:
         parser.error("--eps must be a positive finite number, --max-iter and --repeat integers >= 1")
-    if args.interval < 1 or args.fixed_iter < 1:
-        parser.error("--interval and --fixed-iter must be integers >= 1")
+    for option, value in (("--interval", args.interval), ("--fixed-iter", args.fixed_iter)):
+        if value < 1:
+            parser.error(f"{option} must be an integer >= 1, got {value}")
     from admmkit.benchmarks.runner.harness import require
     require(prog.removeprefix("admmkit "), "numba")          # the compiled path is what is measured
     check_problems(Path(args.data), args.problems)
