@@ -22,7 +22,11 @@ g_k = f_k - s_k.
       gamma   = argmin_gamma ||g_k - dG gamma||_W                       (A2)
       s_{k+1} = f_k - dF gamma                                          (A3)
 
-  with dG, dF the last m differences of g and f.  Safeguard (SCS 3): when
+  with dG, dF the last m differences of g and f.  Interval (SCS >= 3.2's
+  ``acceleration_interval``, k): the step (A2)-(A3) follows every k-th
+  iteration only, on that iteration's pair (s_k, f_k), so the differences
+  are between pairs k iterations apart and the other iterations are plain
+  (s_{k+1} = f_k): a step costs 1/k of it per iteration.  Safeguard (SCS 3): when
   the residual at an extrapolated state exceeds ``safeguard`` times the
   residual before it, the extrapolation is rejected, the memory cleared and
   the run goes on from the plain image f of the state before it.  Rejections
@@ -55,6 +59,9 @@ from abc import ABC, abstractmethod
 import numpy as np
 
 from .anderson_kernel import BACKOFF_MAX      # the longest run of plain steps Anderson takes after a rejection
+
+#: Anderson's default interval (iterations per step); docs/qp.md, "Anderson", says how it was chosen
+INTERVAL = 10
 
 State = tuple  # (u, lam): two arrays of the constraint space
 
@@ -101,6 +108,11 @@ class Anderson(Accelerator):
     ----------
     m : int
         Memory, an integer >= 1 (SCS's default is 10).
+    interval : int
+        Take a step after every ``interval``-th iteration, the others plain
+        (SCS's ``acceleration_interval``); an integer >= 1, 1 a step after
+        every iteration.  The default, INTERVAL, was chosen by measurement
+        (docs/qp.md, "Anderson").
     safeguard : float
         Reject an extrapolated state whose residual exceeds ``safeguard``
         times the residual of the state before it (>= 1; SCS uses 1).
@@ -111,15 +123,20 @@ class Anderson(Accelerator):
 
     name = "anderson"
 
-    def __init__(self, m: int = 10, safeguard: float = 1.0, regularization: float = 1e-10):
+    def __init__(self, m: int = 10, safeguard: float = 1.0, regularization: float = 1e-10,
+                 interval: int | None = None):
         if isinstance(m, bool) or not isinstance(m, (int, np.integer)) or m < 1:
             raise ValueError(f"Anderson: m (the memory) must be an integer >= 1, got {m!r}")
+        interval = INTERVAL if interval is None else interval
+        if isinstance(interval, bool) or not isinstance(interval, (int, np.integer)) or interval < 1:
+            raise ValueError(f"Anderson: interval (iterations per step) must be an integer >= 1, got {interval!r}")
         if not (isinstance(safeguard, (int, float)) and math.isfinite(safeguard) and safeguard >= 1):
             raise ValueError(f"Anderson: safeguard must be a finite number >= 1, got {safeguard!r}")
         if not (isinstance(regularization, (int, float)) and math.isfinite(regularization) and regularization >= 0):
             raise ValueError(f"Anderson: regularization must be a finite number >= 0, got {regularization!r}")
         super().__init__()
         self.m, self.safeguard, self.regularization = int(m), float(safeguard), float(regularization)
+        self.interval = int(interval)
         self._arrays = self._weights = None       # the kernel's arrays, for a weighted inner product (bind)
         self._skip, self._backoff = 0, 1
         self.reset()
@@ -133,17 +150,18 @@ class Anderson(Accelerator):
             self._arrays = self._weights = None
             return
         self._weights = np.ascontiguousarray(weights, dtype=np.float64)
-        self._arrays = AndersonArrays(self.m, 2 * int(size))
+        self._arrays = AndersonArrays(self.m, 2 * int(size), self.interval)
 
     def start(self) -> None:
         """Start a run: clear the memory, the counts and the back-off."""
         super().start()
         self._skip, self._backoff = 0, 1
         if self._arrays is not None:
-            self._arrays = type(self._arrays)(self.m, self._arrays.F_prev.size)
+            self._arrays = type(self._arrays)(self.m, self._arrays.F_prev.size, self.interval)
 
     def reset(self) -> None:
-        """Clear the memory (the differences and the last plain image); the back-off stays."""
+        """Clear the memory (the differences and the last plain image) and the clock; the back-off stays."""
+        self._clock = 0                   # iterations since the last step
         self._f = self._g = None          # f_{k-1}, g_{k-1}
         self._dF, self._dG = [], []        # differences, oldest first
         self._gram = np.zeros((0, 0))     # <dG_i, dG_j>_W
@@ -168,6 +186,10 @@ class Anderson(Accelerator):
         """The next state: an Anderson extrapolation, f itself, or the fallback after a rejection."""
         if self._arrays is not None:
             return self._propose_kernel(s, f, rho)
+        due = self._clock + 1 >= self.interval
+        if not due and self._fallback is None:                # between steps: plain
+            self._clock += 1
+            return f
         g = _diff(f, s)
         g_norm = math.sqrt(max(w_inner(g, g, rho, inner), 0.0))
         if self._fallback is not None:                        # s was extrapolated: the safeguard looks at it
@@ -179,6 +201,10 @@ class Anderson(Accelerator):
                 self._skip, self._backoff = self._backoff, min(2 * self._backoff, BACKOFF_MAX)   # back off
                 return plain
             self._backoff = 1
+            if not due:                                       # accepted, and no step due: plain
+                self._clock += 1
+                return f
+        self._clock = 0
         if self._f is not None:
             self._push(_diff(f, self._f), _diff(g, self._g), rho, inner)
         self._f, self._g = f, g

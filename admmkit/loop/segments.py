@@ -43,8 +43,9 @@ have NaN norms.  The QP plug-in does so for OSQP's test and rule
 (``admmkit.problems.qp.segment_checks``).  Not with a callback (it sees every
 tested record) unless the callback has ``every_tested = False`` (it is content
 with the records of the iterations that run in Python: a deadline, a
-statistic of rho), nor with an accelerator; under a time limit a segment runs
-at most TIME_LIMIT_CHECKS tested iterations.
+statistic of rho); with an accelerator only where ``segment`` takes ``accel``
+too (below), whose steps then follow the tested iterations it goes on from;
+under a time limit a segment runs at most TIME_LIMIT_CHECKS tested iterations.
 
 With an accelerator, the loop takes its step after every iteration: a
 plug-in whose ``segment`` takes ``accel`` takes those steps itself, between
@@ -112,7 +113,7 @@ class FastForward:
             self.enabled = self.enabled and accel.kernel_state() is not None and _takes(type(problem), "accel")
         self.reads = self.enabled and _takes(type(problem), "read")
         sees_tests = run.callback is not None and getattr(run.callback, "every_tested", True)
-        self.tests = self.reads and accel is None and not sees_tests and _takes(type(problem), "check")
+        self.tests = self.reads and not sees_tests and _takes(type(problem), "check")
         self.start = 0 if getattr(problem, "trusted_steps", False) is True else 1   # the first iteration a segment runs
         self.pending = None             # (x_j, the read iteration's outputs) when the segment ran it
         self.segments = self.iterations = 0
@@ -142,7 +143,7 @@ class FastForward:
         extra = {} if self.accel is None else {"accel": self.accel.kernel_state()}
         if self.tests:
             out = self.problem.segment(x, z, lam, Ax, rho, run.alpha, run.order, count, read=True,
-                                       check=SegmentChecks(run.check_every, k, run.stop, run.policy))
+                                       check=SegmentChecks(run.check_every, k, run.stop, run.policy), **extra)
         elif self.reads:
             out = self.problem.segment(x, z, lam, Ax, rho, self.run.alpha, self.run.order, count, read=True, **extra)
         else:

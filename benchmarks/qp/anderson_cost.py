@@ -4,13 +4,24 @@
 
 Issue #50 asks Anderson acceleration on the compiled path to cost at most 1.3x
 a plain iteration.  For each problem, ``solve_qp`` runs plain and with
-``acceleration="anderson"`` (memory 10, the safeguard of
-:mod:`admmkit.loop.acceleration`), both compiled, in turn, ``--repeat`` times;
-the figure is the loop time per iteration (``timings["total"] / iterations``,
-the best of the runs): setup, scaling and the first factorisation are left out,
-and so is the difference in iteration counts, which the table gives apart
-(``iterations ratio``).  BLAS on one thread, kernels compiled or loaded before
-the first timing.  The default problems are the seven of docs/qp.md's table.
+Anderson (memory 10, ``--interval``, the safeguard of
+:mod:`admmkit.loop.acceleration`), both compiled, in turn, ``--repeat`` times,
+the best of the runs kept, two ways:
+
+* *solve*: the solve at ``--eps`` with OSQP's settings; the figure is the loop
+  time per iteration (``timings["total"] / iterations``).  Setup, scaling and
+  the first factorisation are left out, and so is the difference in iteration
+  counts, which the table gives apart (``iterations ratio``); but the two runs
+  may change rho at different times and stop after different numbers of
+  iterations, so the figure mixes in refactorisations and tests spread over
+  different counts.
+* *fixed work*: both runs do the same ``--fixed-iter`` iterations at a fixed
+  rho (no adaptive rho, tolerance 1e-300, no infeasibility test: nothing stops them
+  early), so the ratio of their loop times is the cost of an iteration with
+  Anderson against one without.
+
+BLAS on one thread, kernels compiled or loaded before the first timing.  The
+default problems are the seven of docs/qp.md's table.
 """
 from __future__ import annotations
 
@@ -22,33 +33,51 @@ import time
 from pathlib import Path
 
 from admmkit.cli import Parser
+from admmkit.loop.acceleration import INTERVAL
 
 #: the problems of docs/qp.md's Anderson table: small sparse ones, where Anderson's passes cost most, and larger
 PROBLEMS = ("CVXQP1_S", "QADLITTL", "DUAL2", "PRIMAL1", "HS118", "CVXQP2_M", "HS268")
-COLUMNS = ("problem", "n", "m", "eps", "plain_iterations", "anderson_iterations", "plain_us", "anderson_us",
-           "cost_ratio", "iterations_ratio", "plain_status", "anderson_status")
+COLUMNS = ("problem", "n", "m", "eps", "interval", "plain_iterations", "anderson_iterations", "plain_us",
+           "anderson_us", "cost_ratio", "iterations_ratio", "plain_status", "anderson_status",
+           "fixed_iterations", "fixed_anderson_iterations", "fixed_plain_us", "fixed_anderson_us",
+           "fixed_cost_ratio", "fixed_extrapolated", "fixed_rejected")
+#: the fixed-work runs' settings: a fixed rho, nothing that stops a run before its ``max_iter``
+FIXED_WORK = dict(eps_abs=1e-300, eps_rel=0.0, infeasibility=False)
 
 
-def _run(qp, eps: float, max_iter: int, acceleration):
-    """One compiled solve: (status, iterations, loop seconds)."""
+def _run(qp, acceleration, interval: int, policy="osqp", **settings):
+    """One compiled solve: (status, iterations, loop seconds, the accelerator's counts)."""
+    from admmkit.loop.acceleration import Anderson
     from admmkit.problems.qp import solve_qp
-    res = solve_qp(qp, eps_abs=eps, eps_rel=eps, max_iter=max_iter, acceleration=acceleration)
-    return res.termination or res.status.value, res.iterations, res.timings["total"]
+    accel = None if acceleration is None else Anderson(interval=interval)
+    res = solve_qp(qp, policy=policy, compiled=True, acceleration=accel, **settings)
+    return res.termination or res.status.value, res.iterations, res.timings["total"], res.acceleration or {}
 
 
-def measure(qp, name: str, eps: float, max_iter: int, repeat: int) -> dict:
-    """Plain and Anderson on one problem, taken in turn ``repeat`` times; the best loop time per iteration."""
+def _best(qp, repeat: int, interval: int, **kwargs) -> dict:
+    """{"plain": run, "anderson": run} of :func:`_run`, taken in turn ``repeat`` times, the fastest per iteration."""
     best = {}
     for _ in range(repeat):
         for key, acceleration in (("plain", None), ("anderson", "anderson")):
-            status, iterations, loop = _run(qp, eps, max_iter, acceleration)
-            per = loop / max(iterations, 1)
-            if key not in best or per < best[key][2]:
-                best[key] = (status, iterations, per)
-    (ps, pi, pt), (as_, ai, at) = best["plain"], best["anderson"]
-    return {"problem": name, "n": qp.n, "m": qp.m, "eps": eps, "plain_iterations": pi, "anderson_iterations": ai,
-            "plain_us": 1e6 * pt, "anderson_us": 1e6 * at, "cost_ratio": at / pt,
-            "iterations_ratio": ai / pi if pi else float("nan"), "plain_status": ps, "anderson_status": as_}
+            run = _run(qp, acceleration, interval, **kwargs)
+            if key not in best or run[2] / max(run[1], 1) < best[key][2] / max(best[key][1], 1):
+                best[key] = run
+    return best
+
+
+def measure(qp, name: str, eps: float, max_iter: int, repeat: int, interval: int, fixed_iter: int) -> dict:
+    """Plain and Anderson on one problem: the solve's loop time per iteration and the fixed work's."""
+    solve = _best(qp, repeat, interval, eps_abs=eps, eps_rel=eps, max_iter=max_iter)
+    fixed = _best(qp, repeat, interval, policy=None, max_iter=fixed_iter, **FIXED_WORK)
+    (ps, pi, pt, _), (as_, ai, at, _) = solve["plain"], solve["anderson"]
+    (_, fpi, fpt, _), (_, fai, fat, counts) = fixed["plain"], fixed["anderson"]
+    pt, at, fpt, fat = pt / max(pi, 1), at / max(ai, 1), fpt / max(fpi, 1), fat / max(fai, 1)
+    return {"problem": name, "n": qp.n, "m": qp.m, "eps": eps, "interval": interval, "plain_iterations": pi,
+            "anderson_iterations": ai, "plain_us": 1e6 * pt, "anderson_us": 1e6 * at, "cost_ratio": at / pt,
+            "iterations_ratio": ai / pi if pi else float("nan"), "plain_status": ps, "anderson_status": as_,
+            "fixed_iterations": fpi, "fixed_anderson_iterations": fai, "fixed_plain_us": 1e6 * fpt,
+            "fixed_anderson_us": 1e6 * fat, "fixed_cost_ratio": fat / fpt,
+            "fixed_extrapolated": counts.get("extrapolated", 0), "fixed_rejected": counts.get("rejected", 0)}
 
 
 def main(argv=None, prog: str = "admmkit bench anderson-cost") -> int:
@@ -64,9 +93,16 @@ def main(argv=None, prog: str = "admmkit bench anderson-cost") -> int:
     parser.add_argument("--eps", type=float, default=1e-6, help="eps_abs = eps_rel (default 1e-6)")
     parser.add_argument("--max-iter", type=int, default=4000, help="iteration cap (default 4000, OSQP's)")
     parser.add_argument("--repeat", type=int, default=3, help="runs per configuration, the best kept (default 3)")
+    parser.add_argument("--interval", type=int, default=INTERVAL,
+                        help=f"Anderson's interval, iterations per step (default {INTERVAL}, Anderson's)")
+    parser.add_argument("--fixed-iter", type=int, default=1000,
+                        help="iterations of the fixed-work runs (default 1000)")
     args = parser.parse_args(argv)
     if not (0 < args.eps < math.inf) or args.max_iter < 1 or args.repeat < 1:
         parser.error("--eps must be a positive finite number, --max-iter and --repeat integers >= 1")
+    for option, value in (("--interval", args.interval), ("--fixed-iter", args.fixed_iter)):
+        if value < 1:
+            parser.error(f"{option} must be an integer >= 1, got {value}")
     from admmkit.benchmarks.runner.harness import require
     require(prog.removeprefix("admmkit "), "numba")          # the compiled path is what is measured
     check_problems(Path(args.data), args.problems)
@@ -82,32 +118,52 @@ def main(argv=None, prog: str = "admmkit bench anderson-cost") -> int:
     t0 = time.perf_counter()
     warm = random_qp(5, 5)
     for acceleration in (None, "anderson"):                  # compile or load every kernel before timing
-        _run(warm, 1e-3, 100, acceleration)
+        _run(warm, acceleration, args.interval, eps_abs=1e-3, eps_rel=1e-3, max_iter=100)
+        _run(warm, acceleration, args.interval, policy=None, max_iter=100, **FIXED_WORK)
     print(f"kernels ready in {time.perf_counter() - t0:.2f} s", flush=True)
     rows = []
     with threadpool_limits(1):
         for i, name in enumerate(args.problems):
-            row = measure(load_mat(Path(args.data) / f"{name}.mat"), name, args.eps, args.max_iter, args.repeat)
+            row = measure(load_mat(Path(args.data) / f"{name}.mat"), name, args.eps, args.max_iter, args.repeat,
+                          args.interval, args.fixed_iter)
             rows.append(row)
-            print(f"[{i + 1}/{len(args.problems)}] {name}: plain {row['plain_us']:.2f} us/it, Anderson "
-                  f"{row['anderson_us']:.2f} us/it, {row['cost_ratio']:.2f}x", flush=True)
+            print(f"[{i + 1}/{len(args.problems)}] {name}: solve {row['plain_us']:.2f} / {row['anderson_us']:.2f} "
+                  f"us/it, {row['cost_ratio']:.2f}x; fixed work {row['fixed_plain_us']:.2f} / "
+                  f"{row['fixed_anderson_us']:.2f} us/it, {row['fixed_cost_ratio']:.2f}x", flush=True)
     out = Path(args.out)
     write_csv(out / "anderson_cost.csv", rows, list(COLUMNS), float_format=".6g")
-    ratios = np.array([r["cost_ratio"] for r in rows])
-    lines = ["| problem | n | m | plain us/it | Anderson us/it | cost ratio | iterations (plain / Anderson) | status |",
-             "|---|---:|---:|---:|---:|---:|---|---|"]
-    lines += [f"| {r['problem']} | {r['n']} | {r['m']} | {r['plain_us']:.2f} | {r['anderson_us']:.2f} | "
-              f"**{r['cost_ratio']:.2f}** | {r['plain_iterations']} / {r['anderson_iterations']} | "
-              f"{r['plain_status']} / {r['anderson_status']} |" for r in rows]
-    text = "\n".join([
-        "# Anderson on the compiled QP path: cost per iteration", "", f"Command: `{command}`", "",
-        f"Loop time per iteration (best of {args.repeat}, taken in turn), eps {args.eps:g}, memory 10, "
-        "compiled segment, BLAS on one thread.", "", *lines, "",
-        f"Cost ratio Anderson / plain: median **{float(np.median(ratios)):.2f}**, max {float(ratios.max()):.2f} "
-        "(issue #50's target: at most 1.3).", "", machine_markdown(machine_info(pinned_blas=True))]) + "\n"
+    text = report(rows, command, args) + "\n" + machine_markdown(machine_info(pinned_blas=True)) + "\n"
     write_text(out / "README.md", text)
     print(text)
     return 0
+
+
+def report(rows: list[dict], command: str, args) -> str:
+    """The README's text: both measures per problem, then their median and max."""
+    import numpy as np
+    lines = ["| problem | n | m | solve: plain / Anderson us/it | ratio | iterations (plain / Anderson) | status | "
+             "fixed work: plain / Anderson us/it | ratio | steps (rejected) |",
+             "|---|---:|---:|---:|---:|---|---|---:|---:|---:|"]
+    lines += [f"| {r['problem']} | {r['n']} | {r['m']} | {r['plain_us']:.2f} / {r['anderson_us']:.2f} | "
+              f"**{r['cost_ratio']:.2f}** | {r['plain_iterations']} / {r['anderson_iterations']} | "
+              f"{r['plain_status']} / {r['anderson_status']} | {r['fixed_plain_us']:.2f} / "
+              f"{r['fixed_anderson_us']:.2f} | **{r['fixed_cost_ratio']:.2f}** | {r['fixed_extrapolated']} "
+              f"({r['fixed_rejected']}) |" for r in rows]
+    short = [r["problem"] for r in rows if min(r["fixed_iterations"], r["fixed_anderson_iterations"]) < args.fixed_iter]
+    solve, fixed = (np.array([r[key] for r in rows]) for key in ("cost_ratio", "fixed_cost_ratio"))
+    return "\n".join([
+        "# Anderson on the compiled QP path: cost per iteration", "", f"Command: `{command}`", "",
+        f"Anderson: memory 10, interval {args.interval} (a step after every {args.interval}-th iteration); "
+        f"compiled segment, BLAS on one thread, best of {args.repeat} runs taken in turn.", "",
+        f"- *solve*: OSQP's settings at eps {args.eps:g} (max_iter {args.max_iter}); loop time / iterations. The "
+        "two runs change rho at different times and stop at different counts.",
+        f"- *fixed work*: both runs {args.fixed_iter} iterations at a fixed rho (tolerance 1e-300, no adaptive rho, no "
+        "infeasibility test); the ratio is the cost of an iteration with Anderson against one without. Steps: "
+        "the Anderson run's accepted or rejected extrapolations (rejected in brackets).", "", *lines, "",
+        f"Cost ratio Anderson / plain (issue #50's target: at most 1.3): solve median **{np.median(solve):.2f}**, "
+        f"max {solve.max():.2f}; fixed work median **{np.median(fixed):.2f}**, max {fixed.max():.2f}.",
+        *([f"Fixed-work runs that stopped before {args.fixed_iter} iterations: {', '.join(short)}."] if short else []),
+        ""])
 
 
 if __name__ == "__main__":

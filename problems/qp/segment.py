@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from admmkit.loop.anderson_kernel import anderson_update
+from admmkit.loop.anderson_kernel import CLOCK, anderson_reads_state, anderson_update
 from admmkit.kernels import AVAILABLE, all_finite, compiled_now, kernel
 from admmkit.linalg.compiled import ldl_solve
 
@@ -67,13 +67,15 @@ def _xz_kkt(count, rho, alpha, a, sigma, Lp, Li, Lx, Dinv, perm, Rinv, q, lo, up
     returns the number done (fewer if a step would meet a non-finite number).  With ``keep_last``, the
     last iteration's z, lam, A x in (its x is then x_prev) and its relaxed vector (``hat``) are kept.
     With ``accelerate``, Anderson's step (``admmkit.loop.anderson_kernel``) follows every iteration but a kept
-    last one (the loop takes that one's), on the state (z, lam), the one it started from kept in ``s_z``, ``s_lam``."""
+    last one (the loop takes that one's), on the state (z, lam), the one it started from kept in ``s_z``, ``s_lam``
+    where the step reads it; between the steps of its interval it only counts the iteration."""
     n, m = x.shape[0], z.shape[0]
     relax_x, relax = a != 1.0, alpha != 1.0
     for it in range(count):
         last = keep_last and it == count - 1
         step = accelerate and not last
-        if step:                                                                # s = (z^k, lam^k)
+        reads = step and anderson_reads_state(ist)
+        if reads:                                                               # s = (z^k, lam^k)
             for i in range(m):
                 s_z[i], s_lam[i] = z[i], lam[i]
         for i in range(n):
@@ -112,9 +114,11 @@ def _xz_kkt(count, rho, alpha, a, sigma, Lp, Li, Lx, Dinv, perm, Rinv, q, lo, up
                 v = up[i]
             lam[i] = lam[i] + rho * (h - v)
             z[i] = v
-        if step:                                                                # (A2)-(A3)
+        if reads:                                                               # (A2)-(A3)
             anderson_update(rho, w, safeguard, regularization, s_z, s_lam, z, lam, z, lam, ist, before, F_prev,
                             G_prev, plain, dF, dG, gram, g, acc, a_rhs, chol, gamma)
+        elif step:                                                              # between steps: plain
+            ist[CLOCK] += 1
     return count
 
 

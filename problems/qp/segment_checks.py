@@ -44,6 +44,7 @@ from admmkit.linalg.compiled import csc_matvec
 from .infeasibility_kernel import dual_candidate, dual_update_change, primal_candidate
 from .residual_kernel import _residuals
 from .segment import _xz_kkt
+from admmkit.loop.anderson_kernel import anderson_update
 
 #: ``False``: the segment makes no test and no rule update in its kernel (it ends at every iteration the loop reads,
 #: as before this module): the switch the tests compare the two with
@@ -131,12 +132,15 @@ def segment_tested(count, first, every, knows_test, m, eps_abs, eps_rel, gap, in
                    Pu_p, Pu_i, Pu_d, qu, Au_p, Au_i, Au_d, lu, uu, scaled, Axb, dy, dx, cert_m, cert_n,
                    a, sigma, Lp, Li, Lx, Dinv, perm, Rinv, q, free, w_free,
                    x, x_prev, x_rel, x_rel_prev, z, lam, Ax, rhs, sol, work, z_last, lam_last, Ax_last, hat,
-                   no_w, no_ints, no_matrix):
+                   accelerate, aw, safeguard, regularization, s_z, s_lam, ist, before, F_prev, G_prev, plain, dF, dG,
+                   gram, g, acc, a_rhs, chol, gamma):
     """Up to ``count`` iterations from iteration ``first`` (``segment._xz_kkt``'s), each
     tested one ((k + 1) % every == 0) and each one OSQP's rule reads (``interval`` > 0) decided by :func:`go_on`;
     ``knows_test``: the run's test is one :func:`go_on` makes (else the segment ends at the first tested iteration);
     returns (done, kept): the segment ends after a "Python must look" iteration, at ``count``, or before a
-    non-finite step (kept False: the last iteration's inputs are not kept)."""
+    non-finite step (kept False: the last iteration's inputs are not kept).  With ``accelerate``, Anderson's steps
+    (``_xz_kkt``'s arguments from ``aw`` on) follow the iterations, a decided one's too where it goes on (rho
+    unchanged: the loop would take that step next)."""
     done = 0
     while done < count:
         k = first + done
@@ -146,8 +150,8 @@ def segment_tested(count, first, every, knows_test, m, eps_abs, eps_rel, gap, in
         chunk = min(chunk, count - done)
         got = _xz_kkt(chunk, rho, alpha, a, sigma, Lp, Li, Lx, Dinv, perm, Rinv, q, lo, up, free, w_free,
                       x, x_prev, x_rel, x_rel_prev, z, lam, Ax, rhs, sol, work, True, z_last, lam_last, Ax_last, hat,
-                      False, no_w, 1.0, 0.0, no_w, no_w, no_ints, no_w, no_w, no_w, no_w, no_matrix, no_matrix,
-                      no_matrix, no_w, no_matrix, no_w, no_matrix, no_w)        # Anderson's acc scratch: 2-D
+                      accelerate, aw, safeguard, regularization, s_z, s_lam, ist, before, F_prev, G_prev, plain, dF,
+                      dG, gram, g, acc, a_rhs, chol, gamma)
         done += got
         if got < chunk:
             return done, False
@@ -163,6 +167,9 @@ def segment_tested(count, first, every, knows_test, m, eps_abs, eps_rel, gap, in
                      Pu_p, Pu_i, Pu_d, qu, Au_p, Au_i, Au_d, lu, uu, scaled,
                      x_rel, x_rel_prev, z, z_last, lam, Ax, Axb, dy, dx, cert_m, cert_n):
             return done, True
+        if accelerate:                          # go on at this rho: the step from the state iteration j started from
+            anderson_update(rho, aw, safeguard, regularization, z_last, lam_last, z, lam, z, lam, ist, before, F_prev,
+                            G_prev, plain, dF, dG, gram, g, acc, a_rhs, chol, gamma)
     return done, True
 
 
@@ -211,21 +218,23 @@ def _data(qp) -> tuple:
     return held
 
 
-#: placeholders for the iteration kernel's Anderson arrays (no accelerator here)
+#: placeholders for the iteration kernel's Anderson arrays (no accelerator)
 _NO_W, _NO_INTS, _NO_MATRIX = np.zeros(0), np.zeros(0, dtype=np.int64), np.zeros((0, 0))
+_NO_ANDERSON = (False, _NO_W, 1.0, 0.0, _NO_W, _NO_W, _NO_INTS, _NO_W, _NO_W, _NO_W, _NO_W, _NO_MATRIX, _NO_MATRIX,
+                _NO_MATRIX, _NO_W, _NO_MATRIX, _NO_W, _NO_MATRIX, _NO_W)
 
 
 def checked_segment(qp, x, z, lam, Ax, rho: float, alpha: float, order: str, count: int, read: bool, accel, check):
     """``QP.segment`` given ``check`` (:class:`admmkit.loop.segments.SegmentChecks`): up to ``count`` iterations from
     iteration ``check.first``, the tests and OSQP's rule made in the kernel where they go on; (x, z, lam, Ax, done,
     last) as ``run_segment(..., read=True)`` returns them, ``last`` the read iteration's inputs (None when a
-    non-finite step ended the segment early).  Where the kernel does not apply (not order "xz" with the KKT form on
-    qdldl, compiled code not chosen, an accelerator), :func:`admmkit.problems.qp.segment.run_segment` up to the next
-    iteration the loop reads."""
+    non-finite step ended the segment early).  ``accel``: Anderson's ``kernel_state()``, whose steps the kernel takes
+    (:func:`segment_tested`).  Where the kernel does not apply (not order "xz" with the KKT form on qdldl, compiled
+    code not chosen), :func:`admmkit.problems.qp.segment.run_segment` up to the next iteration the loop reads."""
     from .segment import run_segment, segment_state
     first = check.first
     factors = qp._solver.ldl(rho) if order == "xz" and qp.xstep == "kkt" and compiled_now() else None
-    if factors is None or accel is not None or not read:
+    if factors is None or not read:
         upto = min(first + check.every - 1 - first % check.every, check.policy.unchanged_until(first))
         return run_segment(qp, x, z, lam, Ax, rho, alpha, order, min(count, upto - first + 1), read, accel)
     test = test_parameters(qp, check.stop)
@@ -237,10 +246,15 @@ def checked_segment(qp, x, z, lam, Ax, rho: float, alpha: float, order: str, cou
     a = qp.x_relaxation
     m = z.shape[0]
     kept = (np.empty(m), np.empty(m), np.empty(m), np.empty(m))
+    if accel is None:
+        anderson = _NO_ANDERSON
+    else:
+        w, safeguard, regularization, arrays = accel
+        anderson = (True, w, safeguard, regularization, np.empty(m), np.empty(m), *arrays.args())
     done, whole = segment_tested(count, first, check.every, *test[:1], m, *test[1:], *rule, float(rho),
                                  float(alpha), *_data(qp), a, qp.sigma, *factors, qp.inverse_penalty(rho), qp.qs,
                                  qp._free, qp._w_free_over_penalty, x, x_prev, x_rel, x_rel_prev, z, lam, Ax,
-                                 rhs, sol, work, *kept, _NO_W, _NO_INTS, _NO_MATRIX)
+                                 rhs, sol, work, *kept, *anderson)
     if done:
         qp.after_segment(x, x_prev, x_rel, x_rel_prev, done)
     last = (x_prev, *kept[:3], kept[3] if alpha != 1.0 else None) if whole and done else None

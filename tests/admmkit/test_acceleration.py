@@ -129,8 +129,9 @@ def test_names_make_accelerators():
 
 
 def test_anderson_backs_off_after_rejections():
-    """After a rejection the next b proposals are plain, b doubling with each rejection (issue #50's safeguard)."""
-    a = Anderson(m=2)
+    """After a rejection the next b proposals are plain, b doubling with each rejection (issue #50's safeguard); a
+    step after every iteration (interval 1), so that every call is a proposal."""
+    a = Anderson(m=2, interval=1)
     a.start()
     inner = lambda u, v: float(np.dot(u, v))
     one = np.ones(3)
@@ -152,15 +153,15 @@ def test_anderson_backs_off_after_rejections():
 
 @pytest.mark.parametrize("compiled", [False, True])
 def test_the_fused_gram_pass_is_the_weighted_inner_product_bit_for_bit(compiled):
-    """_gram_row_and_rhs advances the 4 count sums side by side; each must be the loop of its own sum, bit for bit
-    (so the compiled segment's Anderson steps stay the Python path's)."""
+    """_gram_row_and_rhs advances the 4 count sums side by side (over the contiguous rows of dG, stored (n, mem)); each
+    must be the loop of its own sum, bit for bit (so the compiled segment's Anderson steps stay the Python path's)."""
     from admmkit.kernels import AVAILABLE, compiled_code
     from admmkit.loop.anderson_kernel import _gram_row_and_rhs
     if compiled and not AVAILABLE:
         pytest.skip("numba not installed")
     rng = np.random.default_rng(7)
     m, mem, rho = 37, 6, 0.37
-    w, dG, g = rng.uniform(0.1, 3, m), rng.standard_normal((mem, 2 * m)), rng.standard_normal(2 * m)
+    w, dG, g = rng.uniform(0.1, 3, m), rng.standard_normal((2 * m, mem)), rng.standard_normal(2 * m)
 
     def inner(a, b):                       # (a, b)_W of the module docstring, one sum at a time
         su = sl = 0.0
@@ -176,6 +177,6 @@ def test_the_fused_gram_pass_is_the_weighted_inner_product_bit_for_bit(compiled)
             _gram_row_and_rhs(w, rho, dG, g, p, count, extrapolate, gram, rhs, acc)
         for q in range(count):
             if p >= 0:
-                assert gram[p, q] == gram[q, p] == inner(dG[p], dG[q])
-            assert (rhs[q] == inner(dG[q], g)) if extrapolate else np.isnan(rhs[q])
+                assert gram[p, q] == gram[q, p] == inner(dG[:, p], dG[:, q])
+            assert (rhs[q] == inner(dG[:, q], g)) if extrapolate else np.isnan(rhs[q])
         assert np.isnan(gram[:, count:]).all() and (p >= 0 or np.isnan(gram).all())
