@@ -14,23 +14,27 @@ string is found through the entry-point group ``admmkit.policies``).
 from ._layout import map_source_tree
 
 map_source_tree(__path__[0])   # a source checkout resolves admmkit.policies etc. as the installed package does
-from .loop.history import History
-from .policy import Policy, RowPenalties, make_policy, policy_names, register_policy
-from .problem import Problem
-from .loop.record import IterationRecord
-from .loop.result import Result, Status
-from .loop.solver import solve
-from .fe.balanced_stop import BalancedStop
-from .loop.stopping import AllOf, AnyOf, RelativeChange, ResidualTolerance, Stop, StoppingRule, default_stop
 
-#: the building blocks, imported on first use: they bring scipy.sparse, which the loop does not need
-#: (``import admmkit`` then costs numpy and the loop only; issue #49)
-_ON_DEMAND = {"LinearMap": ("blocks.operators", "LinearMap"), "QuadraticXStep": ("blocks.xstep", "QuadraticXStep"),
+#: every public name, imported on first use (PEP 562): ``import admmkit`` costs nothing beyond this file, so the
+#: command line's help and a plug-in's entry point load no numpy; ``from admmkit import solve`` loads the loop
+#: (numpy), ``admmkit.LinearMap`` and the other building blocks scipy.sparse as well (issue #49)
+_ON_DEMAND = {"History": ("loop.history", "History"), "Policy": ("policy", "Policy"),
+              "RowPenalties": ("policy", "RowPenalties"), "make_policy": ("policy", "make_policy"),
+              "policy_names": ("policy", "policy_names"), "register_policy": ("policy", "register_policy"),
+              "Problem": ("problem", "Problem"), "IterationRecord": ("loop.record", "IterationRecord"),
+              "Result": ("loop.result", "Result"), "Status": ("loop.result", "Status"),
+              "solve": ("loop.solver", "solve"), "BalancedStop": ("fe.balanced_stop", "BalancedStop"),
+              "AllOf": ("loop.stopping", "AllOf"), "AnyOf": ("loop.stopping", "AnyOf"),
+              "RelativeChange": ("loop.stopping", "RelativeChange"),
+              "ResidualTolerance": ("loop.stopping", "ResidualTolerance"), "Stop": ("loop.stopping", "Stop"),
+              "StoppingRule": ("loop.stopping", "StoppingRule"), "default_stop": ("loop.stopping", "default_stop"),
+              "LinearMap": ("blocks.operators", "LinearMap"), "QuadraticXStep": ("blocks.xstep", "QuadraticXStep"),
               "SplitProblem": ("blocks.split", "SplitProblem"), "prox": ("blocks.prox", None)}
 
 
 def __getattr__(name: str):
-    """``admmkit.LinearMap``, ``admmkit.QuadraticXStep``, ``admmkit.SplitProblem``, ``admmkit.prox``: loaded on first use."""
+    """A public name (``admmkit.solve``, ``admmkit.Status``, ``admmkit.LinearMap``, ``admmkit.prox``, ...): its module
+    imported on first use."""
     if name not in _ON_DEMAND:
         raise AttributeError(f"module 'admmkit' has no attribute {name!r}")
     import importlib
@@ -42,7 +46,7 @@ def __getattr__(name: str):
 
 
 def __dir__() -> list[str]:
-    """The module's names, the on-demand building blocks included."""
+    """The module's names, the on-demand ones included."""
     return sorted({*globals(), *_ON_DEMAND})
 
 

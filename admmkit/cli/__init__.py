@@ -40,5 +40,16 @@ from .options import (EXIT_BAD_INPUT, EXIT_CONVERGED, EXIT_NOT_CONVERGED, add_co
                       positive_float, positive_int, resolve_policy, set_help, stop_rule)
 from .output import (Progress, check_output_folder, exit_code, print_summary, provenance,  # noqa: F401
                      write_result_csv, write_result_json)
-from .run import progress, run_solve, write_history  # noqa: F401
 from .words import did_you_mean, plain  # noqa: F401
+
+#: a solve's helpers (``cli/run.py``), imported on first use: they bring the loop and numpy, which the host's help
+#: and a sub-command's parser do not need
+_RUN_NAMES = ("progress", "run_solve", "write_history")
+
+
+def __getattr__(name: str):
+    """``admmkit.cli.run_solve``, ``progress`` and ``write_history``: ``cli/run.py`` imported on first use."""
+    if name not in _RUN_NAMES:
+        raise AttributeError(f"module 'admmkit.cli' has no attribute {name!r}")
+    from . import run
+    return getattr(run, name)

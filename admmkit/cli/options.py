@@ -11,10 +11,8 @@ import sys
 from pathlib import Path
 
 from ..io import check_writable
-from ..policy import canonical_spec, is_spec, make_policy, policy_names
 from .output import check_output_folder
 from .words import did_you_mean, plain
-from ..loop.stopping import AnyOf, RelativeChange, ResidualTolerance, StoppingRule
 
 #: exit codes (docs/cli.md)
 EXIT_CONVERGED, EXIT_NOT_CONVERGED, EXIT_BAD_INPUT = 0, 1, 2
@@ -71,6 +69,7 @@ def add_common_options(parser: argparse.ArgumentParser, *, policy: str = "summab
     such a name runs in its own order unless ``--order`` is given, a
     registered rule in ``order``.  ``--method`` stays as a deprecated alias.
     """
+    from ..policy import policy_names        # (imported here: the host's help loads no numpy)
     names = [*(methods or {}), *policy_names()]
     parser.add_argument("--policy", default=policy, metavar="NAME",
                         help=f"penalty rule or method: {', '.join(names)} (default {policy})")
@@ -221,6 +220,7 @@ def level_file(base: str | Path, k: int) -> Path:
 
 def resolve_policy(args) -> tuple[str, object, str]:
     """(order, fresh policy, name) from ``--policy`` and ``--order``; ValueError naming ``--policy``."""
+    from ..policy import canonical_spec, is_spec, make_policy, policy_names
     name = args.policy if isinstance(args.policy, str) else None
     if name is None:                                           # a Policy object (from Python)
         return args.order or args.default_order, args.policy, type(args.policy).__name__
@@ -244,6 +244,7 @@ def resolve_policy(args) -> tuple[str, object, str]:
 
 def stop_rule(args) -> StoppingRule:
     """The stopping rule the common options ask for."""
+    from ..loop.stopping import AnyOf, RelativeChange, ResidualTolerance
     if args.eps_rel is not None and args.eps_abs is None:
         raise ValueError("--eps-rel needs --eps-abs (Boyd's residual test has both tolerances)")
     rules = []

@@ -16,11 +16,8 @@ import sys
 import time
 from pathlib import Path
 
-import numpy as np
-
 from .. import __version__
 from ..io import atomic_open, write_text
-from ..loop.result import Result, Status
 
 #: a progress bar appears once a run has taken this many seconds of wall time
 PROGRESS_DELAY = 2.0
@@ -116,11 +113,13 @@ class Progress:
 
 def exit_code(result: Result) -> int:
     """0 if the run converged, 1 for any other status (max_iter, diverged, converged_inaccurate, ...)."""
+    from ..loop.result import Status
     return 0 if result.status is Status.CONVERGED else 1
 
 
 def number(value) -> str:
     """A number for people: integers as integers, others with 4 significant digits in e-notation."""
+    import numpy as np
     if isinstance(value, (bool, np.bool_)):
         return str(bool(value))
     if isinstance(value, (int, np.integer)):
@@ -164,6 +163,8 @@ def check_output_folder(value: str | Path, flag: str = "--out") -> Path:
 
 def jsonable(value):
     """``value`` with numpy scalars and arrays, paths, enums and tuples turned into JSON types."""
+    from ..loop.result import Status
+    import numpy as np
     if isinstance(value, dict):
         return {str(k): jsonable(v) for k, v in value.items()}
     if isinstance(value, (list, tuple)):
@@ -188,6 +189,7 @@ def jsonable(value):
 
 def provenance(args=None, **extra) -> dict:
     """Who wrote a result and how: admmkit version, UTC date, command line, Python, policy and stopping rule."""
+    import numpy as np
     out = {"admmkit_version": __version__,
            "date": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
            "command_line": getattr(args, "command_line", None) or " ".join(sys.argv),
@@ -219,6 +221,7 @@ def write_result_json(path: str | Path, result: Result, args=None, *, problem: d
 
 def write_result_csv(path: str | Path, columns: dict) -> Path:
     """CSV with one column per entry of ``columns`` (equal lengths), full precision, written whole or not at all."""
+    import numpy as np
     names = list(columns)
     values = [np.asarray(columns[n]) for n in names]
     lengths = {len(v) for v in values}
@@ -233,6 +236,7 @@ def write_result_csv(path: str | Path, columns: dict) -> Path:
 
 
 def _cell(v) -> str:
+    import numpy as np
     if isinstance(v, (bool, np.bool_)):
         return str(int(v))
     if isinstance(v, (int, np.integer)):

@@ -5,7 +5,8 @@ measured from the parent), the median of ``--repeats`` runs, the rows
 interleaved so that a load change hits both sides alike.  The children also
 report their own phases (import, read, solve), from ``time.perf_counter``.
 
-- ``import``: ``import admmkit`` against ``import osqp``;
+- ``import``: ``import admmkit`` against ``import osqp`` (admmkit's package file only: every public name is
+  imported on first use), and ``from admmkit import solve`` (the loop, with numpy) against ``import osqp``;
 - ``HS21, cached kernels``: import, read HS21 from its MAT file and solve it
   once with OSQP's settings (``solve_qp(qp, osqp_settings())``) against
   ``osqp.OSQP().setup(...).solve()`` on the same arrays (read with
@@ -55,6 +56,8 @@ from admmkit.benchmarks.runner.report import write_csv
 CHILD = {
     "admmkit_import": "import time; t = time.perf_counter(); import admmkit; "
                       "import json; print(json.dumps({'import': time.perf_counter() - t}))",
+    "admmkit_loop": "import time; t = time.perf_counter(); from admmkit import solve; "
+                    "import json; print(json.dumps({'import': time.perf_counter() - t}))",
     "osqp_import": "import time; t = time.perf_counter(); import osqp; "
                    "import json; print(json.dumps({'import': time.perf_counter() - t}))",
     "admmkit_hs21": "import time, sys; t0 = time.perf_counter(); import admmkit; "
@@ -86,6 +89,7 @@ CHILD = {
 }
 #: the rows of the table: (label, admmkit child, OSQP child or None)
 ROWS = [("import", "admmkit_import", "osqp_import"),
+        ("from admmkit import solve (the loop, numpy)", "admmkit_loop", "osqp_import"),
         ("HS21, cached kernels", "admmkit_hs21", "osqp_hs21"),
         ("HS21, empty kernel cache", "admmkit_hs21_cold", None),
         ("cvxpy, 3-variable projection", "admmkit_cvxpy", "osqp_cvxpy"),

@@ -42,6 +42,27 @@ def test_the_command_line_imports_only_the_command_named(argv):
     assert fresh(code)["loaded"] == []           # no plug-in's libraries, and no numba for a 5 x 5 QP
 
 
+@pytest.mark.parametrize("argv", [None, ["--help"], ["bench", "--help"], ["--version"]])
+def test_import_admmkit_and_the_hosts_help_load_no_numpy(argv):
+    """``import admmkit`` runs the package file only (every public name on first use), and the host's help and
+    version need no numpy; ``from admmkit import solve`` loads the loop, with numpy."""
+    run = "" if argv is None else ("import contextlib, io, admmkit.cli\n"
+                                   "with contextlib.redirect_stdout(io.StringIO()):\n"
+                                   f"    try: admmkit.cli.main({argv!r})\n"
+                                   "    except SystemExit: pass\n")
+    probe = "import json, sys; print(json.dumps({'numpy': 'numpy' in sys.modules}))"
+    assert fresh("import admmkit\n" + run + probe)["numpy"] is False
+    assert fresh("from admmkit import solve\n" + probe)["numpy"] is True
+
+
+def test_every_public_name_of_admmkit_resolves():
+    assert set(admmkit.__all__) <= set(dir(admmkit))
+    for name in admmkit.__all__:
+        assert getattr(admmkit, name) is not None, name
+    with pytest.raises(AttributeError, match="no attribute 'nope'"):
+        admmkit.nope
+
+
 def test_help_lists_every_command_with_its_registrars_line(capsys):
     parser = build_parser(load_all=True)
     seen = {}
