@@ -26,6 +26,8 @@ better answer.
 """
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
@@ -64,16 +66,49 @@ def _reduced_solver(upper: sp.csc_matrix, order: np.ndarray | None = None):
     return qdldl.Solver(upper, upper=True).solve
 
 
+class _Compressed(NamedTuple):
+    """A compressed sparse matrix's three arrays (CSC or CSR), what :func:`reduced_upper` reads of P and A."""
+    indptr: np.ndarray
+    indices: np.ndarray
+    data: np.ndarray
+
+
+def strict_upper(P) -> _Compressed:
+    """The entries of the CSC matrix P strictly above its diagonal, column by column in P's order: the arrays of
+    scipy's ``triu(P, k=1, format="csc")`` (for P with sorted indices), without its COO round trip (HS118: about
+    20 against 380 us)."""
+    n = P.shape[1]
+    columns = np.repeat(np.arange(n), np.diff(P.indptr))
+    keep = P.indices < columns
+    indptr = np.zeros(n + 1, dtype=P.indptr.dtype)
+    np.cumsum(np.bincount(columns[keep], minlength=n), out=indptr[1:])
+    return _Compressed(indptr, P.indices[keep], P.data[keep])
+
+
+def rows_of(A) -> _Compressed:
+    """The CSC matrix A by rows (CSR arrays, each row's entries in column order), as scipy's ``csr_matrix(A)``
+    with sorted indices stores it, by a stable sort of the row indices."""
+    m = A.shape[0]
+    order = np.argsort(A.indices, kind="stable")
+    columns = np.repeat(np.arange(A.shape[1]), np.diff(A.indptr))
+    indptr = np.zeros(m + 1, dtype=A.indptr.dtype)
+    np.cumsum(np.bincount(A.indices, minlength=m), out=indptr[1:])
+    return _Compressed(indptr, columns[order].astype(A.indices.dtype), A.data[order])
+
+
 def _parts(qp: QP) -> tuple:
-    """(P's strict upper triangle, P's diagonal, A's rows (CSR)) of the scaled QP: what every try reads, made once
-    per QP."""
+    """(P's strict upper triangle, P's diagonal, A's rows), the arrays of the scaled QP every try reads, made once
+    per QP (scipy's ``triu`` and ``csr_matrix`` where P's or A's indices are not sorted)."""
     parts = qp.__dict__.get("_polish_parts")
     if parts is None or parts[0] is not qp.Ps:
-        P = qp.Ps
-        upper = sp.triu(P, k=1, format="csc")
-        upper.sort_indices()
-        rows = sp.csr_matrix(qp.As)
-        rows.sort_indices()
+        P, A = qp.Ps, qp.As
+        if P.has_sorted_indices and A.has_sorted_indices and P.format == "csc" and A.format == "csc":
+            upper, rows = strict_upper(P), rows_of(A)
+        else:
+            upper = sp.triu(P, k=1, format="csc")
+            upper.sort_indices()
+            rows = sp.csr_matrix(A)
+            rows.sort_indices()
         parts = (P, upper, P.diagonal(), rows)
         qp.__dict__["_polish_parts"] = parts
     return parts[1:]
@@ -93,7 +128,7 @@ def reduced_upper(qp: QP, act: np.ndarray, delta: float) -> sp.csc_matrix:
     np.cumsum(counts, out=indptr[1:])
     nnz = int(indptr[-1])
     indices, data = np.empty(nnz, dtype=np.int64), np.empty(nnz)
-    at = np.arange(upper.nnz) + np.repeat(np.arange(n), np.diff(upper.indptr))   # one diagonal before each column
+    at = np.arange(len(upper.data)) + np.repeat(np.arange(n), np.diff(upper.indptr))   # one diagonal before each column
     indices[at], data[at] = upper.indices, upper.data
     indices[indptr[1:n + 1] - 1], data[indptr[1:n + 1] - 1] = np.arange(n), diagonal + delta
     total = int(lengths.sum())

@@ -309,3 +309,23 @@ def test_polishing_during_the_run_factorises_in_the_x_steps_order(monkeypatch):
     assert res.status is Status.CONVERGED and seen
     for given, held, size in seen:
         assert given is not None and given is held and given.shape == (size,)
+
+
+@pytest.mark.parametrize("seed", range(20))
+def test_the_polishing_parts_are_scipys_triu_and_csr(seed):
+    """strict_upper and rows_of give the arrays of scipy's triu(P, k=1) and csr_matrix(A) (sorted), entry for entry,
+    empty rows and columns included."""
+    import scipy.sparse as sp
+    from admmkit.problems.qp.polish import rows_of, strict_upper
+    rng = np.random.default_rng(seed)
+    n, m = int(rng.integers(1, 30)), int(rng.integers(1, 40))
+    B = sp.random(n, n, density=rng.random() * 0.5, random_state=seed)
+    P = (B + B.T).tocsc()
+    A = sp.random(m, n, density=rng.random() * 0.3, random_state=seed + 1, format="csc")
+    P.sort_indices()
+    A.sort_indices()
+    U, R = sp.triu(P, k=1, format="csc"), sp.csr_matrix(A)
+    U.sort_indices()
+    R.sort_indices()
+    for ours, ref in ((strict_upper(P), U), (rows_of(A), R)):
+        assert all(np.array_equal(getattr(ours, k), getattr(ref, k)) for k in ("indptr", "indices", "data"))
