@@ -112,8 +112,9 @@ def plot(rows: list[dict], sets: dict[str, set[str]], metric: str, path: Path) -
 
 
 def report(results: Path, out: Path, data: Path) -> Path:
-    """Write README.md and the two profile PNGs to ``out``; return the README's path."""
+    """Write README.md and the two profile PNGs to ``out`` (made if missing); return the README's path."""
     rows = labelled(read_rows(results))
+    out.mkdir(parents=True, exist_ok=True)
     everything = {r["problem"] for r in rows}
     klass = qp_class(data)
     halves = split(klass)
