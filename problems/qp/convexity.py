@@ -22,6 +22,9 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from admmkit.kernels import compiled_now
+from admmkit.loop.segments import AVAILABLE as NUMBA      # numba installed (asked once, without importing it)
+
 #: relative shift of P + delta I, and the pivot below which P is indefinite
 SHIFT = 1e-9
 #: below this size the smallest eigenvalue is computed densely
@@ -38,6 +41,22 @@ def smallest_eigenvalue(P: sp.spmatrix) -> float:
                                 return_eigenvectors=False)[0])
     except spla.ArpackNoConvergence as err:
         return float(err.eigenvalues[0]) if len(err.eigenvalues) else float("nan")
+
+
+def shifted(P: sp.csc_matrix, delta: float) -> sp.csc_matrix:
+    """P + delta I as scipy's sum ``(P + delta * sp.identity(n, format="csc")).tocsc()`` gives it (the same entries,
+    exact zeros dropped, indices sorted), for canonical CSC ``P``: where compiled code runs, one pass of the KKT
+    assembly's kernel with no rows of A (``sparse_kernels.kkt_arrays``; scipy's sum costs ~100 us in constructor
+    checks on a small P), else scipy's sum."""
+    n = P.shape[0]
+    if NUMBA and compiled_now():
+        from .csc import csc_of
+        from .sparse_kernels import kkt_arrays
+        indptr, indices, data, _ = kkt_arrays(n, 0, P.indptr, P.indices, P.data, delta,
+                                              np.zeros(n + 1, P.indptr.dtype), np.empty(0, P.indices.dtype),
+                                              np.empty(0), False)
+        return csc_of(data, indices, indptr, (n, n))
+    return (P + delta * sp.identity(n, format="csc")).tocsc()
 
 
 def check_convex(P: sp.csc_matrix, *, scale: float | None = None, diagonal: bool | None = None) -> None:
@@ -64,7 +83,7 @@ def check_convex(P: sp.csc_matrix, *, scale: float | None = None, diagonal: bool
             indefinite = True
     else:
         try:
-            lu = spla.splu((P + delta * sp.identity(n, format="csc")).tocsc(), permc_spec="MMD_AT_PLUS_A",
+            lu = spla.splu(shifted(P, delta), permc_spec="MMD_AT_PLUS_A",
                            diag_pivot_thresh=0.0, options=dict(SymmetricMode=True))
             indefinite = bool(np.any(lu.U.diagonal() < -delta))
         except RuntimeError:                  # an exactly singular pivot: P + delta I is not positive definite

@@ -26,7 +26,7 @@ import time
 import numpy as np
 
 from admmkit import IterationRecord, Status, Stop, StoppingRule
-from admmkit.kernels import compiled_now
+from admmkit.kernels import compiled_now, kernel
 from admmkit.loop.segments import AVAILABLE as NUMBA
 
 from .infeasibility import DIVISION_TOL, confirmed_certificate, dual_certificate, iterate_deltas, primal_certificate
@@ -172,6 +172,72 @@ def _indices(idx: np.ndarray, shown: int = 8) -> str:
     return head if idx.size <= shown else f"{head}, ... ({idx.size} in all)"
 
 
+@kernel(cache=True)
+def scale_facts(Ap, Ai, Ax, Pp, Pi, Px, l, u, span):
+    """:class:`ScaleCheck`'s arrays in one pass over A, P, l and u: (nu, live, bound, kappa, span_rows, void_rows,
+    span_columns), the numbers its vector form gives (``ScaleCheck(qp)`` with compiled code off)."""
+    m, n = l.shape[0], Ap.shape[0] - 1
+    nu = np.zeros(m)
+    kappa = np.zeros(n)
+    for j in range(n):                              # row and column inf-norms of A, column inf-norms of P
+        c = 0.0
+        for p in range(Ap[j], Ap[j + 1]):
+            a = abs(Ax[p])
+            if a > c:
+                c = a
+            if a > nu[Ai[p]]:
+                nu[Ai[p]] = a
+        for p in range(Pp[j], Pp[j + 1]):
+            a = abs(Px[p])
+            if a > c:
+                c = a
+        kappa[j] = c
+    live = np.empty(m, np.bool_)
+    bound = np.empty(m)
+    top = 0.0
+    voids = 0
+    for i in range(m):
+        finite_l, finite_u = np.isfinite(l[i]), np.isfinite(u[i])
+        live[i] = (finite_l or finite_u) and nu[i] > 0
+        bl = abs(l[i]) if finite_l else 0.0
+        bu = abs(u[i]) if finite_u else 0.0
+        bound[i] = bu if bu > bl else bl
+        if live[i] and nu[i] > top:
+            top = nu[i]
+        if nu[i] == 0 and (l[i] > 0 or u[i] < 0):
+            voids += 1
+    top_column = 0.0
+    for j in range(n):
+        if kappa[j] > top_column:
+            top_column = kappa[j]
+    row_floor, column_floor = top / span, top_column / span
+    spans = 0
+    for i in range(m):
+        if live[i] and nu[i] < row_floor:
+            spans += 1
+    span_rows = np.empty(spans, np.int64)
+    void_rows = np.empty(voids, np.int64)
+    s = v = 0
+    for i in range(m):
+        if live[i] and nu[i] < row_floor:
+            span_rows[s] = i
+            s += 1
+        if nu[i] == 0 and (l[i] > 0 or u[i] < 0):
+            void_rows[v] = i
+            v += 1
+    columns = 0
+    for j in range(n):
+        if kappa[j] > 0 and kappa[j] < column_floor:
+            columns += 1
+    span_columns = np.empty(columns, np.int64)
+    c = 0
+    for j in range(n):
+        if kappa[j] > 0 and kappa[j] < column_floor:
+            span_columns[c] = j
+            c += 1
+    return nu, live, bound, kappa, span_rows, void_rows, span_columns
+
+
 class ScaleCheck:
     """Which rows and columns of the user's QP a tolerance cannot see (issue #46).
 
@@ -193,6 +259,12 @@ class ScaleCheck:
 
     def __init__(self, qp: QP):
         self.qp = qp
+        if NUMBA and compiled_now():        # one compiled pass, the same arrays (a max and a comparison are exact)
+            A, P = qp.A, qp.P
+            (self.nu, self.live, self.bound, self.kappa, self.span_rows, self.void_rows,
+             self.span_columns) = scale_facts(A.indptr, A.indices, A.data, P.indptr, P.indices, P.data,
+                                              qp.l, qp.u, SCALE_SPAN)
+            return
         nu, col_A = _row_and_column_norms(qp.A)
         finite_l, finite_u = np.isfinite(qp.l), np.isfinite(qp.u)
         self.live = (finite_l | finite_u) & (nu > 0)

@@ -1,0 +1,101 @@
+"""#49 item 3: a small QP's fixed costs cut without changing a number.
+
+Each speed trick here has its library path (compiled code off), and the tests check that both give the same
+bits: ``ScaleCheck``'s arrays (one compiled pass, ``termination.scale_facts``), the shifted P of the convexity
+test (``convexity.shifted``), and whole solves with and without the compiled helpers.
+"""
+from pathlib import Path
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+from admmkit.kernels import compiled_code
+from admmkit.problems.qp import QP, load_mat, solve_qp
+from admmkit.problems.qp.convexity import check_convex, shifted
+from admmkit.problems.qp.generate import random_qp
+from admmkit.problems.qp.termination import ScaleCheck
+
+numba = pytest.importorskip("numba")
+
+DATA = Path(__file__).resolve().parents[3] / "shared" / "data" / "maros_meszaros"
+FIELDS = ("nu", "live", "bound", "kappa", "span_rows", "void_rows", "span_columns")
+
+
+def _same_bits(a: np.ndarray, b: np.ndarray) -> bool:
+    return a.dtype == b.dtype and a.shape == b.shape and a.tobytes() == b.tobytes()
+
+
+def awkward_qp() -> QP:
+    """Every kind of row and column ScaleCheck names: a span row (1e-12 against 1), a tiny row, a void row whose
+    bounds exclude 0, a void row that admits 0, free and one-sided rows, and a span column."""
+    A = sp.csc_matrix(np.array([[1.0, 2.0, 0.0, 0.0],
+                                [1e-12, 0.0, 0.0, 0.0],       # span row
+                                [0.0, 0.0, 0.0, 0.0],         # void row, bounds exclude 0
+                                [0.0, 0.0, 0.0, 0.0],         # void row, bounds admit 0
+                                [0.0, 3.0, -4.0, 0.0],        # free row
+                                [0.0, 0.0, 1.0, 0.0],         # one-sided
+                                [0.0, 0.0, 0.0, 1e-13]]))     # span column 3 (P's is 0 too)
+    P = sp.csc_matrix(np.diag([2.0, 1.0, 0.5, 0.0]))
+    l = np.array([-1.0, -1e-9, 1e-9, -1.0, -np.inf, -np.inf, -1.0])
+    u = np.array([1.0, 1e-9, 2.0, 1.0, np.inf, 5.0, 1.0])
+    return QP(P, np.ones(4), A, l, u)
+
+
+@pytest.mark.parametrize("make", [awkward_qp, lambda: random_qp(30, 40, seed=3), lambda: random_qp(8, 3, kind="lp", seed=1)])
+def test_scale_check_compiled_gives_the_library_paths_arrays(make):
+    qp = make()
+    with compiled_code(True):
+        fast = ScaleCheck(qp)
+    with compiled_code(False):
+        slow = ScaleCheck(qp)
+    for name in FIELDS:
+        assert _same_bits(getattr(fast, name), getattr(slow, name)), name
+
+
+def test_the_awkward_qp_has_what_the_scale_check_names():
+    fast = ScaleCheck(awkward_qp())
+    assert list(fast.span_rows) == [1, 6] and list(fast.void_rows) == [2] and list(fast.span_columns) == [3]
+    assert fast.bound[4] == 0.0 and fast.bound[5] == 5.0 and not fast.live[4]
+
+
+@pytest.mark.parametrize("P", [sp.csc_matrix(np.array([[2.0, -1.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 0.0, 0.0]])),
+                               sp.csc_matrix(np.array([[-1e-9, 1.0], [1.0, 3.0]])),      # a diagonal sum of 0
+                               sp.random(40, 40, density=0.1, random_state=2, format="csc")])
+def test_shifted_p_is_scipys_sum(P):
+    P = (P + P.T).tocsc()
+    P.sort_indices()
+    with compiled_code(True):
+        fast = shifted(P, 1e-9)
+    with compiled_code(False):
+        slow = shifted(P, 1e-9)
+    assert slow.has_sorted_indices
+    assert np.array_equal(fast.indptr, slow.indptr) and np.array_equal(fast.indices, slow.indices)
+    assert _same_bits(fast.data, slow.data)
+
+
+def test_convexity_verdicts_are_the_same_on_both_paths():
+    indefinite = sp.csc_matrix(np.array([[1.0, 2.0, 0.0], [2.0, 1.0, 0.0], [0.0, 0.0, 1.0]]))
+    for flag in (True, False):
+        with compiled_code(flag):
+            with pytest.raises(ValueError, match="positive semidefinite"):
+                check_convex(indefinite)
+            check_convex(sp.csc_matrix(np.array([[2.0, 1.0, 0.0], [1.0, 2.0, 0.0], [0.0, 0.0, 0.0]])))
+
+
+def _fingerprint(res) -> tuple:
+    return (res.x.tobytes(), res.z.tobytes(), res.y.tobytes(), res.iterations, res.status, res.termination,
+            res.rho, tuple(res.history["rho"]), tuple(sorted((res.residuals or {}).items())),
+            tuple(sorted((res.neutral or {}).items())), tuple(res.warnings))
+
+
+@pytest.mark.skipif(not DATA.exists(), reason="needs ../shared/data/maros_meszaros")
+@pytest.mark.parametrize("name", ["HS21", "HS118", "QAFIRO", "DUAL1"])
+def test_a_whole_solve_is_the_same_with_the_helpers_compiled_or_not(name):
+    qp = load_mat(DATA / f"{name}.mat")
+    runs = []
+    for flag in (True, False):
+        with compiled_code(flag):
+            runs.append(_fingerprint(solve_qp(QP(qp.P, qp.q, qp.A, qp.l, qp.u), eps_abs=1e-6, eps_rel=1e-6,
+                                              compiled=False)))
+    assert runs[0] == runs[1]
