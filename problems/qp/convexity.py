@@ -7,7 +7,7 @@ inertia the number of negative pivots is the number of eigenvalues of P
 below -delta: one sparse factorisation of P (smaller than the x-step's),
 at every size (a dense eigenvalue solve cost more than the whole QP solve
 below n = 500).  A diagonal P (an LP, a separable QP) is read off directly;
-a small P stored at least a quarter full (up to ``DENSE_MAX`` rows) by a
+a small P (up to ``DENSE_ANY`` rows, or up to ``DENSE_MAX`` rows stored at least a quarter full) by a
 dense Cholesky factorisation of P + delta I (LAPACK's, 10-50x faster than
 SuperLU on such a matrix: DUAL2, n = 96, 600 us against 30 us), whose
 failure sends P to the eigenvalue test below, as a negative pivot does.
@@ -29,6 +29,9 @@ from admmkit.loop.segments import AVAILABLE as NUMBA      # numba installed (ask
 SHIFT = 1e-9
 #: below this size the smallest eigenvalue is computed densely
 DENSE_MAX = 500
+#: up to this size P goes to the dense Cholesky factorisation however sparse it is: SuperLU's call and its U
+#: cost more (CVXQP1_S, n = 100: 190 against 45 us; QAFIRO, n = 32: 150 against 20 us; one run, best of 300)
+DENSE_ANY = 128
 
 
 def smallest_eigenvalue(P: sp.spmatrix) -> float:
@@ -73,7 +76,7 @@ def check_convex(P: sp.csc_matrix, *, scale: float | None = None, diagonal: bool
         diagonal = bool(np.all(P.indices == np.repeat(np.arange(n), np.diff(P.indptr))))
     if diagonal:                                                # diagonal: its entries are the eigenvalues
         indefinite = bool(np.any(P.data < -delta))
-    elif n <= DENSE_MAX and 4 * P.nnz >= n * n:                # small and dense: LAPACK's Cholesky
+    elif n <= DENSE_MAX and (n <= DENSE_ANY or 4 * P.nnz >= n * n):     # small, or dense: LAPACK's Cholesky
         dense = P.toarray()
         dense[np.diag_indices(n)] += delta
         try:

@@ -99,3 +99,34 @@ def test_a_whole_solve_is_the_same_with_the_helpers_compiled_or_not(name):
             runs.append(_fingerprint(solve_qp(QP(qp.P, qp.q, qp.A, qp.l, qp.u), eps_abs=1e-6, eps_rel=1e-6,
                                               compiled=False)))
     assert runs[0] == runs[1]
+
+
+def _verdict(P) -> str:
+    try:
+        check_convex(P)
+        return "convex"
+    except ValueError as err:
+        return str(err)
+
+
+def test_a_small_sparse_p_gets_superlus_verdict_from_the_dense_cholesky(monkeypatch):
+    """Up to DENSE_ANY rows a sparse P goes to the dense Cholesky factorisation; its verdicts (and messages) are
+    SuperLU's, the route taken with DENSE_ANY = 0, on matrices whose smallest eigenvalue is near -delta."""
+    from admmkit.problems.qp import convexity
+    rng = np.random.default_rng(0)
+    refused = 0
+    for i in range(40):
+        n = int(rng.integers(2, 120))
+        G = sp.random(n, n, density=min(1.0, 3.0 / n), random_state=i, format="csc")
+        S = (G + G.T).tocsc()
+        lowest = np.linalg.eigvalsh(S.toarray())[0]
+        shift = [0.0, 1e-12, 1e-9, 1e-6, 1.0][i % 5] * (1 if i % 2 else -1)
+        P = (S - (lowest - shift) * sp.identity(n)).tocsc()
+        P.sort_indices()
+        monkeypatch.setattr(convexity, "DENSE_ANY", 128)
+        dense = _verdict(P)
+        monkeypatch.setattr(convexity, "DENSE_ANY", 0)
+        sparse = _verdict(P)
+        assert dense == sparse, i
+        refused += dense != "convex"
+    assert 0 < refused < 40           # both kinds met
