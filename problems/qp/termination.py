@@ -44,10 +44,36 @@ def _iterate(qp: QP, rec: IterationRecord, scaled: bool = False) -> dict:
     if kept is not None and kept[0] is rec:
         return kept[1]
     x = qp.relaxed_x(rec.x)
-    Ax = rec.Ax if x is rec.x and qp.xstep != "kkt" else None      # the KKT form's is z~ (Q6): OSQP takes A x
-    res = residuals_of_iterate()(qp, x, rec.z, rec.lam_z, Ax, scaled=True)
+    res = _from_kernel(qp, x, rec) if KERNEL_RESIDUALS else None
+    if res is None:
+        Ax = rec.Ax if x is rec.x and qp.xstep != "kkt" else None      # the KKT form's is z~ (Q6): OSQP takes A x
+        res = residuals_of_iterate()(qp, x, rec.z, rec.lam_z, Ax, scaled=True)
     qp._residuals_of = (rec, res)
     return res
+
+
+#: take the residuals of a read iteration from the segment's kernel that computed them at its end
+#: (``segment_checks.go_on``: the same kernel on the same arrays, so the same numbers); False: computed anew
+KERNEL_RESIDUALS = True
+
+
+def _from_kernel(qp: QP, x: np.ndarray, rec: IterationRecord) -> dict | None:
+    """The dict ``residual_kernel.iterate_residuals_compiled(..., scaled=True)`` gives at the record's iterate,
+    from the 11 numbers the segment's kernel computed on these very arrays (OSQP's x ``x``, z and lam of the
+    record, order "xz", the KKT form: A x taken as a product), or None when it did not."""
+    held = qp.__dict__.get("_kernel_residuals")
+    if held is None or x is not held[0] or rec.order != "xz" or qp.xstep != "kkt":
+        return None
+    z, lam = rec.z, rec.lam
+    if not ((z is held[1] or z.base is held[1]) and (lam is held[2] or lam.base is held[2])):
+        return None
+    (primal, primal_scale, dual, dual_scale, quad, lin, sup,
+     s_primal, s_primal_scale, s_dual, s_dual_scale) = held[3]
+    cinv = 1.0 / qp.scaling.c if qp.scaled else 1.0
+    return {"primal": primal, "primal_scale": primal_scale, "dual": cinv * dual, "dual_scale": cinv * dual_scale,
+            "gap": cinv * (quad + lin + sup), "gap_scale": cinv * max(abs(quad), abs(lin), abs(sup)),
+            "scaled_primal": s_primal, "scaled_primal_scale": s_primal_scale, "scaled_dual": s_dual,
+            "scaled_dual_scale": s_dual_scale}
 
 
 def residuals_of_iterate():

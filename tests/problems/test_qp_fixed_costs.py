@@ -130,3 +130,37 @@ def test_a_small_sparse_p_gets_superlus_verdict_from_the_dense_cholesky(monkeypa
         assert dense == sparse, i
         refused += dense != "convex"
     assert 0 < refused < 40           # both kinds met
+
+
+@pytest.mark.parametrize("seed", [0, 5])
+def test_the_read_iterations_residuals_from_the_kernel_are_the_ones_computed_anew(seed, monkeypatch):
+    """The segment's kernel keeps the residuals it computed at the iteration it ends on; the Python test takes them
+    (termination.KERNEL_RESIDUALS) and the run is the one that computes them anew, bit for bit."""
+    from admmkit.problems.qp import termination
+    qp = random_qp(30, 40, seed=seed)
+    taken = []
+    original = termination._from_kernel
+    monkeypatch.setattr(termination, "_from_kernel", lambda *a: taken.append(original(*a)) or taken[-1])
+    fast = solve_qp(qp, eps_abs=1e-6, eps_rel=1e-6, compiled=True)
+    assert any(t is not None for t in taken)             # the kernel's numbers were used
+    monkeypatch.setattr(termination, "KERNEL_RESIDUALS", False)
+    slow = solve_qp(qp, eps_abs=1e-6, eps_rel=1e-6, compiled=True)
+    assert _fingerprint(fast) == _fingerprint(slow)
+    rec = fast.last_record
+    run_qp = rec._ctx.problem
+    anew = termination.residuals_of_iterate()(run_qp, run_qp.relaxed_x(rec.x), rec.z, rec.lam_z, None, scaled=True)
+    assert list(anew.items()) == list(fast.residuals.items()) + [(k, v) for k, v in anew.items()
+                                                                  if k.startswith("scaled_")]
+
+
+def test_a_qp_says_it_has_an_adjoint_norm_without_a_trial_product(monkeypatch):
+    from admmkit.loop.checks import has_adjoint
+    from admmkit.problems.qp.problem import QP as QPClass
+
+    def refuse(self, y):
+        raise NotImplementedError
+    qp = random_qp(5, 4, seed=0)
+    monkeypatch.setattr(QPClass, "adjoint_norm", refuse)
+    assert has_adjoint(qp, np.zeros(4))                   # the class says so; no call is made
+    monkeypatch.setattr(QPClass, "adjoint_norm_implemented", False)
+    assert not has_adjoint(qp, np.zeros(4))               # without the flag, the trial call tells
