@@ -233,6 +233,11 @@ class QP(Problem):
         self._kernel_residuals = None             # (x_rel, z, lam, 11 numbers) of a segment's read iteration: ditto
         self._z_tilde = None                      # (x~, z~) of the last KKT x-step (Q6): see apply_A
 
+    def initial_point(self):
+        """(x0, z0, lam0) = (0, A 0 - c, 0) = (0, 0, 0), without the product: A 0 sums +0.0 terms from y = 0 and
+        c = 0 (``admmkit.Problem.initial_point``'s numbers, every zero +0.0)."""
+        return np.zeros(self.n), np.zeros(self.m), np.zeros(self.m)
+
     def x_step(self, z, lam, rho, x):
         """Solve (Q1), in either form (KKT: [P + sigma I, A'; A, -R^-1] [x; v] = [sigma x^k - q; z - R^-1 M lam],
         R = :meth:`penalty` (rho), which is rho M but for the free rows (Q5)).

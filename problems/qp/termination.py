@@ -312,8 +312,9 @@ class ScaleCheck:
         """Whether some x makes a row blind: span rows, or rows that are tiny at x = 0 (nu_i max(1, ||x||_inf) only
         grows with x, so a row not tiny there is tiny nowhere).  Asked once per tolerance."""
         held = self.__dict__.setdefault("_may_be_blind", {})
-        if eps_abs not in held:
-            held[eps_abs] = bool(self.span_rows.size or self.tiny_rows(np.zeros(1), eps_abs).size)
+        if eps_abs not in held:             # tiny_rows at x = 0 (reach = nu), as one test
+            held[eps_abs] = bool(self.span_rows.size) or bool(
+                (self.live & (self.nu < eps_abs) & (self.bound < eps_abs)).any())
         return held[eps_abs]
 
     def blind_rows(self, x: np.ndarray, eps_abs: float) -> np.ndarray:

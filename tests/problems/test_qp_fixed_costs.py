@@ -164,3 +164,20 @@ def test_a_qp_says_it_has_an_adjoint_norm_without_a_trial_product(monkeypatch):
     assert has_adjoint(qp, np.zeros(4))                   # the class says so; no call is made
     monkeypatch.setattr(QPClass, "adjoint_norm_implemented", False)
     assert not has_adjoint(qp, np.zeros(4))               # without the flag, the trial call tells
+
+
+def test_the_qps_start_is_the_problems_default_bit_for_bit():
+    from admmkit import Problem
+    qp = awkward_qp()
+    qp._build()
+    for own, default in zip(qp.initial_point(), Problem.initial_point(qp)):
+        assert _same_bits(own, np.asarray(default, dtype=float))
+        assert not np.signbit(own).any()
+
+
+@pytest.mark.parametrize("make", [awkward_qp, lambda: random_qp(30, 40, seed=3)])
+def test_may_be_blind_is_span_rows_or_rows_tiny_at_zero(make):
+    qp = make()
+    for eps in (1e-14, 1e-9, 1e-3, 1.0, 10.0):
+        fresh = ScaleCheck(qp)
+        assert fresh.may_be_blind(eps) == bool(fresh.span_rows.size or fresh.tiny_rows(np.zeros(1), eps).size)
