@@ -7,7 +7,7 @@ inertia the number of negative pivots is the number of eigenvalues of P
 below -delta: one sparse factorisation of P (smaller than the x-step's),
 at every size (a dense eigenvalue solve cost more than the whole QP solve
 below n = 500).  A diagonal P (an LP, a separable QP) is read off directly;
-a small P stored at least a quarter full (up to ``DENSE_MAX`` rows) by a
+a small P (up to ``DENSE_ANY`` rows, or up to ``DENSE_MAX`` rows stored at least a quarter full) by a
 dense Cholesky factorisation of P + delta I (LAPACK's, 10-50x faster than
 SuperLU on such a matrix: DUAL2, n = 96, 600 us against 30 us), whose
 failure sends P to the eigenvalue test below, as a negative pivot does.
@@ -22,10 +22,16 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from admmkit.kernels import compiled_now
+from admmkit.loop.segments import AVAILABLE as NUMBA      # numba installed (asked once, without importing it)
+
 #: relative shift of P + delta I, and the pivot below which P is indefinite
 SHIFT = 1e-9
 #: below this size the smallest eigenvalue is computed densely
 DENSE_MAX = 500
+#: up to this size P goes to the dense Cholesky factorisation however sparse it is: SuperLU's call and its U
+#: cost more (CVXQP1_S, n = 100: 190 against 45 us; QAFIRO, n = 32: 150 against 20 us; one run, best of 300)
+DENSE_ANY = 128
 
 
 def smallest_eigenvalue(P: sp.spmatrix) -> float:
@@ -38,6 +44,22 @@ def smallest_eigenvalue(P: sp.spmatrix) -> float:
                                 return_eigenvectors=False)[0])
     except spla.ArpackNoConvergence as err:
         return float(err.eigenvalues[0]) if len(err.eigenvalues) else float("nan")
+
+
+def shifted(P: sp.csc_matrix, delta: float) -> sp.csc_matrix:
+    """P + delta I as scipy's sum ``(P + delta * sp.identity(n, format="csc")).tocsc()`` gives it (the same entries,
+    exact zeros dropped, indices sorted), for canonical CSC ``P``: where compiled code runs, one pass of the KKT
+    assembly's kernel with no rows of A (``sparse_kernels.kkt_arrays``; scipy's sum costs ~100 us in constructor
+    checks on a small P), else scipy's sum."""
+    n = P.shape[0]
+    if NUMBA and compiled_now():
+        from .csc import csc_of
+        from .sparse_kernels import kkt_arrays
+        indptr, indices, data, _ = kkt_arrays(n, 0, P.indptr, P.indices, P.data, delta,
+                                              np.zeros(n + 1, P.indptr.dtype), np.empty(0, P.indices.dtype),
+                                              np.empty(0), False)
+        return csc_of(data, indices, indptr, (n, n))
+    return (P + delta * sp.identity(n, format="csc")).tocsc()
 
 
 def check_convex(P: sp.csc_matrix, *, scale: float | None = None, diagonal: bool | None = None) -> None:
@@ -54,7 +76,7 @@ def check_convex(P: sp.csc_matrix, *, scale: float | None = None, diagonal: bool
         diagonal = bool(np.all(P.indices == np.repeat(np.arange(n), np.diff(P.indptr))))
     if diagonal:                                                # diagonal: its entries are the eigenvalues
         indefinite = bool(np.any(P.data < -delta))
-    elif n <= DENSE_MAX and 4 * P.nnz >= n * n:                # small and dense: LAPACK's Cholesky
+    elif n <= DENSE_MAX and (n <= DENSE_ANY or 4 * P.nnz >= n * n):     # small, or dense: LAPACK's Cholesky
         dense = P.toarray()
         dense[np.diag_indices(n)] += delta
         try:
@@ -64,7 +86,7 @@ def check_convex(P: sp.csc_matrix, *, scale: float | None = None, diagonal: bool
             indefinite = True
     else:
         try:
-            lu = spla.splu((P + delta * sp.identity(n, format="csc")).tocsc(), permc_spec="MMD_AT_PLUS_A",
+            lu = spla.splu(shifted(P, delta), permc_spec="MMD_AT_PLUS_A",
                            diag_pivot_thresh=0.0, options=dict(SymmetricMode=True))
             indefinite = bool(np.any(lu.U.diagonal() < -delta))
         except RuntimeError:                  # an exactly singular pivot: P + delta I is not positive definite

@@ -72,6 +72,8 @@ class QP(Problem):
     #: its steps are this package's own (tests/problems check them): the loop's segments may start at the first
     #: iteration (:mod:`admmkit.loop.segments`)
     trusted_steps = True
+    #: :meth:`adjoint_norm` is always implemented (``admmkit.loop.checks.has_adjoint`` need not try it)
+    adjoint_norm_implemented = True
 
     def __init__(self, P, q, A, l, u, r: float = 0.0, *, sigma: float = 1e-6, backend: str = "auto",
                  name: str = "qp", xstep: str = "auto", scaling: int = 0, row_weights: str = "uniform",
@@ -228,7 +230,13 @@ class QP(Problem):
                 self._x_solver.clear()
         self._x_in = self._x_last = self._x_rel = self._x_rel_prev = None
         self._residuals_of = None                 # (record, OSQP's residuals at it): see termination._iterate
+        self._kernel_residuals = None             # (x_rel, z, lam, 11 numbers) of a segment's read iteration: ditto
         self._z_tilde = None                      # (x~, z~) of the last KKT x-step (Q6): see apply_A
+
+    def initial_point(self):
+        """(x0, z0, lam0) = (0, A 0 - c, 0) = (0, 0, 0), without the product: A 0 sums +0.0 terms from y = 0 and
+        c = 0 (``admmkit.Problem.initial_point``'s numbers, every zero +0.0)."""
+        return np.zeros(self.n), np.zeros(self.m), np.zeros(self.m)
 
     def x_step(self, z, lam, rho, x):
         """Solve (Q1), in either form (KKT: [P + sigma I, A'; A, -R^-1] [x; v] = [sigma x^k - q; z - R^-1 M lam],

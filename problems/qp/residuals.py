@@ -68,7 +68,7 @@ def neutral_residuals(qp: QP, x: np.ndarray, y: np.ndarray) -> dict:
     One compiled pass where numba is installed
     (``sparse_kernels.neutral_norms``: the same
     primal and dual, the gap's sums in order)."""
-    if NUMBA and np.all(np.isfinite(x)) and np.all(np.isfinite(y)):
+    if NUMBA and np.isfinite(x).all() and np.isfinite(y).all():
         from .sparse_kernels import neutral_norms
         P, A = qp.P, qp.A
         values = neutral_norms(P.indptr, P.indices, P.data, qp.q, A.indptr, A.indices, A.data, qp.l, qp.u,

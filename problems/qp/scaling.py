@@ -100,14 +100,14 @@ class _Entries:
 
     def __init__(self, M: sp.csc_matrix):
         M = _csc(M)
-        if M.has_canonical_format and M.data.all():     # a validated QP's matrix: its data copied, its pattern shared
+        if M.has_canonical_format and np.count_nonzero(M.data) == M.data.size:     # a validated QP's matrix: its data copied, its pattern shared
             M = csc_of(M.data.copy(), M.indices, M.indptr, M.shape)
         else:
             M = M.copy()
             M.sum_duplicates()
             M.eliminate_zeros()                   # the pattern scipy's products keep
         self.matrix, self.rows = M, M.indices
-        self.cols = np.repeat(np.arange(M.shape[1]), np.diff(M.indptr))
+        self.cols = np.repeat(np.arange(M.shape[1]), M.indptr[1:] - M.indptr[:-1])      # (np.diff: 2 us more)
 
     def scale(self, left: np.ndarray, right: np.ndarray) -> None:
         """M <- diag(left) M diag(right), in the order scipy's ``diags(left) @ M @ diags(right)`` rounds."""

@@ -62,10 +62,12 @@ def go_on(test, m, eps_abs, eps_rel, gap, infeasibility, eps_prim_inf, eps_dual_
           interval, tolerance, rho_min, rho_max, rho, alpha,
           Pp, Pi, Pd, Ap, Ai, Ad, q, lo, up, w, E, D, c, cinv,
           Pu_p, Pu_i, Pu_d, qu, Au_p, Au_i, Au_d, lu, uu, scaled,
-          x_rel, x_rel_prev, z, z_prev, lam, Ax, Axb, dy, dx, cert_m, cert_n):
+          x_rel, x_rel_prev, z, z_prev, lam, Ax, Axb, dy, dx, cert_m, cert_n, held):
     """Whether the loop would go on after the iteration ``k`` whose outputs are (x_rel, z, lam, Ax): True only
     when the test (if ``test``: k is a tested iteration) and OSQP's rule (if ``interval`` > 0 and k is one it reads) certainly leave the
-    run and rho as they are (see the module docstring); False: the loop's Python must look."""
+    run and rho as they are (see the module docstring); False: the loop's Python must look.  ``held`` (12 numbers)
+    keeps the residuals' 11 values computed here and, last, k (-1 when none were computed at k)."""
+    held[11] = -1.0
     worst = 0.0
     for i in range(m):                                              # the loop's divergence and stall tests
         r = abs(Ax[i] - z[i])
@@ -86,6 +88,9 @@ def go_on(test, m, eps_abs, eps_rel, gap, infeasibility, eps_prim_inf, eps_dual_
     for v in values:
         if not np.isfinite(v):
             return False
+    for i in range(11):                                 # for the Python test at this iteration, if it comes to look
+        held[i] = values[i]
+    held[11] = k
     if test:
         dual, dual_scale = cinv * dual, cinv * dual_scale
         gap_value, gap_scale = cinv * (quad + lin + sup), cinv * max(abs(quad), abs(lin), abs(sup))
@@ -133,7 +138,7 @@ def segment_tested(count, first, every, knows_test, m, eps_abs, eps_rel, gap, in
                    a, sigma, Lp, Li, Lx, Dinv, perm, Rinv, q, free, w_free,
                    x, x_prev, x_rel, x_rel_prev, z, lam, Ax, rhs, sol, work, z_last, lam_last, Ax_last, hat,
                    accelerate, aw, safeguard, regularization, s_z, s_lam, ist, before, F_prev, G_prev, plain, dF, dG,
-                   gram, g, acc, a_rhs, chol, gamma):
+                   gram, g, acc, a_rhs, chol, gamma, held):
     """Up to ``count`` iterations from iteration ``first`` (``segment._xz_kkt``'s), each
     tested one ((k + 1) % every == 0) and each one OSQP's rule reads (``interval`` > 0) decided by :func:`go_on`;
     ``knows_test``: the run's test is one :func:`go_on` makes (else the segment ends at the first tested iteration);
@@ -165,7 +170,7 @@ def segment_tested(count, first, every, knows_test, m, eps_abs, eps_rel, gap, in
                      polish_from, j, interval, tolerance, rho_min, rho_max, rho, alpha,
                      Pp, Pi, Pd, Ap, Ai, Ad, q, lo, up, w, E, D, c, cinv,
                      Pu_p, Pu_i, Pu_d, qu, Au_p, Au_i, Au_d, lu, uu, scaled,
-                     x_rel, x_rel_prev, z, z_last, lam, Ax, Axb, dy, dx, cert_m, cert_n):
+                     x_rel, x_rel_prev, z, z_last, lam, Ax, Axb, dy, dx, cert_m, cert_n, held):
             return done, True
         if accelerate:                          # go on at this rho: the step from the state iteration j started from
             anderson_update(rho, aw, safeguard, regularization, z_last, lam_last, z, lam, z, lam, ist, before, F_prev,
@@ -251,11 +256,16 @@ def checked_segment(qp, x, z, lam, Ax, rho: float, alpha: float, order: str, cou
     else:
         w, safeguard, regularization, arrays = accel
         anderson = (True, w, safeguard, regularization, np.empty(m), np.empty(m), *arrays.args())
+    held = np.full(12, -1.0)             # held[11] = -1: no residuals computed at the read iteration (yet)
+    qp._kernel_residuals = None
     done, whole = segment_tested(count, first, check.every, *test[:1], m, *test[1:], *rule, float(rho),
                                  float(alpha), *_data(qp), a, qp.sigma, *factors, qp.inverse_penalty(rho), qp.qs,
                                  qp._free, qp._w_free_over_penalty, x, x_prev, x_rel, x_rel_prev, z, lam, Ax,
-                                 rhs, sol, work, *kept, *anderson)
+                                 rhs, sol, work, *kept, *anderson, held)
     if done:
         qp.after_segment(x, x_prev, x_rel, x_rel_prev, done)
+    data_w = _data(qp)[8]                   # the weights the kernel read are the QP's (a held copy: not asked)
+    if whole and done and held[11] == first + done - 1 and data_w is (qp._ones[0] if qp.w is None else qp.w):
+        qp._kernel_residuals = (x_rel, z, lam, held[:11].tolist())     # the read iteration's, made in the kernel
     last = (x_prev, *kept[:3], kept[3] if alpha != 1.0 else None) if whole and done else None
     return x, z, lam, Ax, done, last

@@ -230,7 +230,7 @@ def _qp_result(qp: QP, settings: QPSettings, res: Result, stop: QPTermination, r
     zb = rec.z if rec is not None else res.z
     xb = qp.relaxed_x(res.x_iterate)                                       # OSQP's x under (Q4)
     x, z, y = qp.unscaled(xb, zb, lam_z)
-    finite = np.all(np.isfinite(xb)) and np.all(np.isfinite(lam_z))
+    finite = bool(np.isfinite(xb).all() and np.isfinite(lam_z).all())
     residuals = None
     if finite:                  # the last test's residuals when they are of this iterate (OSQP's numbers, unscaled)
         same = rec is not None and xb is qp.relaxed_x(rec.x)

@@ -26,7 +26,7 @@ import time
 import numpy as np
 
 from admmkit import IterationRecord, Status, Stop, StoppingRule
-from admmkit.kernels import compiled_now
+from admmkit.kernels import compiled_now, kernel
 from admmkit.loop.segments import AVAILABLE as NUMBA
 
 from .infeasibility import DIVISION_TOL, confirmed_certificate, dual_certificate, iterate_deltas, primal_certificate
@@ -44,10 +44,36 @@ def _iterate(qp: QP, rec: IterationRecord, scaled: bool = False) -> dict:
     if kept is not None and kept[0] is rec:
         return kept[1]
     x = qp.relaxed_x(rec.x)
-    Ax = rec.Ax if x is rec.x and qp.xstep != "kkt" else None      # the KKT form's is z~ (Q6): OSQP takes A x
-    res = residuals_of_iterate()(qp, x, rec.z, rec.lam_z, Ax, scaled=True)
+    res = _from_kernel(qp, x, rec) if KERNEL_RESIDUALS else None
+    if res is None:
+        Ax = rec.Ax if x is rec.x and qp.xstep != "kkt" else None      # the KKT form's is z~ (Q6): OSQP takes A x
+        res = residuals_of_iterate()(qp, x, rec.z, rec.lam_z, Ax, scaled=True)
     qp._residuals_of = (rec, res)
     return res
+
+
+#: take the residuals of a read iteration from the segment's kernel that computed them at its end
+#: (``segment_checks.go_on``: the same kernel on the same arrays, so the same numbers); False: computed anew
+KERNEL_RESIDUALS = True
+
+
+def _from_kernel(qp: QP, x: np.ndarray, rec: IterationRecord) -> dict | None:
+    """The dict ``residual_kernel.iterate_residuals_compiled(..., scaled=True)`` gives at the record's iterate,
+    from the 11 numbers the segment's kernel computed on these very arrays (OSQP's x ``x``, z and lam of the
+    record, order "xz", the KKT form: A x taken as a product), or None when it did not."""
+    held = qp.__dict__.get("_kernel_residuals")
+    if held is None or x is not held[0] or rec.order != "xz" or qp.xstep != "kkt":
+        return None
+    z, lam = rec.z, rec.lam
+    if not ((z is held[1] or z.base is held[1]) and (lam is held[2] or lam.base is held[2])):
+        return None
+    (primal, primal_scale, dual, dual_scale, quad, lin, sup,
+     s_primal, s_primal_scale, s_dual, s_dual_scale) = held[3]
+    cinv = 1.0 / qp.scaling.c if qp.scaled else 1.0
+    return {"primal": primal, "primal_scale": primal_scale, "dual": cinv * dual, "dual_scale": cinv * dual_scale,
+            "gap": cinv * (quad + lin + sup), "gap_scale": cinv * max(abs(quad), abs(lin), abs(sup)),
+            "scaled_primal": s_primal, "scaled_primal_scale": s_primal_scale, "scaled_dual": s_dual,
+            "scaled_dual_scale": s_dual_scale}
 
 
 def residuals_of_iterate():
@@ -172,6 +198,72 @@ def _indices(idx: np.ndarray, shown: int = 8) -> str:
     return head if idx.size <= shown else f"{head}, ... ({idx.size} in all)"
 
 
+@kernel(cache=True)
+def scale_facts(Ap, Ai, Ax, Pp, Pi, Px, l, u, span):
+    """:class:`ScaleCheck`'s arrays in one pass over A, P, l and u: (nu, live, bound, kappa, span_rows, void_rows,
+    span_columns), the numbers its vector form gives (``ScaleCheck(qp)`` with compiled code off)."""
+    m, n = l.shape[0], Ap.shape[0] - 1
+    nu = np.zeros(m)
+    kappa = np.zeros(n)
+    for j in range(n):                              # row and column inf-norms of A, column inf-norms of P
+        c = 0.0
+        for p in range(Ap[j], Ap[j + 1]):
+            a = abs(Ax[p])
+            if a > c:
+                c = a
+            if a > nu[Ai[p]]:
+                nu[Ai[p]] = a
+        for p in range(Pp[j], Pp[j + 1]):
+            a = abs(Px[p])
+            if a > c:
+                c = a
+        kappa[j] = c
+    live = np.empty(m, np.bool_)
+    bound = np.empty(m)
+    top = 0.0
+    voids = 0
+    for i in range(m):
+        finite_l, finite_u = np.isfinite(l[i]), np.isfinite(u[i])
+        live[i] = (finite_l or finite_u) and nu[i] > 0
+        bl = abs(l[i]) if finite_l else 0.0
+        bu = abs(u[i]) if finite_u else 0.0
+        bound[i] = bu if bu > bl else bl
+        if live[i] and nu[i] > top:
+            top = nu[i]
+        if nu[i] == 0 and (l[i] > 0 or u[i] < 0):
+            voids += 1
+    top_column = 0.0
+    for j in range(n):
+        if kappa[j] > top_column:
+            top_column = kappa[j]
+    row_floor, column_floor = top / span, top_column / span
+    spans = 0
+    for i in range(m):
+        if live[i] and nu[i] < row_floor:
+            spans += 1
+    span_rows = np.empty(spans, np.int64)
+    void_rows = np.empty(voids, np.int64)
+    s = v = 0
+    for i in range(m):
+        if live[i] and nu[i] < row_floor:
+            span_rows[s] = i
+            s += 1
+        if nu[i] == 0 and (l[i] > 0 or u[i] < 0):
+            void_rows[v] = i
+            v += 1
+    columns = 0
+    for j in range(n):
+        if kappa[j] > 0 and kappa[j] < column_floor:
+            columns += 1
+    span_columns = np.empty(columns, np.int64)
+    c = 0
+    for j in range(n):
+        if kappa[j] > 0 and kappa[j] < column_floor:
+            span_columns[c] = j
+            c += 1
+    return nu, live, bound, kappa, span_rows, void_rows, span_columns
+
+
 class ScaleCheck:
     """Which rows and columns of the user's QP a tolerance cannot see (issue #46).
 
@@ -193,6 +285,12 @@ class ScaleCheck:
 
     def __init__(self, qp: QP):
         self.qp = qp
+        if NUMBA and compiled_now():        # one compiled pass, the same arrays (a max and a comparison are exact)
+            A, P = qp.A, qp.P
+            (self.nu, self.live, self.bound, self.kappa, self.span_rows, self.void_rows,
+             self.span_columns) = scale_facts(A.indptr, A.indices, A.data, P.indptr, P.indices, P.data,
+                                              qp.l, qp.u, SCALE_SPAN)
+            return
         nu, col_A = _row_and_column_norms(qp.A)
         finite_l, finite_u = np.isfinite(qp.l), np.isfinite(qp.u)
         self.live = (finite_l | finite_u) & (nu > 0)
@@ -214,8 +312,9 @@ class ScaleCheck:
         """Whether some x makes a row blind: span rows, or rows that are tiny at x = 0 (nu_i max(1, ||x||_inf) only
         grows with x, so a row not tiny there is tiny nowhere).  Asked once per tolerance."""
         held = self.__dict__.setdefault("_may_be_blind", {})
-        if eps_abs not in held:
-            held[eps_abs] = bool(self.span_rows.size or self.tiny_rows(np.zeros(1), eps_abs).size)
+        if eps_abs not in held:             # tiny_rows at x = 0 (reach = nu), as one test
+            held[eps_abs] = bool(self.span_rows.size) or bool(
+                (self.live & (self.nu < eps_abs) & (self.bound < eps_abs)).any())
         return held[eps_abs]
 
     def blind_rows(self, x: np.ndarray, eps_abs: float) -> np.ndarray:

@@ -1,0 +1,183 @@
+"""#49 item 3: a small QP's fixed costs cut without changing a number.
+
+Each speed trick here has its library path (compiled code off), and the tests check that both give the same
+bits: ``ScaleCheck``'s arrays (one compiled pass, ``termination.scale_facts``), the shifted P of the convexity
+test (``convexity.shifted``), and whole solves with and without the compiled helpers.
+"""
+from pathlib import Path
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+from admmkit.kernels import compiled_code
+from admmkit.problems.qp import QP, load_mat, solve_qp
+from admmkit.problems.qp.convexity import check_convex, shifted
+from admmkit.problems.qp.generate import random_qp
+from admmkit.problems.qp.termination import ScaleCheck
+
+numba = pytest.importorskip("numba")
+
+DATA = Path(__file__).resolve().parents[3] / "shared" / "data" / "maros_meszaros"
+FIELDS = ("nu", "live", "bound", "kappa", "span_rows", "void_rows", "span_columns")
+
+
+def _same_bits(a: np.ndarray, b: np.ndarray) -> bool:
+    return a.dtype == b.dtype and a.shape == b.shape and a.tobytes() == b.tobytes()
+
+
+def awkward_qp() -> QP:
+    """Every kind of row and column ScaleCheck names: a span row (1e-12 against 1), a tiny row, a void row whose
+    bounds exclude 0, a void row that admits 0, free and one-sided rows, and a span column."""
+    A = sp.csc_matrix(np.array([[1.0, 2.0, 0.0, 0.0],
+                                [1e-12, 0.0, 0.0, 0.0],       # span row
+                                [0.0, 0.0, 0.0, 0.0],         # void row, bounds exclude 0
+                                [0.0, 0.0, 0.0, 0.0],         # void row, bounds admit 0
+                                [0.0, 3.0, -4.0, 0.0],        # free row
+                                [0.0, 0.0, 1.0, 0.0],         # one-sided
+                                [0.0, 0.0, 0.0, 1e-13]]))     # span column 3 (P's is 0 too)
+    P = sp.csc_matrix(np.diag([2.0, 1.0, 0.5, 0.0]))
+    l = np.array([-1.0, -1e-9, 1e-9, -1.0, -np.inf, -np.inf, -1.0])
+    u = np.array([1.0, 1e-9, 2.0, 1.0, np.inf, 5.0, 1.0])
+    return QP(P, np.ones(4), A, l, u)
+
+
+@pytest.mark.parametrize("make", [awkward_qp, lambda: random_qp(30, 40, seed=3), lambda: random_qp(8, 3, kind="lp", seed=1)])
+def test_scale_check_compiled_gives_the_library_paths_arrays(make):
+    qp = make()
+    with compiled_code(True):
+        fast = ScaleCheck(qp)
+    with compiled_code(False):
+        slow = ScaleCheck(qp)
+    for name in FIELDS:
+        assert _same_bits(getattr(fast, name), getattr(slow, name)), name
+
+
+def test_the_awkward_qp_has_what_the_scale_check_names():
+    fast = ScaleCheck(awkward_qp())
+    assert list(fast.span_rows) == [1, 6] and list(fast.void_rows) == [2] and list(fast.span_columns) == [3]
+    assert fast.bound[4] == 0.0 and fast.bound[5] == 5.0 and not fast.live[4]
+
+
+@pytest.mark.parametrize("P", [sp.csc_matrix(np.array([[2.0, -1.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 0.0, 0.0]])),
+                               sp.csc_matrix(np.array([[-1e-9, 1.0], [1.0, 3.0]])),      # a diagonal sum of 0
+                               sp.random(40, 40, density=0.1, random_state=2, format="csc")])
+def test_shifted_p_is_scipys_sum(P):
+    P = (P + P.T).tocsc()
+    P.sort_indices()
+    with compiled_code(True):
+        fast = shifted(P, 1e-9)
+    with compiled_code(False):
+        slow = shifted(P, 1e-9)
+    assert slow.has_sorted_indices
+    assert np.array_equal(fast.indptr, slow.indptr) and np.array_equal(fast.indices, slow.indices)
+    assert _same_bits(fast.data, slow.data)
+
+
+def test_convexity_verdicts_are_the_same_on_both_paths():
+    indefinite = sp.csc_matrix(np.array([[1.0, 2.0, 0.0], [2.0, 1.0, 0.0], [0.0, 0.0, 1.0]]))
+    for flag in (True, False):
+        with compiled_code(flag):
+            with pytest.raises(ValueError, match="positive semidefinite"):
+                check_convex(indefinite)
+            check_convex(sp.csc_matrix(np.array([[2.0, 1.0, 0.0], [1.0, 2.0, 0.0], [0.0, 0.0, 0.0]])))
+
+
+def _fingerprint(res) -> tuple:
+    return (res.x.tobytes(), res.z.tobytes(), res.y.tobytes(), res.iterations, res.status, res.termination,
+            res.rho, tuple(res.history["rho"]), tuple(sorted((res.residuals or {}).items())),
+            tuple(sorted((res.neutral or {}).items())), tuple(res.warnings))
+
+
+@pytest.mark.skipif(not DATA.exists(), reason="needs ../shared/data/maros_meszaros")
+@pytest.mark.parametrize("name", ["HS21", "HS118", "QAFIRO", "DUAL1"])
+def test_a_whole_solve_is_the_same_with_the_helpers_compiled_or_not(name):
+    qp = load_mat(DATA / f"{name}.mat")
+    runs = []
+    for flag in (True, False):
+        with compiled_code(flag):
+            runs.append(_fingerprint(solve_qp(QP(qp.P, qp.q, qp.A, qp.l, qp.u), eps_abs=1e-6, eps_rel=1e-6,
+                                              compiled=False)))
+    assert runs[0] == runs[1]
+
+
+def _verdict(P) -> str:
+    try:
+        check_convex(P)
+        return "convex"
+    except ValueError as err:
+        return str(err)
+
+
+def test_a_small_sparse_p_gets_superlus_verdict_from_the_dense_cholesky(monkeypatch):
+    """Up to DENSE_ANY rows a sparse P goes to the dense Cholesky factorisation; its verdicts (and messages) are
+    SuperLU's, the route taken with DENSE_ANY = 0, on matrices whose smallest eigenvalue is near -delta."""
+    from admmkit.problems.qp import convexity
+    rng = np.random.default_rng(0)
+    refused = 0
+    for i in range(40):
+        n = int(rng.integers(2, 120))
+        G = sp.random(n, n, density=min(1.0, 3.0 / n), random_state=i, format="csc")
+        S = (G + G.T).tocsc()
+        lowest = np.linalg.eigvalsh(S.toarray())[0]
+        shift = [0.0, 1e-12, 1e-9, 1e-6, 1.0][i % 5] * (1 if i % 2 else -1)
+        P = (S - (lowest - shift) * sp.identity(n)).tocsc()
+        P.sort_indices()
+        monkeypatch.setattr(convexity, "DENSE_ANY", 128)
+        dense = _verdict(P)
+        monkeypatch.setattr(convexity, "DENSE_ANY", 0)
+        sparse = _verdict(P)
+        assert dense == sparse, i
+        refused += dense != "convex"
+    assert 0 < refused < 40           # both kinds met
+
+
+@pytest.mark.parametrize("seed", [0, 5])
+def test_the_read_iterations_residuals_from_the_kernel_are_the_ones_computed_anew(seed, monkeypatch):
+    """The segment's kernel keeps the residuals it computed at the iteration it ends on; the Python test takes them
+    (termination.KERNEL_RESIDUALS) and the run is the one that computes them anew, bit for bit."""
+    from admmkit.problems.qp import termination
+    qp = random_qp(30, 40, seed=seed)
+    taken = []
+    original = termination._from_kernel
+    monkeypatch.setattr(termination, "_from_kernel", lambda *a: taken.append(original(*a)) or taken[-1])
+    fast = solve_qp(qp, eps_abs=1e-6, eps_rel=1e-6, compiled=True)
+    assert any(t is not None for t in taken)             # the kernel's numbers were used
+    monkeypatch.setattr(termination, "KERNEL_RESIDUALS", False)
+    slow = solve_qp(qp, eps_abs=1e-6, eps_rel=1e-6, compiled=True)
+    assert _fingerprint(fast) == _fingerprint(slow)
+    rec = fast.last_record
+    run_qp = rec._ctx.problem
+    anew = termination.residuals_of_iterate()(run_qp, run_qp.relaxed_x(rec.x), rec.z, rec.lam_z, None, scaled=True)
+    assert list(anew.items()) == list(fast.residuals.items()) + [(k, v) for k, v in anew.items()
+                                                                  if k.startswith("scaled_")]
+
+
+def test_a_qp_says_it_has_an_adjoint_norm_without_a_trial_product(monkeypatch):
+    from admmkit.loop.checks import has_adjoint
+    from admmkit.problems.qp.problem import QP as QPClass
+
+    def refuse(self, y):
+        raise NotImplementedError
+    qp = random_qp(5, 4, seed=0)
+    monkeypatch.setattr(QPClass, "adjoint_norm", refuse)
+    assert has_adjoint(qp, np.zeros(4))                   # the class says so; no call is made
+    monkeypatch.setattr(QPClass, "adjoint_norm_implemented", False)
+    assert not has_adjoint(qp, np.zeros(4))               # without the flag, the trial call tells
+
+
+def test_the_qps_start_is_the_problems_default_bit_for_bit():
+    from admmkit import Problem
+    qp = awkward_qp()
+    qp._build()
+    for own, default in zip(qp.initial_point(), Problem.initial_point(qp)):
+        assert _same_bits(own, np.asarray(default, dtype=float))
+        assert not np.signbit(own).any()
+
+
+@pytest.mark.parametrize("make", [awkward_qp, lambda: random_qp(30, 40, seed=3)])
+def test_may_be_blind_is_span_rows_or_rows_tiny_at_zero(make):
+    qp = make()
+    for eps in (1e-14, 1e-9, 1e-3, 1.0, 10.0):
+        fresh = ScaleCheck(qp)
+        assert fresh.may_be_blind(eps) == bool(fresh.span_rows.size or fresh.tiny_rows(np.zeros(1), eps).size)
