@@ -184,8 +184,10 @@ class QP(Problem):
         self._solver.refresh(rho)
 
     def _reweighted(self) -> None:
-        """Drop what was made from the old row weights: the held R^-1, the reduced form's A'MA."""
+        """Drop what was made from the old row weights: the held R^-1, the reduced form's A'MA, the arrays the
+        segment's in-kernel test reads (``segment_checks._data`` holds w itself, which a rule may have replaced)."""
         self.__dict__.pop("_inverse_penalty", None)
+        self.__dict__.pop("_segment_checks", None)
         if self._x_solver is not None and self.xstep == "reduced":
             self._reduced_gram = weighted_gram(self)
 

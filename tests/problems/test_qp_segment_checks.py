@@ -177,3 +177,20 @@ def test_a_qp_without_constraint_rows(monkeypatch):
     inside, outside, python = three_ways(qp, monkeypatch, eps_abs=1e-8, eps_rel=1e-8)
     same_run(inside, outside)
     same_run(inside, python)
+
+
+@pytest.mark.parametrize("seed", [0, 5])
+def test_a_per_row_rule_on_uniform_weights_is_tested_with_the_weights_it_set(seed, monkeypatch):
+    """With row_weights="uniform" (no w) a per-row rule gives the QP new weights; the segment's in-kernel test must
+    read them, not the unit weights it held (it did: 1700 against 1675 iterations on seed 0, a test on the wrong
+    inner product), so the run equals the one whose tests all run in Python."""
+    from admmkit.problems.qp import admmkit_settings, random_qp, segment_checks
+    from admmkit.problems.qp.segment import AVAILABLE
+    if not AVAILABLE:
+        pytest.skip("numba is not installed: no in-kernel test")
+    qp = random_qp(40, 60, seed=seed)
+    settings = admmkit_settings(1e-6, 0.0, row_weights="uniform", early_polish=False)
+    kernel = solve_qp(qp, settings, compiled=True)
+    monkeypatch.setattr(segment_checks, "TESTS_IN_KERNEL", False)
+    python = solve_qp(qp, settings, compiled=True)
+    assert kernel.iterations == python.iterations and np.array_equal(kernel.x, python.x)
