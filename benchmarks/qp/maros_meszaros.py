@@ -159,13 +159,17 @@ _WARM: list = []
 
 def warm_worker() -> None:
     """Before this process's first timed case: admmkit's QP kernels compiled or loaded from numba's cache
-    (``admmkit warm-up``'s QP group), so that no case's time holds them, as no OSQP case's holds the load of OSQP's
+    (``admmkit warm-up``'s QP group, admmkit's preset and Anderson among them), so that no case's time holds them, as
+    no OSQP case's holds the load of OSQP's
     library; and with them loaded, ``compiled="auto"`` runs the compiled path on every problem (a fresh process takes
     the Python path on a small QP, docs/qp.md "First call"), the path a solver that has run once takes."""
     if not _WARM:
+        import osqp  # noqa: F401   (first: a module imported after the kernels' warm-up made the first timed solve
+        #                             enumerate the BLAS libraries again, admmkit.loop.blas, 4 ms)
         from admmkit.benchmarks.framework.warm_up import qp_kernels
+        from admmkit.problems.qp.generate import random_qp
         qp_kernels()
-        import osqp  # noqa: F401
+        run_osqp(random_qp(30, 40, seed=0), 1e-3, 4000, 5.0)     # and one OSQP solve: both sides have run once
         _WARM.append(True)
 
 

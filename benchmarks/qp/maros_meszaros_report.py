@@ -97,7 +97,7 @@ def markdown(summary: list[dict], skipped: dict[str, str], meta: dict, command: 
         "**neutral**: the returned (x, y) meets the neutral criteria (qpbenchmark's infinity-norm primal and dual "
         "residuals and duality gap, each <= eps); **own**: the solver's own test said solved.  Rates, shifted "
         f"geometric means (shift {SHIFT:g}; a failure counts as the cap / the limit) and the profiles use the neutral "
-        "judgement.  Times are CPU seconds of the process (setup + solve, BLAS on one thread; admmkit's kernels loaded in every worker before its first timed case, as OSQP's library is by its import): the 2-core machine "
+        "judgement.  Times are CPU seconds of the process (setup + solve, BLAS on one thread; every worker solves a small QP with admmkit (its kernels, its preset, Anderson) and with OSQP before its first timed case): the 2-core machine "
         f"was shared (the sweep ran on {meta['workers']}).  Factorisations: of the x-step matrix (OSQP: 1 + rho "
         "updates).  'runaway': runs where rho exceeded 1e20 rho_0.  Per-run data: `results.csv`.",
         "",
