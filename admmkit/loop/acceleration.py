@@ -45,6 +45,10 @@ g_k = f_k - s_k.
           s_{k+1} = f_k + (a_k - 1) / a_{k+1} (f_k - f_{k-1})           (A5)
       else (restart): a_{k+1} = 1, s_{k+1} = f_{k-1}, c_k = c_{k-1} / eta.
 
+  For a weighted dot product the steps are one kernel too,
+  ``admmkit.loop.fast_kernel``, which a compiled segment calls as it calls
+  Anderson's.
+
 A fixed point of T is a fixed point of both accelerated maps (g = 0 gives
 gamma = 0 in (A2), and f_k = f_{k-1} = s_k in (A5)).  A change of rho changes
 T and the norm (A1): the loop then calls :meth:`Accelerator.reset`, so no
@@ -274,14 +278,50 @@ class FastADMM(Accelerator):
             raise ValueError(f"FastADMM: eta must be a number in (0, 1), got {eta!r}")
         super().__init__()
         self.eta = float(eta)
+        self._arrays = self._weights = None       # the kernel's arrays, for a weighted inner product (bind)
         self.reset()
+
+    def bind(self, weights: np.ndarray | None, size: int | None) -> None:
+        """Take the steps with ``admmkit.loop.fast_kernel.fast_update`` for the inner product
+        (a, b)_M = sum_i ``weights``_i a_i b_i on vectors of length ``size`` (the loop's and a segment's steps
+        then agree bit for bit); None: the problem's ``inner`` (numpy)."""
+        from .fast_kernel import FastArrays
+        if weights is None:
+            self._arrays = self._weights = None
+            return
+        self._weights = np.ascontiguousarray(weights, dtype=np.float64)
+        self._arrays = FastArrays(2 * int(size))
+
+    def start(self) -> None:
+        """Start a run: no momentum, no previous image, the counts cleared."""
+        super().start()
+        if self._arrays is not None:
+            self._arrays = type(self._arrays)(self._arrays.f_prev.size)
 
     def reset(self) -> None:
         """Restart: no momentum, no previous image."""
         self._a, self._c, self._f = 1.0, math.inf, None
+        if getattr(self, "_arrays", None) is not None:
+            self._arrays.reset()
+
+    def kernel_state(self):
+        """(weights, eta, 0.0, arrays) for a compiled segment's steps (in the slots of Anderson's weights,
+        safeguard, regularization and arrays), or None when unbound."""
+        if self._arrays is None:
+            return None
+        return self._weights, self.eta, 0.0, self._arrays
+
+    def sync_stats(self) -> None:
+        """The counts from the kernel's arrays (after steps taken there)."""
+        if self._arrays is not None:
+            from .fast_kernel import EXTRAPOLATED, RESTARTS
+            self.stats["extrapolated"] = int(self._arrays.ist[EXTRAPOLATED])
+            self.stats["restarts"] = int(self._arrays.ist[RESTARTS])
 
     def propose(self, s: State, f: State, rho: float, inner) -> State:
         """The momentum step (A5), or a restart from the previous image."""
+        if self._arrays is not None:
+            return self._propose_kernel(s, f, rho)
         g = _diff(f, s)
         c = w_inner(g, g, rho, inner)                                                    # (A4)
         previous = self._f
@@ -296,6 +336,14 @@ class FastADMM(Accelerator):
         self.stats["restarts"] += 1
         self._a, self._c = 1.0, self._c / self.eta
         return previous
+
+    def _propose_kernel(self, s: State, f: State, rho: float) -> State:
+        """:meth:`propose` by ``admmkit.loop.fast_kernel.fast_update`` on the stacked states."""
+        from .fast_kernel import fast_update
+        out = np.empty_like(f[0]), np.empty_like(f[1])
+        fast_update(float(rho), self._weights, self.eta, *s, *f, *out, *self._arrays.args()[:3])
+        self.sync_stats()
+        return out
 
 
 ACCELERATORS = {"anderson": Anderson, "fast": FastADMM}
@@ -324,13 +372,13 @@ class Acceleration:
     def __init__(self, accelerator: Accelerator, order: str, inner, weights=None, size: int | None = None):
         self.accelerator, self.inner = accelerator, inner
         self._u = 0 if order == "xz" else 2        # the index of u in (z, lam, Ax)
-        if isinstance(accelerator, Anderson):      # the kernel's steps for a weighted inner product, else numpy's
+        if isinstance(accelerator, (Anderson, FastADMM)):  # kernel steps for a weighted inner product, else numpy
             accelerator.bind(weights, size)
         accelerator.start()
 
     def kernel_state(self):
         """What a compiled segment needs to take the accelerator's steps itself, or None (it cannot)."""
-        if self._u != 0 or not isinstance(self.accelerator, Anderson):
+        if self._u != 0 or not isinstance(self.accelerator, (Anderson, FastADMM)):
             return None
         return self.accelerator.kernel_state()
 

@@ -47,6 +47,8 @@ import numpy as np
 
 from ..kernels import kernel
 
+#: this kernel's number among a compiled segment's accelerator modes (0 none, 1 Anderson's, 2 fast ADMM's)
+MODE = 1
 #: the longest run of plain proposals after a rejection (the back-off doubles up to it)
 BACKOFF_MAX = 1024
 #: the slots of the integer state ``ist``
@@ -212,6 +214,8 @@ def _gram_row_and_rhs(w, rho, dG, g, p, count, extrapolate, gram, rhs, acc):
 class AndersonArrays:
     """The arrays :func:`anderson_update` works on, for memory ``mem``, states of length ``n`` (= 2 m) and a step
     every ``interval`` iterations."""
+
+    mode = MODE
 
     def __init__(self, mem: int, n: int, interval: int = 1) -> None:
         self.ist = np.zeros(INT_SLOTS, dtype=np.int64)

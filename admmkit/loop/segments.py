@@ -52,8 +52,9 @@ plug-in whose ``segment`` takes ``accel`` takes those steps itself, between
 the iterations it runs (all but a read last one, whose step the loop takes):
 ``accel`` is the accelerator's ``kernel_state()`` (Anderson bound to a
 weighted inner product: its weights, safeguard, regularization and the
-arrays of ``admmkit.loop.anderson_kernel``, updated in place), and its steps
-must be the loop's bit for bit.  Other accelerators (restarted fast ADMM)
+arrays of ``admmkit.loop.anderson_kernel``, updated in place; restarted fast
+ADMM's: its weights, eta and the arrays of ``admmkit.loop.fast_kernel``), and
+its steps must be the loop's bit for bit.  Other accelerators (a user's own)
 run every iteration in Python.
 
 The first iteration of a run runs in Python, so that what the plug-in's

@@ -260,8 +260,8 @@ class QP(Problem):
 
     def segment(self, x, z, lam, Ax, rho, alpha, order, count, read=False, accel=None, check=None):
         """``count`` iterations in one compiled call (:mod:`admmkit.loop.segments`; ``read``: the last is a read one;
-        ``accel``: Anderson's steps between them; ``check``: OSQP's test and rule made in the kernel where they go
-        on, :mod:`admmkit.problems.qp.segment_checks`), or None where it does not apply."""
+        ``accel``: the accelerator's steps between them; ``check``: OSQP's test and rule made in the kernel where
+        they go on, :mod:`admmkit.problems.qp.segment_checks`), or None where it does not apply."""
         if check is not None:
             from .segment_checks import checked_segment
             return checked_segment(self, x, z, lam, Ax, rho, alpha, order, count, read, accel, check)

@@ -23,7 +23,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from admmkit.loop import anderson_kernel, fast_kernel
 from admmkit.loop.anderson_kernel import CLOCK, anderson_reads_state, anderson_update
+from admmkit.loop.fast_kernel import fast_update
 from admmkit.kernels import AVAILABLE, all_finite, compiled_now, kernel
 from admmkit.linalg.compiled import ldl_solve
 
@@ -58,6 +60,31 @@ def choose_compiled(setting, qp) -> tuple[bool, bool]:
     return (pays if setting == "auto" else False), pays
 
 
+#: the accelerator modes of the kernels' integer ``accelerate``: none, Anderson's steps, restarted fast ADMM's
+NO_ACCELERATION, ANDERSON, FAST = 0, anderson_kernel.MODE, fast_kernel.MODE
+
+
+@kernel(cache=True)
+def reads_state(mode, ist):
+    """Whether the accelerator ``mode``'s next step reads the state the iteration starts from (fast ADMM's always;
+    Anderson's when :func:`admmkit.loop.anderson_kernel.anderson_reads_state` says so)."""
+    return mode == FAST or (mode == ANDERSON and anderson_reads_state(ist))
+
+
+@kernel(cache=True)
+def accelerator_step(mode, rho, w, safeguard, regularization, s_z, s_lam, z, lam, ist, before, F_prev, G_prev, plain,
+                     dF, dG, gram, g, acc, a_rhs, chol, gamma):
+    """The accelerator's step on (z, lam), in place, from the state (``s_z``, ``s_lam``) the iteration started from:
+    Anderson's (``mode`` ANDERSON, the arguments of :func:`admmkit.loop.anderson_kernel.anderson_update`) or
+    restarted fast ADMM's (FAST: ``safeguard`` is its eta, ``ist``, ``before``, ``F_prev`` its ist, ac, f_prev of
+    :func:`admmkit.loop.fast_kernel.fast_update`; the other arrays are not read)."""
+    if mode == ANDERSON:
+        anderson_update(rho, w, safeguard, regularization, s_z, s_lam, z, lam, z, lam, ist, before, F_prev, G_prev,
+                        plain, dF, dG, gram, g, acc, a_rhs, chol, gamma)
+    elif mode == FAST:
+        fast_update(rho, w, safeguard, s_z, s_lam, z, lam, z, lam, ist, before, F_prev)
+
+
 @kernel(cache=True)
 def _xz_kkt(count, rho, alpha, a, sigma, Lp, Li, Lx, Dinv, perm, Rinv, q, lo, up, free, w_free,
             x, x_prev, x_rel, x_rel_prev, z, lam, Ax, rhs, sol, work, keep_last, z_last, lam_last, Ax_last, hat,
@@ -66,15 +93,16 @@ def _xz_kkt(count, rho, alpha, a, sigma, Lp, Li, Lx, Dinv, perm, Rinv, q, lo, up
     """``count`` iterations on the state arrays (x, x_prev, x_rel, x_rel_prev, z, lam, Ax), in place;
     returns the number done (fewer if a step would meet a non-finite number).  With ``keep_last``, the
     last iteration's z, lam, A x in (its x is then x_prev) and its relaxed vector (``hat``) are kept.
-    With ``accelerate``, Anderson's step (``admmkit.loop.anderson_kernel``) follows every iteration but a kept
-    last one (the loop takes that one's), on the state (z, lam), the one it started from kept in ``s_z``, ``s_lam``
-    where the step reads it; between the steps of its interval it only counts the iteration."""
+    With ``accelerate`` (a mode: ANDERSON, FAST; NO_ACCELERATION 0), the accelerator's step
+    (:func:`accelerator_step`) follows every iteration but a kept last one (the loop takes that one's), on the state
+    (z, lam), the one it started from kept in ``s_z``, ``s_lam`` where the step reads it; between the steps of
+    Anderson's interval it only counts the iteration."""
     n, m = x.shape[0], z.shape[0]
     relax_x, relax = a != 1.0, alpha != 1.0
     for it in range(count):
         last = keep_last and it == count - 1
-        step = accelerate and not last
-        reads = step and anderson_reads_state(ist)
+        step = accelerate != NO_ACCELERATION and not last
+        reads = step and reads_state(accelerate, ist)
         if reads:                                                               # s = (z^k, lam^k)
             for i in range(m):
                 s_z[i], s_lam[i] = z[i], lam[i]
@@ -114,10 +142,10 @@ def _xz_kkt(count, rho, alpha, a, sigma, Lp, Li, Lx, Dinv, perm, Rinv, q, lo, up
                 v = up[i]
             lam[i] = lam[i] + rho * (h - v)
             z[i] = v
-        if reads:                                                               # (A2)-(A3)
-            anderson_update(rho, w, safeguard, regularization, s_z, s_lam, z, lam, z, lam, ist, before, F_prev,
-                            G_prev, plain, dF, dG, gram, g, acc, a_rhs, chol, gamma)
-        elif step:                                                              # between steps: plain
+        if reads:                                                               # (A2)-(A3) or (A4)-(A5)
+            accelerator_step(accelerate, rho, w, safeguard, regularization, s_z, s_lam, z, lam, ist, before, F_prev,
+                             G_prev, plain, dF, dG, gram, g, acc, a_rhs, chol, gamma)
+        elif step:                                                              # Anderson between steps: plain
             ist[CLOCK] += 1
     return count
 
@@ -176,8 +204,19 @@ def segment_state(qp, x, z, lam, Ax):
     return (x, z, lam, Ax, x_rel, np.empty_like(x), np.empty_like(x)), _scratch(qp)
 
 
-#: placeholders for the kernel's Anderson arrays when it takes no steps (one compiled signature)
-_NO_INTS, _NO_MATRIX = np.zeros(0, dtype=np.int64), np.zeros((0, 0))
+#: placeholders for the kernel's accelerator arrays when it takes no steps (one compiled signature)
+_NO_W, _NO_INTS, _NO_MATRIX = np.zeros(0), np.zeros(0, dtype=np.int64), np.zeros((0, 0))
+_NO_ACCELERATOR = (NO_ACCELERATION, _NO_W, 1.0, 0.0, _NO_W, _NO_W, _NO_INTS, _NO_W, _NO_W, _NO_W, _NO_W, _NO_MATRIX,
+                   _NO_MATRIX, _NO_MATRIX, _NO_W, _NO_MATRIX, _NO_W, _NO_MATRIX, _NO_W)
+
+
+def accelerator_arguments(accel, m: int) -> tuple:
+    """The kernels' accelerator arguments (``accelerate`` to ``gamma``) for an accelerator's ``kernel_state()``
+    (weights, a parameter, a second one, arrays with their ``mode``; None: no steps), with s_z, s_lam of length m."""
+    if accel is None:
+        return _NO_ACCELERATOR
+    w, first, second, arrays = accel
+    return (arrays.mode, w, first, second, np.empty(m), np.empty(m), *arrays.args())
 
 
 def run_segment(qp, x, z, lam, Ax, rho: float, alpha: float, order: str, count: int, read: bool = False,
@@ -188,8 +227,9 @@ def run_segment(qp, x, z, lam, Ax, rho: float, alpha: float, order: str, count: 
     Returns (x, z, lam, Ax, done) in new arrays; the QP's relaxed-x bookkeeping (Q4) follows, and its
     solve counter grows by ``done``.  ``read``: the last iteration is one the loop reads
     (:mod:`admmkit.loop.segments`); a sixth item, (x, z, lam, A x) it started from and its relaxed vector (None
-    when alpha = 1), is returned, None unless all ``count`` iterations were done.  ``accel``: Anderson's
-    ``kernel_state()`` (:mod:`admmkit.loop.segments`), whose steps follow the iterations (not a read last one's).
+    when alpha = 1), is returned, None unless all ``count`` iterations were done.  ``accel``: the accelerator's
+    ``kernel_state()`` (Anderson's or restarted fast ADMM's; :mod:`admmkit.loop.segments`), whose steps follow the
+    iterations (not a read last one's).
     (With the loop's tests and OSQP's rule in the kernel: :func:`admmkit.problems.qp.segment_checks.checked_segment`.)
     """
     if order != "xz" or qp.xstep != "kkt" or not compiled_now():
@@ -201,15 +241,10 @@ def run_segment(qp, x, z, lam, Ax, rho: float, alpha: float, order: str, count: 
     a = qp.x_relaxation
     m = z.shape[0]
     kept = (np.empty(m), np.empty(m), np.empty(m), np.empty(m)) if read else (work[:0],) * 4
-    if accel is None:
-        anderson = (False, work[:0], 1.0, 0.0, work[:0], work[:0], _NO_INTS, work[:0], work[:0], work[:0],
-                    work[:0], _NO_MATRIX, _NO_MATRIX, _NO_MATRIX, work[:0], _NO_MATRIX, work[:0], _NO_MATRIX, work[:0])
-    else:
-        w, safeguard, regularization, arrays = accel
-        anderson = (True, w, safeguard, regularization, np.empty(m), np.empty(m), *arrays.args())
+    accelerator = accelerator_arguments(accel, m)
     done = _xz_kkt(count, float(rho), float(alpha), a, qp.sigma, *factors, qp.inverse_penalty(rho),
                    qp.qs, qp.ls, qp.us, qp._free, qp._w_free_over_penalty,
-                   x, x_prev, x_rel, x_rel_prev, z, lam, Ax, rhs, sol, work, read, *kept, *anderson)
+                   x, x_prev, x_rel, x_rel_prev, z, lam, Ax, rhs, sol, work, read, *kept, *accelerator)
     if done:
         qp.after_segment(x, x_prev, x_rel, x_rel_prev, done)
     if not read:

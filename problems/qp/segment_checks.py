@@ -43,8 +43,7 @@ from admmkit.linalg.compiled import csc_matvec
 
 from .infeasibility_kernel import dual_candidate, dual_update_change, primal_candidate
 from .residual_kernel import _residuals
-from .segment import _xz_kkt
-from admmkit.loop.anderson_kernel import anderson_update
+from .segment import NO_ACCELERATION, _xz_kkt, accelerator_step
 
 #: ``False``: the segment makes no test and no rule update in its kernel (it ends at every iteration the loop reads,
 #: as before this module): the switch the tests compare the two with
@@ -143,9 +142,9 @@ def segment_tested(count, first, every, knows_test, m, eps_abs, eps_rel, gap, in
     tested one ((k + 1) % every == 0) and each one OSQP's rule reads (``interval`` > 0) decided by :func:`go_on`;
     ``knows_test``: the run's test is one :func:`go_on` makes (else the segment ends at the first tested iteration);
     returns (done, kept): the segment ends after a "Python must look" iteration, at ``count``, or before a
-    non-finite step (kept False: the last iteration's inputs are not kept).  With ``accelerate``, Anderson's steps
-    (``_xz_kkt``'s arguments from ``aw`` on) follow the iterations, a decided one's too where it goes on (rho
-    unchanged: the loop would take that step next)."""
+    non-finite step (kept False: the last iteration's inputs are not kept).  With ``accelerate`` (a mode of
+    ``segment.accelerator_step``), the accelerator's steps (``_xz_kkt``'s arguments from ``aw`` on) follow the
+    iterations, a decided one's too where it goes on (rho unchanged: the loop would take that step next)."""
     done = 0
     while done < count:
         k = first + done
@@ -172,9 +171,9 @@ def segment_tested(count, first, every, knows_test, m, eps_abs, eps_rel, gap, in
                      Pu_p, Pu_i, Pu_d, qu, Au_p, Au_i, Au_d, lu, uu, scaled,
                      x_rel, x_rel_prev, z, z_last, lam, Ax, Axb, dy, dx, cert_m, cert_n, held):
             return done, True
-        if accelerate:                          # go on at this rho: the step from the state iteration j started from
-            anderson_update(rho, aw, safeguard, regularization, z_last, lam_last, z, lam, z, lam, ist, before, F_prev,
-                            G_prev, plain, dF, dG, gram, g, acc, a_rhs, chol, gamma)
+        if accelerate != NO_ACCELERATION:       # go on at this rho: the step from the state iteration j started from
+            accelerator_step(accelerate, rho, aw, safeguard, regularization, z_last, lam_last, z, lam, ist, before,
+                             F_prev, G_prev, plain, dF, dG, gram, g, acc, a_rhs, chol, gamma)
     return done, True
 
 
@@ -223,20 +222,15 @@ def _data(qp) -> tuple:
     return held
 
 
-#: placeholders for the iteration kernel's Anderson arrays (no accelerator)
-_NO_W, _NO_INTS, _NO_MATRIX = np.zeros(0), np.zeros(0, dtype=np.int64), np.zeros((0, 0))
-_NO_ANDERSON = (False, _NO_W, 1.0, 0.0, _NO_W, _NO_W, _NO_INTS, _NO_W, _NO_W, _NO_W, _NO_W, _NO_MATRIX, _NO_MATRIX,
-                _NO_MATRIX, _NO_W, _NO_MATRIX, _NO_W, _NO_MATRIX, _NO_W)
-
-
 def checked_segment(qp, x, z, lam, Ax, rho: float, alpha: float, order: str, count: int, read: bool, accel, check):
     """``QP.segment`` given ``check`` (:class:`admmkit.loop.segments.SegmentChecks`): up to ``count`` iterations from
     iteration ``check.first``, the tests and OSQP's rule made in the kernel where they go on; (x, z, lam, Ax, done,
     last) as ``run_segment(..., read=True)`` returns them, ``last`` the read iteration's inputs (None when a
-    non-finite step ended the segment early).  ``accel``: Anderson's ``kernel_state()``, whose steps the kernel takes
-    (:func:`segment_tested`).  Where the kernel does not apply (not order "xz" with the KKT form on qdldl, compiled
-    code not chosen), :func:`admmkit.problems.qp.segment.run_segment` up to the next iteration the loop reads."""
-    from .segment import run_segment, segment_state
+    non-finite step ended the segment early).  ``accel``: the accelerator's ``kernel_state()`` (Anderson's or
+    restarted fast ADMM's), whose steps the kernel takes (:func:`segment_tested`).  Where the kernel does not apply
+    (not order "xz" with the KKT form on qdldl, compiled code not chosen),
+    :func:`admmkit.problems.qp.segment.run_segment` up to the next iteration the loop reads."""
+    from .segment import accelerator_arguments, run_segment, segment_state
     first = check.first
     factors = qp._solver.ldl(rho) if order == "xz" and qp.xstep == "kkt" and compiled_now() else None
     if factors is None or not read:
@@ -251,17 +245,13 @@ def checked_segment(qp, x, z, lam, Ax, rho: float, alpha: float, order: str, cou
     a = qp.x_relaxation
     m = z.shape[0]
     kept = (np.empty(m), np.empty(m), np.empty(m), np.empty(m))
-    if accel is None:
-        anderson = _NO_ANDERSON
-    else:
-        w, safeguard, regularization, arrays = accel
-        anderson = (True, w, safeguard, regularization, np.empty(m), np.empty(m), *arrays.args())
+    accelerator = accelerator_arguments(accel, m)
     held = np.full(12, -1.0)             # held[11] = -1: no residuals computed at the read iteration (yet)
     qp._kernel_residuals = None
     done, whole = segment_tested(count, first, check.every, *test[:1], m, *test[1:], *rule, float(rho),
                                  float(alpha), *_data(qp), a, qp.sigma, *factors, qp.inverse_penalty(rho), qp.qs,
                                  qp._free, qp._w_free_over_penalty, x, x_prev, x_rel, x_rel_prev, z, lam, Ax,
-                                 rhs, sol, work, *kept, *anderson, held)
+                                 rhs, sol, work, *kept, *accelerator, held)
     if done:
         qp.after_segment(x, x_prev, x_rel, x_rel_prev, done)
     data_w = _data(qp)[8]                   # the weights the kernel read are the QP's (a held copy: not asked)

@@ -255,10 +255,17 @@ def test_anderson_does_not_lose_what_plain_admm_solves(name):
     same_run(fast, solve_qp(qp, compiled=False, acceleration="anderson", eps_abs=1e-6, eps_rel=1e-6))
 
 
-def test_fast_admm_still_runs_in_python():
-    """Restarted fast ADMM takes its steps in Python only: no segment runs with it."""
+def test_an_accelerator_without_a_kernel_still_runs_in_python():
+    """An accelerator with no kernel state (a user's own) takes its steps in Python only: no segment runs with it.
+    (Restarted fast ADMM has one since fast_kernel: tests/problems/test_qp_fast.py.)"""
+    from admmkit.loop.acceleration import Accelerator
+
+    class Plain(Accelerator):
+        def propose(self, s, f, rho, inner):
+            return f
+
     qdldl_or_skip()
-    res = solve_qp(random_qp(20, 30, seed=2), compiled=True, acceleration="fast")
+    res = solve_qp(random_qp(20, 30, seed=2), compiled=True, acceleration=Plain())
     assert "compiled_iterations" not in res.counters
 
 

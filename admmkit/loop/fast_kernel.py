@@ -1,0 +1,96 @@
+"""Restarted fast ADMM's step (eqs. (A4)-(A5) of :mod:`admmkit.loop.acceleration`) as one kernel on arrays.
+
+As :mod:`admmkit.loop.anderson_kernel` for Anderson: a problem whose inner
+product is a weighted dot product, (a, b)_M = sum_i w_i a_i b_i
+(``problem.inner_weights()``: the QP's row weights), has the steps of
+:class:`admmkit.loop.acceleration.FastADMM` made here, by :func:`fast_update`,
+from the loop's Python iteration and from the problem's compiled segment
+alike, so a run with it is the same bit for bit whichever runs its iterations.
+Without numba the kernel runs as Python (the same bits, slower).
+
+The state s = (u, lam) comes as its two arrays; the combined residual (A4) is
+
+    c_k = ||f_k - s_k||_W^2 = rho sum_i w_i g_u,i^2 + sum_i w_i g_lam,i^2 / rho,
+
+summed as :func:`admmkit.loop.anderson_kernel.anderson_update` sums ||g||_W^2.
+The memory is the previous image f_{k-1} (``f_prev``, the stacked [u; lam] of
+length 2 m), the momentum a_k and c_{k-1} (``ac``) and the integer state
+``ist`` (whether f_prev holds an image; the counts of extrapolations and
+restarts).  A step is taken after every iteration: it always reads s.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..kernels import kernel
+
+#: this kernel's number among a compiled segment's accelerator modes (0 none, 1 Anderson's, 2 fast ADMM's)
+MODE = 2
+#: the slots of the integer state ``ist``
+HAVE_PREV, EXTRAPOLATED, RESTARTS = range(3)
+INT_SLOTS = 3
+#: the slots of the float state ``ac``: the momentum a_k and the last combined residual c_{k-1}
+A, C = range(2)
+
+
+@kernel(cache=True)
+def fast_update(rho, w, eta, s_u, s_l, f_u, f_l, out_u, out_l, ist, ac, f_prev):
+    """The next state (``out_u``, ``out_l``; they may be ``f_u``, ``f_l`` themselves) from the state (``s_u``,
+    ``s_l``) an iteration started from and its image (``f_u``, ``f_l``): the momentum step (A5) when c_k <
+    ``eta`` c_{k-1} (or no image is held yet), else a restart from f_{k-1}.  ``ist``, ``ac`` and ``f_prev`` are
+    updated in place (see the module docstring)."""
+    m = w.shape[0]
+    su = sl = 0.0
+    for i in range(m):                                      # c_k = ||f - s||_W^2 (A4)
+        a = f_u[i] - s_u[i]
+        b = f_l[i] - s_l[i]
+        su += w[i] * a * a
+        sl += w[i] * b * b
+    c = rho * su + sl / rho
+    if ist[HAVE_PREV] == 0 or c < eta * ac[C]:
+        a_next = (1.0 + math.sqrt(1.0 + 4.0 * ac[A] ** 2)) / 2.0
+        beta = (ac[A] - 1.0) / a_next
+        ac[A], ac[C] = a_next, c
+        momentum = ist[HAVE_PREV] == 1 and beta != 0.0
+        for i in range(m):                                  # (A5), and f becomes f_prev
+            fu, fl = f_u[i], f_l[i]
+            if momentum:
+                out_u[i] = fu + beta * (fu - f_prev[i])
+                out_l[i] = fl + beta * (fl - f_prev[m + i])
+            else:
+                out_u[i], out_l[i] = fu, fl
+            f_prev[i], f_prev[m + i] = fu, fl
+        if momentum:
+            ist[EXTRAPOLATED] += 1
+        ist[HAVE_PREV] = 1
+        return
+    ist[RESTARTS] += 1                                      # restart: from f_{k-1}, no momentum
+    ac[A], ac[C] = 1.0, ac[C] / eta
+    for i in range(m):
+        out_u[i], out_l[i] = f_prev[i], f_prev[m + i]
+
+
+class FastArrays:
+    """The arrays :func:`fast_update` works on, for states of length ``n`` (= 2 m).
+
+    :meth:`args` lays them out in the slots of Anderson's arrays (``anderson_kernel.AndersonArrays.args``), the
+    others empty, so that a compiled segment takes either with one signature (``MODE`` tells which)."""
+
+    mode = MODE
+
+    def __init__(self, n: int) -> None:
+        self.ist = np.zeros(INT_SLOTS, dtype=np.int64)
+        self.ac = np.array([1.0, math.inf])
+        self.f_prev = np.zeros(n)
+
+    def reset(self) -> None:
+        """Restart: no momentum, no previous image (the counts stay)."""
+        self.ist[HAVE_PREV] = 0
+        self.ac[A], self.ac[C] = 1.0, math.inf
+
+    def args(self):
+        """(ist, ac, f_prev) in the slots (ist, before, F_prev) of Anderson's arrays, empty arrays in the others."""
+        v, mat = np.zeros(0), np.zeros((0, 0))
+        return (self.ist, self.ac, self.f_prev, v, v, mat, mat, mat, v, mat, v, mat, v)
