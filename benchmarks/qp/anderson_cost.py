@@ -22,6 +22,11 @@ the best of the runs kept, two ways:
 
 BLAS on one thread, kernels compiled or loaded before the first timing.  The
 default problems are the seven of docs/qp.md's table.
+
+``--accelerator fast`` measures restarted fast ADMM (``FastADMM()``, eta 0.999;
+``--interval`` does not apply) in Anderson's place; the columns named
+``anderson_*`` are then the fast ADMM run's (the ``accelerator`` column says
+which).
 """
 from __future__ import annotations
 
@@ -40,35 +45,42 @@ PROBLEMS = ("CVXQP1_S", "QADLITTL", "DUAL2", "PRIMAL1", "HS118", "CVXQP2_M", "HS
 COLUMNS = ("problem", "n", "m", "eps", "interval", "plain_iterations", "anderson_iterations", "plain_us",
            "anderson_us", "cost_ratio", "iterations_ratio", "plain_status", "anderson_status",
            "fixed_iterations", "fixed_anderson_iterations", "fixed_plain_us", "fixed_anderson_us",
-           "fixed_cost_ratio", "fixed_extrapolated", "fixed_rejected")
+           "fixed_cost_ratio", "fixed_extrapolated", "fixed_rejected", "accelerator")
+#: the accelerators ``--accelerator`` takes, and their names in the report
+ACCELERATORS = {"anderson": "Anderson", "fast": "fast ADMM"}
 #: the fixed-work runs' settings: a fixed rho, nothing that stops a run before its ``max_iter``
 FIXED_WORK = dict(eps_abs=1e-300, eps_rel=0.0, infeasibility=False)
 
 
 def _run(qp, acceleration, interval: int, policy="osqp", **settings):
-    """One compiled solve: (status, iterations, loop seconds, the accelerator's counts)."""
-    from admmkit.loop.acceleration import Anderson
+    """One compiled solve: (status, iterations, loop seconds, the accelerator's counts); ``acceleration``: None,
+    "anderson" (at ``interval``) or "fast"."""
+    from admmkit.loop.acceleration import Anderson, FastADMM
     from admmkit.problems.qp import solve_qp
-    accel = None if acceleration is None else Anderson(interval=interval)
+    accel = {None: None, "anderson": lambda: Anderson(interval=interval), "fast": FastADMM}[acceleration]
+    accel = accel and accel()
     res = solve_qp(qp, policy=policy, compiled=True, acceleration=accel, **settings)
     return res.termination or res.status.value, res.iterations, res.timings["total"], res.acceleration or {}
 
 
-def _best(qp, repeat: int, interval: int, **kwargs) -> dict:
-    """{"plain": run, "anderson": run} of :func:`_run`, taken in turn ``repeat`` times, the fastest per iteration."""
+def _best(qp, repeat: int, interval: int, accelerator: str = "anderson", **kwargs) -> dict:
+    """{"plain": run, "anderson": run} of :func:`_run` (the second with ``accelerator``), taken in turn ``repeat``
+    times, the fastest per iteration."""
     best = {}
     for _ in range(repeat):
-        for key, acceleration in (("plain", None), ("anderson", "anderson")):
+        for key, acceleration in (("plain", None), ("anderson", accelerator)):
             run = _run(qp, acceleration, interval, **kwargs)
             if key not in best or run[2] / max(run[1], 1) < best[key][2] / max(best[key][1], 1):
                 best[key] = run
     return best
 
 
-def measure(qp, name: str, eps: float, max_iter: int, repeat: int, interval: int, fixed_iter: int) -> dict:
-    """Plain and Anderson on one problem: the solve's loop time per iteration and the fixed work's."""
-    solve = _best(qp, repeat, interval, eps_abs=eps, eps_rel=eps, max_iter=max_iter)
-    fixed = _best(qp, repeat, interval, policy=None, max_iter=fixed_iter, **FIXED_WORK)
+def measure(qp, name: str, eps: float, max_iter: int, repeat: int, interval: int, fixed_iter: int,
+            accelerator: str = "anderson") -> dict:
+    """Plain and Anderson (or ``accelerator``) on one problem: the solve's loop time per iteration and the fixed
+    work's."""
+    solve = _best(qp, repeat, interval, accelerator, eps_abs=eps, eps_rel=eps, max_iter=max_iter)
+    fixed = _best(qp, repeat, interval, accelerator, policy=None, max_iter=fixed_iter, **FIXED_WORK)
     (ps, pi, pt, _), (as_, ai, at, _) = solve["plain"], solve["anderson"]
     (_, fpi, fpt, _), (_, fai, fat, counts) = fixed["plain"], fixed["anderson"]
     pt, at, fpt, fat = pt / max(pi, 1), at / max(ai, 1), fpt / max(fpi, 1), fat / max(fai, 1)
@@ -77,7 +89,8 @@ def measure(qp, name: str, eps: float, max_iter: int, repeat: int, interval: int
             "iterations_ratio": ai / pi if pi else float("nan"), "plain_status": ps, "anderson_status": as_,
             "fixed_iterations": fpi, "fixed_anderson_iterations": fai, "fixed_plain_us": 1e6 * fpt,
             "fixed_anderson_us": 1e6 * fat, "fixed_cost_ratio": fat / fpt,
-            "fixed_extrapolated": counts.get("extrapolated", 0), "fixed_rejected": counts.get("rejected", 0)}
+            "fixed_extrapolated": counts.get("extrapolated", 0), "fixed_rejected": counts.get("rejected", 0),
+            "accelerator": accelerator}
 
 
 def main(argv=None, prog: str = "admmkit bench anderson-cost") -> int:
@@ -97,6 +110,8 @@ def main(argv=None, prog: str = "admmkit bench anderson-cost") -> int:
                         help=f"Anderson's interval, iterations per step (default {INTERVAL}, Anderson's)")
     parser.add_argument("--fixed-iter", type=int, default=1000,
                         help="iterations of the fixed-work runs (default 1000)")
+    parser.add_argument("--accelerator", choices=sorted(ACCELERATORS), default="anderson",
+                        help="the accelerator measured against plain (default anderson; fast: restarted fast ADMM)")
     args = parser.parse_args(argv)
     if not (0 < args.eps < math.inf) or args.max_iter < 1 or args.repeat < 1:
         parser.error("--eps must be a positive finite number, --max-iter and --repeat integers >= 1")
@@ -117,7 +132,7 @@ def main(argv=None, prog: str = "admmkit bench anderson-cost") -> int:
     command = prog + " " + " ".join(shlex.quote(a) for a in (argv if argv is not None else sys.argv[1:]))
     t0 = time.perf_counter()
     warm = random_qp(5, 5)
-    for acceleration in (None, "anderson"):                  # compile or load every kernel before timing
+    for acceleration in (None, args.accelerator):            # compile or load every kernel before timing
         _run(warm, acceleration, args.interval, eps_abs=1e-3, eps_rel=1e-3, max_iter=100)
         _run(warm, acceleration, args.interval, policy=None, max_iter=100, **FIXED_WORK)
     print(f"kernels ready in {time.perf_counter() - t0:.2f} s", flush=True)
@@ -125,7 +140,7 @@ def main(argv=None, prog: str = "admmkit bench anderson-cost") -> int:
     with threadpool_limits(1):
         for i, name in enumerate(args.problems):
             row = measure(load_mat(Path(args.data) / f"{name}.mat"), name, args.eps, args.max_iter, args.repeat,
-                          args.interval, args.fixed_iter)
+                          args.interval, args.fixed_iter, args.accelerator)
             rows.append(row)
             print(f"[{i + 1}/{len(args.problems)}] {name}: solve {row['plain_us']:.2f} / {row['anderson_us']:.2f} "
                   f"us/it, {row['cost_ratio']:.2f}x; fixed work {row['fixed_plain_us']:.2f} / "
@@ -141,8 +156,9 @@ def main(argv=None, prog: str = "admmkit bench anderson-cost") -> int:
 def report(rows: list[dict], command: str, args) -> str:
     """The README's text: both measures per problem, then their median and max."""
     import numpy as np
-    lines = ["| problem | n | m | solve: plain / Anderson us/it | ratio | iterations (plain / Anderson) | status | "
-             "fixed work: plain / Anderson us/it | ratio | steps (rejected) |",
+    name = ACCELERATORS[getattr(args, "accelerator", "anderson")]
+    lines = [f"| problem | n | m | solve: plain / {name} us/it | ratio | iterations (plain / {name}) | status | "
+             f"fixed work: plain / {name} us/it | ratio | steps (rejected) |",
              "|---|---:|---:|---:|---:|---|---|---:|---:|---:|"]
     lines += [f"| {r['problem']} | {r['n']} | {r['m']} | {r['plain_us']:.2f} / {r['anderson_us']:.2f} | "
               f"**{r['cost_ratio']:.2f}** | {r['plain_iterations']} / {r['anderson_iterations']} | "
@@ -151,16 +167,17 @@ def report(rows: list[dict], command: str, args) -> str:
               f"({r['fixed_rejected']}) |" for r in rows]
     short = [r["problem"] for r in rows if min(r["fixed_iterations"], r["fixed_anderson_iterations"]) < args.fixed_iter]
     solve, fixed = (np.array([r[key] for r in rows]) for key in ("cost_ratio", "fixed_cost_ratio"))
+    setting = (f"Anderson: memory 10, interval {args.interval} (a step after every {args.interval}-th iteration)"
+               if name == "Anderson" else "restarted fast ADMM: eta 0.999, a step after every iteration")
     return "\n".join([
-        "# Anderson on the compiled QP path: cost per iteration", "", f"Command: `{command}`", "",
-        f"Anderson: memory 10, interval {args.interval} (a step after every {args.interval}-th iteration); "
-        f"compiled segment, BLAS on one thread, best of {args.repeat} runs taken in turn.", "",
+        f"# {name} on the compiled QP path: cost per iteration", "", f"Command: `{command}`", "",
+        f"{setting}; compiled segment, BLAS on one thread, best of {args.repeat} runs taken in turn.", "",
         f"- *solve*: OSQP's settings at eps {args.eps:g} (max_iter {args.max_iter}); loop time / iterations. The "
         "two runs change rho at different times and stop at different counts.",
         f"- *fixed work*: both runs {args.fixed_iter} iterations at a fixed rho (tolerance 1e-300, no adaptive rho, no "
-        "infeasibility test); the ratio is the cost of an iteration with Anderson against one without. Steps: "
-        "the Anderson run's accepted or rejected extrapolations (rejected in brackets).", "", *lines, "",
-        f"Cost ratio Anderson / plain (issue #50's target: at most 1.3): solve median **{np.median(solve):.2f}**, "
+        f"infeasibility test); the ratio is the cost of an iteration with {name} against one without. Steps: "
+        f"the {name} run's extrapolations (the rejected ones in brackets).", "", *lines, "",
+        f"Cost ratio {name} / plain (issue #50's target: at most 1.3): solve median **{np.median(solve):.2f}**, "
         f"max {solve.max():.2f}; fixed work median **{np.median(fixed):.2f}**, max {fixed.max():.2f}.",
         *([f"Fixed-work runs that stopped before {args.fixed_iter} iterations: {', '.join(short)}."] if short else []),
         ""])

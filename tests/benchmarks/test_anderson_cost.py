@@ -30,3 +30,17 @@ def test_bad_options_are_named(bad, capsys):
         anderson_cost.main(["--problems", "HS21", *bad])
     err = capsys.readouterr().err
     assert exit_.value.code == 2 and f"{bad[0]} must be an integer >= 1" in err
+
+
+@pytest.mark.skipif(not MM.is_dir(), reason=f"Maros-Meszaros data not found at {MM}")
+def test_fast_admm_too(tmp_path):
+    """``--accelerator fast``: restarted fast ADMM in Anderson's place, the same fixed work, compiled."""
+    pytest.importorskip("numba")
+    from admmkit.benchmarks.qp import anderson_cost
+    assert anderson_cost.main(["--data", str(MM), "--problems", "HS118", "--out", str(tmp_path), "--repeat", "1",
+                               "--fixed-iter", "300", "--accelerator", "fast"]) == 0
+    (row,) = list(csv.DictReader((tmp_path / "anderson_cost.csv").open()))
+    assert row["accelerator"] == "fast" and row["fixed_iterations"] == row["fixed_anderson_iterations"] == "300"
+    assert int(row["fixed_extrapolated"]) > 0 and float(row["fixed_cost_ratio"]) > 0
+    readme = (tmp_path / "README.md").read_text()
+    assert "# fast ADMM on the compiled QP path" in readme and "eta 0.999" in readme
