@@ -27,8 +27,8 @@ import numpy as np
 
 def qp_kernels() -> None:
     """Every QP kernel, through ``solve_qp(..., compiled=True)`` on QPs that reach each of them: OSQP's settings
-    with its polish, admmkit's preset (polishing during the run, a penalty per row), Anderson's steps in the
-    segment, the infeasibility certificates."""
+    with its polish, admmkit's preset (polishing during the run, a penalty per row), Anderson's and fast ADMM's
+    steps in the segment, the infeasibility certificates."""
     from admmkit.kernels import compiled_code
     from admmkit.problems.qp import admmkit_settings, solve_qp
     from admmkit.problems.qp.generate import infeasible_qp, random_qp, unbounded_qp
@@ -38,6 +38,7 @@ def qp_kernels() -> None:
     res = solve_qp(qp, compiled=True, polish=True)
     solve_qp(qp, admmkit_settings(1e-6, 0.0), compiled=True)
     solve_qp(qp, compiled=True, acceleration="anderson")
+    solve_qp(qp, compiled=True, acceleration="fast")
     solve_qp(infeasible_qp(seed=0), compiled=True)
     solve_qp(unbounded_qp(seed=0), compiled=True)
     with compiled_code(True):

@@ -9,7 +9,7 @@ import pytest
 from admmkit import kernels
 from admmkit.loop.acceleration import Acceleration, FastADMM
 from admmkit.loop.fast_kernel import A, C, HAVE_PREV
-from admmkit.problems.qp import load_mat, random_qp, solve_qp
+from admmkit.problems.qp import admmkit_settings, load_mat, random_qp, solve_qp
 from admmkit.problems.qp import segment_checks
 
 MM = Path(__file__).resolve().parents[3] / "shared" / "data" / "maros_meszaros"
@@ -26,9 +26,9 @@ def same_run(a, b):
     assert a.acceleration == b.acceleration
 
 
-def three_ways(qp, monkeypatch, **changes):
+def three_ways(qp, monkeypatch, settings=None, **changes):
     """Fast ADMM: with OSQP's test in the segment, with it in Python, and the Python loop."""
-    solve = (lambda **kw: solve_qp(qp, acceleration=FastADMM(), **kw, **changes))
+    solve = (lambda **kw: solve_qp(qp, settings, acceleration=FastADMM(), **kw, **changes))
     inside = solve(compiled=True)
     monkeypatch.setattr(segment_checks, "TESTS_IN_KERNEL", False)
     outside = solve(compiled=True)
@@ -48,6 +48,15 @@ def test_compiled_is_python_bit_for_bit(make, eps, monkeypatch):
     same_run(outside, python)
     assert python.acceleration["extrapolated"] > 0 and python.acceleration["restarts"] > 0
     assert inside.counters["compiled_iterations"] > inside.iterations / 2     # the segment ran most iterations
+
+
+def test_the_admmkit_preset_too(monkeypatch):
+    """admmkit's preset (a penalty per row, polishing during the run): the segment ends where its rule reads."""
+    inside, outside, python = three_ways(random_qp(40, 60, seed=7), monkeypatch, admmkit_settings(),
+                                         eps_abs=1e-6, eps_rel=1e-6)
+    same_run(inside, python)
+    same_run(outside, python)
+    assert inside.counters["compiled_iterations"] > 0
 
 
 def test_fast_runs_in_the_segment_and_keeps_the_test_there():
