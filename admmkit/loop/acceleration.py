@@ -338,10 +338,13 @@ class FastADMM(Accelerator):
         return previous
 
     def _propose_kernel(self, s: State, f: State, rho: float) -> State:
-        """:meth:`propose` by ``admmkit.loop.fast_kernel.fast_update`` on the stacked states."""
-        from .fast_kernel import fast_update
+        """:meth:`propose` by ``admmkit.loop.fast_kernel.fast_update`` on the stacked states (its numpy twin,
+        the same bits, where kernels run as Python)."""
+        from ..kernels import compiled_now
+        from .fast_kernel import fast_update, fast_update_numpy
+        step = fast_update if compiled_now() else fast_update_numpy
         out = np.empty_like(f[0]), np.empty_like(f[1])
-        fast_update(float(rho), self._weights, self.eta, *s, *f, *out, *self._arrays.args()[:3])
+        step(float(rho), self._weights, self.eta, *s, *f, *out, *self._arrays.args()[:3])
         self.sync_stats()
         return out
 

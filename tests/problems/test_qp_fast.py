@@ -8,7 +8,7 @@ import pytest
 
 from admmkit import kernels
 from admmkit.loop.acceleration import Acceleration, FastADMM
-from admmkit.loop.fast_kernel import A, C, HAVE_PREV
+from admmkit.loop.fast_kernel import A, C, HAVE_PREV, FastArrays, fast_update, fast_update_numpy
 from admmkit.problems.qp import admmkit_settings, load_mat, random_qp, solve_qp
 from admmkit.problems.qp import segment_checks
 
@@ -113,6 +113,44 @@ def test_the_kernel_is_the_numpy_step_to_rounding():
         assert bound.stats == free.stats
         s = b
     assert bound.stats["restarts"] > 0 and bound.stats["extrapolated"] > 0
+
+
+@pytest.mark.parametrize("m", [0, 1, 9, 300])
+def test_the_numpy_twin_is_the_kernel_bit_for_bit(m):
+    """Where kernels run as Python the loop takes ``fast_update_numpy``: the compiled kernel's bits, counts and
+    state, restarts and extrapolations both met."""
+    rng = np.random.default_rng(m)
+    w, rho = rng.uniform(0.5, 2.0, m), 0.7
+    twin, compiled = FastArrays(2 * m), FastArrays(2 * m)
+    R = np.linalg.qr(rng.standard_normal((m, m)))[0] if m else np.zeros((0, 0))
+    s = (rng.standard_normal(m), rng.standard_normal(m))
+    for k in range(80):
+        f = (0.97 * R @ s[0] + 1e-3 * rng.standard_normal(m), 0.9 * s[1])
+        out_twin, out_comp = (np.empty(m), np.empty(m)), (np.empty(m), np.empty(m))
+        fast_update_numpy(rho, w, 0.95, *s, *f, *out_twin, *twin.args()[:3])
+        with kernels.compiled_code(True):
+            fast_update(rho, w, 0.95, *s, *f, *out_comp, *compiled.args()[:3])
+        assert all(np.array_equal(a, b) for a, b in zip(out_twin, out_comp))
+        assert np.array_equal(twin.ist, compiled.ist) and np.array_equal(twin.ac, compiled.ac)
+        assert np.array_equal(twin.f_prev, compiled.f_prev)
+        s = out_twin
+    if m:
+        assert twin.ist[1] > 0 and twin.ist[2] > 0            # extrapolated and restarted
+
+
+def test_a_run_with_the_kernels_as_python_is_the_compiled_run(monkeypatch):
+    """Kernels as Python (``compiled_now()`` False, as in a process without numba: the loop's steps by the numpy
+    twin) against the compiled segment: the same run."""
+    from admmkit.loop import fast_kernel
+    calls = []
+    twin = fast_kernel.fast_update_numpy
+    monkeypatch.setattr(fast_kernel, "fast_update_numpy", lambda *a: (calls.append(1), twin(*a))[1])
+    qp = random_qp(30, 50, seed=5)
+    compiled = solve_qp(qp, acceleration="fast", eps_abs=1e-6, eps_rel=1e-6, compiled=True)
+    monkeypatch.setattr(kernels, "compiled_now", lambda: False)
+    python = solve_qp(qp, acceleration="fast", eps_abs=1e-6, eps_rel=1e-6, compiled=False)
+    assert len(calls) > python.iterations // 2 > 100             # a step after each iteration but a few
+    same_run(compiled, python)
 
 
 @pytest.mark.parametrize("eta", [0, 1.0, -0.5, 1.5, math.nan, "0.9", None])
