@@ -62,6 +62,8 @@ from abc import ABC, abstractmethod
 
 import numpy as np
 
+from . import anderson_kernel, fast_kernel
+from ..kernels import compiled_now
 from .anderson_kernel import BACKOFF_MAX      # the longest run of plain steps Anderson takes after a rejection
 
 #: Anderson's default interval (iterations per step); docs/qp.md, "Anderson", says how it was chosen
@@ -149,12 +151,11 @@ class Anderson(Accelerator):
         """Take the steps with ``admmkit.loop.anderson_kernel.anderson_update`` for the inner product
         (a, b)_M = sum_i ``weights``_i a_i b_i on vectors of length ``size`` (the loop's and a segment's steps
         then agree bit for bit); None: the problem's ``inner`` (numpy)."""
-        from .anderson_kernel import AndersonArrays
         if weights is None:
             self._arrays = self._weights = None
             return
         self._weights = np.ascontiguousarray(weights, dtype=np.float64)
-        self._arrays = AndersonArrays(self.m, 2 * int(size), self.interval)
+        self._arrays = anderson_kernel.AndersonArrays(self.m, 2 * int(size), self.interval)
 
     def start(self) -> None:
         """Start a run: clear the memory, the counts and the back-off."""
@@ -182,9 +183,8 @@ class Anderson(Accelerator):
     def sync_stats(self) -> None:
         """The counts from the kernel's arrays (after steps taken there)."""
         if self._arrays is not None:
-            from .anderson_kernel import EXTRAPOLATED, REJECTED
-            self.stats["extrapolated"] = int(self._arrays.ist[EXTRAPOLATED])
-            self.stats["rejected"] = int(self._arrays.ist[REJECTED])
+            self.stats["extrapolated"] = int(self._arrays.ist[anderson_kernel.EXTRAPOLATED])
+            self.stats["rejected"] = int(self._arrays.ist[anderson_kernel.REJECTED])
 
     def propose(self, s: State, f: State, rho: float, inner) -> State:
         """The next state: an Anderson extrapolation, f itself, or the fallback after a rejection."""
@@ -228,9 +228,8 @@ class Anderson(Accelerator):
 
     def _propose_kernel(self, s: State, f: State, rho: float) -> State:
         """:meth:`propose` by ``admmkit.loop.anderson_kernel.anderson_update`` on the stacked states."""
-        from .anderson_kernel import anderson_update
         out = np.empty_like(f[0]), np.empty_like(f[1])
-        anderson_update(float(rho), self._weights, self.safeguard, self.regularization, *s, *f, *out,
+        anderson_kernel.anderson_update(float(rho), self._weights, self.safeguard, self.regularization, *s, *f, *out,
                         *self._arrays.args())
         self.sync_stats()
         return out
@@ -285,12 +284,11 @@ class FastADMM(Accelerator):
         """Take the steps with ``admmkit.loop.fast_kernel.fast_update`` for the inner product
         (a, b)_M = sum_i ``weights``_i a_i b_i on vectors of length ``size`` (the loop's and a segment's steps
         then agree bit for bit); None: the problem's ``inner`` (numpy)."""
-        from .fast_kernel import FastArrays
         if weights is None:
             self._arrays = self._weights = None
             return
         self._weights = np.ascontiguousarray(weights, dtype=np.float64)
-        self._arrays = FastArrays(2 * int(size))
+        self._arrays = fast_kernel.FastArrays(2 * int(size))
 
     def start(self) -> None:
         """Start a run: no momentum, no previous image, the counts cleared."""
@@ -314,9 +312,9 @@ class FastADMM(Accelerator):
     def sync_stats(self) -> None:
         """The counts from the kernel's arrays (after steps taken there)."""
         if self._arrays is not None:
-            from .fast_kernel import EXTRAPOLATED, RESTARTS
-            self.stats["extrapolated"] = int(self._arrays.ist[EXTRAPOLATED])
-            self.stats["restarts"] = int(self._arrays.ist[RESTARTS])
+            ist = self._arrays.ist
+            self.stats["extrapolated"] = int(ist[fast_kernel.EXTRAPOLATED])
+            self.stats["restarts"] = int(ist[fast_kernel.RESTARTS])
 
     def propose(self, s: State, f: State, rho: float, inner) -> State:
         """The momentum step (A5), or a restart from the previous image."""
@@ -340,11 +338,10 @@ class FastADMM(Accelerator):
     def _propose_kernel(self, s: State, f: State, rho: float) -> State:
         """:meth:`propose` by ``admmkit.loop.fast_kernel.fast_update`` on the stacked states (its numpy twin,
         the same bits, where kernels run as Python)."""
-        from ..kernels import compiled_now
-        from .fast_kernel import fast_update, fast_update_numpy
-        step = fast_update if compiled_now() else fast_update_numpy
+        step = fast_kernel.fast_update if compiled_now() else fast_kernel.fast_update_numpy
         out = np.empty_like(f[0]), np.empty_like(f[1])
-        step(float(rho), self._weights, self.eta, *s, *f, *out, *self._arrays.args()[:3])
+        arrays = self._arrays
+        step(float(rho), self._weights, self.eta, *s, *f, *out, arrays.ist, arrays.ac, arrays.f_prev)
         self.sync_stats()
         return out
 

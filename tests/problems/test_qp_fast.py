@@ -147,7 +147,9 @@ def test_a_run_with_the_kernels_as_python_is_the_compiled_run(monkeypatch):
     monkeypatch.setattr(fast_kernel, "fast_update_numpy", lambda *a: (calls.append(1), twin(*a))[1])
     qp = random_qp(30, 50, seed=5)
     compiled = solve_qp(qp, acceleration="fast", eps_abs=1e-6, eps_rel=1e-6, compiled=True)
-    monkeypatch.setattr(kernels, "compiled_now", lambda: False)
+    from admmkit.loop import acceleration
+    for module in (kernels, acceleration):
+        monkeypatch.setattr(module, "compiled_now", lambda: False)
     python = solve_qp(qp, acceleration="fast", eps_abs=1e-6, eps_rel=1e-6, compiled=False)
     assert len(calls) > python.iterations // 2 > 100             # a step after each iteration but a few
     same_run(compiled, python)
