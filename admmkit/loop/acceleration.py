@@ -107,7 +107,38 @@ def _diff(a: State, b: State) -> State:
     return a[0] - b[0], a[1] - b[1]
 
 
-class Anderson(Accelerator):
+class KernelAccelerator(Accelerator):
+    """An accelerator whose steps, for a weighted inner product, are one kernel on arrays (its subclass's
+    :meth:`kernel_arrays`), taken alike by the loop and by a compiled segment (bit for bit)."""
+
+    def __init__(self):
+        super().__init__()
+        self._arrays = self._weights = None       # the kernel's arrays, for a weighted inner product (bind)
+        self._length = 0                          # the stacked state's length 2 m
+
+    def kernel_arrays(self, length: int):
+        """New arrays of the kernel's state for stacked states of ``length`` entries."""
+        raise NotImplementedError
+
+    def bind(self, weights: np.ndarray | None, size: int | None) -> None:
+        """Take the steps with the kernel for the inner product (a, b)_M = sum_i ``weights``_i a_i b_i on
+        vectors of length ``size`` (the loop's and a segment's steps then agree bit for bit); None: the
+        problem's ``inner`` (numpy)."""
+        if weights is None:
+            self._arrays = self._weights = None
+            return
+        self._weights = np.ascontiguousarray(weights, dtype=np.float64)
+        self._length = 2 * int(size)
+        self._arrays = self.kernel_arrays(self._length)
+
+    def start(self) -> None:
+        """Start a run: the counts cleared, and the kernel's arrays made anew where it is bound."""
+        super().start()
+        if self._arrays is not None:
+            self._arrays = self.kernel_arrays(self._length)
+
+
+class Anderson(KernelAccelerator):
     """Safeguarded type-II Anderson acceleration, memory ``m`` (eqs. (A2)-(A3)).
 
     Parameters
@@ -143,26 +174,17 @@ class Anderson(Accelerator):
         super().__init__()
         self.m, self.safeguard, self.regularization = int(m), float(safeguard), float(regularization)
         self.interval = int(interval)
-        self._arrays = self._weights = None       # the kernel's arrays, for a weighted inner product (bind)
         self._skip, self._backoff = 0, 1
         self.reset()
 
-    def bind(self, weights: np.ndarray | None, size: int | None) -> None:
-        """Take the steps with ``admmkit.loop.anderson_kernel.anderson_update`` for the inner product
-        (a, b)_M = sum_i ``weights``_i a_i b_i on vectors of length ``size`` (the loop's and a segment's steps
-        then agree bit for bit); None: the problem's ``inner`` (numpy)."""
-        if weights is None:
-            self._arrays = self._weights = None
-            return
-        self._weights = np.ascontiguousarray(weights, dtype=np.float64)
-        self._arrays = anderson_kernel.AndersonArrays(self.m, 2 * int(size), self.interval)
+    def kernel_arrays(self, length: int):
+        """``admmkit.loop.anderson_kernel.AndersonArrays`` of this memory and interval."""
+        return anderson_kernel.AndersonArrays(self.m, length, self.interval)
 
     def start(self) -> None:
         """Start a run: clear the memory, the counts and the back-off."""
         super().start()
         self._skip, self._backoff = 0, 1
-        if self._arrays is not None:
-            self._arrays = type(self._arrays)(self.m, self._arrays.F_prev.size, self.interval)
 
     def reset(self) -> None:
         """Clear the memory (the differences and the last plain image) and the clock; the back-off stays."""
@@ -260,7 +282,7 @@ class Anderson(Accelerator):
         return gamma if np.all(np.isfinite(gamma)) else None
 
 
-class FastADMM(Accelerator):
+class FastADMM(KernelAccelerator):
     """Restarted fast ADMM (Goldstein et al. 2014, Algorithm 8; eqs. (A4)-(A5)).
 
     Parameters
@@ -277,24 +299,11 @@ class FastADMM(Accelerator):
             raise ValueError(f"FastADMM: eta must be a number in (0, 1), got {eta!r}")
         super().__init__()
         self.eta = float(eta)
-        self._arrays = self._weights = None       # the kernel's arrays, for a weighted inner product (bind)
         self.reset()
 
-    def bind(self, weights: np.ndarray | None, size: int | None) -> None:
-        """Take the steps with ``admmkit.loop.fast_kernel.fast_update`` for the inner product
-        (a, b)_M = sum_i ``weights``_i a_i b_i on vectors of length ``size`` (the loop's and a segment's steps
-        then agree bit for bit); None: the problem's ``inner`` (numpy)."""
-        if weights is None:
-            self._arrays = self._weights = None
-            return
-        self._weights = np.ascontiguousarray(weights, dtype=np.float64)
-        self._arrays = fast_kernel.FastArrays(2 * int(size))
-
-    def start(self) -> None:
-        """Start a run: no momentum, no previous image, the counts cleared."""
-        super().start()
-        if self._arrays is not None:
-            self._arrays = type(self._arrays)(self._arrays.f_prev.size)
+    def kernel_arrays(self, length: int):
+        """``admmkit.loop.fast_kernel.FastArrays`` for stacked states of ``length`` entries."""
+        return fast_kernel.FastArrays(length)
 
     def reset(self) -> None:
         """Restart: no momentum, no previous image."""
@@ -372,7 +381,7 @@ class Acceleration:
     def __init__(self, accelerator: Accelerator, order: str, inner, weights=None, size: int | None = None):
         self.accelerator, self.inner = accelerator, inner
         self._u = 0 if order == "xz" else 2        # the index of u in (z, lam, Ax)
-        if isinstance(accelerator, (Anderson, FastADMM)):  # kernel steps for a weighted inner product, else numpy
+        if isinstance(accelerator, KernelAccelerator):     # kernel steps for a weighted inner product, else numpy
             accelerator.bind(weights, size)
         accelerator.start()
 
