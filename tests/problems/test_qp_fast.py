@@ -11,6 +11,7 @@ from admmkit.loop.acceleration import Acceleration, FastADMM
 from admmkit.loop.fast_kernel import A, C, HAVE_PREV, FastArrays, fast_update, fast_update_numpy
 from admmkit.problems.qp import admmkit_settings, load_mat, random_qp, solve_qp
 from admmkit.problems.qp import segment_checks
+from tests import qp_paths
 
 MM = Path(__file__).resolve().parents[3] / "shared" / "data" / "maros_meszaros"
 pytestmark = pytest.mark.skipif(not kernels.AVAILABLE, reason="numba is not installed: no compiled segment")
@@ -28,12 +29,7 @@ def same_run(a, b):
 
 def three_ways(qp, monkeypatch, settings=None, **changes):
     """Fast ADMM: with OSQP's test in the segment, with it in Python, and the Python loop."""
-    solve = (lambda **kw: solve_qp(qp, settings, acceleration=FastADMM(), **kw, **changes))
-    inside = solve(compiled=True)
-    monkeypatch.setattr(segment_checks, "TESTS_IN_KERNEL", False)
-    outside = solve(compiled=True)
-    monkeypatch.setattr(segment_checks, "TESTS_IN_KERNEL", True)
-    return inside, outside, solve(compiled=False)
+    return qp_paths.three_ways(qp, monkeypatch, settings, FastADMM, **changes)
 
 
 @pytest.mark.parametrize("make", [

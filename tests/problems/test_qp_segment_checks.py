@@ -11,6 +11,7 @@ from admmkit.problems.qp import admmkit_settings, load_mat, random_qp, solve_qp
 from admmkit.problems.qp import segment_checks
 from admmkit.problems.qp.generate import infeasible_qp, unbounded_qp
 from admmkit.problems.qp.termination import QPTermination
+from tests.qp_paths import three_ways
 
 MM = Path(__file__).resolve().parents[3] / "shared" / "data" / "maros_meszaros"
 pytestmark = pytest.mark.skipif(
@@ -27,17 +28,6 @@ def same_run(a, b):
     assert a.counters["factorizations"] == b.counters["factorizations"]
     if a.certificate is not None or b.certificate is not None:
         assert np.array_equal(a.certificate, b.certificate)
-
-
-def three_ways(qp, monkeypatch, settings=None, **changes):
-    """The run with the test in the segment, with it in Python (the segment ending at every read iteration, as
-    before), and the Python loop."""
-    solve = (lambda **kw: solve_qp(qp, settings, **kw, **changes))
-    inside = solve(compiled=True)
-    monkeypatch.setattr(segment_checks, "TESTS_IN_KERNEL", False)
-    outside = solve(compiled=True)
-    monkeypatch.setattr(segment_checks, "TESTS_IN_KERNEL", True)
-    return inside, outside, solve(compiled=False)
 
 
 @pytest.mark.parametrize("make", [
