@@ -19,6 +19,7 @@ from __future__ import annotations
 import numpy as np
 
 from admmkit.kernels import kernel
+from admmkit.linalg.compiled import csc_matvec
 
 
 @kernel(cache=True)
@@ -227,10 +228,8 @@ def osqp_norms(Pp, Pi, Px, q, Ap, Ai, Ax, l, u, x, z, y, deadzone):
     numpy steps' bit for bit; the dot products (x'Px, q'x, S(y)) are left to numpy's, which may sum in another
     order than a loop."""
     n, m = x.shape[0], z.shape[0]
-    Axv = np.zeros(m)
-    for j in range(n):
-        for p in range(Ap[j], Ap[j + 1]):
-            Axv[Ai[p]] += Ax[p] * x[j]
+    Axv = np.empty(m)
+    csc_matvec(Ap, Ai, Ax, x, Axv)
     up, lo, y_pos, y_neg = np.empty(m), np.empty(m), np.empty(m), np.empty(m)
     primal = ax_top = z_top = 0.0
     for i in range(m):
@@ -243,10 +242,8 @@ def osqp_norms(Pp, Pi, Px, q, Ap, Ai, Ax, l, u, x, z, y, deadzone):
         y_pos[i], y_neg[i] = vp, vn
         up[i] = u[i] if vp != 0 else 0.0
         lo[i] = l[i] if vn != 0 else 0.0
-    Pxv = np.zeros(n)
-    for j in range(n):
-        for p in range(Pp[j], Pp[j + 1]):
-            Pxv[Pi[p]] += Px[p] * x[j]
+    Pxv = np.empty(n)
+    csc_matvec(Pp, Pi, Px, x, Pxv)
     dual = px_top = aty_top = q_top = 0.0
     for j in range(n):
         s = 0.0
