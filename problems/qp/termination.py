@@ -32,6 +32,7 @@ from admmkit.loop.segments import AVAILABLE as NUMBA
 from .infeasibility import DIVISION_TOL, confirmed_certificate, dual_certificate, iterate_deltas, primal_certificate
 from .problem import QP
 from .residuals import iterate_residuals, osqp_residuals  # noqa: F401  (osqp_residuals: re-exported)
+from .sparse_kernels import inf_norms
 
 
 def _iterate(qp: QP, rec: IterationRecord, scaled: bool = False) -> dict:
@@ -203,21 +204,11 @@ def scale_facts(Ap, Ai, Ax, Pp, Pi, Px, l, u, span):
     """:class:`ScaleCheck`'s arrays in one pass over A, P, l and u: (nu, live, bound, kappa, span_rows, void_rows,
     span_columns), the numbers its vector form gives (``ScaleCheck(qp)`` with compiled code off)."""
     m, n = l.shape[0], Ap.shape[0] - 1
-    nu = np.zeros(m)
-    kappa = np.zeros(n)
-    for j in range(n):                              # row and column inf-norms of A, column inf-norms of P
-        c = 0.0
-        for p in range(Ap[j], Ap[j + 1]):
-            a = abs(Ax[p])
-            if a > c:
-                c = a
-            if a > nu[Ai[p]]:
-                nu[Ai[p]] = a
-        for p in range(Pp[j], Pp[j + 1]):
-            a = abs(Px[p])
-            if a > c:
-                c = a
-        kappa[j] = c
+    nu, kappa = inf_norms(Ap, Ai, Ax, m)            # row and column inf-norms of A ...
+    column_p = inf_norms(Pp, Pi, Px, n)[1]          # ... and the larger of A's and P's per column (a max is exact)
+    for j in range(n):
+        if column_p[j] > kappa[j]:
+            kappa[j] = column_p[j]
     live = np.empty(m, np.bool_)
     bound = np.empty(m)
     top = 0.0
