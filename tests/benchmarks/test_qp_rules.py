@@ -74,3 +74,18 @@ def test_the_results_page_counts_successes_and_false_converged(tmp_path, monkeyp
     assert "| admmkit_settings | 2/4 | 2/4 | 2/2 | 0/2 | B |" in text          # A, C train; B "solved", not neutral
     assert "lost against `osqp_settings`: D" in text and "gained against OSQP 1.1: C" in text
     assert (tmp_path / "profiles_iterations.png").stat().st_size > 0
+
+
+@pytest.mark.skipif(not (DATA / "HS21.mat").exists(), reason="Maros-Meszaros data not found")
+def test_a_worker_compiles_the_qp_kernels_once_before_its_first_timed_case(monkeypatch):
+    """CI's cold numba cache put 4 s of compilation into HS118's first timed run, over its 5 CPU s limit."""
+    import os
+    from admmkit.benchmarks.framework import warm_up
+    calls = []
+    monkeypatch.setattr(warm_up, "qp_kernels", lambda: calls.append(True))
+    monkeypatch.setattr(rank_cases, "_WARM", [])
+    monkeypatch.setitem(os.environ, rank_cases.DATA_ENV, str(DATA))
+    case = {"file": "HS21.mat", "rule": "osqp", "order": "xz", "eps": [1e-3], "time_limit": 5.0, "max_iter": 4000}
+    for _ in range(2):
+        assert rank_cases.run_qp(case)[0]["solved"]
+    assert calls == [True]
