@@ -116,6 +116,11 @@ def test_the_direct_routines_give_the_librarys_bits():
     lu, ref = lapack.splu_natural(A.copy()), spla.splu(A, permc_spec="NATURAL", diag_pivot_thresh=0.0,
                                                        options=dict(SymmetricMode=True))
     assert np.array_equal(lu.solve(b), ref.solve(b)) and (lu.U != ref.U).nnz == 0 and (lu.L != ref.L).nnz == 0
+    raw = lapack.splu_natural(A.copy(), factor_arrays=True)          # the factors as SuperLU's arrays
+    for mine, theirs in ((raw.U, ref.U), (raw.L, ref.L)):
+        data, indices, indptr = lapack.factor_csc_arrays(mine)
+        assert isinstance(mine, tuple) and (sp.csc_array((data, indices, indptr), shape=A.shape) != theirs).nnz == 0
+    assert lapack.factor_csc_arrays(ref.U)[0] is ref.U.data
     M = A.toarray()
     c, lower = lapack.cho_factor(M)
     c_ref, lower_ref = sla.cho_factor(M)

@@ -163,4 +163,17 @@ def test_trailing_block_reads_scipys_slices():
     from admmkit.problems.contact.solvers.schur import trailing_block
     U = sp.random(40, 40, density=0.2, random_state=3, format="csc") + sp.eye(40, format="csc")
     for m in (1, 7, 40):
-        assert np.array_equal(trailing_block(sp.csc_array(U), m), U[:, -m:][-m:, :].toarray())
+        U = sp.csc_array(U)
+        assert np.array_equal(trailing_block(U.data, U.indices, U.indptr, m), U[:, -m:][-m:, :].toarray())
+
+
+def test_contact_columns_are_scipys_column_indexing():
+    """B[:, contact_dofs] read off B's arrays where B touches only contact dofs; scipy's indexing otherwise."""
+    import scipy.sparse as sp
+    from admmkit.problems.contact.solvers.schur import BoundarySchur
+    ops = assemble(example1(1 / 8))
+    schur = BoundarySchur(ops.K, ops.B, backend="superlu")
+    for B in (ops.B, sp.vstack([ops.B, 2 * ops.B]).tocsr(), sp.csr_matrix(np.eye(ops.K.shape[0])[:3])):
+        mine, theirs = schur.contact_columns(B), sp.csr_matrix(B)[:, schur.contact_dofs]
+        assert mine.shape == theirs.shape and np.array_equal(mine.indptr, theirs.indptr)
+        assert np.array_equal(mine.indices, theirs.indices) and np.array_equal(mine.data, theirs.data)

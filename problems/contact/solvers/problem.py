@@ -145,7 +145,7 @@ class CondensedContact(_ContactBase):
         self.schur = BoundarySchur(ops.K, self.A, backend=backend, coordinates=_coordinates(ops), compiled=compiled,
                                    order=getattr(ops, "condensed_order", None))   # stored by the operator cache
         self.e0, u0_c = self.schur.load(ops.f)     # ||u0||_K^2 = f'K^{-1}f and u0 = K^{-1} f on the contact dofs
-        self._A_c = sp.csr_matrix(self.A)[:, self.schur.contact_dofs]
+        self._A_c = self.schur.contact_columns(self.A)
         self.d0 = self._A_c @ u0_c                 # A K^{-1} f (A touches the contact dofs only)
         self.C = self.schur.compliance(self.A, self._A_c)     # A K^{-1} A'
         # the dense m x m factors of M_c^{-1} + rho C, one per rho, as many as fit DENSE_FACTORS_BYTES (at least 2,
