@@ -17,6 +17,7 @@ import textwrap
 from importlib.metadata import PackageNotFoundError, distribution, entry_points
 
 from .. import __version__
+from .deferred_modules import defer_unused_numpy_modules
 from .options import EXIT_BAD_INPUT, check_options, output_options
 from .words import did_you_mean, plain
 
@@ -283,7 +284,13 @@ def command_line(argv: list[str]) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Entry point of the ``admmkit`` console script; returns the exit code (0, 1 or 2, see the module)."""
+    """Entry point of the ``admmkit`` console script; returns the exit code (0, 1 or 2, see the module).
+
+    Called without ``argv`` (the console script, ``python -m admmkit``), the process is the command line's:
+    numpy's test tools and f2py, which ``import scipy`` would run, load at first use instead
+    (:mod:`admmkit.cli.deferred_modules`)."""
+    if argv is None:
+        defer_unused_numpy_modules()
     argv = list(sys.argv[1:] if argv is None else argv)
     parser = build_parser(named=builtin_named(argv))
     try:

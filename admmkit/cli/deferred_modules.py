@@ -1,0 +1,49 @@
+"""numpy's test tools and Fortran wrapper generator, loaded at first use in a process the command line owns.
+
+Every ``import scipy.sparse`` runs, through scipy's vendored
+``array_api_compat``, ``from numpy import *``; numpy 2's ``__all__`` names its
+submodules ``f2py`` and ``testing``, so that line executes both (and, through
+``numpy.f2py.crackfortran``, ``charset_normalizer`` where it is installed),
+although no admmkit command uses either: 0.1-0.25 s of a ``solve contact``
+process whose whole budget is 0.6 s (issue #49; ``admmkit bench first-call``).
+
+:func:`defer_unused_numpy_modules` puts a finder first on ``sys.meta_path``
+that gives these two modules the standard library's
+:class:`importlib.util.LazyLoader`: the import binds the name and the module
+runs at the first access to one of its attributes, the same module then.
+Only the console script (and ``python -m admmkit``) calls it, before anything
+imports numpy; ``import admmkit`` in a user's program changes nothing in
+numpy.
+"""
+from __future__ import annotations
+
+import importlib.machinery
+import importlib.util
+import sys
+
+#: the modules loaded at their first use instead of at ``import scipy``
+DEFERRED = ("numpy.f2py", "numpy.testing")
+
+
+class DeferredFinder:
+    """A ``sys.meta_path`` finder: the spec the path finder gives for a module of ``DEFERRED``, with its loader
+    wrapped in :class:`importlib.util.LazyLoader`; None (the next finder) for any other module."""
+
+    def find_spec(self, name, path, target=None):
+        """The lazily loaded spec of ``name`` when it is one of :data:`DEFERRED` and found on ``path``."""
+        if name not in DEFERRED:
+            return None
+        spec = importlib.machinery.PathFinder.find_spec(name, path)
+        if spec is None or not hasattr(spec.loader, "exec_module"):
+            return None
+        spec.loader = importlib.util.LazyLoader(spec.loader)
+        return spec
+
+
+def defer_unused_numpy_modules() -> bool:
+    """Install :class:`DeferredFinder` unless numpy is imported already (then the modules are, or the finder would
+    come too late to matter); True when installed."""
+    if "numpy" in sys.modules or any(isinstance(f, DeferredFinder) for f in sys.meta_path):
+        return False
+    sys.meta_path.insert(0, DeferredFinder())
+    return True
