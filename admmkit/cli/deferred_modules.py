@@ -1,14 +1,18 @@
-"""numpy's test tools and Fortran wrapper generator, loaded at first use in a process the command line owns.
+"""numpy's submodules that ``import scipy`` runs and no command uses, loaded at first use in the command line's process.
 
 Every ``import scipy.sparse`` runs, through scipy's vendored
 ``array_api_compat``, ``from numpy import *``; numpy 2's ``__all__`` names its
-submodules ``f2py`` and ``testing``, so that line executes both (and, through
-``numpy.f2py.crackfortran``, ``charset_normalizer`` where it is installed),
-although no admmkit command uses either: 0.1-0.25 s of a ``solve contact``
-process whose whole budget is 0.6 s (issue #49; ``admmkit bench first-call``).
+submodules, so that line executes all of them: among them ``f2py`` (and,
+through ``numpy.f2py.crackfortran``, ``charset_normalizer`` where it is
+installed), ``testing``, ``polynomial``, ``char`` and ``strings``,
+which neither scipy.sparse nor an admmkit command uses: 0.15-0.3 s of a
+``solve contact`` process at load 3-4, whose whole budget is 0.6 s (issue
+#49; ``admmkit bench first-call``).  (``numpy.random`` and ``numpy.fft`` are
+not deferred: scipy uses them while it is imported; nor is ``numpy.ma``:
+``np.unique`` uses it.)
 
 :func:`defer_unused_numpy_modules` puts a finder first on ``sys.meta_path``
-that gives these two modules the standard library's
+that gives these modules the standard library's
 :class:`importlib.util.LazyLoader`: the import binds the name and the module
 runs at the first access to one of its attributes, the same module then.
 Only the console script (and ``python -m admmkit``) calls it, before anything
@@ -22,7 +26,7 @@ import importlib.util
 import sys
 
 #: the modules loaded at their first use instead of at ``import scipy``
-DEFERRED = ("numpy.f2py", "numpy.testing")
+DEFERRED = ("numpy.f2py", "numpy.testing", "numpy.polynomial", "numpy.char", "numpy.strings")
 
 
 class DeferredFinder:
