@@ -1,4 +1,4 @@
-"""The command line's process loads numpy.f2py, testing, polynomial, ... at first use (admmkit/cli/deferred_modules.py)."""
+"""The command line's process loads numpy.f2py, testing, ma, polynomial, ... at first use (admmkit/cli/deferred_modules.py)."""
 import subprocess
 import sys
 
@@ -7,12 +7,12 @@ import sys
 sys.argv = ["admmkit", "solve", "contact", "--scene", "ex1", "--h", "1/8", "--rho", "1e3", "--quiet"]
 from admmkit.cli import main
 code = main()
-ran = [m for m in ("numpy.f2py.crackfortran", "numpy.testing._private.utils", "charset_normalizer",
+ran = [m for m in ("numpy.f2py.crackfortran", "numpy.testing._private.utils", "charset_normalizer", "numpy.ma.core",
                    "numpy.polynomial.polynomial", "numpy._core.defchararray") if m in sys.modules]
 import numpy as np
 np.testing.assert_array_equal([1.0], [1.0])                 # the module runs at its first use, whole
 from numpy.f2py import crackfortran  # noqa: F401
-assert np.polynomial.Polynomial([1.0, 2.0])(1.0) == 3.0
+assert np.ma.masked_array([1.0], mask=[True]).mask[0] and np.polynomial.Polynomial([1.0, 2.0])(1.0) == 3.0
 print(code, "scipy.sparse" in sys.modules, ran, "numpy.testing._private.utils" in sys.modules)
 """
 

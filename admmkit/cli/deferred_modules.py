@@ -4,12 +4,12 @@ Every ``import scipy.sparse`` runs, through scipy's vendored
 ``array_api_compat``, ``from numpy import *``; numpy 2's ``__all__`` names its
 submodules, so that line executes all of them: among them ``f2py`` (and,
 through ``numpy.f2py.crackfortran``, ``charset_normalizer`` where it is
-installed), ``testing``, ``polynomial``, ``char`` and ``strings``,
+installed), ``testing``, ``ma``, ``polynomial``, ``char`` and ``strings``,
 which neither scipy.sparse nor an admmkit command uses: 0.15-0.3 s of a
 ``solve contact`` process at load 3-4, whose whole budget is 0.6 s (issue
 #49; ``admmkit bench first-call``).  (``numpy.random`` and ``numpy.fft`` are
-not deferred: scipy uses them while it is imported; nor is ``numpy.ma``:
-``np.unique`` uses it.)
+not deferred: scipy uses them while it is imported.  ``np.unique`` loads
+``numpy.ma``: the contact set-up finds its dofs without it.)
 
 :func:`defer_unused_numpy_modules` puts a finder first on ``sys.meta_path``
 that gives these modules the standard library's
@@ -26,7 +26,7 @@ import importlib.util
 import sys
 
 #: the modules loaded at their first use instead of at ``import scipy``
-DEFERRED = ("numpy.f2py", "numpy.testing", "numpy.polynomial", "numpy.char", "numpy.strings")
+DEFERRED = ("numpy.f2py", "numpy.testing", "numpy.ma", "numpy.polynomial", "numpy.char", "numpy.strings")
 
 
 class DeferredFinder:
