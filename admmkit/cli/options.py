@@ -52,6 +52,29 @@ def positive_int(text: str) -> int:
     return value
 
 
+class _PolicyOption(argparse._StoreAction):
+    """``--policy NAME``, whose help lists the methods and every rule installed when the help is shown.
+
+    Listing the rules reads every installed package's entry points (importlib.metadata: 40-90 ms of a fresh
+    process); a run that names its rule needs none of them, so the list is made when argparse reads the help.
+    """
+
+    def __init__(self, *args, methods: dict | None = None, **kwargs):
+        self.methods = dict(methods or {})
+        super().__init__(*args, **kwargs)
+
+    @property
+    def help(self) -> str:
+        """The help given, with the names of the methods and of the rules installed now."""
+        from ..policy import policy_names
+        names = [*self.methods, *policy_names()]
+        return self._help.replace("penalty rule or method", f"penalty rule or method: {', '.join(names)}", 1)
+
+    @help.setter
+    def help(self, text: str) -> None:
+        self._help = text
+
+
 class _DeprecatedAlias(argparse.Action):
     """Store into ``dest`` like the new option, with a note on stderr (``--method`` -> ``--policy``)."""
 
@@ -69,10 +92,8 @@ def add_common_options(parser: argparse.ArgumentParser, *, policy: str = "summab
     such a name runs in its own order unless ``--order`` is given, a
     registered rule in ``order``.  ``--method`` stays as a deprecated alias.
     """
-    from ..policy import policy_names        # (imported here: the host's help loads no numpy)
-    names = [*(methods or {}), *policy_names()]
-    parser.add_argument("--policy", default=policy, metavar="NAME",
-                        help=f"penalty rule or method: {', '.join(names)} (default {policy})")
+    parser.add_argument("--policy", default=policy, metavar="NAME", action=_PolicyOption, methods=methods,
+                        help=f"penalty rule or method (default {policy})")
     parser.add_argument("--method", dest="policy", action=_DeprecatedAlias, metavar="--policy",
                         help=argparse.SUPPRESS)
     parser.add_argument("--order", default=None, choices=["xz", "zx"],
@@ -111,9 +132,12 @@ def add_stop_options(parser: argparse.ArgumentParser, *, max_iter: int = 10_000)
 
 
 def set_help(parser: argparse.ArgumentParser, **helps: str) -> None:
-    """Replace the help of options already added, by destination (``tol="..."``): a plug-in whose default differs."""
+    """Replace the help of options already added, by destination (``tol="..."``): a plug-in whose default differs.
+
+    A hidden option (help ``argparse.SUPPRESS``, such as the alias ``--method`` of ``--policy``) stays hidden;
+    ``--policy``'s list of rules is not read to find that out (:class:`_PolicyOption`)."""
     for action in parser._actions:
-        if action.dest in helps:
+        if action.dest in helps and vars(action).get("help") != argparse.SUPPRESS:
             action.help = plain(helps[action.dest])
 
 

@@ -12,7 +12,7 @@ Two presets (docs/cli.md, docs/qp.md):
 from __future__ import annotations
 
 from admmkit.cli import (add_common_options, add_result_outputs, positive_float, progress, resolve_policy, run_solve,
-                         write_history)
+                         set_help, write_history)
 from admmkit.cli.output import print_summary
 from admmkit.policies.paper_methods import PAPER_METHODS
 
@@ -68,9 +68,7 @@ def register(subparsers) -> None:
              "tol": "relative-change tolerance > 0 (textbook preset only; default 1e-5 unless --eps-abs is given)",
              "eps_abs": "absolute tolerance > 0: OSQP's eps_abs (osqp preset), Boyd's residual test (textbook)",
              "eps_rel": "relative tolerance >= 0 (default 0; needs --eps-abs): OSQP's eps_rel or Boyd's"}
-    for action in p._actions:
-        if action.dest in helps and action.help is not None and action.help != "==SUPPRESS==":
-            action.help = helps[action.dest]
+    set_help(p, **helps)
 
 
 def check_preset_options(args) -> None:

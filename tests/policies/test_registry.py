@@ -127,8 +127,8 @@ def test_a_solve_reads_the_entry_points_once_per_process(monkeypatch):
     qp = QP(sp.csc_matrix(np.eye(2)), np.array([1.0, -1.0]), sp.csc_matrix(np.eye(2)), -np.ones(2), np.ones(2))
     solve_qp(qp, compiled=False)
     scans = []
-    real = admmkit.policy.entry_points
-    monkeypatch.setattr(admmkit.policy, "entry_points", lambda **kw: scans.append(kw) or real(**kw))
+    real = admmkit.policy.declared_rules
+    monkeypatch.setattr(admmkit.policy, "declared_rules", lambda: scans.append(True) or real())
     for _ in range(2):
         assert solve_qp(qp, compiled=False).converged
     assert scans == []
@@ -139,8 +139,8 @@ def test_a_builtin_rule_by_name_scans_no_other_package(monkeypatch):
     not every installed package's entry points (20-30 ms a scan, twice per process before; issue #49)."""
     import admmkit.policy
     scans = []
-    real = admmkit.policy.entry_points
-    monkeypatch.setattr(admmkit.policy, "entry_points", lambda **kw: scans.append(kw) or real(**kw))
+    real = admmkit.policy.declared_rules
+    monkeypatch.setattr(admmkit.policy, "declared_rules", lambda: scans.append(True) or real())
     monkeypatch.delitem(admmkit.policy._REGISTRY, "summable", raising=False)
     if not admmkit.policy.own_rules():
         pytest.skip("admmkit is not installed as a distribution here")
