@@ -36,7 +36,7 @@ from typing import Callable, NamedTuple
 import numpy as np
 
 from .loop.record import IterationRecord
-from .own_entry_points import own_entry_points
+from .installed import own_entry_points
 
 _REGISTRY: dict[str, Callable[..., "Policy"]] = {}
 #: the entry-point group in which an installed package names its rules (admmkit's own are in pyproject.toml)
@@ -127,7 +127,7 @@ def declared_rules() -> dict:
 @functools.lru_cache(maxsize=1)
 def own_rules() -> dict:
     """The rules admmkit itself declares in ``pyproject.toml``: ``{name: EntryPoint}`` read from admmkit's own
-    ``entry_points.txt`` (:mod:`admmkit.own_entry_points`: 1-6 ms without importing importlib.metadata, where
+    ``entry_points.txt`` (:mod:`admmkit.installed`: 1-6 ms without importing importlib.metadata, where
     :func:`declared_rules` reads every installed package's, 20-30 ms: twice per ``admmkit solve contact``
     before; issue #49), once per process; empty when admmkit is not installed as a distribution (a bare source
     tree: :func:`declared_rules` then finds what there is)."""

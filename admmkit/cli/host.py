@@ -16,7 +16,7 @@ import sys
 import textwrap
 
 from .. import __version__
-from ..own_entry_points import own_entry_points
+from ..installed import own_entry_points
 from .deferred_modules import defer_unused_numpy_modules
 from .options import EXIT_BAD_INPUT, check_options, output_options
 from .words import did_you_mean, plain
@@ -49,7 +49,7 @@ def builtin_commands(path: str) -> dict[str, object] | None:
     A command line that names a built-in command needs no other package's entry points: reading the one
     distribution's took 20 ms where reading every installed package's took 90 ms (issue #49, ``solve contact``),
     and reading its ``entry_points.txt`` without importing importlib.metadata 1-6 ms
-    (:mod:`admmkit.own_entry_points`).
+    (:mod:`admmkit.installed`).
     """
     own = own_entry_points(GROUP)
     return own if own and path in own else None             # None: not installed, the full search

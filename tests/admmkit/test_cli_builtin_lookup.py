@@ -31,7 +31,7 @@ def test_a_builtin_command_searches_no_other_package(monkeypatch, capsys):
 
 def test_own_entry_points_are_importlib_metadatas():
     """The entry points read from admmkit's entry_points.txt are those importlib.metadata gives, and load the same."""
-    from admmkit.own_entry_points import own_entry_points
+    from admmkit.installed import own_entry_points
     try:
         theirs = {ep.name: ep for ep in distribution("admmkit").entry_points if ep.group == cli.GROUP}
     except PackageNotFoundError:
@@ -43,7 +43,7 @@ def test_own_entry_points_are_importlib_metadatas():
 
 
 def test_own_entry_points_parse_sections_and_comments(tmp_path, monkeypatch):
-    from admmkit import own_entry_points as own
+    from admmkit import installed as own
     info = tmp_path / "demo_pkg-1.0.dist-info"
     info.mkdir()
     (info / "entry_points.txt").write_text("# a comment\n[console_scripts]\nx = a:b\n\n[admmkit.commands]\n"
@@ -68,3 +68,15 @@ def test_a_builtin_command_line_imports_no_importlib_metadata():
     except PackageNotFoundError:
         pytest.skip("admmkit is not installed: the full search is the only one")
     assert out.stdout.split()[-2:] == ["0", "False"], out.stderr
+
+
+@pytest.mark.parametrize("name", ["ngsolve", "netgen-mesher", "numpy", "scipy", "NetGen_Mesher"])
+def test_installed_versions_are_importlib_metadatas(name):
+    from importlib.metadata import version
+    from admmkit.installed import version as installed_version
+    try:
+        theirs = version(name)
+    except PackageNotFoundError:
+        theirs = None
+    assert installed_version(name) == theirs
+    assert installed_version("no-such-distribution") is None

@@ -82,12 +82,10 @@ def cache_dir() -> Path:
 
 
 def _version(dist: str) -> str:
-    """The installed version of distribution ``dist`` (without importing it), or "absent"."""
-    from importlib.metadata import PackageNotFoundError, version
-    try:
-        return version(dist)
-    except PackageNotFoundError:
-        return "absent"
+    """The installed version of distribution ``dist`` (without importing it, nor importlib.metadata:
+    :mod:`admmkit.installed`), or "absent"."""
+    from admmkit.installed import version
+    return version(dist) or "absent"
 
 
 def cacheable(scene) -> bool:
