@@ -30,7 +30,7 @@ import numpy as np
 import admmkit
 from admmkit import Result, Status
 from admmkit.loop.checks import number
-from admmkit.kernels import compiled_code
+from admmkit.kernels import AVAILABLE, compiled_code
 
 from .polish import polish as polish_solution
 from .problem import QP
@@ -143,7 +143,7 @@ def solve_qp(qp: QP, settings: QPSettings | None = None, *, policy="osqp", warm_
         settings = settings.replace(**changes)
     else:
         raise TypeError(f"settings must be a QPSettings (e.g. osqp_settings()), got {type(settings).__name__}")
-    segment, helpers = choose_compiled(settings.compiled, qp)
+    segment, helpers = compiled_for(settings.compiled, qp)
     with compiled_code(helpers):          # the helper kernels compiled, or run as Python (the same bits)
         run_qp = qp_for(qp, settings)
         named = isinstance(policy, str) and policy in OSQP_NORMALISED
@@ -174,6 +174,15 @@ def solve_qp(qp: QP, settings: QPSettings | None = None, *, policy="osqp", warm_
         res.timings["setup"] = setup_time
         res.counters["factorizations"] = res.counters.get("factorizations", 0) + setup_factorizations
         return _qp_result(run_qp, settings, res, stop, res.last_record)
+
+
+def compiled_for(setting, qp: QP) -> tuple[bool, bool]:
+    """:func:`admmkit.problems.qp.segment.choose_compiled`'s (segment, helpers) for the setting ``compiled``; for
+    True, (numba installed, numba installed) without asking whether compiled code pays (which walks the loaded
+    kernels: ~6 us of a small QP's solve)."""
+    if setting is True:
+        return AVAILABLE, AVAILABLE
+    return choose_compiled(setting, qp)
 
 
 def termination_for(qp: QP, settings: QPSettings) -> QPTermination:

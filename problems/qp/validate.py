@@ -64,10 +64,13 @@ def _symmetry_defect(P: sp.csc_matrix) -> tuple[float, float]:
     return float(abs(P - P.T).max()), float(np.max(np.abs(P.data)))
 
 
-def _p_facts(P: sp.csc_matrix) -> tuple[bool, float, float, bool | None]:
+def _p_facts(P: sp.csc_matrix, compiled: bool | None = None) -> tuple[bool, float, float, bool | None]:
     """(finite, max |P - P'|, max |P|, diagonal or None: not asked) of canonical CSC ``P``: one compiled call
-    where compiled code pays (``sparse_kernels.p_checks``), else numpy and :func:`_symmetry_defect`."""
-    if NUMBA and P.nnz and compiled_pays(P.shape[0], 0, P.nnz):
+    where compiled code pays (``compiled``; None: :func:`admmkit.problems.qp.segment.compiled_pays` says) with
+    ``sparse_kernels.p_checks``, else numpy and :func:`_symmetry_defect`."""
+    if compiled is None:
+        compiled = NUMBA and compiled_pays(P.shape[0], 0, P.nnz)
+    if compiled and P.nnz:
         from .sparse_kernels import p_checks
         finite, defect, scale, diagonal = p_checks(P.indptr, P.indices, P.data)
         return bool(finite), float(defect), float(scale), bool(diagonal)
@@ -92,7 +95,8 @@ def _validate(P, q, A, l, u, allow_nonconvex: bool = False):
     if n == 0:
         raise ValueError("the QP needs at least one variable: P, q and A must have n >= 1 columns, got n = 0")
     P = _canonical(P)                   # (raises nothing: the checks below come in the order they always did)
-    finite, asym, scale, diagonal = _p_facts(P)
+    compiled = NUMBA and compiled_pays(n, 0, P.nnz)          # asked once: the compiled passes of P and the bounds
+    finite, asym, scale, diagonal = _p_facts(P, compiled)
     if not finite:
         raise ValueError("P must have finite entries")
     if asym > 1e-10 * max(1.0, scale):
@@ -122,18 +126,33 @@ def _validate(P, q, A, l, u, allow_nonconvex: bool = False):
     m = A.shape[0]
     l = _real("l", l).ravel()
     u = _real("u", u).ravel()
+    _check_bounds(l, u, m, compiled or compiled_pays(n, m, P.nnz + A.nnz))
+    return P, q, A, l, u
+
+
+def _check_bounds(l: np.ndarray, u: np.ndarray, m: int, compiled: bool) -> None:
+    """ValueError unless l and u have length m, hold no NaN, no l_i = +inf nor u_i = -inf, and l <= u (the first
+    failed check, in that order, l's before u's); ``compiled``: the facts of both in one compiled pass
+    (``validate_kernel.bound_facts``, the same answers) once both lengths are right."""
+    if compiled and l.shape == (m,) and u.shape == (m,) and l.flags.c_contiguous and u.flags.c_contiguous:
+        from .validate_kernel import bound_facts
+        nan_l, nan_u, wrong_inf, crossed, first = bound_facts(l, u)
+        facts = {"l": nan_l, "u": nan_u}
+    else:
+        facts = crossed = None
     for name, v in (("l", l), ("u", u)):
         if v.shape != (m,):
             raise ValueError(f"{name} must have length m = {m} (rows of A), got shape {v.shape}")
-        if np.any(np.isnan(v)):
+        if facts[name] if facts else np.any(np.isnan(v)):
             raise ValueError(f"{name} must not contain NaN")
-    if np.any(l == np.inf) or np.any(u == -np.inf):
+    if wrong_inf if facts else (np.any(l == np.inf) or np.any(u == -np.inf)):
         raise ValueError("bounds must satisfy l < +inf and u > -inf")
-    bad = np.flatnonzero(l > u)
-    if bad.size:
-        i = bad[0]
-        raise ValueError(f"l must be <= u; row {i} has l = {l[i]:g} > u = {u[i]:g} ({bad.size} such rows)")
-    return P, q, A, l, u
+    if facts is None:
+        bad = np.flatnonzero(l > u)
+        crossed, first = bad.size, (bad[0] if bad.size else -1)
+    if crossed:
+        i = first
+        raise ValueError(f"l must be <= u; row {i} has l = {l[i]:g} > u = {u[i]:g} ({crossed} such rows)")
 
 
 def check_options(*, sigma, backend, xstep, scaling, row_weights, x_relaxation, allow_nonconvex) -> dict:
