@@ -28,6 +28,8 @@ from admmkit.kernels import compiled_now
 from admmkit.loop.segments import AVAILABLE as NUMBA      # numba installed (asked once, without importing it)
 
 from .csc import csc_of
+from .ruiz_kernel import has_tiny_rows, ruiz_steps
+from .sparse_kernels import inf_norms
 
 #: OSQP_MIN_SCALING, OSQP_MAX_SCALING
 MIN_SCALING, MAX_SCALING = 1e-4, 1e4
@@ -150,8 +152,6 @@ def _lift_tiny_rows(Ae: _Entries, E: np.ndarray) -> None:
     problem and rho A'A does not see it.  No Maros-Meszaros row is below TINY_ROW (the smallest is 1e-4),
     so their scalings, and the iterates, are OSQP's."""
     if NUMBA and compiled_now():                # one compiled pass (the same maxima), no argsort of the rows
-        from .ruiz_kernel import has_tiny_rows
-        from .sparse_kernels import inf_norms
         M = Ae.matrix
         if not has_tiny_rows(M.indices, M.data, M.shape[0], TINY_ROW):      # the common case: one call, no arrays
             return
@@ -182,7 +182,6 @@ def ruiz(P: sp.spmatrix, q: np.ndarray, A: sp.spmatrix, iterations: int = 10, co
     Pe, Ae, q = _Entries(P), _Entries(A), np.asarray(q, dtype=float).copy()
     _lift_tiny_rows(Ae, E)
     if compiled and NUMBA:
-        from .ruiz_kernel import ruiz_steps
         c = ruiz_steps(int(iterations), MIN_SCALING, MAX_SCALING, Pe.matrix.data, Pe.rows, Pe.matrix.indptr,
                        Ae.matrix.data, Ae.rows, Ae.matrix.indptr, q, D, E)
         return Scaling(D, E, c), Pe.matrix, q, Ae.matrix

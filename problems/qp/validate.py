@@ -10,8 +10,12 @@ import scipy.sparse as sp
 from admmkit.loop.segments import AVAILABLE as NUMBA      # numba installed (asked once, without importing it)
 
 from .convexity import check_convex
+from .rows import ROW_WEIGHTS
 from .scaling import _csc
 from .segment import compiled_pays
+from .sparse_kernels import p_checks, symmetry_defect
+from .validate_kernel import bound_facts
+from .xstep_forms import XSTEPS
 
 #: the index dtype of the QP's matrices, whatever route they come by (the MAT loader and qpsolvers give int32,
 #: cvxpy int64): scipy builds every new CSC matrix (the scaled P and A, the KKT matrix) with int32 indices when
@@ -58,7 +62,6 @@ def _symmetry_defect(P: sp.csc_matrix) -> tuple[float, float]:
     if P.nnz == 0:
         return 0.0, 0.0
     if NUMBA and compiled_pays(P.shape[0], 0, P.nnz):
-        from .sparse_kernels import symmetry_defect
         defect, scale = symmetry_defect(P.indptr, P.indices, P.data)
         return float(defect), float(scale)
     return float(abs(P - P.T).max()), float(np.max(np.abs(P.data)))
@@ -71,7 +74,6 @@ def _p_facts(P: sp.csc_matrix, compiled: bool | None = None) -> tuple[bool, floa
     if compiled is None:
         compiled = NUMBA and compiled_pays(P.shape[0], 0, P.nnz)
     if compiled and P.nnz:
-        from .sparse_kernels import p_checks
         finite, defect, scale, diagonal = p_checks(P.indptr, P.indices, P.data)
         return bool(finite), float(defect), float(scale), bool(diagonal)
     if not np.all(np.isfinite(P.data)):
@@ -135,7 +137,6 @@ def _check_bounds(l: np.ndarray, u: np.ndarray, m: int, compiled: bool) -> None:
     failed check, in that order, l's before u's); ``compiled``: the facts of both in one compiled pass
     (``validate_kernel.bound_facts``, the same answers) once both lengths are right."""
     if compiled and l.shape == (m,) and u.shape == (m,) and l.flags.c_contiguous and u.flags.c_contiguous:
-        from .validate_kernel import bound_facts
         nan_l, nan_u, wrong_inf, crossed, first = bound_facts(l, u)
         facts = {"l": nan_l, "u": nan_u}
     else:
@@ -157,8 +158,6 @@ def _check_bounds(l: np.ndarray, u: np.ndarray, m: int, compiled: bool) -> None:
 
 def check_options(*, sigma, backend, xstep, scaling, row_weights, x_relaxation, allow_nonconvex) -> dict:
     """The QP's options checked (a ValueError naming the option and its range), as a dict of plain values."""
-    from .rows import ROW_WEIGHTS
-    from .xstep_forms import XSTEPS
     if isinstance(sigma, (bool, str, bytes)) or not isinstance(sigma, (int, float, np.integer, np.floating)) \
             or not (math.isfinite(sigma) and sigma >= 0):
         raise ValueError(f"sigma must be a finite number >= 0, got {sigma!r}")
