@@ -119,7 +119,7 @@ class QPSettings:
 def _check_names(changes: dict) -> None:
     """TypeError naming the unknown settings among ``changes`` and listing the known ones."""
     known = _KNOWN
-    if all(name in known for name in changes):
+    if known.keys() >= changes.keys():
         return
     unknown = sorted(set(changes) - set(known))
     if unknown:
@@ -145,12 +145,15 @@ _BUILT_MAX = 256
 def _checked_once(changes: dict) -> QPSettings:
     """``QPSettings(**changes)``, built and checked once per process for the same changes: the settings are frozen,
     so the object is shared (its checks cost ~25 us of a small QP's ~1 ms solve).  The key holds each value's
-    type (1 and 1.0, True and 1 stay apart) and a float's bits (-0.0 and 0.0 too); a change that cannot be a key
-    (an array) builds the settings anew."""
+    type (1 and 1.0, True and 1 stay apart); a zero (whose sign a key cannot tell: -0.0 == 0.0) or a change that
+    cannot be a key (an array) builds the settings anew."""
+    values = changes.values()
     try:
-        key = tuple((name, type(v), float(v).hex() if isinstance(v, float) else v) for name, v in changes.items())
+        if 0 in values:
+            return QPSettings(**changes)
+        key = (tuple(changes.items()), tuple(map(type, values)))
         held = _BUILT.get(key)
-    except TypeError:                       # an unhashable value: no key
+    except (TypeError, ValueError):         # an unhashable value, or one that is no number (an array): no key
         return QPSettings(**changes)
     if held is None:
         held = QPSettings(**changes)        # a bad value raises here, and nothing is kept

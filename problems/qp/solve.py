@@ -214,6 +214,19 @@ def _same(view: np.ndarray, array: np.ndarray) -> bool:
     return view is array or view.base is array
 
 
+#: the same names as a set, to compare with a result's attributes
+_RESULT_FIELD_SET = frozenset(_RESULT_FIELDS)
+
+
+def _fields_of(res: Result) -> dict:
+    """{field: value} of an admmkit Result: a copy of its attributes when they are exactly its fields (a dataclass
+    sets nothing else: one copy, not 22 lookups), else read field by field."""
+    attributes = res.__dict__
+    if attributes.keys() == _RESULT_FIELD_SET:
+        return attributes.copy()
+    return {name: getattr(res, name) for name in _RESULT_FIELDS}
+
+
 def _qp_result(qp: QP, settings: QPSettings, res: Result, stop: QPTermination, rec) -> QPResult:
     status, termination, message = res.status, None, res.message
     if res.status in (Status.CONVERGED, Status.PRIMAL_INFEASIBLE, Status.DUAL_INFEASIBLE) and stop.outcome is not None:
@@ -276,7 +289,7 @@ def _qp_result(qp: QP, settings: QPSettings, res: Result, stop: QPTermination, r
             polish_info = {"status": "failed", "reason": f"not run: the run ended {termination or res.status.value}"}
     neutral = neutral_residuals(qp, x, y) if finite else None
     warnings = stop.scale.warnings(x, stop.eps_abs, stop.eps_rel, stop.row_test) if finite else []
-    fields = {name: getattr(res, name) for name in _RESULT_FIELDS}
+    fields = _fields_of(res)
     fields.update(x=x, z=z, lam=y, status=status, message=message, objective=objective, kkt=kkt,
                   certificate=stop.certificate if termination else None)
     return QPResult(**fields, termination=termination, residuals=residuals, neutral=neutral, polish=polish_info,

@@ -254,3 +254,20 @@ def test_a_compiled_solve_skips_the_question_whether_compiled_code_pays(monkeypa
     assert solve_module.compiled_for(True, qp) == (kernels.AVAILABLE, kernels.AVAILABLE)
     with pytest.raises(LookupError, match="asked"):
         solve_module.compiled_for("auto", qp)
+
+
+def test_a_results_fields_are_copied_whole_or_read_one_by_one():
+    from admmkit.problems.qp.solve import _RESULT_FIELDS, _fields_of
+    import admmkit
+    res = admmkit.solve(random_qp(5, 5, seed=0), max_iter=20)
+    plain = _fields_of(res)
+    assert list(plain) == list(res.__dict__) and set(plain) == set(_RESULT_FIELDS) and plain["x"] is res.x
+    res.note = "an attribute that is no field"
+    assert set(_fields_of(res)) == set(_RESULT_FIELDS)
+    assert set(_fields_of(solve_qp(random_qp(5, 5, seed=0)))) == set(_RESULT_FIELDS)       # a QPResult: more
+
+
+def test_the_zero_settings_are_built_anew_and_keep_their_sign():
+    from admmkit.problems.qp import osqp_settings
+    assert osqp_settings(sigma=0.0) is not osqp_settings(sigma=0.0)
+    assert str(osqp_settings(sigma=-0.0).sigma) == "-0.0" and osqp_settings(polish=False).polish is False
