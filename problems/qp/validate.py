@@ -29,6 +29,8 @@ def _inf(v) -> float:
 def _real(name: str, value, sparse_ok: bool = False):
     """``value`` as a real float array, or a sparse matrix of any scipy format as a float CSC matrix (``value``
     itself when it is one); ValueError naming ``name`` for text or complex values."""
+    if type(value) is np.ndarray and value.dtype == np.float64:     # already what it would become: no checks
+        return value
     if sparse_ok and sp.issparse(value):
         if np.iscomplexobj(value):
             raise ValueError(f"{name} must be real, got complex entries")

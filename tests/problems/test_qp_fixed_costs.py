@@ -271,3 +271,20 @@ def test_the_zero_settings_are_built_anew_and_keep_their_sign():
     from admmkit.problems.qp import osqp_settings
     assert osqp_settings(sigma=0.0) is not osqp_settings(sigma=0.0)
     assert str(osqp_settings(sigma=-0.0).sigma) == "-0.0" and osqp_settings(polish=False).polish is False
+
+
+def test_a_completed_record_holds_what_reading_each_norm_gives():
+    from admmkit.loop.record import LAZY_FIELDS, loop_record
+    from admmkit.problems.qp.solve import qp_for
+    from admmkit.problems.qp import osqp_settings
+    import admmkit
+    qp = qp_for(random_qp(20, 30, seed=1), osqp_settings())
+    seen = []
+    admmkit.solve(qp, rho=0.1, alpha=1.6, max_iter=3, callback=lambda rec: seen.append(rec) and None,
+                  compiled=False)
+    rec = seen[-1]
+    k, rho, t, x1, z1, lam1, Ax1, x, z, lam, Ax, hat, r_norm = rec._d
+    fresh = [loop_record(rec._ctx, k, rho, t + rec._ctx.start, x1, z1, lam1, Ax1, x, z, lam, Ax, hat, r_norm)
+             for _ in range(2)]
+    one_by_one = [getattr(fresh[0], name) for name in LAZY_FIELDS]
+    assert fresh[1].complete().computed() == tuple(one_by_one) and None not in one_by_one
