@@ -134,11 +134,18 @@ def _validate(P, q, A, l, u, allow_nonconvex: bool = False):
     return P, q, A, l, u
 
 
+def _kernel_ready(v: np.ndarray) -> bool:
+    """Whether the compiled kernels' own signature takes ``v`` (contiguous and writeable, as the kernels were compiled
+    for): another layout would compile a new copy of the kernel, seconds at a first call."""
+    flags = v.flags
+    return flags.c_contiguous and flags.writeable
+
+
 def _check_bounds(l: np.ndarray, u: np.ndarray, m: int, compiled: bool) -> None:
     """ValueError unless l and u have length m, hold no NaN, no l_i = +inf nor u_i = -inf, and l <= u (the first
     failed check, in that order, l's before u's); ``compiled``: the facts of both in one compiled pass
     (``validate_kernel.bound_facts``, the same answers) once both lengths are right."""
-    if compiled and l.shape == (m,) and u.shape == (m,) and l.flags.c_contiguous and u.flags.c_contiguous:
+    if compiled and l.shape == (m,) and u.shape == (m,) and _kernel_ready(l) and _kernel_ready(u):
         nan_l, nan_u, wrong_inf, crossed, first = bound_facts(l, u)
         facts = {"l": nan_l, "u": nan_u}
     else:

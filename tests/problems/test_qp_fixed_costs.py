@@ -288,3 +288,13 @@ def test_a_completed_record_holds_what_reading_each_norm_gives():
              for _ in range(2)]
     one_by_one = [getattr(fresh[0], name) for name in LAZY_FIELDS]
     assert fresh[1].complete().computed() == tuple(one_by_one) and None not in one_by_one
+
+
+def test_read_only_bounds_take_the_numpy_checks(monkeypatch):
+    from admmkit.problems.qp import validate
+    l, u = np.array([0.0, 2.0]), np.array([1.0, 1.0])
+    l.flags.writeable = False
+    monkeypatch.setattr(validate, "bound_facts", lambda *a: pytest.fail("the kernel was called"))
+    with compiled_code(True):
+        with pytest.raises(ValueError, match="row 1 has l = 2 > u = 1"):
+            validate._check_bounds(l, u, 2, True)
