@@ -21,6 +21,8 @@ __all__ = ["IterationRecord", "LAZY_FIELDS", "SCALAR_FIELDS", "RunContext", "loo
 SCALAR_FIELDS = ("k", "rho", "primal_residual", "dual_residual", "rho_Ax_change", "lam_change", "x_change",
                  "x_norm", "z_change", "primal_scale", "dual_scale", "primal_unit", "dual_unit", "time")
 _INDEX = {name: i for i, name in enumerate(LAZY_FIELDS)}
+#: each lazy field's computation, in the order of LAZY_FIELDS
+_COMPUTE_IN_ORDER = tuple(COMPUTE[name] for name in LAZY_FIELDS)
 
 
 def _lazy(name: str, doc: str) -> property:
@@ -175,9 +177,12 @@ class IterationRecord:
         return r
 
     def complete(self) -> "IterationRecord":
-        """Compute every norm not yet computed (what the eager loop computed); return self."""
-        for name in LAZY_FIELDS:
-            getattr(self, name)
+        """Compute every norm not yet computed (what the eager loop computed), in the order of ``LAZY_FIELDS``, as
+        reading each would; return self."""
+        vals = self._vals
+        for i, compute in enumerate(_COMPUTE_IN_ORDER):
+            if vals[i] is None:
+                vals[i] = compute(self)
         return self
 
     def computed(self) -> tuple:

@@ -24,6 +24,10 @@ perf = time.perf_counter
 _isfinite = math.isfinite
 #: the lazy fields a stall test looks at first (their indices in ``IterationRecord.computed()``)
 _STALL = tuple(LAZY_FIELDS.index(name) for name in ("x_change", "z_change", "primal_residual"))
+#: the lazy fields watched for divergence: all, or all but the dual residual and scale (NaN by design in order
+#: "xz" without ``adjoint_norm``)
+_WATCH_ALL = tuple(range(len(LAZY_FIELDS)))
+_WATCH_NO_DUAL = tuple(i for i, name in enumerate(LAZY_FIELDS) if name not in ("dual_residual", "dual_scale"))
 
 
 class Termination:
@@ -35,8 +39,7 @@ class Termination:
         ctx = run.ctx
         self.stop = run.stop
         # the lazy fields whose non-finite value means divergence (a missing adjoint gives NaN legitimately)
-        self.watched = tuple(i for i, name in enumerate(LAZY_FIELDS)
-                             if ctx.has_adjoint or ctx.order == "zx" or name not in ("dual_residual", "dual_scale"))
+        self.watched = _WATCH_ALL if ctx.has_adjoint or ctx.order == "zx" else _WATCH_NO_DUAL
         self.stopped_by, self.seconds = None, 0.0
 
     def check(self, rec) -> tuple | None:
@@ -62,7 +65,7 @@ def diverged(rec, vals, watched: tuple) -> bool:
         v = vals[i]
         if v is not None and not _isfinite(v):
             return True
-    return all(v is None for v in vals) and not _isfinite(rec.primal_residual)
+    return vals.count(None) == len(vals) and not _isfinite(rec.primal_residual)
 
 
 def stalled(rec, vals) -> bool:

@@ -6,6 +6,8 @@ import numpy as np
 
 from admmkit.loop.segments import AVAILABLE as NUMBA      # numba installed (asked once, without importing it)
 
+from .sparse_kernels import kkt_inf_norms, osqp_norms
+
 
 def _inf(v) -> float:
     return float(np.max(np.abs(v), initial=0.0))
@@ -23,7 +25,6 @@ def kkt_residuals(qp, x: np.ndarray, z: np.ndarray, lam: np.ndarray) -> dict:
         z = qp.scaling.unscale_z(z)
     y = qp.multiplier(lam)
     if NUMBA:                               # one compiled pass, the same values (small QPs: 3 us, not 60)
-        from .sparse_kernels import kkt_inf_norms
         P, A = qp.P, qp.A
         values = kkt_inf_norms(P.indptr, P.indices, P.data, qp.q, A.indptr, A.indices, A.data, qp.l, qp.u,
                                np.asarray(x, dtype=float), np.asarray(z, dtype=float), np.asarray(y, dtype=float))
@@ -67,7 +68,6 @@ def osqp_residuals(qp, x: np.ndarray, z: np.ndarray, y: np.ndarray, Ax: np.ndarr
     (``sparse_kernels.osqp_norms``: the same values bit for bit, a small QP's 0.1 ms of numpy calls in a few us)
     and the three dot products from numpy, as below."""
     if NUMBA and Ax is None:
-        from .sparse_kernels import osqp_norms
         P, A = qp.P, qp.A
         x = np.asarray(x, dtype=float)
         primal, primal_scale, dual, dual_scale, Px, up, y_pos, lo, y_neg = osqp_norms(

@@ -28,6 +28,7 @@ from admmkit.loop.segments import AVAILABLE as NUMBA      # numba installed (ask
 
 from .kkt import ZERO_DEADZONE, osqp_residuals, support  # noqa: F401  (defined beside the KKT residuals; re-exported)
 from .problem import QP
+from .sparse_kernels import neutral_norms
 
 def _inf(v: np.ndarray) -> float:
     return float(np.max(np.abs(v), initial=0.0))
@@ -69,7 +70,6 @@ def neutral_residuals(qp: QP, x: np.ndarray, y: np.ndarray) -> dict:
     (``sparse_kernels.neutral_norms``: the same
     primal and dual, the gap's sums in order)."""
     if NUMBA and np.isfinite(x).all() and np.isfinite(y).all():
-        from .sparse_kernels import neutral_norms
         P, A = qp.P, qp.A
         values = neutral_norms(P.indptr, P.indices, P.data, qp.q, A.indptr, A.indices, A.data, qp.l, qp.u,
                                np.asarray(x, dtype=float), np.asarray(y, dtype=float))

@@ -23,29 +23,34 @@ def _limit(v, low, high):
 
 
 @kernel(cache=True)
-def ruiz_steps(iterations, low, high, Pd, Pr, Pc, Ad, Ar, Ac, q, D, E):
-    """``iterations`` Ruiz steps with cost scaling on the entries (data, rows, cols) of P and A and on q, D, E,
-    in place, with OSQP's limits ``low``, ``high`` (MIN_SCALING, MAX_SCALING); returns the cost scaling c."""
+def ruiz_steps(iterations, low, high, Pd, Pr, Pp, Ad, Ar, Ap, q, D, E):
+    """``iterations`` Ruiz steps with cost scaling on the CSC arrays (data, rows, column pointers) of P and A and on
+    q, D, E, in place, with OSQP's limits ``low``, ``high`` (MIN_SCALING, MAX_SCALING); returns the cost scaling c.
+    The entries are visited in their stored order, column by column."""
     n, m = D.shape[0], E.shape[0]
     d, e, cols = np.empty(n), np.empty(m), np.empty(n)
     c = 1.0
     for _ in range(iterations):
         d[:] = 0.0
         e[:] = 0.0
-        for p in range(Pd.shape[0]):                       # KKT columns 1..n: triu(P), as OSQP stores it ...
-            if Pr[p] <= Pc[p]:
-                d[Pc[p]] = max(d[Pc[p]], abs(Pd[p]))
-        for p in range(Ad.shape[0]):                       # ... and A
-            d[Ac[p]] = max(d[Ac[p]], abs(Ad[p]))
-            e[Ar[p]] = max(e[Ar[p]], abs(Ad[p]))           # KKT columns n+1..n+m: the rows of A
+        for j in range(n):                                 # KKT columns 1..n: triu(P), as OSQP stores it ...
+            for p in range(Pp[j], Pp[j + 1]):
+                if Pr[p] <= j:
+                    d[j] = max(d[j], abs(Pd[p]))
+        for j in range(n):                                 # ... and A
+            for p in range(Ap[j], Ap[j + 1]):
+                d[j] = max(d[j], abs(Ad[p]))
+                e[Ar[p]] = max(e[Ar[p]], abs(Ad[p]))       # KKT columns n+1..n+m: the rows of A
         for j in range(n):
             d[j] = 1.0 / np.sqrt(_limit(d[j], low, high))
         for i in range(m):
             e[i] = 1.0 / np.sqrt(_limit(e[i], low, high))
-        for p in range(Pd.shape[0]):                       # P <- D P D
-            Pd[p] = (d[Pr[p]] * Pd[p]) * d[Pc[p]]
-        for p in range(Ad.shape[0]):                       # A <- E A D
-            Ad[p] = (e[Ar[p]] * Ad[p]) * d[Ac[p]]
+        for j in range(n):                                 # P <- D P D
+            for p in range(Pp[j], Pp[j + 1]):
+                Pd[p] = (d[Pr[p]] * Pd[p]) * d[j]
+        for j in range(n):                                 # A <- E A D
+            for p in range(Ap[j], Ap[j + 1]):
+                Ad[p] = (e[Ar[p]] * Ad[p]) * d[j]
         qmax = 0.0
         for j in range(n):
             q[j] = d[j] * q[j]
@@ -54,9 +59,10 @@ def ruiz_steps(iterations, low, high, Pd, Pr, Pc, Ad, Ar, Ac, q, D, E):
         for i in range(m):
             E[i] = E[i] * e[i]
         cols[:] = 0.0
-        for p in range(Pd.shape[0]):
-            if Pr[p] <= Pc[p]:
-                cols[Pc[p]] = max(cols[Pc[p]], abs(Pd[p]))
+        for j in range(n):
+            for p in range(Pp[j], Pp[j + 1]):
+                if Pr[p] <= j:
+                    cols[j] = max(cols[j], abs(Pd[p]))
         total = 0.0
         for j in range(n):
             total += cols[j]
@@ -67,3 +73,15 @@ def ruiz_steps(iterations, low, high, Pd, Pr, Pc, Ad, Ar, Ac, q, D, E):
             q[j] = c_step * q[j]
         c *= c_step
     return c
+
+
+@kernel(cache=True)
+def has_tiny_rows(Ar, Ad, m, tiny):
+    """Whether a row of A (CSC rows ``Ar``, data ``Ad``, m rows) has an inf-norm in (0, ``tiny``)."""
+    nu = np.zeros(m)
+    for p in range(Ad.shape[0]):
+        nu[Ar[p]] = max(nu[Ar[p]], abs(Ad[p]))
+    for i in range(m):
+        if 0.0 < nu[i] < tiny:
+            return True
+    return False

@@ -18,6 +18,7 @@ entry below the diagonal does not count in its column.
 """
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -27,6 +28,8 @@ from admmkit.kernels import compiled_now
 from admmkit.loop.segments import AVAILABLE as NUMBA      # numba installed (asked once, without importing it)
 
 from .csc import csc_of
+from .ruiz_kernel import has_tiny_rows, ruiz_steps
+from .sparse_kernels import inf_norms
 
 #: OSQP_MIN_SCALING, OSQP_MAX_SCALING
 MIN_SCALING, MAX_SCALING = 1e-4, 1e4
@@ -107,7 +110,12 @@ class _Entries:
             M.sum_duplicates()
             M.eliminate_zeros()                   # the pattern scipy's products keep
         self.matrix, self.rows = M, M.indices
-        self.cols = np.repeat(np.arange(M.shape[1]), M.indptr[1:] - M.indptr[:-1])      # (np.diff: 2 us more)
+
+    @functools.cached_property
+    def cols(self) -> np.ndarray:
+        """The column of each entry (made at first use: the compiled steps walk the columns by ``indptr``)."""
+        M = self.matrix
+        return np.repeat(np.arange(M.shape[1]), M.indptr[1:] - M.indptr[:-1])      # (np.diff: 2 us more)
 
     def scale(self, left: np.ndarray, right: np.ndarray) -> None:
         """M <- diag(left) M diag(right), in the order scipy's ``diags(left) @ M @ diags(right)`` rounds."""
@@ -144,8 +152,9 @@ def _lift_tiny_rows(Ae: _Entries, E: np.ndarray) -> None:
     problem and rho A'A does not see it.  No Maros-Meszaros row is below TINY_ROW (the smallest is 1e-4),
     so their scalings, and the iterates, are OSQP's."""
     if NUMBA and compiled_now():                # one compiled pass (the same maxima), no argsort of the rows
-        from .sparse_kernels import inf_norms
         M = Ae.matrix
+        if not has_tiny_rows(M.indices, M.data, M.shape[0], TINY_ROW):      # the common case: one call, no arrays
+            return
         nu = inf_norms(M.indptr, M.indices, M.data, M.shape[0])[0]
     else:
         nu = Ae.row_max()(Ae.matrix.data)
@@ -173,9 +182,8 @@ def ruiz(P: sp.spmatrix, q: np.ndarray, A: sp.spmatrix, iterations: int = 10, co
     Pe, Ae, q = _Entries(P), _Entries(A), np.asarray(q, dtype=float).copy()
     _lift_tiny_rows(Ae, E)
     if compiled and NUMBA:
-        from .ruiz_kernel import ruiz_steps
-        c = ruiz_steps(int(iterations), MIN_SCALING, MAX_SCALING, Pe.matrix.data, Pe.rows, Pe.cols,
-                       Ae.matrix.data, Ae.rows, Ae.cols, q, D, E)
+        c = ruiz_steps(int(iterations), MIN_SCALING, MAX_SCALING, Pe.matrix.data, Pe.rows, Pe.matrix.indptr,
+                       Ae.matrix.data, Ae.rows, Ae.matrix.indptr, q, D, E)
         return Scaling(D, E, c), Pe.matrix, q, Ae.matrix
     P_cols, A_cols, A_rows = Pe.upper_col_max(), Ae.col_max(), Ae.row_max()
     for _ in range(int(iterations)):

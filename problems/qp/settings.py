@@ -119,7 +119,7 @@ class QPSettings:
 def _check_names(changes: dict) -> None:
     """TypeError naming the unknown settings among ``changes`` and listing the known ones."""
     known = _KNOWN
-    if all(name in known for name in changes):
+    if known.keys() >= changes.keys():
         return
     unknown = sorted(set(changes) - set(known))
     if unknown:
@@ -133,7 +133,34 @@ _KNOWN = {f.name: None for f in dataclasses.fields(QPSettings)}
 def osqp_settings(**changes) -> QPSettings:
     """OSQP 1.x's defaults (the preset), with ``changes`` applied."""
     _check_names(changes)
-    return QPSettings(**changes)
+    return _checked_once(changes)
+
+
+#: the settings :func:`osqp_settings` has built and checked, by their changes (see :func:`_checked_once`)
+_BUILT: dict = {}
+#: how many of them it keeps (a long session of varied settings does not grow it without end)
+_BUILT_MAX = 256
+
+
+def _checked_once(changes: dict) -> QPSettings:
+    """``QPSettings(**changes)``, built and checked once per process for the same changes: the settings are frozen,
+    so the object is shared (its checks cost ~25 us of a small QP's ~1 ms solve).  The key holds each value's
+    type (1 and 1.0, True and 1 stay apart); a zero (whose sign a key cannot tell: -0.0 == 0.0) or a change that
+    cannot be a key (an array) builds the settings anew."""
+    values = changes.values()
+    try:
+        if 0 in values:
+            return QPSettings(**changes)
+        key = (tuple(changes.items()), tuple(map(type, values)))
+        held = _BUILT.get(key)
+    except (TypeError, ValueError):         # an unhashable value, or one that is no number (an array): no key
+        return QPSettings(**changes)
+    if held is None:
+        held = QPSettings(**changes)        # a bad value raises here, and nothing is kept
+        if len(_BUILT) >= _BUILT_MAX:
+            _BUILT.clear()
+        _BUILT[key] = held
+    return held
 
 
 def admmkit_settings(eps_abs: float = 1e-3, eps_rel: float = 1e-3, **changes) -> QPSettings:

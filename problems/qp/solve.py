@@ -30,7 +30,7 @@ import numpy as np
 import admmkit
 from admmkit import Result, Status
 from admmkit.loop.checks import number
-from admmkit.kernels import compiled_code
+from admmkit.kernels import AVAILABLE, compiled_code
 
 from .polish import polish as polish_solution
 from .problem import QP
@@ -143,7 +143,7 @@ def solve_qp(qp: QP, settings: QPSettings | None = None, *, policy="osqp", warm_
         settings = settings.replace(**changes)
     else:
         raise TypeError(f"settings must be a QPSettings (e.g. osqp_settings()), got {type(settings).__name__}")
-    segment, helpers = choose_compiled(settings.compiled, qp)
+    segment, helpers = compiled_for(settings.compiled, qp)
     with compiled_code(helpers):          # the helper kernels compiled, or run as Python (the same bits)
         run_qp = qp_for(qp, settings)
         named = isinstance(policy, str) and policy in OSQP_NORMALISED
@@ -176,6 +176,15 @@ def solve_qp(qp: QP, settings: QPSettings | None = None, *, policy="osqp", warm_
         return _qp_result(run_qp, settings, res, stop, res.last_record)
 
 
+def compiled_for(setting, qp: QP) -> tuple[bool, bool]:
+    """:func:`admmkit.problems.qp.segment.choose_compiled`'s (segment, helpers) for the setting ``compiled``; for
+    True, (numba installed, numba installed) without asking whether compiled code pays (which walks the loaded
+    kernels: ~6 us of a small QP's solve)."""
+    if setting is True:
+        return AVAILABLE, AVAILABLE
+    return choose_compiled(setting, qp)
+
+
 def termination_for(qp: QP, settings: QPSettings) -> QPTermination:
     """OSQP's test at the settings' tolerances; with ``early_polish``, the test that also polishes near the solution
     (:class:`admmkit.problems.qp.polish_stop.PolishingTermination`)."""
@@ -203,6 +212,19 @@ def check_rho(rho) -> float:
 def _same(view: np.ndarray, array: np.ndarray) -> bool:
     """``view`` is ``array`` or a view of it (a record's read-only view of the loop's iterate)."""
     return view is array or view.base is array
+
+
+#: the same names as a set, to compare with a result's attributes
+_RESULT_FIELD_SET = frozenset(_RESULT_FIELDS)
+
+
+def _fields_of(res: Result) -> dict:
+    """{field: value} of an admmkit Result: a copy of its attributes when they are exactly its fields (a dataclass
+    sets nothing else: one copy, not 22 lookups), else read field by field."""
+    attributes = res.__dict__
+    if attributes.keys() == _RESULT_FIELD_SET:
+        return attributes.copy()
+    return {name: getattr(res, name) for name in _RESULT_FIELDS}
 
 
 def _qp_result(qp: QP, settings: QPSettings, res: Result, stop: QPTermination, rec) -> QPResult:
@@ -267,7 +289,7 @@ def _qp_result(qp: QP, settings: QPSettings, res: Result, stop: QPTermination, r
             polish_info = {"status": "failed", "reason": f"not run: the run ended {termination or res.status.value}"}
     neutral = neutral_residuals(qp, x, y) if finite else None
     warnings = stop.scale.warnings(x, stop.eps_abs, stop.eps_rel, stop.row_test) if finite else []
-    fields = {name: getattr(res, name) for name in _RESULT_FIELDS}
+    fields = _fields_of(res)
     fields.update(x=x, z=z, lam=y, status=status, message=message, objective=objective, kkt=kkt,
                   certificate=stop.certificate if termination else None)
     return QPResult(**fields, termination=termination, residuals=residuals, neutral=neutral, polish=polish_info,

@@ -31,6 +31,7 @@ from admmkit.loop.segments import AVAILABLE as NUMBA
 
 from .infeasibility import DIVISION_TOL, confirmed_certificate, dual_certificate, iterate_deltas, primal_certificate
 from .problem import QP
+from .residual_kernel import iterate_residuals_compiled
 from .residuals import iterate_residuals, osqp_residuals  # noqa: F401  (osqp_residuals: re-exported)
 from .sparse_kernels import inf_norms
 
@@ -80,7 +81,6 @@ def _from_kernel(qp: QP, x: np.ndarray, rec: IterationRecord) -> dict | None:
 def residuals_of_iterate():
     """:func:`iterate_residuals`, compiled in one pass when numba is installed (``residual_kernel``)."""
     if NUMBA:
-        from .residual_kernel import iterate_residuals_compiled
         return iterate_residuals_compiled
     return iterate_residuals
 
@@ -188,7 +188,6 @@ def _row_and_column_norms(M) -> tuple[np.ndarray, np.ndarray]:
     """(the inf-norm of every row, of every column) of the CSC matrix ``M``: one compiled pass where numba is
     chosen (``sparse_kernels.inf_norms``, no CSR copy), else :func:`_column_norms` of M' and of M."""
     if NUMBA and compiled_now():
-        from .sparse_kernels import inf_norms
         return inf_norms(M.indptr, M.indices, M.data, M.shape[0])
     return _column_norms(M.tocsr()), _column_norms(M)
 

@@ -10,8 +10,12 @@ import scipy.sparse as sp
 from admmkit.loop.segments import AVAILABLE as NUMBA      # numba installed (asked once, without importing it)
 
 from .convexity import check_convex
+from .rows import ROW_WEIGHTS
 from .scaling import _csc
 from .segment import compiled_pays
+from .sparse_kernels import p_checks, symmetry_defect
+from .validate_kernel import bound_facts
+from .xstep_forms import XSTEPS
 
 #: the index dtype of the QP's matrices, whatever route they come by (the MAT loader and qpsolvers give int32,
 #: cvxpy int64): scipy builds every new CSC matrix (the scaled P and A, the KKT matrix) with int32 indices when
@@ -25,6 +29,8 @@ def _inf(v) -> float:
 def _real(name: str, value, sparse_ok: bool = False):
     """``value`` as a real float array, or a sparse matrix of any scipy format as a float CSC matrix (``value``
     itself when it is one); ValueError naming ``name`` for text or complex values."""
+    if type(value) is np.ndarray and value.dtype == np.float64:     # already what it would become: no checks
+        return value
     if sparse_ok and sp.issparse(value):
         if np.iscomplexobj(value):
             raise ValueError(f"{name} must be real, got complex entries")
@@ -58,17 +64,18 @@ def _symmetry_defect(P: sp.csc_matrix) -> tuple[float, float]:
     if P.nnz == 0:
         return 0.0, 0.0
     if NUMBA and compiled_pays(P.shape[0], 0, P.nnz):
-        from .sparse_kernels import symmetry_defect
         defect, scale = symmetry_defect(P.indptr, P.indices, P.data)
         return float(defect), float(scale)
     return float(abs(P - P.T).max()), float(np.max(np.abs(P.data)))
 
 
-def _p_facts(P: sp.csc_matrix) -> tuple[bool, float, float, bool | None]:
+def _p_facts(P: sp.csc_matrix, compiled: bool | None = None) -> tuple[bool, float, float, bool | None]:
     """(finite, max |P - P'|, max |P|, diagonal or None: not asked) of canonical CSC ``P``: one compiled call
-    where compiled code pays (``sparse_kernels.p_checks``), else numpy and :func:`_symmetry_defect`."""
-    if NUMBA and P.nnz and compiled_pays(P.shape[0], 0, P.nnz):
-        from .sparse_kernels import p_checks
+    where compiled code pays (``compiled``; None: :func:`admmkit.problems.qp.segment.compiled_pays` says) with
+    ``sparse_kernels.p_checks``, else numpy and :func:`_symmetry_defect`."""
+    if compiled is None:
+        compiled = NUMBA and compiled_pays(P.shape[0], 0, P.nnz)
+    if compiled and P.nnz:
         finite, defect, scale, diagonal = p_checks(P.indptr, P.indices, P.data)
         return bool(finite), float(defect), float(scale), bool(diagonal)
     if not np.all(np.isfinite(P.data)):
@@ -92,7 +99,8 @@ def _validate(P, q, A, l, u, allow_nonconvex: bool = False):
     if n == 0:
         raise ValueError("the QP needs at least one variable: P, q and A must have n >= 1 columns, got n = 0")
     P = _canonical(P)                   # (raises nothing: the checks below come in the order they always did)
-    finite, asym, scale, diagonal = _p_facts(P)
+    compiled = NUMBA and compiled_pays(n, 0, P.nnz)          # asked once: the compiled passes of P and the bounds
+    finite, asym, scale, diagonal = _p_facts(P, compiled)
     if not finite:
         raise ValueError("P must have finite entries")
     if asym > 1e-10 * max(1.0, scale):
@@ -122,24 +130,43 @@ def _validate(P, q, A, l, u, allow_nonconvex: bool = False):
     m = A.shape[0]
     l = _real("l", l).ravel()
     u = _real("u", u).ravel()
+    _check_bounds(l, u, m, compiled or compiled_pays(n, m, P.nnz + A.nnz))
+    return P, q, A, l, u
+
+
+def _kernel_ready(v: np.ndarray) -> bool:
+    """Whether the compiled kernels' own signature takes ``v`` (contiguous and writeable, as the kernels were compiled
+    for): another layout would compile a new copy of the kernel, seconds at a first call."""
+    flags = v.flags
+    return flags.c_contiguous and flags.writeable
+
+
+def _check_bounds(l: np.ndarray, u: np.ndarray, m: int, compiled: bool) -> None:
+    """ValueError unless l and u have length m, hold no NaN, no l_i = +inf nor u_i = -inf, and l <= u (the first
+    failed check, in that order, l's before u's); ``compiled``: the facts of both in one compiled pass
+    (``validate_kernel.bound_facts``, the same answers) once both lengths are right."""
+    if compiled and l.shape == (m,) and u.shape == (m,) and _kernel_ready(l) and _kernel_ready(u):
+        nan_l, nan_u, wrong_inf, crossed, first = bound_facts(l, u)
+        facts = {"l": nan_l, "u": nan_u}
+    else:
+        facts = crossed = None
     for name, v in (("l", l), ("u", u)):
         if v.shape != (m,):
             raise ValueError(f"{name} must have length m = {m} (rows of A), got shape {v.shape}")
-        if np.any(np.isnan(v)):
+        if facts[name] if facts else np.any(np.isnan(v)):
             raise ValueError(f"{name} must not contain NaN")
-    if np.any(l == np.inf) or np.any(u == -np.inf):
+    if wrong_inf if facts else (np.any(l == np.inf) or np.any(u == -np.inf)):
         raise ValueError("bounds must satisfy l < +inf and u > -inf")
-    bad = np.flatnonzero(l > u)
-    if bad.size:
-        i = bad[0]
-        raise ValueError(f"l must be <= u; row {i} has l = {l[i]:g} > u = {u[i]:g} ({bad.size} such rows)")
-    return P, q, A, l, u
+    if facts is None:
+        bad = np.flatnonzero(l > u)
+        crossed, first = bad.size, (bad[0] if bad.size else -1)
+    if crossed:
+        i = first
+        raise ValueError(f"l must be <= u; row {i} has l = {l[i]:g} > u = {u[i]:g} ({crossed} such rows)")
 
 
 def check_options(*, sigma, backend, xstep, scaling, row_weights, x_relaxation, allow_nonconvex) -> dict:
     """The QP's options checked (a ValueError naming the option and its range), as a dict of plain values."""
-    from .rows import ROW_WEIGHTS
-    from .xstep_forms import XSTEPS
     if isinstance(sigma, (bool, str, bytes)) or not isinstance(sigma, (int, float, np.integer, np.floating)) \
             or not (math.isfinite(sigma) and sigma >= 0):
         raise ValueError(f"sigma must be a finite number >= 0, got {sigma!r}")

@@ -130,12 +130,12 @@ def test_a_kernel_as_python_gives_the_compiled_bits():
     from admmkit.problems.qp.ruiz_kernel import ruiz_steps
     from admmkit.problems.qp.scaling import MAX_SCALING, MIN_SCALING
     qp = random_qp(30, 40, seed=4)
-    P, A = qp.P.tocoo(), qp.A.tocoo()
+    P, A = qp.P, qp.A
     out = {}
     for flag in (False, True):
         Pd, Ad, q, D, E = P.data.copy(), A.data.copy(), qp.q.copy(), np.ones(qp.n), np.ones(qp.m)
         with kernels.compiled_code(flag):
-            c = ruiz_steps(10, MIN_SCALING, MAX_SCALING, Pd, P.row, P.col, Ad, A.row, A.col, q, D, E)
+            c = ruiz_steps(10, MIN_SCALING, MAX_SCALING, Pd, P.indices, P.indptr, Ad, A.indices, A.indptr, q, D, E)
         out[flag] = np.concatenate([Pd, Ad, q, D, E, [c]])
     assert np.array_equal(out[False].view(np.int64), out[True].view(np.int64))
 

@@ -181,3 +181,120 @@ def test_may_be_blind_is_span_rows_or_rows_tiny_at_zero(make):
     for eps in (1e-14, 1e-9, 1e-3, 1.0, 10.0):
         fresh = ScaleCheck(qp)
         assert fresh.may_be_blind(eps) == bool(fresh.span_rows.size or fresh.tiny_rows(np.zeros(1), eps).size)
+
+
+def test_the_same_settings_are_built_and_checked_once():
+    from admmkit.problems.qp import osqp_settings
+    a = osqp_settings(eps_abs=1e-3, eps_rel=1e-3, compiled=True)
+    assert osqp_settings(eps_abs=1e-3, eps_rel=1e-3, compiled=True) is a           # frozen: shared
+    assert osqp_settings(eps_abs=1e-4, eps_rel=1e-3, compiled=True) is not a
+    assert type(osqp_settings(max_iter=10).rho) is float and osqp_settings() is osqp_settings()
+    one, one_float = osqp_settings(alpha=1), osqp_settings(alpha=1.0)               # a value's type is its own
+    assert type(one.alpha) is int and type(one_float.alpha) is float
+    minus = osqp_settings(sigma=-0.0)
+    assert str(minus.sigma) == "-0.0" and str(osqp_settings(sigma=0.0).sigma) == "0.0"
+    for _ in range(2):                                   # a bad value raises every time: nothing was kept
+        with pytest.raises(ValueError, match="alpha must be in"):
+            osqp_settings(alpha=3.0)
+    big = np.float64(2.0)
+    assert osqp_settings(polish_backoff=big).polish_backoff == 2.0
+
+
+@pytest.mark.parametrize("l, u, message", [
+    ([0.0, np.nan], [1.0, 1.0], "l must not contain NaN"),
+    ([0.0, 0.0], [np.nan, 1.0], "u must not contain NaN"),
+    ([np.nan, 0.0], [np.nan, 1.0], "l must not contain NaN"),              # l's check first
+    ([np.inf, 0.0], [np.inf, 1.0], "l < \\+inf and u > -inf"),
+    ([0.0, -np.inf], [1.0, -np.inf], "l < \\+inf and u > -inf"),
+    ([0.0, 2.0, 3.0], [1.0, 1.0, 1.0], "row 1 has l = 2 > u = 1 \\(2 such rows\\)"),
+    ([0.0], [1.0, 1.0], "l must have length m = 2"),
+    ([0.0, np.nan], [1.0], "l must not contain NaN"),                      # l's NaN before u's length
+])
+def test_the_bounds_are_refused_alike_compiled_or_not(l, u, message):
+    m = len(l) if len(l) == len(u) else 2
+    A = sp.csc_matrix(np.ones((m, 2)))
+    for flag in (True, False):
+        with compiled_code(flag):
+            with pytest.raises(ValueError, match=message):
+                QP(sp.identity(2, format="csc"), np.zeros(2), A, np.array(l), np.array(u))
+
+
+def test_the_bounds_kernel_answers_numpys_questions():
+    from admmkit.problems.qp.validate_kernel import bound_facts
+    rng = np.random.default_rng(0)
+    l, u = rng.standard_normal(50), rng.standard_normal(50)
+    l[[3, 7]], u[9], l[11] = np.nan, -np.inf, np.inf
+    crossed = np.flatnonzero(l > u)
+    with compiled_code(True):
+        assert bound_facts(l, u) == (True, False, True, crossed.size, crossed[0])
+        assert bound_facts(np.zeros(4), np.ones(4)) == (False, False, False, 0, -1)
+
+
+def test_ruiz_lifts_a_tiny_row_alike_compiled_or_not():
+    from admmkit.problems.qp.scaling import ruiz
+    A = sp.csc_matrix(np.array([[1.0, 2.0], [3e-8, 0.0], [0.0, 1e-5]]))
+    P, q = sp.csc_matrix(np.diag([2.0, 1.0])), np.array([1.0, -1.0])
+    out = {}
+    for flag in (True, False):
+        with compiled_code(flag):
+            S, Ps, qs, As = ruiz(P, q, A, 10)
+        out[flag] = np.concatenate([S.D, S.E, [S.c], Ps.data, qs, As.data])
+    assert _same_bits(out[True], out[False])
+    assert out[True][3] > 1e6          # the tiny row's E lifts it (2^25 before the steps)
+
+
+def test_a_compiled_solve_skips_the_question_whether_compiled_code_pays(monkeypatch):
+    from admmkit import kernels
+    from admmkit.problems.qp import solve as solve_module
+    qp = random_qp(5, 5, seed=0)
+    assert solve_module.compiled_for(True, qp) == solve_module.choose_compiled(True, qp)
+    def asked(*args):
+        raise LookupError("asked")
+    monkeypatch.setattr(solve_module, "choose_compiled", asked)
+    assert solve_module.compiled_for(True, qp) == (kernels.AVAILABLE, kernels.AVAILABLE)
+    with pytest.raises(LookupError, match="asked"):
+        solve_module.compiled_for("auto", qp)
+
+
+def test_a_results_fields_are_copied_whole_or_read_one_by_one():
+    from admmkit.problems.qp.solve import _RESULT_FIELDS, _fields_of
+    import admmkit
+    res = admmkit.solve(random_qp(5, 5, seed=0), max_iter=20)
+    plain = _fields_of(res)
+    assert list(plain) == list(res.__dict__) and set(plain) == set(_RESULT_FIELDS) and plain["x"] is res.x
+    res.note = "an attribute that is no field"
+    assert set(_fields_of(res)) == set(_RESULT_FIELDS)
+    assert set(_fields_of(solve_qp(random_qp(5, 5, seed=0)))) == set(_RESULT_FIELDS)       # a QPResult: more
+
+
+def test_the_zero_settings_are_built_anew_and_keep_their_sign():
+    from admmkit.problems.qp import osqp_settings
+    assert osqp_settings(sigma=0.0) is not osqp_settings(sigma=0.0)
+    assert str(osqp_settings(sigma=-0.0).sigma) == "-0.0" and osqp_settings(polish=False).polish is False
+
+
+def test_a_completed_record_holds_what_reading_each_norm_gives():
+    from admmkit.loop.record import LAZY_FIELDS, loop_record
+    from admmkit.problems.qp.solve import qp_for
+    from admmkit.problems.qp import osqp_settings
+    import admmkit
+    qp = qp_for(random_qp(20, 30, seed=1), osqp_settings())
+    seen = []
+    admmkit.solve(qp, rho=0.1, alpha=1.6, max_iter=3, callback=lambda rec: seen.append(rec) and None,
+                  compiled=False)
+    rec = seen[-1]
+    k, rho, t, x1, z1, lam1, Ax1, x, z, lam, Ax, hat, r_norm = rec._d
+    fresh = [loop_record(rec._ctx, k, rho, t + rec._ctx.start, x1, z1, lam1, Ax1, x, z, lam, Ax, hat, r_norm)
+             for _ in range(2)]
+    one_by_one = [getattr(fresh[0], name) for name in LAZY_FIELDS]
+    assert fresh[1].complete().computed() == tuple(one_by_one) and None not in one_by_one
+
+
+def test_read_only_bounds_take_the_numpy_checks(monkeypatch):
+    from admmkit.problems.qp import validate
+    l, u = np.array([0.0, 2.0]), np.array([1.0, 1.0])
+    l.flags.writeable = False
+    monkeypatch.setattr(validate, "bound_facts", lambda *a: pytest.fail("the kernel was called"))
+    with compiled_code(True):
+        with pytest.raises(ValueError, match="row 1 has l = 2 > u = 1"):
+            validate._check_bounds(l, u, 2, True)
