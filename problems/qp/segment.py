@@ -153,7 +153,9 @@ def _xz_kkt(count, rho, alpha, a, sigma, Lp, Li, Lx, Dinv, perm, Rinv, q, lo, up
                 v = up[i]
             lam[i] = lam[i] + rho * (h - v)
             z[i] = v
-        if reads:                                                               # (A2)-(A3) or (A4)-(A5)
+        if reads and accelerate == FAST:                                        # (A4)-(A6), its own arrays only
+            fast_update(rho, w, safeguard, s_z, s_lam, z, lam, z, lam, ist, before, F_prev)
+        elif reads:                                                             # (A2)-(A3)
             accelerator_step(accelerate, rho, w, safeguard, regularization, s_z, s_lam, z, lam, ist, before, F_prev,
                              G_prev, plain, dF, dG, gram, g, acc, a_rhs, chol, gamma)
         elif step:                                      # Anderson between steps, fast ADMM backing off: plain
