@@ -119,10 +119,9 @@ def fast_update(rho, w, eta, s_u, s_l, f_u, f_l, out_u, out_l, ist, ac, f_prev):
         ist[MOMENTUM] = 1 if momentum else 0
         ist[HAVE_PREV] = 1
         return
-    previous_c = ac[C]
     if restart(ist, ac):                                    # s_k extrapolated: back to f_{k-1}
-        if ist[HAVE_PREV] == 1:
-            ac[C] = previous_c / eta
+        if ist[HAVE_PREV] == 1:                             # (not backing off)
+            ac[C] = ac[C] / eta
         for i in range(m):
             out_u[i], out_l[i] = f_prev[i], f_prev[m + i]
         return
@@ -161,10 +160,9 @@ def fast_update_numpy(rho, w, eta, s_u, s_l, f_u, f_l, out_u, out_l, ist, ac, f_
         f_prev[:m], f_prev[m:] = f_u, f_l
         ist[HAVE_PREV] = 1
         return
-    previous_c = ac[C]
     if restart.py_func(ist, ac):                            # the kernel's bookkeeping, as Python
         if ist[HAVE_PREV] == 1:
-            ac[C] = previous_c / eta
+            ac[C] = ac[C] / eta
         out_u[:], out_l[:] = f_prev[:m], f_prev[m:]
         return
     if ist[HAVE_PREV] == 1:
