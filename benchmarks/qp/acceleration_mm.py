@@ -21,7 +21,6 @@ iteration counts do not depend on the machine's load.
 """
 from __future__ import annotations
 
-import argparse
 import math
 import os
 import shlex
@@ -53,10 +52,13 @@ def accelerator(config: str):
         key, eq, value = item.partition("=")
         if not eq:
             raise ValueError(f"configuration {config!r}: options are key=value, got {item!r}")
-        kwargs[key.strip()] = float(value) if any(ch in value for ch in ".e") else int(value)
+        try:
+            kwargs[key.strip()] = float(value) if any(ch in value for ch in ".e") else int(value)
+        except ValueError:
+            raise ValueError(f"configuration {config!r}: {value!r} is not a number") from None
     try:
         return ACCELERATORS[name](**kwargs)
-    except TypeError as err:
+    except (TypeError, ValueError) as err:
         raise ValueError(f"configuration {config!r}: {err}") from None
 
 
@@ -140,8 +142,8 @@ def report(rows: list[dict], configs: list[str], eps_list, command: str, max_ite
 
 def main(argv=None) -> int:
     """Run the study, print the report and write maros_meszaros.csv and maros_meszaros.md under --out."""
-    parser = argparse.ArgumentParser(prog="python -m admmkit.benchmarks.qp.acceleration_mm",
-                                     description=__doc__.splitlines()[0])
+    from admmkit.cli import Parser
+    parser = Parser(prog="python -m admmkit.benchmarks.qp.acceleration_mm", description=__doc__.splitlines()[0])
     parser.add_argument("--data", default="../shared/data/maros_meszaros", help="folder of Maros-Meszaros MAT files")
     parser.add_argument("--out", default="out/fast_cost", help="output folder (default ./out/fast_cost/)")
     parser.add_argument("--configs", nargs="+", default=list(CONFIGS),
