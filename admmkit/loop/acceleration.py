@@ -43,8 +43,17 @@ g_k = f_k - s_k.
       c_k = ||g_k||_W^2;  if c_k < eta c_{k-1}:                          (A4)
           a_{k+1} = (1 + sqrt(1 + 4 a_k^2)) / 2
           s_{k+1} = f_k + (a_k - 1) / a_{k+1} (f_k - f_{k-1})           (A5)
-      else (restart): a_{k+1} = 1, s_{k+1} = f_{k-1}, c_k = c_{k-1} / eta.
+      else (restart): a_{k+1} = 1, s_{k+1} = f_{k-1}, c_k = c_{k-1} / eta
+          (s_{k+1} = f_k, c_k kept, when s_k was not extrapolated: f_{k-1}
+          is then s_k and going back would repeat the iteration).
 
+  Safeguard (A6), in the spirit of Anderson's: a restart that ends a
+  momentum phase of fewer than ``patience`` extrapolations fails it, and
+  the next b steps are plain, b doubling with every failure (up to
+  BACKOFF_MAX) and back to 1 after a phase that lasted; momentum starts
+  afresh after them.  Under OSQP's adaptive rho, where momentum rarely
+  lasts, the run becomes plain ADMM with rare probes (HS268 and QADLITTL at
+  1e-6, which the restarts alone left at the cap of 4000, are solved).
   For a weighted dot product the steps are one kernel too,
   ``admmkit.loop.fast_kernel``, which a compiled segment calls as it calls
   Anderson's.
@@ -68,6 +77,9 @@ from .anderson_kernel import BACKOFF_MAX      # the longest run of plain steps A
 
 #: Anderson's default interval (iterations per step); docs/qp.md, "Anderson", says how it was chosen
 INTERVAL = 10
+#: fast ADMM's default patience (extrapolations a momentum phase must last); docs/qp.md, "Restarted fast ADMM
+#: safeguarded", says how it was chosen
+PATIENCE = 16
 
 State = tuple  # (u, lam): two arrays of the constraint space
 
@@ -283,37 +295,55 @@ class Anderson(KernelAccelerator):
 
 
 class FastADMM(KernelAccelerator):
-    """Restarted fast ADMM (Goldstein et al. 2014, Algorithm 8; eqs. (A4)-(A5)).
+    """Safeguarded restarted fast ADMM (Goldstein et al. 2014, Algorithm 8; eqs. (A4)-(A6)).
 
     Parameters
     ----------
     eta : float
         Restart when the combined residual c_k is not below ``eta`` c_{k-1};
         in (0, 1) (the paper uses 0.999).
+    patience : int
+        The safeguard (A6): a restart that ends a momentum phase of fewer
+        than ``patience`` extrapolations fails it, and the next b steps are
+        plain, b doubling with each failure (up to BACKOFF_MAX) and back to 1
+        after a phase that lasted.  An integer >= 0; 0 never backs off (the
+        restarts alone).  The default, PATIENCE, was chosen by measurement
+        (docs/qp.md, "Restarted fast ADMM safeguarded").
     """
 
     name = "fast"
 
-    def __init__(self, eta: float = 0.999):
-        if not (isinstance(eta, (int, float)) and 0 < eta < 1):
+    def __init__(self, eta: float = 0.999, patience: int | None = None):
+        if isinstance(eta, bool) or not (isinstance(eta, (int, float)) and 0 < eta < 1):
             raise ValueError(f"FastADMM: eta must be a number in (0, 1), got {eta!r}")
+        patience = PATIENCE if patience is None else patience
+        if isinstance(patience, bool) or not isinstance(patience, (int, np.integer)) or patience < 0:
+            raise ValueError(f"FastADMM: patience (extrapolations a momentum phase must last) must be an integer "
+                             f">= 0, got {patience!r}")
         super().__init__()
-        self.eta = float(eta)
+        self.eta, self.patience = float(eta), int(patience)
+        self._skip, self._backoff = 0, 1
         self.reset()
 
     def kernel_arrays(self, length: int):
-        """``admmkit.loop.fast_kernel.FastArrays`` for stacked states of ``length`` entries."""
-        return fast_kernel.FastArrays(length)
+        """``admmkit.loop.fast_kernel.FastArrays`` for stacked states of ``length`` entries and this patience."""
+        return fast_kernel.FastArrays(length, self.patience)
+
+    def start(self) -> None:
+        """Start a run: clear the memory, the counts and the back-off."""
+        super().start()
+        self._skip, self._backoff = 0, 1
 
     def reset(self) -> None:
-        """Restart: no momentum, no previous image."""
+        """Restart: no momentum, no previous image (a change of rho); the back-off stays."""
         self._a, self._c, self._f = 1.0, math.inf, None
+        self._momentum, self._phase = False, 0        # s_k extrapolated; extrapolations since the last restart
         if getattr(self, "_arrays", None) is not None:
             self._arrays.reset()
 
     def kernel_state(self):
         """(weights, eta, 0.0, arrays) for a compiled segment's steps (in the slots of Anderson's weights,
-        safeguard, regularization and arrays), or None when unbound."""
+        safeguard, regularization and arrays; the patience travels in the arrays), or None when unbound."""
         if self._arrays is None:
             return None
         return self._weights, self.eta, 0.0, self._arrays
@@ -324,11 +354,15 @@ class FastADMM(KernelAccelerator):
             ist = self._arrays.ist
             self.stats["extrapolated"] = int(ist[fast_kernel.EXTRAPOLATED])
             self.stats["restarts"] = int(ist[fast_kernel.RESTARTS])
+            self.stats["rejected"] = int(ist[fast_kernel.FAILED])
 
     def propose(self, s: State, f: State, rho: float, inner) -> State:
-        """The momentum step (A5), or a restart from the previous image."""
+        """A plain step in a back-off, the momentum step (A5), or a restart (A6)."""
         if self._arrays is not None:
             return self._propose_kernel(s, f, rho)
+        if self._skip > 0:                                                               # backing off: plain
+            self._skip -= 1
+            return f
         g = _diff(f, s)
         c = w_inner(g, g, rho, inner)                                                    # (A4)
         previous = self._f
@@ -336,13 +370,28 @@ class FastADMM(KernelAccelerator):
             a_next = (1 + math.sqrt(1 + 4 * self._a ** 2)) / 2
             beta = (self._a - 1) / a_next
             self._a, self._c, self._f = a_next, c, f
-            if previous is None or beta == 0:
+            self._momentum = previous is not None and beta != 0
+            if not self._momentum:
                 return f
             self.stats["extrapolated"] += 1
+            self._phase += 1
             return f[0] + beta * (f[0] - previous[0]), f[1] + beta * (f[1] - previous[1])   # (A5)
-        self.stats["restarts"] += 1
-        self._a, self._c = 1.0, self._c / self.eta
-        return previous
+        self.stats["restarts"] += 1                                                      # (A6)
+        if self._phase < self.patience:                                # a failed momentum phase: back off
+            self.stats["rejected"] += 1
+            self._skip, self._backoff = self._backoff, min(2 * self._backoff, BACKOFF_MAX)
+        else:
+            self._backoff = 1
+        back, self._momentum, self._phase, self._a = self._momentum, False, 0, 1.0
+        if self._skip > 0:                                             # momentum starts afresh after it
+            self._c, self._f = math.inf, None
+        if back:                                                       # s_k extrapolated: back to f_{k-1}
+            if self._f is not None:
+                self._c = self._c / self.eta
+            return previous
+        if self._f is not None:                                        # s_k plain: keep f_k
+            self._c, self._f = c, f
+        return f
 
     def _propose_kernel(self, s: State, f: State, rho: float) -> State:
         """:meth:`propose` by ``admmkit.loop.fast_kernel.fast_update`` on the stacked states (its numpy twin,

@@ -25,7 +25,7 @@ import numpy as np
 
 from admmkit.loop import anderson_kernel, fast_kernel
 from admmkit.loop.anderson_kernel import CLOCK, anderson_reads_state, anderson_update
-from admmkit.loop.fast_kernel import fast_update
+from admmkit.loop.fast_kernel import SKIP, fast_reads_state, fast_update
 from admmkit.kernels import AVAILABLE, all_finite, compiled_now, kernel
 from admmkit.linalg.compiled import ldl_solve
 
@@ -66,9 +66,20 @@ NO_ACCELERATION, ANDERSON, FAST = 0, anderson_kernel.MODE, fast_kernel.MODE
 
 @kernel(cache=True)
 def reads_state(mode, ist):
-    """Whether the accelerator ``mode``'s next step reads the state the iteration starts from (fast ADMM's always;
-    Anderson's when :func:`admmkit.loop.anderson_kernel.anderson_reads_state` says so)."""
-    return mode == FAST or (mode == ANDERSON and anderson_reads_state(ist))
+    """Whether the accelerator ``mode``'s next step reads the state the iteration starts from (fast ADMM's but in a
+    back-off, :func:`admmkit.loop.fast_kernel.fast_reads_state`; Anderson's when
+    :func:`admmkit.loop.anderson_kernel.anderson_reads_state` says so)."""
+    return (mode == FAST and fast_reads_state(ist)) or (mode == ANDERSON and anderson_reads_state(ist))
+
+
+@kernel(cache=True)
+def plain_step(mode, ist):
+    """The count of an accelerator's step that does not read the state (the iterate itself goes on): Anderson's
+    clock between its steps, fast ADMM's plain steps left in a back-off."""
+    if mode == FAST:
+        ist[SKIP] -= 1
+    else:
+        ist[CLOCK] += 1
 
 
 @kernel(cache=True)
@@ -96,7 +107,7 @@ def _xz_kkt(count, rho, alpha, a, sigma, Lp, Li, Lx, Dinv, perm, Rinv, q, lo, up
     With ``accelerate`` (a mode: ANDERSON, FAST; NO_ACCELERATION 0), the accelerator's step
     (:func:`accelerator_step`) follows every iteration but a kept last one (the loop takes that one's), on the state
     (z, lam), the one it started from kept in ``s_z``, ``s_lam`` where the step reads it; between the steps of
-    Anderson's interval it only counts the iteration."""
+    Anderson's interval, and in fast ADMM's back-off, it only counts the iteration."""
     n, m = x.shape[0], z.shape[0]
     relax_x, relax = a != 1.0, alpha != 1.0
     for it in range(count):
@@ -142,11 +153,13 @@ def _xz_kkt(count, rho, alpha, a, sigma, Lp, Li, Lx, Dinv, perm, Rinv, q, lo, up
                 v = up[i]
             lam[i] = lam[i] + rho * (h - v)
             z[i] = v
-        if reads:                                                               # (A2)-(A3) or (A4)-(A5)
+        if reads and accelerate == FAST:                                        # (A4)-(A6), its own arrays only
+            fast_update(rho, w, safeguard, s_z, s_lam, z, lam, z, lam, ist, before, F_prev)
+        elif reads:                                                             # (A2)-(A3)
             accelerator_step(accelerate, rho, w, safeguard, regularization, s_z, s_lam, z, lam, ist, before, F_prev,
                              G_prev, plain, dF, dG, gram, g, acc, a_rhs, chol, gamma)
-        elif step:                                                              # Anderson between steps: plain
-            ist[CLOCK] += 1
+        elif step:                                      # Anderson between steps, fast ADMM backing off: plain
+            plain_step(accelerate, ist)
     return count
 
 
