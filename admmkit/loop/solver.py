@@ -21,12 +21,11 @@ from __future__ import annotations
 
 import math
 import time
-from typing import Callable
+from typing import TYPE_CHECKING, Callable
 
 import numpy as np
 
 from . import checks
-from .acceleration import Acceleration, Accelerator, make_accelerator
 from .ledger import Ledger
 from ..policy import Policy, RowPenalties
 from ..problem import Problem
@@ -36,6 +35,9 @@ from .segments import FastForward
 from .steps import ITERATIONS, PolicyStep, RhoEvent
 from .stopping import StoppingRule
 from .termination import Termination
+
+if TYPE_CHECKING:
+    from .acceleration import Accelerator
 
 #: a run that a stopping rule ended is ``converged_inaccurate`` when a relative KKT measure
 #: exceeds INACCURATE_FACTOR * max(the rule's tolerance, INACCURATE_FLOOR) (OSQP's "solved
@@ -137,7 +139,7 @@ def solve(
         the problem's compiled segment when it has one (:mod:`admmkit.loop.segments`;
         the same iterates bit for bit); False: every iteration in Python.
     """
-    accelerator = make_accelerator(acceleration)
+    accelerator = None if acceleration is None else _accelerator(acceleration)
     run = checks.prepare(problem, rho=rho, policy=policy, order=order, stop=stop, max_iter=max_iter,
                          callback=callback, x0=x0, z0=z0, lam0=lam0, time_limit=time_limit, blas_threads=blas_threads,
                          alpha=alpha, check_every=check_every, history=history, warm_start=warm_start,
@@ -147,8 +149,8 @@ def solve(
     watch, ledger = Termination(run), Ledger(run)           # the tests; the history, the callback, the taken ||r||
     ctx, rho, rho_changes, every, last = run.ctx, run.rho, 0, run.check_every, run.max_iter - 1
     x, z, lam, Ax = run.x, run.z, run.lam, run.Ax
-    accel = None if accelerator is None else Acceleration(accelerator, run.order, checks.inner_of(problem),
-                                                          *_inner_weights(problem, run.z))
+    accel = None if accelerator is None else _acceleration(accelerator, run.order, checks.inner_of(problem),
+                                                           *_inner_weights(problem, run.z))
     rho_event = RhoEvent(problem, accel)                    # a change of rho, eq. (17) taking effect: one call
     fast = FastForward(run, enabled=run.compiled, accel=accel)    # unread iterations, compiled (segments)
     iterate = fast.serve(iterate)                    # ... and a read one the segment ran: its numbers, not a rerun
@@ -195,6 +197,19 @@ def solve(
     result.acceleration = None if accel is None else accel.summary()
     result.last_record = rec
     return result
+
+
+def _accelerator(acceleration):
+    """:func:`admmkit.loop.acceleration.make_accelerator`, its module imported now: a plain run imports none of
+    it (5-15 ms of a fresh ``solve contact`` process)."""
+    from .acceleration import make_accelerator
+    return make_accelerator(acceleration)
+
+
+def _acceleration(accelerator, order, inner, weights, size):
+    """The loop's side of ``accelerator`` (:class:`admmkit.loop.acceleration.Acceleration`)."""
+    from .acceleration import Acceleration
+    return Acceleration(accelerator, order, inner, weights, size)
 
 
 def _inner_weights(problem, z) -> tuple:
