@@ -41,8 +41,9 @@ class FittedRowwise(RowwiseRule):
     #: exponent of the global estimate: fitted by `python -m admmkit.benchmarks.qp.fit_rule --data
     #: /work/shared/data/maros_meszaros --out docs/results/qp_fitted`, 2026-11-29
     ALPHA = 0.5
-    #: exponent of the rows' step: fitted by the same command, 2026-11-29
-    BETA = 0.5
+    #: exponent of the rows' step: fitted by the same command, 2026-11-29 (rowwise's 1/2: 65 of 86 training runs
+    #: solved; 1: 71, the grid's best; docs/results/qp_fitted/grid.md)
+    BETA = 1.0
     #: iterations between two readings: fitted by the same command, 2026-11-29
     INTERVAL = 50
     #: factor a change must exceed (rho, and the rows' RMS log-change): fitted by the same command, 2026-11-29

@@ -186,7 +186,7 @@ def best(table: list[dict]) -> str:
 def markdown(table: list[dict]) -> str:
     """The table as Markdown."""
     keys = list(table[0])
-    cell = lambda v: f"{v:.1f}" if isinstance(v, float) else str(v)    # noqa: E731
+    cell = lambda v: f"{v:.4g}" if isinstance(v, float) else str(v)    # noqa: E731
     lines = ["| " + " | ".join(keys) + " |", "| " + " | ".join("---" for _ in keys) + " |"]
     lines += ["| " + " | ".join(cell(line[k]) for k in keys) + " |" for line in table]
     return "\n".join(lines) + "\n"
