@@ -145,3 +145,16 @@ def test_the_command_refuses_bad_input_in_one_line(capsys):
     assert capsys.readouterr().err.strip() == "admmkit: error: --workers must be 1 or 2 (a shared 2-core machine), got 3"
     assert main(["--data", str(DATA), "--out", "/tmp/unused", "--grid", "beta=9"]) == 2
     assert "admmkit: error: grid must name configurations among rowwise" in capsys.readouterr().err
+
+
+@needs_data
+def test_the_harness_runs_a_built_rule_as_the_preset_runs_rowwise():
+    from admmkit.benchmarks.qp.fit_rule import GRID, RuleBuilder
+    from admmkit.benchmarks.qp.maros_meszaros_runs import run_admmkit
+    from admmkit.problems.qp.mat import load_mat
+    qp = load_mat(DATA / "HS118.mat")                # training; on its record's residuals the rule takes 150 / 250
+    by_name = run_admmkit(qp, "admmkit", "rowwise", "xz", (1e-3, 1e-6), None, 5.0)
+    built = run_admmkit(qp, "admmkit", RuleBuilder("base", "fitted", GRID["rowwise"]), "xz", (1e-3, 1e-6), None, 5.0)
+    assert [r["solver"] for r in built] == ["base", "base"]
+    for a, b in zip(by_name, built):             # OSQP's normalisation of the run's QP: the same iterations
+        assert (a["iterations"], a["rho_changes"], a["solved"]) == (b["iterations"], b["rho_changes"], b["solved"])
