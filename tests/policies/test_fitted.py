@@ -13,7 +13,7 @@ from admmkit.policies.rowwise import RowwiseRule
 from admmkit.problems.qp import solve_qp
 from admmkit.problems.qp.generate import random_qp
 
-DATA = Path(__file__).resolve().parents[2] / ".." / "shared" / "data" / "maros_meszaros"
+DATA = Path(__file__).resolve().parents[3] / "shared" / "data" / "maros_meszaros"
 needs_data = pytest.mark.skipif(not (DATA / "HS52.mat").exists(), reason="no Maros-Meszaros data")
 
 #: the training split as docs/results/qp_rules/choice.md lists it (the preset was chosen on these)
