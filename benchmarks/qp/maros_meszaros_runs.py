@@ -82,6 +82,10 @@ def run_admmkit(qp: QP, variant: str, rule: str, order: str, eps, max_iter: int,
                 acceleration: str | None = None) -> list[dict]:
     """One admmkit run to the tightest eps (the polish variant: one run per eps); one row per eps.
 
+    ``rule``: a name ``solve_qp`` takes ("osqp": OSQP's rule as OSQP runs it; "fixed": no rule), or a builder
+    ``rule(run_qp, settings) -> Policy`` with a ``name`` (the rows' ``solver``), called for every run with the QP the
+    run iterates on (scaled): how a rule gets OSQP's normalisation of that very QP
+    (``termination.osqp_relative_residuals(run_qp)``), as "osqp" and "rowwise" have it.
     ``acceleration``: None (plain ADMM), "anderson" or "fast" (:mod:`admmkit.loop.acceleration`).
     """
     eps = sorted({float(e) for e in eps}, reverse=True)
@@ -124,10 +128,13 @@ def run_admmkit_at(qp: QP, variant: str, rule: str, order: str, eps: list[float]
     watch.every_record = False      # it reads tested iterations (and rho, fixed in between): segments may run
     watch.every_tested = bool(looser)   # only the deadline and rho's largest value: the segment may test too
     # (rho_max then sees the rho of the records the loop reads, the final one included)
-    policy = None if rule == "fixed" else rule     # "osqp": OSQP's rule as OSQP runs it (solve_qp's default)
+    if isinstance(rule, str):
+        policy = None if rule == "fixed" else rule     # "osqp": OSQP's rule as OSQP runs it (solve_qp's default)
+    else:
+        policy = rule(run_qp, settings)                # a builder: the rule made for this run's QP
     res = solve_qp(run_qp, settings, policy=policy, callback=watch, acceleration=acceleration)
     total = clock() - t0
-    label = {"variant": variant, "solver": rule, "order": order}
+    label = {"variant": variant, "solver": rule if isinstance(rule, str) else rule.name, "order": order}
     common = {"rho_changes": res.rho_changes, "rho_final": res.rho, "rho_max": max(rho_max[0], res.rho),
               "setup_time": res.timings.get("setup", math.nan)}
     status = "time_limit" if res.status.value in ("stopped", "time_limit") else (res.termination or res.status.value)
