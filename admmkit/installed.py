@@ -17,6 +17,7 @@ form (lower case, runs of ``-``, ``_`` and ``.`` as one ``_``).  Without one
 """
 from __future__ import annotations
 
+import functools
 import importlib
 import os
 import re
@@ -50,13 +51,24 @@ def dist_info(name: str) -> str | None:
     want = _normalised(name)
     for folder in sys.path:
         try:
-            found = sorted(entry for entry in os.listdir(folder or ".") if entry.endswith(".dist-info")
-                           and _normalised(entry[:-len(".dist-info")].rpartition("-")[0]) == want)
+            found = _dist_infos(folder or ".", os.stat(folder or ".").st_mtime_ns).get(want)
         except OSError:
             continue
         if found:
-            return os.path.join(folder or ".", found[0])
+            return os.path.join(folder or ".", found)
     return None
+
+
+@functools.lru_cache(maxsize=64)
+def _dist_infos(folder: str, mtime_ns: int) -> dict[str, str]:
+    """{normalised name: the first of its dist-info folders, sorted} in ``folder`` as it was at ``mtime_ns`` (listed
+    once per process and change of the folder, as importlib.metadata does: a site-packages of many packages is
+    listed once for the several versions a process asks)."""
+    found: dict[str, str] = {}
+    for entry in sorted(os.listdir(folder)):
+        if entry.endswith(".dist-info"):
+            found.setdefault(_normalised(entry[:-len(".dist-info")].rpartition("-")[0]), entry)
+    return found
 
 
 def _read(name: str, file: str) -> list[str] | None:

@@ -35,7 +35,7 @@ closest name for a misspelt command, option or choice, and no usage block
 """
 from .host import (COMMAND_HELP, EXIT_CLOSED_PIPE, GROUP, GROUPS, Parser, build_parser, command_line, commands,  # noqa: F401
                    main)
-from .options import (EXIT_BAD_INPUT, EXIT_CONVERGED, EXIT_NOT_CONVERGED, add_common_options,  # noqa: F401
+from .options import (EXIT_BAD_INPUT, EXIT_CONVERGED, EXIT_NOT_CONVERGED, LazyHelp, add_common_options,  # noqa: F401
                       add_output_file, add_result_outputs, add_stop_options, check_options, level_file,
                       positive_float, positive_int, resolve_policy, set_help, stop_rule)
 from .output import (Progress, check_output_folder, exit_code, print_summary, provenance,  # noqa: F401

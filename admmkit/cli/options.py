@@ -52,27 +52,41 @@ def positive_int(text: str) -> int:
     return value
 
 
-class _PolicyOption(argparse._StoreAction):
-    """``--policy NAME``, whose help lists the methods and every rule installed when the help is shown.
+class LazyHelp(argparse._StoreAction):
+    """A stored option whose help is made when argparse reads it: ``help`` may be a function returning the text.
 
-    Listing the rules reads every installed package's entry points (importlib.metadata: 40-90 ms of a fresh
-    process); a run that names its rule needs none of them, so the list is made when argparse reads the help.
+    A help that lists what is installed (the rules, the bundled scenes) reads files or every package's entry
+    points; a run that names its choice reads none of them (issue #49: 20-90 ms of a fresh process).
     """
+
+    @property
+    def help(self) -> str | None:
+        """The help text, made now if it was given as a function, then :meth:`expand`-ed."""
+        text = self._help() if callable(self._help) else self._help
+        return text if text is None or text == argparse.SUPPRESS else self.expand(text)
+
+    @help.setter
+    def help(self, text) -> None:
+        self._help = text
+
+    def expand(self, text: str) -> str:
+        """The text shown (as given; a subclass adds what it lists)."""
+        return plain(text)
+
+
+class _PolicyOption(LazyHelp):
+    """``--policy NAME``, whose help lists the methods and every rule installed when the help is shown (the list
+    reads every installed package's entry points, importlib.metadata: 40-90 ms of a fresh process)."""
 
     def __init__(self, *args, methods: dict | None = None, **kwargs):
         self.methods = dict(methods or {})
         super().__init__(*args, **kwargs)
 
-    @property
-    def help(self) -> str:
+    def expand(self, text: str) -> str:
         """The help given, with the names of the methods and of the rules installed now."""
         from ..policy import policy_names
         names = [*self.methods, *policy_names()]
-        return self._help.replace("penalty rule or method", f"penalty rule or method: {', '.join(names)}", 1)
-
-    @help.setter
-    def help(self, text: str) -> None:
-        self._help = text
+        return text.replace("penalty rule or method", f"penalty rule or method: {', '.join(names)}", 1)
 
 
 class _DeprecatedAlias(argparse.Action):

@@ -11,8 +11,9 @@ import functools
 from pathlib import Path
 
 from admmkit.cli.adaptive import add_adaptive_options, balance_gamma, balance_line, check_adaptive_flags, estimator_name
-from admmkit.cli import (add_common_options, add_output_file, add_result_outputs, exit_code, positive_float,
-                         print_summary, progress, resolve_policy, stop_rule, write_history, write_result_csv)
+from admmkit.cli import (LazyHelp, add_common_options, add_output_file, add_result_outputs, exit_code,
+                         positive_float, print_summary, progress, resolve_policy, stop_rule, write_history,
+                         write_result_csv)
 
 from admmkit.problems.contact.solvers.friction import TANGENTIAL
 from admmkit.problems.contact.solvers.methods import METHODS
@@ -32,10 +33,7 @@ def register(subparsers) -> None:
                                           "the time grows with the unknowns (bench scale: 1e6 in ~15 s "
                                           "with --mode iterative, 2.4 GB). needs: ngsolve; --mode iterative pyamg; "
                                           "--plot matplotlib; --vtk meshio (all installed with admmkit)")
-    scenes = ", ".join(f"{name} ({kind})" for name, kind in scene_names().items())
-    p.add_argument("--scene", default="ex1", metavar="NAME|FILE.toml",
-                   help=f"a scene of problems/contact/scenes: {scenes}; or the path of a scene TOML file "
-                        f"(docs/scenes.md) (default ex1)")
+    p.add_argument("--scene", default="ex1", metavar="NAME|FILE.toml", action=LazyHelp, help=_scene_help)
     p.add_argument("--h", type=positive_float, default=None,
                    help="mesh size, fractions allowed, 0 < h <= the scene's shorter side (default: the scene's; with --target-error, the first level's, "
                         "default min(L, H) / 5 on a 2D rectangle)")
@@ -84,6 +82,13 @@ def _scene_names() -> tuple:
         data = data.get("scene", data)
         out[path.stem] = f"{data.get('dim', 2)}-D, {data.get('tangential', 'frictionless')}"
     return tuple(out.items())
+
+
+def _scene_help() -> str:
+    """``--scene``'s help: every bundled scene (read from their files when the help is shown, not for a run)."""
+    scenes = ", ".join(f"{name} ({kind})" for name, kind in scene_names().items())
+    return (f"a scene of problems/contact/scenes: {scenes}; or the path of a scene TOML file (docs/scenes.md) "
+            f"(default ex1)")
 
 
 def scene_names() -> dict[str, str]:
