@@ -192,14 +192,19 @@ def markdown(table: list[dict]) -> str:
     return "\n".join(lines) + "\n"
 
 
+#: the pages' titles (a results page without a "# " title is not built by the docs, and a link to it breaks them)
+TITLES = {"grid": "The fit of `fitted` on the training split", "test": "The check of `fitted` on the test split"}
+
+
 def write_table(out: Path, stem: str, table: list[dict], heading: str) -> None:
-    """``out/stem.csv`` and ``out/stem.md``, each written whole."""
+    """``out/stem.csv`` and ``out/stem.md`` (titled from :data:`TITLES`), each written whole."""
     buf = io.StringIO()
     w = csv.DictWriter(buf, fieldnames=list(table[0]), lineterminator="\n")
     w.writeheader()
     w.writerows(table)
     write_text(out / f"{stem}.csv", buf.getvalue())
-    write_text(out / f"{stem}.md", heading + "\n\n" + markdown(table))
+    title = TITLES.get(stem, stem)
+    write_text(out / f"{stem}.md", f"# {title}\n\n{heading}\n\n" + markdown(table))
 
 
 def params_text(name: str) -> str:

@@ -126,6 +126,7 @@ def test_the_fit_writes_its_tables_whole(tmp_path, monkeypatch):
     assert lines[0].startswith("config,alpha,beta,interval,tolerance,solved 0.001,solved 1e-06,solved,")
     assert len(lines) == 2 and lines[1].startswith("rowwise,0.5,0.5,50,5.0,2,2,4,")   # both solved at both eps
     assert "chosen: `rowwise`" in (out / "grid.md").read_text()
+    assert (out / "grid.md").read_text().startswith("# ")        # titled: the docs build it (and links to it)
     assert sorted(p.name for p in out.iterdir()) == ["grid.csv", "grid.md", "grid_runs"]   # no temporary file left
 
     def refuse(src, dst):
