@@ -28,10 +28,7 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
-
 from admmkit import IterationRecord
-from admmkit.policies.osqp_rule import DIVISION_TOL
 from admmkit.policies.rowwise import RowwiseRule
 
 
@@ -60,28 +57,7 @@ class FittedRowwise(RowwiseRule):
 
     def estimate(self, rec: IterationRecord) -> float:
         """rho_est = rho_k (r_rel / s_rel)^alpha, the ratio taken as :meth:`OSQPRule.estimate` takes it."""
-        r, s = self.relative_residuals(rec)
-        if self.residuals is not None:
-            ratio = r / s if s > 0 else (math.inf if r > 0 else math.nan)
-        else:
-            ratio = min(max(r, DIVISION_TOL), 1 / DIVISION_TOL) / min(max(s, DIVISION_TOL), 1 / DIVISION_TOL)
-        return rec.rho * power(ratio, self.alpha)
-
-    def row_factors(self, rec: IterationRecord) -> np.ndarray | None:
-        """The rows' new factors d (geometric mean 1, within [1/spread, spread]) after the step t_i^beta, or None
-        where the record gives no residual to balance (as :meth:`RowwiseRule.row_factors`)."""
-        w = rec.row_weights
-        if self.base is None:
-            self.base, self.factors = w, np.ones_like(w)
-        r = np.abs(rec.Ax - rec.z)
-        s = rec.rho * w * np.abs(rec.z - rec.z_prev)
-        r_top, s_top = float(np.max(r, initial=0.0)), float(np.max(s, initial=0.0))
-        if not (0 < r_top < math.inf and 0 < s_top < math.inf):
-            return None
-        t = (r + self.floor * r_top) / (s + self.floor * s_top)
-        log_d = np.log(self.factors) + self.beta * np.log(t)
-        log_d -= log_d.mean()
-        return np.exp(np.clip(log_d, -math.log(self.spread), math.log(self.spread)))
+        return rec.rho * power(self.ratio(rec), self.alpha)
 
 
 def exponent(name: str, value, zero: bool) -> float:

@@ -85,13 +85,16 @@ class OSQPRule(Policy):
         normalisation) the ratio is taken as OSQP 1.x takes it (s_rel = 0 gives
         an infinite estimate, clamped to ``rho_max`` by :meth:`update`).
         """
+        return rec.rho * math.sqrt(self.ratio(rec))
+
+    def ratio(self, rec: IterationRecord) -> float:
+        """r_rel / s_rel as :meth:`estimate` takes it (each clamped, or OSQP 1.x's quotient with ``residuals``)."""
         r, s = self.relative_residuals(rec)
         if self.residuals is not None:
-            ratio = r / s if s > 0 else (math.inf if r > 0 else math.nan)
-            return rec.rho * math.sqrt(ratio)
+            return r / s if s > 0 else (math.inf if r > 0 else math.nan)
         r = min(max(r, DIVISION_TOL), 1 / DIVISION_TOL)
         s = min(max(s, DIVISION_TOL), 1 / DIVISION_TOL)
-        return rec.rho * math.sqrt(r / s)
+        return r / s
 
     def unchanged_until(self, k: int) -> int:
         """The next iteration j >= k with (j + 1) a multiple of ``interval``: the rule reads no other record."""

@@ -49,6 +49,8 @@ class RowwiseRule(OSQPRule):
     """OSQP's rule for rho, and each row's weight moved by sqrt(its primal residual / its dual residual share)."""
 
     per_row = True
+    #: the exponent of a row's step d_i <- d_i t_i^beta (the square root; ``fitted`` makes it a parameter)
+    beta = 0.5
 
     def __init__(self, interval: int = 50, tolerance: float = 5.0, spread: float = 100.0, floor: float = 1e-3,
                  rho_min: float = 0.0, rho_max: float = math.inf, residuals=None):
@@ -75,7 +77,7 @@ class RowwiseRule(OSQPRule):
         if not (0 < r_top < math.inf and 0 < s_top < math.inf):
             return None
         t = (r + self.floor * r_top) / (s + self.floor * s_top)
-        log_d = np.log(self.factors) + 0.5 * np.log(t)
+        log_d = np.log(self.factors) + self.beta * np.log(t)
         log_d -= log_d.mean()
         return np.exp(np.clip(log_d, -math.log(self.spread), math.log(self.spread)))
 
