@@ -8,22 +8,11 @@ import pytest
 from admmkit import kernels
 from admmkit.loop.acceleration import Anderson
 from admmkit.problems.qp import admmkit_settings, load_mat, random_qp, solve_qp
-from admmkit.problems.qp import segment_checks
 from admmkit.problems.qp.generate import infeasible_qp, unbounded_qp
 from tests import qp_paths
 
 MM = Path(__file__).resolve().parents[3] / "shared" / "data" / "maros_meszaros"
 pytestmark = pytest.mark.skipif(not kernels.AVAILABLE, reason="numba is not installed: no compiled segment")
-
-
-def same_run(a, b):
-    """Two results with the same iterates, iterations, rho path, factorisations, status and Anderson counts."""
-    assert a.status == b.status and a.termination == b.termination
-    assert a.iterations == b.iterations and a.rho == b.rho
-    assert np.array_equal(a.x, b.x) and np.array_equal(a.y, b.y) and np.array_equal(a.z, b.z)
-    assert np.array_equal(a.history["rho"], b.history["rho"])
-    assert a.counters["factorizations"] == b.counters["factorizations"]
-    assert a.acceleration == b.acceleration
 
 
 def three_ways(qp, interval, monkeypatch, settings=None, **changes):
@@ -42,8 +31,8 @@ def three_ways(qp, interval, monkeypatch, settings=None, **changes):
 @pytest.mark.parametrize("eps", [1e-3, 1e-8])
 def test_compiled_is_python_bit_for_bit_at_every_interval(make, interval, eps, monkeypatch):
     inside, outside, python = three_ways(make(), interval, monkeypatch, eps_abs=eps, eps_rel=eps)
-    same_run(inside, python)
-    same_run(outside, python)
+    qp_paths.same_run(inside, python)
+    qp_paths.same_run(outside, python)
     assert python.acceleration["accelerator"].endswith(f"interval={interval})")
 
 
@@ -52,8 +41,8 @@ def test_the_admmkit_preset_too(interval, monkeypatch):
     """admmkit's preset (a penalty per row, polishing during the run): the segment ends where its rule reads."""
     inside, outside, python = three_ways(random_qp(40, 60, seed=7), interval, monkeypatch, admmkit_settings(),
                                          eps_abs=1e-6, eps_rel=1e-6)
-    same_run(inside, python)
-    same_run(outside, python)
+    qp_paths.same_run(inside, python)
+    qp_paths.same_run(outside, python)
 
 
 def test_anderson_keeps_the_test_in_the_kernel():
@@ -72,6 +61,6 @@ def test_maros_meszaros_runs_are_python_bit_for_bit(name, monkeypatch):
     qp = load_mat(MM / f"{name}.mat")
     for interval in (1, 10):
         inside, outside, python = three_ways(qp, interval, monkeypatch, eps_abs=1e-6, eps_rel=1e-6)
-        same_run(inside, python)
-        same_run(outside, python)
+        qp_paths.same_run(inside, python)
+        qp_paths.same_run(outside, python)
         assert python.termination == "solved"

@@ -11,21 +11,10 @@ from admmkit.loop.acceleration import Acceleration, FastADMM
 from admmkit.loop.fast_kernel import (A, BACKOFF, C, EXTRAPOLATED, FAILED, HAVE_PREV, RESTARTS, SKIP, FastArrays,
                                       fast_update, fast_update_numpy)
 from admmkit.problems.qp import admmkit_settings, load_mat, random_qp, solve_qp
-from admmkit.problems.qp import segment_checks
 from tests import qp_paths
 
 MM = Path(__file__).resolve().parents[3] / "shared" / "data" / "maros_meszaros"
 pytestmark = pytest.mark.skipif(not kernels.AVAILABLE, reason="numba is not installed: no compiled segment")
-
-
-def same_run(a, b):
-    """Two results with the same iterates, iterations, rho path, factorisations, status and fast ADMM's counts."""
-    assert a.status == b.status and a.termination == b.termination
-    assert a.iterations == b.iterations and a.rho == b.rho
-    assert np.array_equal(a.x, b.x) and np.array_equal(a.y, b.y) and np.array_equal(a.z, b.z)
-    assert np.array_equal(a.history["rho"], b.history["rho"])
-    assert a.counters["factorizations"] == b.counters["factorizations"]
-    assert a.acceleration == b.acceleration
 
 
 def three_ways(qp, monkeypatch, settings=None, **changes):
@@ -41,8 +30,8 @@ def three_ways(qp, monkeypatch, settings=None, **changes):
 @pytest.mark.parametrize("eps", [1e-3, 1e-6])
 def test_compiled_is_python_bit_for_bit(make, eps, monkeypatch):
     inside, outside, python = three_ways(make(), monkeypatch, eps_abs=eps, eps_rel=eps)
-    same_run(inside, python)
-    same_run(outside, python)
+    qp_paths.same_run(inside, python)
+    qp_paths.same_run(outside, python)
     assert python.acceleration["extrapolated"] > 0 and python.acceleration["restarts"] > 0
     assert inside.counters["compiled_iterations"] > inside.iterations / 2     # the segment ran most iterations
 
@@ -51,8 +40,8 @@ def test_the_admmkit_preset_too(monkeypatch):
     """admmkit's preset (a penalty per row, polishing during the run): the segment ends where its rule reads."""
     inside, outside, python = three_ways(random_qp(40, 60, seed=7), monkeypatch, admmkit_settings(),
                                          eps_abs=1e-6, eps_rel=1e-6)
-    same_run(inside, python)
-    same_run(outside, python)
+    qp_paths.same_run(inside, python)
+    qp_paths.same_run(outside, python)
     assert inside.counters["compiled_iterations"] > 0
 
 
@@ -69,8 +58,8 @@ def test_fast_runs_in_the_segment_and_keeps_the_test_there():
 @pytest.mark.parametrize("eps", [1e-3, 1e-6])
 def test_hs118_is_python_bit_for_bit(eps, monkeypatch):
     inside, outside, python = three_ways(load_mat(MM / "HS118.mat"), monkeypatch, eps_abs=eps, eps_rel=eps)
-    same_run(inside, python)
-    same_run(outside, python)
+    qp_paths.same_run(inside, python)
+    qp_paths.same_run(outside, python)
     assert python.acceleration["restarts"] > 0
 
 
@@ -80,8 +69,8 @@ def test_a_change_of_rho_restarts_it_in_the_segment_too(monkeypatch):
     inside, outside, python = three_ways(random_qp(40, 60, seed=11), monkeypatch, eps_abs=1e-7, eps_rel=1e-7,
                                          rho=1e-4)
     assert len(set(python.history["rho"])) >= 4
-    same_run(inside, python)
-    same_run(outside, python)
+    qp_paths.same_run(inside, python)
+    qp_paths.same_run(outside, python)
     fast = FastADMM()
     Acceleration(fast, "xz", None, np.ones(3), 3)
     fast.propose((np.zeros(3), np.zeros(3)), (np.ones(3), np.ones(3)), 1.0, None)
@@ -151,7 +140,7 @@ def test_a_run_with_the_kernels_as_python_is_the_compiled_run(monkeypatch):
         monkeypatch.setattr(module, "compiled_now", lambda: False)
     python = solve_qp(qp, acceleration="fast", eps_abs=1e-6, eps_rel=1e-6, compiled=False)
     assert len(calls) > python.iterations // 2 > 50              # a step after each iteration but a few
-    same_run(compiled, python)
+    qp_paths.same_run(compiled, python)
 
 
 @pytest.mark.parametrize("eta", [0, 1.0, -0.5, 1.5, math.nan, "0.9", None, True])
@@ -236,6 +225,6 @@ def test_the_back_off_runs_in_the_segment_bit_for_bit(monkeypatch):
     """HS268 at 1e-6: failed phases and back-offs met inside the segment (its plain steps read nothing), the same
     run as the Python loop's."""
     inside, outside, python = three_ways(load_mat(MM / "HS268.mat"), monkeypatch, eps_abs=1e-6, eps_rel=1e-6)
-    same_run(inside, python)
-    same_run(outside, python)
+    qp_paths.same_run(inside, python)
+    qp_paths.same_run(outside, python)
     assert python.acceleration["rejected"] > 0 and python.acceleration["restarts"] > 0

@@ -8,26 +8,14 @@ import pytest
 import admmkit
 from admmkit import kernels
 from admmkit.problems.qp import admmkit_settings, load_mat, random_qp, solve_qp
-from admmkit.problems.qp import segment_checks
 from admmkit.problems.qp.generate import infeasible_qp, unbounded_qp
 from admmkit.problems.qp.termination import QPTermination
-from tests.qp_paths import three_ways
+from tests.qp_paths import same_run, three_ways
 
 MM = Path(__file__).resolve().parents[3] / "shared" / "data" / "maros_meszaros"
 pytestmark = pytest.mark.skipif(
     not kernels.AVAILABLE or "qdldl" not in admmkit.linalg.linsolve.available_backends(),
     reason="the segment needs numba and reads qdldl's factors")
-
-
-def same_run(a, b):
-    """Two results with the same iterates, iterations, rho path, factorisations and status."""
-    assert a.status == b.status and a.termination == b.termination
-    assert a.iterations == b.iterations and a.rho == b.rho
-    assert np.array_equal(a.x, b.x) and np.array_equal(a.y, b.y) and np.array_equal(a.z, b.z)
-    assert np.array_equal(a.history["rho"], b.history["rho"])
-    assert a.counters["factorizations"] == b.counters["factorizations"]
-    if a.certificate is not None or b.certificate is not None:
-        assert np.array_equal(a.certificate, b.certificate)
 
 
 @pytest.mark.parametrize("make", [
