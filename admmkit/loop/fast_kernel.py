@@ -62,6 +62,23 @@ def fast_reads_state(ist):
 
 
 @kernel(cache=True)
+def momentum_step(ist, ac, c):
+    """(A5)'s bookkeeping where c_k < eta c_{k-1} (or no image is held yet): a_{k+1} and c_k stored, the counts of a
+    momentum phase.  Returns beta = (a_k - 1) / a_{k+1} and whether s_{k+1} is extrapolated (an image f_{k-1} is
+    held and beta != 0)."""
+    a_next = (1.0 + math.sqrt(1.0 + 4.0 * ac[A] ** 2)) / 2.0
+    beta = (ac[A] - 1.0) / a_next
+    ac[A], ac[C] = a_next, c
+    momentum = ist[HAVE_PREV] == 1 and beta != 0.0
+    if momentum:
+        ist[EXTRAPOLATED] += 1
+        ist[PHASE] += 1
+    ist[MOMENTUM] = 1 if momentum else 0
+    ist[HAVE_PREV] = 1
+    return beta, momentum
+
+
+@kernel(cache=True)
 def restart(ist, ac):
     """A restart's bookkeeping (A5)-(A6): no momentum; a phase shorter than the patience fails and backs off.
     Returns whether s_k was extrapolated (the step then goes back to f_{k-1}, else it keeps f_k)."""
@@ -101,10 +118,7 @@ def fast_update(rho, w, eta, s_u, s_l, f_u, f_l, out_u, out_l, ist, ac, f_prev):
         sl += w[i] * b * b
     c = rho * su + sl / rho
     if ist[HAVE_PREV] == 0 or c < eta * ac[C]:
-        a_next = (1.0 + math.sqrt(1.0 + 4.0 * ac[A] ** 2)) / 2.0
-        beta = (ac[A] - 1.0) / a_next
-        ac[A], ac[C] = a_next, c
-        momentum = ist[HAVE_PREV] == 1 and beta != 0.0
+        beta, momentum = momentum_step(ist, ac, c)
         for i in range(m):                                  # (A5), and f becomes f_prev
             fu, fl = f_u[i], f_l[i]
             if momentum:
@@ -113,11 +127,6 @@ def fast_update(rho, w, eta, s_u, s_l, f_u, f_l, out_u, out_l, ist, ac, f_prev):
             else:
                 out_u[i], out_l[i] = fu, fl
             f_prev[i], f_prev[m + i] = fu, fl
-        if momentum:
-            ist[EXTRAPOLATED] += 1
-            ist[PHASE] += 1
-        ist[MOMENTUM] = 1 if momentum else 0
-        ist[HAVE_PREV] = 1
         return
     if restart(ist, ac):                                    # s_k extrapolated: back to f_{k-1}
         if ist[HAVE_PREV] == 1:                             # (not backing off)
@@ -145,20 +154,13 @@ def fast_update_numpy(rho, w, eta, s_u, s_l, f_u, f_l, out_u, out_l, ist, ac, f_
     sl = float(np.cumsum(w * b * b)[-1]) if m else 0.0
     c = rho * su + sl / rho
     if ist[HAVE_PREV] == 0 or c < eta * ac[C]:
-        a_next = (1.0 + math.sqrt(1.0 + 4.0 * ac[A] ** 2)) / 2.0
-        beta = (ac[A] - 1.0) / a_next
-        ac[A], ac[C] = a_next, c
-        momentum = ist[HAVE_PREV] == 1 and beta != 0.0
+        beta, momentum = momentum_step.py_func(ist, ac, c)  # the kernel's bookkeeping, as Python
         if momentum:                                        # (A5)
             out_u[:] = f_u + beta * (f_u - f_prev[:m])
             out_l[:] = f_l + beta * (f_l - f_prev[m:])
-            ist[EXTRAPOLATED] += 1
-            ist[PHASE] += 1
         else:
             out_u[:], out_l[:] = f_u, f_l
-        ist[MOMENTUM] = 1 if momentum else 0
         f_prev[:m], f_prev[m:] = f_u, f_l
-        ist[HAVE_PREV] = 1
         return
     if restart.py_func(ist, ac):                            # the kernel's bookkeeping, as Python
         if ist[HAVE_PREV] == 1:
