@@ -34,7 +34,6 @@ import argparse
 import csv
 import io
 import math
-import os
 import sys
 from dataclasses import dataclass
 from pathlib import Path
@@ -42,7 +41,7 @@ from pathlib import Path
 from admmkit.io import write_text
 from admmkit.benchmarks.qp.maros_meszaros_stats import SHIFT, shifted_geometric_mean
 from admmkit.benchmarks.qp.qp_rules_report import qp_class, split
-from admmkit.benchmarks.rules.cases import DATA_ENV
+from admmkit.benchmarks.qp.maros_meszaros_runs import DATA_ENV
 
 #: the grid: name -> (alpha, beta, interval, tolerance); one constant moved at a time from ``rowwise``'s (the first)
 GRID = {
@@ -100,21 +99,12 @@ def build_cases(problems, configs: dict[str, RuleBuilder], eps=EPS, time_limit: 
              "eps": list(eps), "time_limit": time_limit} for p in problems for name, b in configs.items()]
 
 
-_QP: dict = {}
-
-
 def run_case(case: dict) -> dict:
     """Worker entry point: one configuration on one problem, in admmkit's preset; {"rows": one per eps}."""
-    from admmkit.benchmarks.qp.maros_meszaros_runs import run_admmkit
-    from admmkit.benchmarks.rules.cases import warm_qp_kernels
-    from admmkit.problems.qp.mat import load_mat
+    from admmkit.benchmarks.qp.maros_meszaros_runs import case_qp, run_admmkit, warm_qp_kernels
     warm_qp_kernels()
-    path = Path(os.environ.get(DATA_ENV, ".")) / case["file"]
-    if _QP.get("path") != path:
-        _QP.clear()
-        _QP.update(path=path, qp=load_mat(path))
     rule = RuleBuilder(case["config"], case["kind"], tuple(case["params"]))
-    rows = run_admmkit(_QP["qp"], "admmkit", rule, "xz", tuple(case["eps"]), None, case["time_limit"])
+    rows = run_admmkit(case_qp(case["file"]), "admmkit", rule, "xz", tuple(case["eps"]), None, case["time_limit"])
     return {"rows": [{"problem": case["problem"], "config": case["config"], "eps": r["eps"],
                       "solved": bool(r["solved"]) and bool(r["neutral"]), "status": str(r["status"]),
                       "iterations": int(r["iterations"]), "time": float(r["time"])} for r in rows]}

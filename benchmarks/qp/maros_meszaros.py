@@ -40,7 +40,6 @@ from __future__ import annotations
 
 import datetime
 import math
-import os
 import time
 from pathlib import Path
 
@@ -54,12 +53,13 @@ from admmkit.benchmarks.runner.machine import machine_info
 from admmkit.benchmarks.qp.maros_meszaros_report import FIELDS, plot_profiles, read_rows, write_report, write_rows  # noqa: F401
 from admmkit.benchmarks.qp.maros_meszaros_stats import (OSQP_DIRECT, RHO0, SHIFT, performance_profile,  # noqa: F401
                                                        shifted_geometric_mean, summarize)
-from admmkit.benchmarks.qp.maros_meszaros_runs import VARIANTS, run_admmkit, run_osqp
+from admmkit.benchmarks.qp.maros_meszaros_runs import (DATA_ENV, VARIANTS, case_qp, run_admmkit, run_osqp,
+                                                       warm_qp_kernels)
 from admmkit.benchmarks.runner.harness import check_harness, without_harness_failures
 from admmkit.benchmarks.runner.sweep import Executor, case_id, finished, run_sweep
 
 from admmkit.problems.qp.convexity import check_convex
-from admmkit.problems.qp.mat import list_problems, load_mat, read_matrices
+from admmkit.problems.qp.mat import list_problems, read_matrices
 from admmkit.problems.qp.xstep_forms import REDUCED_MAX_NNZ, reduced_nnz_bound
 
 EPS = (1e-3, 1e-6)
@@ -75,8 +75,6 @@ NNZ_LIMIT = 2e7
 ABLATIONS = ("no-scaling", "uniform-rho", "alpha-1", "polish", "admmkit")
 #: the variants that run with their own iteration cap instead of the study's
 OWN_CAP = ("admmkit",)
-#: the folder of the MAT files, for the workers (set by the driver through the sweep's env)
-DATA_ENV = "ADMMKIT_QP_DATA"
 
 
 def default_policies() -> list[str]:
@@ -153,7 +151,6 @@ def build_cases(paths, configs, eps, max_iter: int, time_limit: float, osqp_dire
     return cases
 
 
-_QP: dict = {}
 _WARM: list = []
 
 
@@ -166,9 +163,8 @@ def warm_worker() -> None:
     if not _WARM:
         import osqp  # noqa: F401   (first: a module imported after the kernels' warm-up made the first timed solve
         #                             enumerate the BLAS libraries again, admmkit.loop.blas, 4 ms)
-        from admmkit.benchmarks.framework.warm_up import qp_kernels
         from admmkit.problems.qp.generate import random_qp
-        qp_kernels()
+        warm_qp_kernels()
         run_osqp(random_qp(30, 40, seed=0), 1e-3, 4000, 5.0)     # and one OSQP solve: both sides have run once
         _WARM.append(True)
 
@@ -176,11 +172,7 @@ def warm_worker() -> None:
 def run_case(case: dict) -> dict:
     """Worker entry point: one configuration on one QP; {"rows": one row per accuracy}."""
     warm_worker()
-    path = Path(os.environ.get(DATA_ENV, ".")) / case["file"]
-    if _QP.get("path") != path:
-        _QP.clear()
-        _QP.update(path=path, qp=load_mat(path))
-    qp = _QP["qp"]
+    qp = case_qp(case["file"])
     if case["solver"] == OSQP_DIRECT:
         return {"rows": [run_osqp(qp, case["eps"], case["max_iter"], case["time_limit"],
                                   polish=case["variant"] == "polish")]}

@@ -24,7 +24,9 @@ included), and so is the time limit: the machine is shared.
 from __future__ import annotations
 
 import math
+import os
 import time
+from pathlib import Path
 
 import numpy as np
 import scipy.sparse as sp
@@ -50,6 +52,32 @@ VARIANTS = {
 OSQP_DIRECT = "OSQP"
 #: a wall-time cap of WALL_FACTOR x the (CPU) time limit, against a stalled machine
 WALL_FACTOR = 20.0
+#: the folder of the MAT files, for the workers (a driver sets it through the sweep's env)
+DATA_ENV = "ADMMKIT_QP_DATA"
+
+_CASE_QP: dict = {}
+_WARM: list = []
+
+
+def case_qp(file: str) -> QP:
+    """A worker's QP of the MAT file ``file`` in the folder ``$ADMMKIT_QP_DATA``, read once for the cases of one
+    problem in a row (the last one read is held)."""
+    from admmkit.problems.qp.mat import load_mat
+    path = Path(os.environ.get(DATA_ENV, ".")) / file
+    if _CASE_QP.get("path") != path:
+        _CASE_QP.clear()
+        _CASE_QP.update(path=path, qp=load_mat(path))
+    return _CASE_QP["qp"]
+
+
+def warm_qp_kernels() -> None:
+    """Once per process, before its first timed QP case: the QP kernels compiled or loaded from numba's cache
+    (``admmkit warm-up``'s QP group).  Otherwise the first QP case of a worker holds the compilation (4 s on a cold
+    cache) in its time and against its CPU-time limit, and is ranked on it."""
+    if not _WARM:
+        from admmkit.benchmarks.framework.warm_up import qp_kernels
+        qp_kernels()
+        _WARM.append(True)
 
 
 def settings_for(variant: str, order: str, eps: float, max_iter: int | None, time_limit: float) -> QPSettings:

@@ -23,21 +23,16 @@ family's own truthful measure:
 """
 from __future__ import annotations
 
-import os
 import time
-from pathlib import Path
 
 import numpy as np
 
 import admmkit
+from admmkit.benchmarks.qp.maros_meszaros_runs import DATA_ENV  # noqa: F401  (the study sets it for its workers)
 
 #: the stop of the framework family (relative error against the cvxpy reference)
 ORACLE = 1e-6
-#: the folder of the Maros-Meszaros files, for the workers
-DATA_ENV = "ADMMKIT_QP_DATA"
-
 _CACHE: dict = {}
-_WARM: list = []
 
 
 def run_fe(case: dict) -> list[dict]:
@@ -57,27 +52,13 @@ def run_stability(case: dict) -> list[dict]:
              "seconds": r["seconds"]}]
 
 
-def warm_qp_kernels() -> None:
-    """Once per process, before its first timed QP case: the QP kernels compiled or loaded from numba's cache
-    (``admmkit warm-up``'s QP group), as ``bench qp``'s workers do.  Otherwise the first QP case of a worker holds
-    the compilation (4 s on a cold cache) in its time and against its CPU-time limit, and is ranked on it."""
-    if not _WARM:
-        from admmkit.benchmarks.framework.warm_up import qp_kernels
-        qp_kernels()
-        _WARM.append(True)
-
-
 def run_qp(case: dict) -> list[dict]:
     """qp: one rule on one Maros-Meszaros problem under OSQP's machinery, judged at every eps."""
-    from admmkit.benchmarks.qp.maros_meszaros_runs import run_admmkit
-    from admmkit.problems.qp.mat import load_mat
+    from admmkit.benchmarks.qp.maros_meszaros_runs import case_qp, run_admmkit, warm_qp_kernels
     warm_qp_kernels()
-    path = Path(os.environ.get(DATA_ENV, ".")) / case["file"]
-    if _CACHE.get("qp_path") != path:
-        _CACHE.clear()
-        _CACHE.update(qp_path=path, qp=load_mat(path))
+    qp = case_qp(case["file"])
     variant = {"osqp": "preset", "admmkit": "admmkit"}[case.get("preset", "osqp")]
-    rows = run_admmkit(_CACHE["qp"], variant, case["rule"], case["order"], tuple(case["eps"]), case["max_iter"],
+    rows = run_admmkit(qp, variant, case["rule"], case["order"], tuple(case["eps"]), case["max_iter"],
                        case["time_limit"], acceleration=case.get("acceleration"))
     runs = []
     for row in rows:

@@ -185,7 +185,9 @@ def test_a_worker_loads_the_qp_kernels_once_before_its_first_timed_case(monkeypa
     from admmkit.benchmarks.qp import maros_meszaros
     from admmkit.problems.qp.segment import AVAILABLE, compiled_pays
     calls = []
+    from admmkit.benchmarks.qp import maros_meszaros_runs as harness
     monkeypatch.setattr(maros_meszaros, "_WARM", [])
+    monkeypatch.setattr(harness, "_WARM", [])            # the kernels' own once-per-process flag
     import admmkit.benchmarks.framework.warm_up as warm_up
     original = warm_up.qp_kernels
     monkeypatch.setattr(warm_up, "qp_kernels", lambda: (calls.append(1), original())[1])

@@ -83,7 +83,8 @@ def test_a_worker_compiles_the_qp_kernels_once_before_its_first_timed_case(monke
     from admmkit.benchmarks.framework import warm_up
     calls = []
     monkeypatch.setattr(warm_up, "qp_kernels", lambda: calls.append(True))
-    monkeypatch.setattr(rank_cases, "_WARM", [])
+    from admmkit.benchmarks.qp import maros_meszaros_runs as harness
+    monkeypatch.setattr(harness, "_WARM", [])
     monkeypatch.setitem(os.environ, rank_cases.DATA_ENV, str(DATA))
     case = {"file": "HS21.mat", "rule": "osqp", "order": "xz", "eps": [1e-3], "time_limit": 5.0, "max_iter": 4000}
     for _ in range(2):
