@@ -149,9 +149,9 @@ def set_help(parser: argparse.ArgumentParser, **helps: str) -> None:
     """Replace the help of options already added, by destination (``tol="..."``): a plug-in whose default differs.
 
     A hidden option (help ``argparse.SUPPRESS``, such as the alias ``--method`` of ``--policy``) stays hidden;
-    ``--policy``'s list of rules is not read to find that out (:class:`_PolicyOption`)."""
+    a :class:`LazyHelp`'s text (``--policy``'s list of rules) is not made to find that out."""
     for action in parser._actions:
-        if action.dest in helps and vars(action).get("help") != argparse.SUPPRESS:
+        if action.dest in helps and vars(action).get("help", vars(action).get("_help")) != argparse.SUPPRESS:
             action.help = plain(helps[action.dest])
 
 

@@ -269,3 +269,18 @@ def test_a_fraction_is_the_float_fractions_gives():
     for text in ("1/0", "1 / 40", "/3", "1/", "--1/3", "1/-3", "-1/3", "1e3/7", "2/3e0", "0.1/3"):
         with pytest.raises(argparse.ArgumentTypeError):
             positive_float(text)
+
+
+def test_set_help_keeps_hidden_options_hidden_without_making_lazy_helps():
+    """set_help replaces a shown option's help, leaves a hidden one (plain or LazyHelp) hidden, and does not call a
+    LazyHelp's text function to find out."""
+    import argparse
+    from admmkit.cli import LazyHelp, set_help
+    made = []
+    p = argparse.ArgumentParser()
+    p.add_argument("--shown", action=LazyHelp, help=lambda: made.append(1) or "listed")
+    p.add_argument("--alias", dest="shown", help=argparse.SUPPRESS)
+    p.add_argument("--hidden", action=LazyHelp, help=argparse.SUPPRESS)
+    set_help(p, shown="new text", hidden="should stay hidden")
+    helps = {a.option_strings[0]: a.help for a in p._actions if a.option_strings and a.option_strings[0] != "-h"}
+    assert made == [] and helps == {"--shown": "new text", "--alias": argparse.SUPPRESS, "--hidden": argparse.SUPPRESS}
