@@ -27,8 +27,9 @@ import numpy as np
 
 def qp_kernels() -> None:
     """Every QP kernel, through ``solve_qp(..., compiled=True)`` on QPs that reach each of them: OSQP's settings
-    with its polish, admmkit's preset (polishing during the run, a penalty per row), Anderson's and fast ADMM's
-    steps in the segment, the infeasibility certificates."""
+    with its polish, a callback that reads the tested iterations (the segment without the test in its kernel: bench
+    qp's and bench rules' harness), admmkit's preset (polishing during the run, a penalty per row), Anderson's and
+    fast ADMM's steps in the segment, the infeasibility certificates."""
     from admmkit.kernels import compiled_code
     from admmkit.problems.qp import admmkit_settings, solve_qp
     from admmkit.problems.qp.generate import infeasible_qp, random_qp, unbounded_qp
@@ -36,6 +37,11 @@ def qp_kernels() -> None:
     from admmkit.problems.qp.sparse_kernels import symmetry_defect
     qp = random_qp(30, 40, seed=0)
     res = solve_qp(qp, compiled=True, polish=True)
+
+    def tested(rec):                    # a callback that reads the tested iterations (bench qp's and rules' watch)
+        return False
+    tested.every_record, tested.every_tested = False, True
+    solve_qp(qp, compiled=True, callback=tested)      # the segment that stops at each of them (segment._xz_kkt)
     solve_qp(qp, admmkit_settings(1e-6, 0.0), compiled=True)
     solve_qp(qp, compiled=True, acceleration="anderson")
     solve_qp(qp, compiled=True, acceleration="fast")

@@ -90,3 +90,27 @@ def test_a_worker_compiles_the_qp_kernels_once_before_its_first_timed_case(monke
     for _ in range(2):
         assert rank_cases.run_qp(case)[0]["solved"]
     assert calls == [True]
+
+
+@pytest.mark.skipif(not (DATA / "HS21.mat").exists(), reason="Maros-Meszaros data not found")
+def test_after_the_warm_up_a_timed_qp_case_compiles_nothing():
+    """The harness's runs (its callback reads the tested iterations: the segment without the test in its kernel)
+    load or compile no kernel inside a timed case once the workers' warm-up ran: CI's cold cache put 4 s of
+    segment._xz_kkt into HS118's first timed run, over its 5 CPU s."""
+    from admmkit import kernels
+    if not kernels.AVAILABLE:
+        pytest.skip("numba is not installed: nothing is compiled")
+    from admmkit.benchmarks.framework.warm_up import qp_kernels
+    from admmkit.benchmarks.qp.maros_meszaros_runs import run_admmkit
+    from admmkit.problems.qp.mat import load_mat
+
+    def signatures():        # every kernel's specialisations in this process (compiled or loaded from the cache)
+        return {(k.py_func.__module__, k.py_func.__name__, sig) for ks in kernels.KERNELS.values() for k in ks
+                if k._dispatcher is not None for sig in k._dispatcher.signatures}
+    qp_kernels()
+    before = signatures()
+    qp = load_mat(DATA / "HS21.mat")
+    for variant, cap in (("preset", 4000), ("admmkit", None)):
+        rows = run_admmkit(qp, variant, "osqp", "xz", (1e-3, 1e-6), cap, 5.0)
+        assert all(r["solved"] for r in rows)
+    assert {name for _, name, _ in signatures() - before} == set()
