@@ -83,10 +83,13 @@ class _PolicyOption(LazyHelp):
         super().__init__(*args, **kwargs)
 
     def expand(self, text: str) -> str:
-        """The help given, with the names of the methods and of the rules installed now."""
+        """The help given, with the names of the methods and of the rules installed now: after the words
+        "penalty rule or method" where the help has them, at its end otherwise."""
         from ..policy import policy_names
-        names = [*self.methods, *policy_names()]
-        return text.replace("penalty rule or method", f"penalty rule or method: {', '.join(names)}", 1)
+        names = ", ".join([*self.methods, *policy_names()])
+        if "penalty rule or method" in text:
+            return text.replace("penalty rule or method", f"penalty rule or method: {names}", 1)
+        return f"{text} (one of: {names})"
 
 
 class _DeprecatedAlias(argparse.Action):

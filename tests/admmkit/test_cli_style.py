@@ -284,3 +284,18 @@ def test_set_help_keeps_hidden_options_hidden_without_making_lazy_helps():
     set_help(p, shown="new text", hidden="should stay hidden")
     helps = {a.option_strings[0]: a.help for a in p._actions if a.option_strings and a.option_strings[0] != "-h"}
     assert made == [] and helps == {"--shown": "new text", "--alias": argparse.SUPPRESS, "--hidden": argparse.SUPPRESS}
+
+
+def test_policy_help_lists_the_rules_whatever_its_words():
+    """--policy's help lists the installed rules after "penalty rule or method", or at its end when a sub-command
+    words its help otherwise (before: such a help listed nothing, silently)."""
+    import argparse
+    from admmkit.cli.options import _PolicyOption
+    from admmkit.policy import policy_names
+    p = argparse.ArgumentParser()
+    p.add_argument("--policy", action=_PolicyOption, methods={"sadmm": None}, help="the penalty rule or method (x)")
+    p.add_argument("--rule", action=_PolicyOption, help="the rho update")
+    helps = {a.dest: a.help for a in p._actions}
+    some = policy_names()[0]
+    assert helps["policy"].startswith("the penalty rule or method: sadmm, ") and some in helps["policy"]
+    assert helps["rule"].startswith("the rho update (one of: ") and some in helps["rule"]
