@@ -180,36 +180,3 @@ def test_the_fused_gram_pass_is_the_weighted_inner_product_bit_for_bit(compiled)
                 assert gram[p, q] == gram[q, p] == inner(dG[:, p], dG[:, q])
             assert (rhs[q] == inner(dG[:, q], g)) if extrapolate else np.isnan(rhs[q])
         assert np.isnan(gram[:, count:]).all() and (p >= 0 or np.isnan(gram).all())
-
-
-@pytest.mark.parametrize("compiled", [False, True])
-def test_the_extrapolation_runs_entry_by_entry_over_contiguous_differences(compiled):
-    """(A3) out = f - sum_a gamma_a dF_a: dF is stored (n, mem) as dG is, so that each entry subtracts its memory
-    slots in order from one register (a pass per entry, not one per slot over the state); each entry of the step
-    must be that sum, in the order of a, bit for bit (the Python path and the segment share the kernel)."""
-    from admmkit.kernels import AVAILABLE, compiled_code
-    from admmkit.loop.anderson_kernel import EXTRAPOLATED, STORED, AndersonArrays, anderson_update
-    if compiled and not AVAILABLE:
-        pytest.skip("numba not installed")
-    rng = np.random.default_rng(3)
-    m, mem, rho = 23, 4, 0.6
-    w = rng.uniform(0.5, 2, m)
-    arrays = AndersonArrays(mem, 2 * m, 1)
-    assert arrays.dF.shape == arrays.dG.shape == (2 * m, mem)
-    s_u, s_l = rng.standard_normal(m), rng.standard_normal(m)
-    T = 0.8 * np.linalg.qr(rng.standard_normal((2 * m, 2 * m)))[0]            # a contraction: steps are accepted
-    checked = 0
-    for _ in range(8):
-        f = T @ np.concatenate([s_u, s_l])
-        f_u, f_l, out_u, out_l = f[:m].copy(), f[m:].copy(), np.empty(m), np.empty(m)
-        done = arrays.ist[EXTRAPOLATED]
-        with compiled_code(compiled):
-            anderson_update(rho, w, 10.0, 1e-10, s_u, s_l, f_u, f_l, out_u, out_l, *arrays.args())
-        if arrays.ist[EXTRAPOLATED] > done:
-            expect = f.copy()
-            for a in range(arrays.ist[STORED]):
-                expect = expect - arrays.gamma[a] * arrays.dF[:, a]
-            assert np.array_equal(np.concatenate([out_u, out_l]), expect)
-            checked += 1
-        s_u, s_l = out_u, out_l
-    assert checked >= 5
