@@ -54,6 +54,14 @@ g_k = f_k - s_k.
   afresh after them.  Under OSQP's adaptive rho, where momentum rarely
   lasts, the run becomes plain ADMM with rare probes (HS268 and QADLITTL at
   1e-6, which the restarts alone left at the cap of 4000, are solved).
+  Global fallback (A7): the ``give_up``-th short failed phase in a row
+  (fewer than 4 extrapolations: momentum did not get going; a longer phase
+  starts the count again) turns momentum off for good.  The probes are not free under an adaptive rho:
+  each failed phase wastes an iteration and moves the iterate the rule
+  reads, so rho's path (OSQP's, chosen from the residuals at fixed
+  iterations) drifts from plain ADMM's (QBEACONF at 1e-6: 13 failed
+  phases, the last four beyond iteration 500, and 4025 iterations against
+  plain's 3450; with give_up = 4, 3125).
   For a weighted dot product the steps are one kernel too,
   ``admmkit.loop.fast_kernel``, which a compiled segment calls as it calls
   Anderson's.
@@ -80,6 +88,9 @@ INTERVAL = 10
 #: fast ADMM's default patience (extrapolations a momentum phase must last); docs/qp.md, "Restarted fast ADMM
 #: safeguarded", says how it was chosen
 PATIENCE = 16
+#: fast ADMM's default global fallback (short failed phases in a row that end momentum for good); docs/qp.md,
+#: "Restarted fast ADMM: the global fallback", says how it was chosen
+GIVE_UP = 4
 
 State = tuple  # (u, lam): two arrays of the constraint space
 
@@ -309,33 +320,46 @@ class FastADMM(KernelAccelerator):
         after a phase that lasted.  An integer >= 0; 0 never backs off (the
         restarts alone).  The default, PATIENCE, was chosen by measurement
         (docs/qp.md, "Restarted fast ADMM safeguarded").
+    give_up : int
+        The global fallback (A7): the ``give_up``-th short failed phase in
+        a row (fewer than ``fast_kernel.SHORT`` = 4 extrapolations: momentum
+        did not get going; a longer phase starts the count again) turns
+        momentum off for good (the run is plain ADMM after it, at plain
+        ADMM's cost).  An integer >= 0; 0 never gives up.  The
+        default, GIVE_UP, was chosen by measurement (docs/qp.md, "Restarted
+        fast ADMM: the global fallback").
     """
 
     name = "fast"
 
-    def __init__(self, eta: float = 0.999, patience: int | None = None):
+    def __init__(self, eta: float = 0.999, patience: int | None = None, give_up: int | None = None):
         if isinstance(eta, bool) or not (isinstance(eta, (int, float)) and 0 < eta < 1):
             raise ValueError(f"FastADMM: eta must be a number in (0, 1), got {eta!r}")
         patience = PATIENCE if patience is None else patience
         if isinstance(patience, bool) or not isinstance(patience, (int, np.integer)) or patience < 0:
             raise ValueError(f"FastADMM: patience (extrapolations a momentum phase must last) must be an integer "
                              f">= 0, got {patience!r}")
+        give_up = GIVE_UP if give_up is None else give_up
+        if isinstance(give_up, bool) or not isinstance(give_up, (int, np.integer)) or give_up < 0:
+            raise ValueError(f"FastADMM: give_up (failed momentum phases in a row that end momentum) must be an "
+                             f"integer >= 0, got {give_up!r}")
         super().__init__()
-        self.eta, self.patience = float(eta), int(patience)
-        self._skip, self._backoff = 0, 1
+        self.eta, self.patience, self.give_up = float(eta), int(patience), int(give_up)
+        self._skip, self._backoff, self._streak = 0, 1, 0
         self.reset()
 
     def kernel_arrays(self, length: int):
-        """``admmkit.loop.fast_kernel.FastArrays`` for stacked states of ``length`` entries and this patience."""
-        return fast_kernel.FastArrays(length, self.patience)
+        """``admmkit.loop.fast_kernel.FastArrays`` for stacked states of ``length`` entries, this patience and
+        give_up."""
+        return fast_kernel.FastArrays(length, self.patience, self.give_up)
 
     def start(self) -> None:
-        """Start a run: clear the memory, the counts and the back-off."""
+        """Start a run: clear the memory, the counts, the back-off and the failed phases in a row."""
         super().start()
-        self._skip, self._backoff = 0, 1
+        self._skip, self._backoff, self._streak = 0, 1, 0
 
     def reset(self) -> None:
-        """Restart: no momentum, no previous image (a change of rho); the back-off stays."""
+        """Restart: no momentum, no previous image (a change of rho); the back-off and the fallback stay."""
         self._a, self._c, self._f = 1.0, math.inf, None
         self._momentum, self._phase = False, 0        # s_k extrapolated; extrapolations since the last restart
         if getattr(self, "_arrays", None) is not None:
@@ -380,8 +404,11 @@ class FastADMM(KernelAccelerator):
         if self._phase < self.patience:                                # a failed momentum phase: back off
             self.stats["rejected"] += 1
             self._skip, self._backoff = self._backoff, min(2 * self._backoff, BACKOFF_MAX)
+            self._streak = self._streak + 1 if self._phase < fast_kernel.SHORT else 0
+            if 0 < self.give_up <= self._streak:                       # momentum never got going: off for good (A7)
+                self._skip = fast_kernel.FOREVER
         else:
-            self._backoff = 1
+            self._backoff, self._streak = 1, 0
         back, self._momentum, self._phase, self._a = self._momentum, False, 0, 1.0
         if self._skip > 0:                                             # momentum starts afresh after it
             self._c, self._f = math.inf, None

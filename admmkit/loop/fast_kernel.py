@@ -17,15 +17,24 @@ The memory is the previous image f_{k-1} (``f_prev``, the stacked [u; lam] of
 length 2 m), the momentum a_k and c_{k-1} (``ac``) and the integer state
 ``ist``: whether f_prev holds an image, whether s_k was extrapolated, the
 extrapolations since the last restart (the momentum phase), the back-off
-(plain steps left, the next back-off's length), the patience, and the counts
-of extrapolations, restarts and failed phases.
+(plain steps left, the next back-off's length), the patience, the counts
+of extrapolations, restarts and failed phases, and the failed phases in a
+row (short ones: fewer than SHORT extrapolations) with the number of them
+that ends momentum (``give_up``).
 
 A restart after an extrapolated s_k goes back to f_{k-1} (Goldstein et al.);
 after a plain one it keeps f_k (going back would repeat the iteration just
 made).  The safeguard (A6): a restart that ends a momentum phase of fewer than
 ``patience`` extrapolations fails it, and the next b steps are plain, b
 doubling with each failure (up to BACKOFF_MAX) and back to 1 after a phase
-that lasted; momentum starts afresh after them.  A plain step of the back-off
+that lasted; momentum starts afresh after them.  The global fallback (A7):
+the ``give_up``-th *short* failed phase in a row (fewer than SHORT
+extrapolations: momentum did not get going) turns momentum off for good (a
+back-off of FOREVER steps), so that a problem where momentum fails at once
+loses at most that many probes (each a wasted iteration and a nudge to the
+rho path) and is plain ADMM after them; a longer phase, failed or not,
+starts the count again (a LASSO whose phases of 5-13 extrapolations fail
+the patience of 16 but cut its iterations 7-fold keeps its momentum).  A plain step of the back-off
 reads nothing but its count (:func:`fast_reads_state`), so where momentum
 keeps failing the iterations cost what plain ones cost.
 
@@ -47,10 +56,15 @@ from ..kernels import kernel
 MODE = 2
 #: the longest run of plain steps after a failed momentum phase (the back-off doubles up to it; Anderson's too)
 BACKOFF_MAX = 1024
-#: the slots of the integer state ``ist``: f_prev holds an image; s_k was extrapolated; the extrapolations of the
-#: current momentum phase; plain steps left; the next back-off; the patience; the counts
-HAVE_PREV, EXTRAPOLATED, RESTARTS, MOMENTUM, PHASE, SKIP, BACKOFF, PATIENCE, FAILED = range(9)
-INT_SLOTS = 9
+#: the slots of the integer state ``ist``: f_prev holds an image; s_k was extrapolated; the counts of extrapolations
+#: and restarts; the extrapolations of the current momentum phase; plain steps left; the next back-off; the
+#: patience; the count of failed phases; the short failed phases in a row; the number of them that ends momentum (A7)
+HAVE_PREV, EXTRAPOLATED, RESTARTS, MOMENTUM, PHASE, SKIP, BACKOFF, PATIENCE, FAILED, STREAK, LIMIT = range(11)
+INT_SLOTS = 11
+#: the back-off that never ends, momentum off for good (A7)
+FOREVER = 1 << 62
+#: a failed phase of fewer extrapolations than this is short, momentum did not get going (A7)
+SHORT = 4
 #: the slots of the float state ``ac``: the momentum a_k and the last combined residual c_{k-1}
 A, C = range(2)
 
@@ -80,15 +94,19 @@ def momentum_step(ist, ac, c):
 
 @kernel(cache=True)
 def restart(ist, ac):
-    """A restart's bookkeeping (A5)-(A6): no momentum; a phase shorter than the patience fails and backs off.
-    Returns whether s_k was extrapolated (the step then goes back to f_{k-1}, else it keeps f_k)."""
+    """A restart's bookkeeping (A5)-(A7): no momentum; a phase shorter than the patience fails and backs off, and
+    the ``give_up``-th short failed phase in a row (fewer than SHORT extrapolations) ends momentum for good.  Returns whether s_k was extrapolated (the step then goes back to f_{k-1}, else it keeps f_k)."""
     ist[RESTARTS] += 1
     if ist[PHASE] < ist[PATIENCE]:                              # a failed momentum phase: back off (A6)
         ist[FAILED] += 1
         ist[SKIP] = ist[BACKOFF]
         ist[BACKOFF] = min(2 * ist[BACKOFF], BACKOFF_MAX)
+        ist[STREAK] = ist[STREAK] + 1 if ist[PHASE] < SHORT else 0
+        if ist[LIMIT] > 0 and ist[STREAK] >= ist[LIMIT]:     # momentum never got going: off for good (A7)
+            ist[SKIP] = FOREVER
     else:
         ist[BACKOFF] = 1
+        ist[STREAK] = 0
     back = ist[MOMENTUM] == 1
     ist[PHASE] = ist[MOMENTUM] = 0
     ac[A] = 1.0
@@ -175,16 +193,17 @@ def fast_update_numpy(rho, w, eta, s_u, s_l, f_u, f_l, out_u, out_l, ist, ac, f_
 
 class FastArrays:
     """The arrays :func:`fast_update` works on, for states of length ``n`` (= 2 m), with the safeguard's
-    ``patience`` (0: no back-off).
+    ``patience`` (0: no back-off) and ``give_up`` (failed phases in a row after which momentum is off for good; 0:
+    never).
 
     :meth:`args` lays them out in the slots of Anderson's arrays (``anderson_kernel.AndersonArrays.args``), the
     others empty, so that a compiled segment takes either with one signature (``MODE`` tells which)."""
 
     mode = MODE
 
-    def __init__(self, n: int, patience: int = 0) -> None:
+    def __init__(self, n: int, patience: int = 0, give_up: int = 0) -> None:
         self.ist = np.zeros(INT_SLOTS, dtype=np.int64)
-        self.ist[BACKOFF], self.ist[PATIENCE] = 1, patience
+        self.ist[BACKOFF], self.ist[PATIENCE], self.ist[LIMIT] = 1, patience, give_up
         self.ac = np.array([1.0, math.inf])
         self.f_prev = np.zeros(n)
 

@@ -11,6 +11,7 @@ and once with each accelerator of ``--configs``::
     plain                 acceleration=None
     fast                  acceleration=FastADMM()           (the safeguarded default)
     fast:patience=0       acceleration=FastADMM(patience=0) (no back-off: the restarts alone)
+    fast:give_up=0        acceleration=FastADMM(give_up=0)  (the back-off without the global fallback (A7))
     anderson:interval=10  acceleration=Anderson(interval=10)
 
 Writes ``maros_meszaros.csv`` (one row per problem, accuracy and configuration:

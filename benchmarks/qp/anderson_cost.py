@@ -24,7 +24,7 @@ BLAS on one thread, kernels compiled or loaded before the first timing.  The
 default problems are the seven of docs/qp.md's table.
 
 ``--accelerator fast`` measures restarted fast ADMM (``FastADMM()``: eta 0.999,
-the safeguard's patience 16; ``--interval`` does not apply) in Anderson's place; the columns named
+the safeguard's patience 16 and give_up 4; ``--interval`` does not apply) in Anderson's place; the columns named
 ``anderson_*`` are then the fast ADMM run's (the ``accelerator`` column says
 which).
 """
@@ -169,7 +169,8 @@ def report(rows: list[dict], command: str, args) -> str:
     solve, fixed = (np.array([r[key] for r in rows]) for key in ("cost_ratio", "fixed_cost_ratio"))
     setting = (f"Anderson: memory 10, interval {args.interval} (a step after every {args.interval}-th iteration)"
                if name == "Anderson" else "restarted fast ADMM (`FastADMM()`): eta 0.999, a step after every iteration "
-               "outside the safeguard's back-offs (patience 16: a momentum phase of fewer extrapolations backs off)")
+               "outside the safeguard's back-offs (patience 16: a momentum phase of fewer extrapolations backs off; "
+               "give_up 4: the fourth such phase in a row of fewer than 4 ends momentum for good)")
     return "\n".join([
         f"# {name} on the compiled QP path: cost per iteration", "", f"Command: `{command}`", "",
         f"{setting}; compiled segment, BLAS on one thread, best of {args.repeat} runs taken in turn.", "",

@@ -26,6 +26,9 @@ import numpy as np
 from admmkit.loop import anderson_kernel, fast_kernel
 from admmkit.loop.anderson_kernel import CLOCK, anderson_reads_state, anderson_update
 from admmkit.loop.fast_kernel import SKIP, fast_reads_state, fast_update
+# numba compiles the accelerators' kernels into this file's and caches them by this file's stamp only: a change of
+# theirs must touch this file too, or a warm cache runs their old code (fast ADMM's give_up, 29 November: new slots
+# of its integer state that the old code does not read)
 from admmkit.kernels import AVAILABLE, all_finite, compiled_now, kernel
 from admmkit.linalg.compiled import ldl_solve
 

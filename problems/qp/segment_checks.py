@@ -44,6 +44,8 @@ from admmkit.linalg.compiled import csc_matvec
 from .infeasibility_kernel import dual_candidate, dual_update_change, primal_candidate
 from .residual_kernel import _residuals
 from .segment import NO_ACCELERATION, _xz_kkt, accelerator_step
+# (numba caches these kernels, which compile the segment's and the accelerators' in, by this file's stamp only:
+# see the note in segment.py)
 
 #: ``False``: the segment makes no test and no rule update in its kernel (it ends at every iteration the loop reads,
 #: as before this module): the switch the tests compare the two with

@@ -25,7 +25,8 @@ def test_the_table_counts_solved_gained_and_lost(tmp_path):
     assert "| eps 1e-06 | 2 | 2 | 2 |" in text and "| fast | 1e-06 | none | none |" in text
 
 
-@pytest.mark.parametrize("config", ["nesterov", "fast:patience", "fast:patience=-1", "fast:speed=2", "fast:eta=x"])
+@pytest.mark.parametrize("config", ["nesterov", "fast:patience", "fast:patience=-1", "fast:give_up=-1", "fast:speed=2",
+                                    "fast:eta=x"])
 def test_bad_configurations_are_named(config, capsys):
     with pytest.raises(SystemExit) as exit_:
         acceleration_mm.main(["--configs", config])

@@ -8,8 +8,8 @@ import pytest
 
 from admmkit import kernels
 from admmkit.loop.acceleration import Acceleration, FastADMM
-from admmkit.loop.fast_kernel import (A, BACKOFF, C, EXTRAPOLATED, FAILED, HAVE_PREV, RESTARTS, SKIP, FastArrays,
-                                      fast_update, fast_update_numpy)
+from admmkit.loop.fast_kernel import (A, BACKOFF, C, EXTRAPOLATED, FAILED, FOREVER, HAVE_PREV, RESTARTS, SKIP, STREAK,
+                                      FastArrays, fast_reads_state, fast_update, fast_update_numpy)
 from admmkit.problems.qp import admmkit_settings, load_mat, random_qp, solve_qp
 from tests import qp_paths
 
@@ -65,9 +65,10 @@ def test_hs118_is_python_bit_for_bit(eps, monkeypatch):
 
 def test_a_change_of_rho_restarts_it_in_the_segment_too(monkeypatch):
     """A run whose rho changes (OSQP's rule) restarts fast ADMM at each change: with the restart made by the loop
-    between segments, the compiled run is the Python one; and :meth:`FastADMM.reset` clears the kernel's state."""
-    inside, outside, python = three_ways(random_qp(40, 60, seed=11), monkeypatch, eps_abs=1e-7, eps_rel=1e-7,
-                                         rho=1e-4)
+    between segments, the compiled run is the Python one; and :meth:`FastADMM.reset` clears the kernel's state.
+    (Without the fallback (A7), whose end of momentum here leaves fewer changes of rho to test.)"""
+    inside, outside, python = qp_paths.three_ways(random_qp(40, 60, seed=11), monkeypatch, None,
+                                                  lambda: FastADMM(give_up=0), eps_abs=1e-7, eps_rel=1e-7, rho=1e-4)
     assert len(set(python.history["rho"])) >= 4
     qp_paths.same_run(inside, python)
     qp_paths.same_run(outside, python)
@@ -101,14 +102,14 @@ def test_the_kernel_is_the_numpy_step_to_rounding():
     assert bound.stats["restarts"] > 0 and bound.stats["extrapolated"] > 0 and bound.stats["rejected"] > 0
 
 
-@pytest.mark.parametrize("patience", [0, 2, 8])
+@pytest.mark.parametrize("patience, give_up", [(0, 0), (2, 0), (8, 0), (2, 3)])
 @pytest.mark.parametrize("m", [0, 1, 9, 300])
-def test_the_numpy_twin_is_the_kernel_bit_for_bit(m, patience):
+def test_the_numpy_twin_is_the_kernel_bit_for_bit(m, patience, give_up):
     """Where kernels run as Python the loop takes ``fast_update_numpy``: the compiled kernel's bits, counts and
     state, restarts and extrapolations both met (and, with a patience, failed phases and their back-offs)."""
     rng = np.random.default_rng(m)
     w, rho = rng.uniform(0.5, 2.0, m), 0.7
-    twin, compiled = FastArrays(2 * m, patience), FastArrays(2 * m, patience)
+    twin, compiled = FastArrays(2 * m, patience, give_up), FastArrays(2 * m, patience, give_up)
     R = np.linalg.qr(rng.standard_normal((m, m)))[0] if m else np.zeros((0, 0))
     s = (rng.standard_normal(m), rng.standard_normal(m))
     for k in range(80):
@@ -153,6 +154,12 @@ def test_bad_eta_is_refused(eta):
 def test_bad_patience_is_refused(patience):
     with pytest.raises(ValueError, match=r"patience .*integer >= 0"):
         FastADMM(patience=patience)
+
+
+@pytest.mark.parametrize("give_up", [-1, 2.0, "4", True, math.inf])
+def test_bad_give_up_is_refused(give_up):
+    with pytest.raises(ValueError, match=r"give_up .*integer >= 0"):
+        FastADMM(give_up=give_up)
 
 
 def steps(arrays, states, rho=1.0, eta=0.999):
@@ -228,3 +235,83 @@ def test_the_back_off_runs_in_the_segment_bit_for_bit(monkeypatch):
     qp_paths.same_run(inside, python)
     qp_paths.same_run(outside, python)
     assert python.acceleration["rejected"] > 0 and python.acceleration["restarts"] > 0
+
+
+def test_the_give_up_th_short_failed_phase_in_a_row_ends_momentum_for_good():
+    """(A7), patience 8, give_up 3: two short failed phases (one extrapolation each) back off (b = 1, 2); a phase of
+    five extrapolations fails the patience but is not short, and starts the count again; then three short failed
+    phases in a row turn momentum off for good: every later step is f itself and reads no state, across a reset (a
+    change of rho) too."""
+    arrays = FastArrays(2, patience=8, give_up=3)
+    x = [0.0]
+
+    def contract(n, q=2):      # f = s + (1 - s) / q: c falls, momentum builds (q = 4: smoothly enough to last)
+        for _ in range(n):
+            x.append(steps(arrays, [(x[-1], x[-1] + (1 - x[-1]) / q)])[0])
+
+    def overshoot():
+        x.append(steps(arrays, [(x[-1], x[-1] + 10.0)])[0])
+
+    def plain(n):
+        for k in range(n):
+            assert steps(arrays, [(math.nan, 0.5 + k)]) == [0.5 + k]
+            x.append(0.5 + k)
+
+    for b in (1, 2):                              # two short failed phases: back-offs, momentum not yet given up
+        contract(2)
+        overshoot()
+        assert arrays.ist[STREAK] == b and arrays.ist[SKIP] == b
+        plain(b)
+    done = arrays.ist[EXTRAPOLATED]
+    contract(6, q=4)                              # five extrapolations: short of the patience, but not short
+    overshoot()
+    assert arrays.ist[EXTRAPOLATED] == done + 5
+    assert arrays.ist[STREAK] == 0 and arrays.ist[FAILED] == 3 and arrays.ist[SKIP] == 4
+    plain(4)
+    for failures in (1, 2, 3):
+        contract(2)
+        overshoot()
+        assert arrays.ist[STREAK] == failures
+        if failures < 3:
+            plain(arrays.ist[SKIP])
+    assert arrays.ist[FAILED] == 6 and arrays.ist[SKIP] == FOREVER     # off for good (before: a back-off of 32)
+    arrays.reset()
+    plain(50)
+    assert not fast_reads_state(arrays.ist) and arrays.ist[RESTARTS] == 6
+
+
+def test_the_unbound_path_gives_up_as_the_kernel():
+    """The numpy path (no weights: the problem's inner product) meets (A7) where the kernel does: same counts, the
+    same plain steps after it."""
+    rng = np.random.default_rng(4)
+    m, w, rho = 6, rng.uniform(0.5, 2.0, 6), 0.4
+    inner = (lambda a, b: float(np.dot(w * a, b)))
+    bound, free = FastADMM(eta=0.9, patience=4, give_up=2), FastADMM(eta=0.9, patience=4, give_up=2)
+    Acceleration(bound, "xz", inner, w, m)
+    Acceleration(free, "xz", inner)
+    s, R = (rng.standard_normal(m), rng.standard_normal(m)), np.linalg.qr(rng.standard_normal((m, m)))[0]
+    for k in range(200):
+        f = (0.95 * R @ s[0], 0.9 * s[1])
+        a, b = bound.propose(s, f, rho, inner), free.propose(s, f, rho, inner)
+        assert np.allclose(a[0], b[0], rtol=1e-13, atol=1e-15) and np.allclose(a[1], b[1], rtol=1e-13, atol=1e-15)
+        assert bound.stats == free.stats
+        s = b
+    assert bound.stats["rejected"] == 2 and free._skip > 10 ** 12          # given up after two failed phases
+    assert bound.kernel_state()[3].ist[SKIP] > 10 ** 12
+
+
+@pytest.mark.skipif(not MM.is_dir(), reason="Maros-Meszaros data not present")
+def test_qbeaconf_is_solved_as_plain_admm_solves_it(monkeypatch):
+    """QBEACONF at 1e-6 under OSQP's preset: plain ADMM solves it in 3450 iterations; fast ADMM with the back-off
+    alone failed 13 phases (the last beyond iteration 500), its probes moved rho's path, and it stopped at the cap
+    of 4000, ``solved_inaccurate`` (it needed 4025).  The fallback (A7) ends momentum at the fourth failed phase in
+    a row: solved, in the segment as in the Python loop."""
+    qp = load_mat(MM / "QBEACONF.mat")
+    inside, outside, python = three_ways(qp, monkeypatch, eps_abs=1e-6, eps_rel=1e-6)
+    qp_paths.same_run(inside, python)
+    qp_paths.same_run(outside, python)
+    assert python.termination == "solved" and python.iterations < 4000       # before: solved_inaccurate at 4000
+    assert python.acceleration["rejected"] == 4
+    back_off_alone = solve_qp(qp, eps_abs=1e-6, eps_rel=1e-6, acceleration=FastADMM(give_up=0))
+    assert back_off_alone.termination == "solved_inaccurate" and back_off_alone.iterations == 4000
+    assert back_off_alone.acceleration["rejected"] == 13
