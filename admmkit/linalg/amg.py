@@ -69,7 +69,9 @@ class AMGPreconditioner:
     (:func:`short_spectral_radius`) and ``cycle_values="float32"`` (the V-cycle
     on single-precision values, :class:`admmkit.linalg.vcycle.VCycle`);
     ``cycle_blocks3d=False`` runs the levels of a 3-D vector problem (3 x 3 node
-    blocks, six near-null vectors) in CSR instead of :mod:`admmkit.linalg.vcycle_blocks3d`'s blocks.
+    blocks, six near-null vectors) in CSR instead of :mod:`admmkit.linalg.vcycle_blocks3d`'s blocks;
+    ``cycle_smoother="block_jacobi"`` smooths the finest level of such a problem by damped 3 x 3 block Jacobi
+    (:mod:`admmkit.linalg.vcycle_jacobi3d`) instead of Gauss-Seidel.
     """
 
     SMOOTHERS = (("gauss_seidel", {"sweep": "forward"}), ("gauss_seidel", {"sweep": "backward"}))
@@ -83,7 +85,7 @@ class AMGPreconditioner:
 
     def __init__(self, A: sp.spmatrix, near_null: np.ndarray | None, *, blocksize: int = 1, max_coarse: int = 500,
                  D: sp.spmatrix | None = None, rho: float | None = None, spectral_steps: int | None = None,
-                 cycle_values: str = "float64", cycle_blocks3d: bool = True):
+                 cycle_values: str = "float64", cycle_blocks3d: bool = True, cycle_smoother: str = "gauss_seidel"):
         import pyamg
         from pyamg.relaxation.smoothing import change_smoothers
         start = time.perf_counter()
@@ -114,6 +116,7 @@ class AMGPreconditioner:
         self._cycle = None        # the compiled V-cycle (admmkit.linalg.vcycle), built at the first application
         self.cycle_values = np.dtype(cycle_values)
         self.cycle_blocks3d = bool(cycle_blocks3d)
+        self.cycle_smoother = cycle_smoother
         self.setup_time = time.perf_counter() - start
         self.refresh_time = math.nan
 
@@ -200,7 +203,8 @@ class AMGPreconditioner:
         if hand_written():
             if self._cycle is None:
                 from .vcycle import VCycle
-                self._cycle = VCycle(self.ml, values=self.cycle_values, blocks3d=self.cycle_blocks3d)
+                self._cycle = VCycle(self.ml, values=self.cycle_values, blocks3d=self.cycle_blocks3d,
+                                     smoother=self.cycle_smoother)
             return self._cycle(r, out=out)
         if len(self.ml.levels) == 1:
             z = self.ml.coarse_solver(self.ml.levels[0].A, r)
