@@ -86,6 +86,8 @@ class AMGPreconditioner:
     def __init__(self, A: sp.spmatrix, near_null: np.ndarray | None, *, blocksize: int = 1, max_coarse: int = 500,
                  D: sp.spmatrix | None = None, rho: float | None = None, spectral_steps: int | None = None,
                  cycle_values: str = "float64", cycle_blocks3d: bool = True, cycle_smoother: str = "gauss_seidel"):
+        if cycle_smoother not in ("gauss_seidel", "block_jacobi"):     # admmkit.linalg.vcycle.SMOOTHERS
+            raise ValueError(f"cycle_smoother must be gauss_seidel or block_jacobi, got {cycle_smoother!r}")
         import pyamg
         from pyamg.relaxation.smoothing import change_smoothers
         start = time.perf_counter()

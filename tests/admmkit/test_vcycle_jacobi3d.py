@@ -117,6 +117,8 @@ def test_smoother_names():
     amg2 = AMGPreconditioner(A2, B2, blocksize=2, max_coarse=50)
     r = np.random.default_rng(0).standard_normal(A2.shape[0])
     assert np.array_equal(VCycle(amg2.ml, smoother="block_jacobi")(r), VCycle(amg2.ml)(r))
+    with pytest.raises(ValueError, match="cycle_smoother must be gauss_seidel or block_jacobi, got 'sor'"):
+        AMGPreconditioner(A2, B2, blocksize=2, cycle_smoother="sor")
     A3, B3 = _elasticity3d(6)
     pre = AMGPreconditioner(-A3, B3, blocksize=3, max_coarse=50, cycle_smoother="block_jacobi")
     pre(np.ones(pre.ml.levels[0].A.shape[0]))
