@@ -70,8 +70,9 @@ class AMGPreconditioner:
     on single-precision values, :class:`admmkit.linalg.vcycle.VCycle`);
     ``cycle_blocks3d=False`` runs the levels of a 3-D vector problem (3 x 3 node
     blocks, six near-null vectors) in CSR instead of :mod:`admmkit.linalg.vcycle_blocks3d`'s blocks;
-    ``cycle_smoother="block_jacobi"`` smooths the finest level of such a problem by damped 3 x 3 block Jacobi
-    (:mod:`admmkit.linalg.vcycle_jacobi3d`) instead of Gauss-Seidel.
+    ``cycle_smoother`` smooths the finest level of such a problem by block Gauss-Seidel (``"block_gauss_seidel"``,
+    :mod:`admmkit.linalg.vcycle_blockgs3d`) or damped block Jacobi (``"block_jacobi"``,
+    :mod:`admmkit.linalg.vcycle_jacobi3d`) instead of pointwise Gauss-Seidel.
     """
 
     SMOOTHERS = (("gauss_seidel", {"sweep": "forward"}), ("gauss_seidel", {"sweep": "backward"}))
@@ -86,8 +87,9 @@ class AMGPreconditioner:
     def __init__(self, A: sp.spmatrix, near_null: np.ndarray | None, *, blocksize: int = 1, max_coarse: int = 500,
                  D: sp.spmatrix | None = None, rho: float | None = None, spectral_steps: int | None = None,
                  cycle_values: str = "float64", cycle_blocks3d: bool = True, cycle_smoother: str = "gauss_seidel"):
-        if cycle_smoother not in ("gauss_seidel", "block_jacobi"):     # admmkit.linalg.vcycle.SMOOTHERS
-            raise ValueError(f"cycle_smoother must be gauss_seidel or block_jacobi, got {cycle_smoother!r}")
+        if cycle_smoother not in ("gauss_seidel", "block_gauss_seidel", "block_jacobi"):  # vcycle.SMOOTHERS
+            raise ValueError(f"cycle_smoother must be gauss_seidel, block_gauss_seidel or block_jacobi, got "
+                             f"{cycle_smoother!r}")
         import pyamg
         from pyamg.relaxation.smoothing import change_smoothers
         start = time.perf_counter()

@@ -46,14 +46,17 @@ from ..kernels import _u
 from .vcycle_blocks import BlockLevel
 from .vcycle_blocks3 import BlockLevel3
 from .vcycle_blocks3d import CoarseLevel6, FinestLevel3D
+from .vcycle_blockgs3d import FinestLevel3DBlockGS
 from .vcycle_jacobi3d import FinestLevel3DJacobi
 
 #: the block storages of a level: the finest (2-D: 2 x 2 blocks, P 2 x 3; 3-D: 3 x 3, P 3 x 6), then the coarse
 #: ones (3 x 3 and 6 x 6 blocks: three and six near-null vectors); ``blocks3d=False`` leaves out the 3-D ones
 FINEST_LEVELS, COARSE_LEVELS = (BlockLevel, FinestLevel3D), (BlockLevel3, CoarseLevel6)
-#: the finest level's smoothers by name: Gauss-Seidel (forward before, backward after the correction) everywhere,
-#: or damped 3 x 3 block Jacobi on the finest level of a 3-D vector problem (:mod:`admmkit.linalg.vcycle_jacobi3d`)
-SMOOTHERS = ("gauss_seidel", "block_jacobi")
+#: the finest level's smoothers by name: Gauss-Seidel (forward before, backward after the correction) everywhere;
+#: on the finest level of a 3-D vector problem also block Gauss-Seidel (3 x 3 node blocks solved exactly,
+#: :mod:`admmkit.linalg.vcycle_blockgs3d`) or damped 3 x 3 block Jacobi (:mod:`admmkit.linalg.vcycle_jacobi3d`)
+SMOOTHERS = {"gauss_seidel": FinestLevel3D, "block_gauss_seidel": FinestLevel3DBlockGS,
+             "block_jacobi": FinestLevel3DJacobi}
 
 
 # ---------------------------------------------------------------- kernels
@@ -321,15 +324,14 @@ def _block_level(lvl: int, level, values, old, blocks3d: bool = True, smoother: 
     2 x 3 prolongator (:class:`BlockLevel`) or 3 x 3 with 3 x 6 (:class:`admmkit.linalg.vcycle_blocks3d.FinestLevel3D`),
     below 3 x 3 or 6 x 6 blocks in A and P (:class:`BlockLevel3`, :class:`admmkit.linalg.vcycle_blocks3d.CoarseLevel6`);
     else None (CSR).  ``blocks3d=False``: not the 3-D ones.  ``old``: the level of a cycle on the same pattern,
-    refreshed with the new values.  ``smoother="block_jacobi"``: a 3-D finest level smoothed by block Jacobi
-    (:class:`admmkit.linalg.vcycle_jacobi3d.FinestLevel3DJacobi`)."""
+    refreshed with the new values.  ``smoother``: the class of a 3-D finest level (:data:`SMOOTHERS`)."""
     if old is not None:
         return old.refreshed(level.A)
     kinds = (FINEST_LEVELS if lvl == 0 else ()) + COARSE_LEVELS
     if not blocks3d:
         kinds = tuple(k for k in kinds if k not in (FinestLevel3D, CoarseLevel6))
     kind = next((k for k in kinds if k.eligible(level.A, level.P)), None)
-    if kind is FinestLevel3D and lvl == 0 and smoother == "block_jacobi":
-        kind = FinestLevel3DJacobi
+    if kind is FinestLevel3D and lvl == 0:
+        kind = SMOOTHERS[smoother]
     block = kind(level.A, level.P, values) if kind is not None else None
     return block if block is not None and block.valid() else None

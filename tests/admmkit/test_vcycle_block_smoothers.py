@@ -1,4 +1,5 @@
-"""The block-Jacobi finest level of a 3-D V-cycle (admmkit.linalg.vcycle_jacobi3d) against a numpy cycle."""
+"""The block smoothers of the finest level of a 3-D V-cycle (admmkit.linalg.vcycle_blockgs3d, vcycle_jacobi3d)
+against numpy cycles."""
 import numpy as np
 import pytest
 import scipy.sparse as sp
@@ -9,6 +10,7 @@ pyamg = pytest.importorskip("pyamg")
 from admmkit.linalg.amg import AMGPreconditioner  # noqa: E402
 from admmkit.linalg.vcycle import VCycle  # noqa: E402
 from admmkit.linalg.vcycle_blocks3d import FinestLevel3D  # noqa: E402
+from admmkit.linalg.vcycle_blockgs3d import FinestLevel3DBlockGS  # noqa: E402
 from admmkit.linalg.vcycle_jacobi3d import OMEGA_LAMBDA, FinestLevel3DJacobi, largest_eigenvalue  # noqa: E402
 from tests.test_vcycle import _elasticity, _elasticity3d  # noqa: E402
 
@@ -44,15 +46,36 @@ def test_block_jacobi_cycle_is_the_numpy_cycle():
     assert not np.allclose(z, VCycle(amg.ml)(b))                       # another smoother than Gauss-Seidel
 
 
+def test_block_gauss_seidel_cycle_is_the_numpy_cycle():
+    A, amg = _hierarchy()
+    cycle = VCycle(amg.ml, smoother="block_gauss_seidel")
+    assert type(cycle.block[0]) is FinestLevel3DBlockGS
+    node = np.arange(A.shape[0]) // 3
+    dense = A.toarray()
+    lower = np.where(node[:, None] >= node[None, :], dense, 0.0)          # D + L in 3 x 3 node blocks
+    upper = np.where(node[:, None] <= node[None, :], dense, 0.0)          # D + L'
+    P = amg.ml.levels[0].P
+    b = np.random.default_rng(4).standard_normal(A.shape[0])
+    x = np.linalg.solve(lower, b)                                         # forward block sweep from zero
+    x = x + P @ cycle._correction(0, P.T @ (b - A @ x))
+    x = x + np.linalg.solve(upper, b - A @ x)                             # backward block sweep
+    z = cycle(b)
+    assert np.linalg.norm(z - x) <= 1e-12 * np.linalg.norm(x)
+    assert not np.allclose(z, VCycle(amg.ml)(b))                          # not the pointwise sweeps
+
+
+@pytest.mark.parametrize("smoother", ["block_gauss_seidel", "block_jacobi"])
 @pytest.mark.parametrize("values", ["float64", "float32"])
-def test_block_jacobi_cycle_is_symmetric_positive_definite(values):
+def test_block_cycles_are_symmetric_positive_definite(values, smoother):
     A, amg = _hierarchy(values)
-    cycle = VCycle(amg.ml, values=np.dtype(values), smoother="block_jacobi")
+    cycle = VCycle(amg.ml, values=np.dtype(values), smoother=smoother)
     rng = np.random.default_rng(5)
     for _ in range(3):
         u, v = rng.standard_normal((2, A.shape[0]))
         assert abs(v @ cycle(u) - u @ cycle(v)) <= 1e-12 * abs(u @ cycle(u))
         assert u @ cycle(u) > 0
+    if smoother != "block_jacobi":
+        return
     # omega lambda_max(D^-1 A) = OMEGA_LAMBDA < 2: the smoother converges in the energy norm
     D = _block_diagonal(A).toarray()
     lam = np.linalg.eigvals(np.linalg.solve(D, A.toarray())).real.max()
@@ -68,22 +91,24 @@ def _diagonal_blocks(D):
     return np.array([D[3 * I:3 * I + 3, 3 * I:3 * I + 3] for I in range(nb)])
 
 
-def test_block_jacobi_keeps_the_iteration_count_close():
+def test_block_smoothers_iteration_counts():
     A, amg = _hierarchy()
     from admmkit.linalg.cg import pcg
     b = np.random.default_rng(2).standard_normal(A.shape[0])
     counts = {}
-    for smoother in ("gauss_seidel", "block_jacobi"):
+    for smoother in ("gauss_seidel", "block_gauss_seidel", "block_jacobi"):
         cycle = VCycle(amg.ml, smoother=smoother)
         x, its, *_ = pcg(lambda v: A @ v, b, np.zeros_like(b), cycle, tol=1e-8, maxiter=200)
         assert np.linalg.norm(b - A @ x) <= 1e-6 * np.linalg.norm(b)
         counts[smoother] = its
-    assert counts["gauss_seidel"] <= counts["block_jacobi"] <= 1.5 * counts["gauss_seidel"]
+    assert counts["block_gauss_seidel"] < counts["gauss_seidel"] <= counts["block_jacobi"]
+    assert counts["block_jacobi"] <= 1.5 * counts["gauss_seidel"]
 
 
-def test_updated_entries_give_the_refreshed_level():
+@pytest.mark.parametrize("smoother", ["block_gauss_seidel", "block_jacobi"])
+def test_updated_entries_give_the_refreshed_level(smoother):
     A, amg = _hierarchy("float32")
-    cycle = VCycle(amg.ml, values=np.float32, smoother="block_jacobi")
+    cycle = VCycle(amg.ml, values=np.float32, smoother=smoother)
     level = cycle.block[0]
     # a contact-like change: whole diagonal blocks of some nodes (as rho B'M_c B changes them), on A's pattern
     A = sp.csr_matrix(A)
@@ -101,23 +126,28 @@ def test_updated_entries_give_the_refreshed_level():
     assert positions.size == 27
     A_new = A.copy()
     A_new.data[positions] += added
+    inverse = "scaled_inverse" if smoother == "block_jacobi" else "block_inverse"
+    before = getattr(level, inverse).copy()
     expected = level.refreshed(A_new)
     cycle.update_entries(0, A_new, positions)
-    assert level.omega == expected.omega
     assert np.array_equal(level.data, expected.data)
-    assert np.array_equal(level.scaled_inverse, expected.scaled_inverse)
+    assert not np.array_equal(getattr(level, inverse), before)            # the changed blocks' inverses are new
+    assert np.array_equal(getattr(level, inverse), getattr(expected, inverse))
+    if smoother == "block_jacobi":
+        assert level.omega == expected.omega
 
 
 def test_smoother_names():
     _, amg = _hierarchy()
-    with pytest.raises(ValueError, match="smoother must be one of gauss_seidel, block_jacobi"):
+    with pytest.raises(ValueError, match="smoother must be one of gauss_seidel, block_gauss_seidel, block_jacobi"):
         VCycle(amg.ml, smoother="jacobi")
     assert type(VCycle(amg.ml).block[0]) is FinestLevel3D                # Gauss-Seidel stays the default
     A2, B2 = _elasticity()                                               # a 2-D finest level keeps Gauss-Seidel
     amg2 = AMGPreconditioner(A2, B2, blocksize=2, max_coarse=50)
     r = np.random.default_rng(0).standard_normal(A2.shape[0])
     assert np.array_equal(VCycle(amg2.ml, smoother="block_jacobi")(r), VCycle(amg2.ml)(r))
-    with pytest.raises(ValueError, match="cycle_smoother must be gauss_seidel or block_jacobi, got 'sor'"):
+    with pytest.raises(ValueError, match="cycle_smoother must be gauss_seidel, block_gauss_seidel or block_jacobi, "
+                                         "got 'sor'"):
         AMGPreconditioner(A2, B2, blocksize=2, cycle_smoother="sor")
     A3, B3 = _elasticity3d(6)
     pre = AMGPreconditioner(-A3, B3, blocksize=3, max_coarse=50, cycle_smoother="block_jacobi")
