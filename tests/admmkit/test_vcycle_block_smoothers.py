@@ -150,6 +150,12 @@ def test_smoother_names():
                                          "got 'sor'"):
         AMGPreconditioner(A2, B2, blocksize=2, cycle_smoother="sor")
     A3, B3 = _elasticity3d(6)
-    pre = AMGPreconditioner(-A3, B3, blocksize=3, max_coarse=50, cycle_smoother="block_jacobi")
-    pre(np.ones(pre.ml.levels[0].A.shape[0]))
-    assert type(pre._cycle.block[0]) is FinestLevel3DJacobi
+    r3 = np.ones(A3.shape[0])
+    for smoother, kind in (("block_jacobi", FinestLevel3DJacobi), ("gauss_seidel", FinestLevel3D),
+                           (None, FinestLevel3DBlockGS)):               # block Gauss-Seidel: the 3-D default
+        options = {} if smoother is None else {"cycle_smoother": smoother}
+        pre = AMGPreconditioner(-A3, B3, blocksize=3, max_coarse=50, **options)
+        pre(r3)
+        assert type(pre._cycle.block[0]) is kind
+    z = AMGPreconditioner(A2, B2, blocksize=2, max_coarse=50)(r)         # 2-D: the pointwise sweeps, as before
+    assert np.array_equal(z, VCycle(amg2.ml)(r))
