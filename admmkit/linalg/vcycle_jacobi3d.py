@@ -143,7 +143,7 @@ def largest_eigenvalue(indptr, indices, data, inverses: np.ndarray, steps: int =
     Dq = D_times(q)
     norm = np.sqrt(q @ Dq)
     q, Dq = q / norm, Dq / norm                          # q' D q = 1
-    Dq_prev, q_prev, beta = np.zeros(n), np.zeros(n), 0.0
+    Dq_prev, beta = np.zeros(n), 0.0                    # D q_prev (q_prev itself is not needed)
     Aq = np.empty(n)
     alphas, betas = [], []
     for _ in range(min(steps, n)):
@@ -156,7 +156,7 @@ def largest_eigenvalue(indptr, indices, data, inverses: np.ndarray, steps: int =
         if beta <= 1e-12 * abs(alpha):
             break
         betas.append(beta)
-        q_prev, Dq_prev, q, Dq = q, Dq, w / beta, Dw / beta
+        Dq_prev, q, Dq = Dq, w / beta, Dw / beta
     k = len(alphas)
     T = np.diag(alphas) + np.diag(betas[:k - 1], 1) + np.diag(betas[:k - 1], -1)
     return float(np.linalg.eigvalsh(T)[-1])
