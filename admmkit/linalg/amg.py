@@ -63,13 +63,21 @@ class AMGPreconditioner:
     pyamg's default symmetric sweeps.  pyamg's block Gauss-Seidel on BSR took
     2-3 times as long per V-cycle for the same CG iterations (Example 1,
     4.1e5 unknowns: 310-340 ms against 100-155 ms, 23 iterations each).  The
-    coarsest level is solved by sparse LU.
+    finest level of a 3-D vector problem is the exception: it is smoothed by block
+    Gauss-Seidel in compiled kernels (``cycle_smoother`` below).  The coarsest
+    level is solved by sparse LU.
 
     Options for speed (the defaults keep pyamg's set-up): ``spectral_steps``
     (:func:`short_spectral_radius`) and ``cycle_values="float32"`` (the V-cycle
     on single-precision values, :class:`admmkit.linalg.vcycle.VCycle`);
     ``cycle_blocks3d=False`` runs the levels of a 3-D vector problem (3 x 3 node
-    blocks, six near-null vectors) in CSR instead of :mod:`admmkit.linalg.vcycle_blocks3d`'s blocks.
+    blocks, six near-null vectors) in CSR instead of :mod:`admmkit.linalg.vcycle_blocks3d`'s blocks;
+    ``cycle_smoother`` picks the smoother of such a problem's finest level: block Gauss-Seidel, each node's
+    3 x 3 block solved exactly (``"block_gauss_seidel"``, the default, :mod:`admmkit.linalg.vcycle_blockgs3d`:
+    9 % fewer CG iterations at the same V-cycle cost, docs/scale.md), pointwise Gauss-Seidel
+    (``"gauss_seidel"``, the sweeps of every other level) or damped block Jacobi (``"block_jacobi"``,
+    :mod:`admmkit.linalg.vcycle_jacobi3d`).  Other problems (2-D, scalar) and pyamg's own cycle
+    (:func:`admmkit.kernels.library_kernels`) keep pointwise Gauss-Seidel whatever it says.
     """
 
     SMOOTHERS = (("gauss_seidel", {"sweep": "forward"}), ("gauss_seidel", {"sweep": "backward"}))
@@ -83,7 +91,11 @@ class AMGPreconditioner:
 
     def __init__(self, A: sp.spmatrix, near_null: np.ndarray | None, *, blocksize: int = 1, max_coarse: int = 500,
                  D: sp.spmatrix | None = None, rho: float | None = None, spectral_steps: int | None = None,
-                 cycle_values: str = "float64", cycle_blocks3d: bool = True):
+                 cycle_values: str = "float64", cycle_blocks3d: bool = True,
+                 cycle_smoother: str = "block_gauss_seidel"):
+        if cycle_smoother not in ("gauss_seidel", "block_gauss_seidel", "block_jacobi"):  # vcycle.SMOOTHERS
+            raise ValueError(f"cycle_smoother must be gauss_seidel, block_gauss_seidel or block_jacobi, got "
+                             f"{cycle_smoother!r}")
         import pyamg
         from pyamg.relaxation.smoothing import change_smoothers
         start = time.perf_counter()
@@ -114,6 +126,7 @@ class AMGPreconditioner:
         self._cycle = None        # the compiled V-cycle (admmkit.linalg.vcycle), built at the first application
         self.cycle_values = np.dtype(cycle_values)
         self.cycle_blocks3d = bool(cycle_blocks3d)
+        self.cycle_smoother = cycle_smoother
         self.setup_time = time.perf_counter() - start
         self.refresh_time = math.nan
 
@@ -200,7 +213,8 @@ class AMGPreconditioner:
         if hand_written():
             if self._cycle is None:
                 from .vcycle import VCycle
-                self._cycle = VCycle(self.ml, values=self.cycle_values, blocks3d=self.cycle_blocks3d)
+                self._cycle = VCycle(self.ml, values=self.cycle_values, blocks3d=self.cycle_blocks3d,
+                                     smoother=self.cycle_smoother)
             return self._cycle(r, out=out)
         if len(self.ml.levels) == 1:
             z = self.ml.coarse_solver(self.ml.levels[0].A, r)

@@ -46,10 +46,17 @@ from ..kernels import _u
 from .vcycle_blocks import BlockLevel
 from .vcycle_blocks3 import BlockLevel3
 from .vcycle_blocks3d import CoarseLevel6, FinestLevel3D
+from .vcycle_blockgs3d import FinestLevel3DBlockGS
+from .vcycle_jacobi3d import FinestLevel3DJacobi
 
 #: the block storages of a level: the finest (2-D: 2 x 2 blocks, P 2 x 3; 3-D: 3 x 3, P 3 x 6), then the coarse
 #: ones (3 x 3 and 6 x 6 blocks: three and six near-null vectors); ``blocks3d=False`` leaves out the 3-D ones
 FINEST_LEVELS, COARSE_LEVELS = (BlockLevel, FinestLevel3D), (BlockLevel3, CoarseLevel6)
+#: the finest level's smoothers by name: Gauss-Seidel (forward before, backward after the correction) everywhere;
+#: on the finest level of a 3-D vector problem also block Gauss-Seidel (3 x 3 node blocks solved exactly,
+#: :mod:`admmkit.linalg.vcycle_blockgs3d`) or damped 3 x 3 block Jacobi (:mod:`admmkit.linalg.vcycle_jacobi3d`)
+SMOOTHERS = {"gauss_seidel": FinestLevel3D, "block_gauss_seidel": FinestLevel3DBlockGS,
+             "block_jacobi": FinestLevel3DJacobi}
 
 
 # ---------------------------------------------------------------- kernels
@@ -212,9 +219,12 @@ class VCycle:
     inner tolerance, not the round-off.
     """
 
-    def __init__(self, ml, values=np.float64, P=None, pattern_of: VCycle | None = None, blocks3d: bool = True):
+    def __init__(self, ml, values=np.float64, P=None, pattern_of: VCycle | None = None, blocks3d: bool = True,
+                 smoother: str = "gauss_seidel"):
+        if smoother not in SMOOTHERS:
+            raise ValueError(f"smoother must be one of {', '.join(SMOOTHERS)}, got {smoother!r}")
         levels = ml.levels
-        self.blocks3d = blocks3d
+        self.blocks3d, self.smoother = blocks3d, smoother
         for level in levels[:-1]:
             level.A = _sorted_csr(level.A)
         self.values = values
@@ -226,7 +236,8 @@ class VCycle:
         old = pattern_of._patterns if pattern_of is not None else [(None, None)] * len(self._patterns)
         kept = [b is not None and _same_array(a, b) and _same_array(c, d)
                 for (a, c), (b, d) in zip(self._patterns, old)]
-        self.block = [_block_level(lvl, level, values, pattern_of.block[lvl] if kept[lvl] else None, blocks3d)
+        self.block = [_block_level(lvl, level, values, pattern_of.block[lvl] if kept[lvl] else None, blocks3d,
+                                   smoother)
                       for lvl, level in enumerate(levels[:-1])]
         self.A = [None if block else _stored(level.A, values) for level, block in zip(levels, self.block)]
         # R = P': no copy of R.  ``P``: the prolongators of a cycle on the same hierarchy (a Galerkin refresh
@@ -259,17 +270,19 @@ class VCycle:
         :meth:`refreshed` would give, without laying out the whole level again."""
         values = A.data[positions]
         block = self.block[lvl]
+        rows = np.searchsorted(A.indptr, positions, side="right") - 1
         if block is not None:
             block.data[block.block_positions(A, positions)] = values   # rounded to the cycle's precision
+            if hasattr(block, "update_rows"):                          # a block smoother's diagonal blocks
+                block.update_rows((rows // block.R)[A.indices[positions] // block.R == rows // block.R])
         elif not np.may_share_memory(self.A[lvl].data, A.data):
             self.A[lvl].data[positions] = values
-        rows = np.searchsorted(A.indptr, positions, side="right") - 1
         rows = rows[A.indices[positions] == rows]
         self._inverse[lvl][rows] = 1.0 / A.data[self._diagonal[lvl][rows]].astype(self.values).astype(np.float64)
 
     def refreshed(self, ml) -> VCycle:
         """The cycle of the same hierarchy after a Galerkin refresh (new A on every level, the same P)."""
-        return VCycle(ml, self.values, P=self.P, pattern_of=self, blocks3d=self.blocks3d)
+        return VCycle(ml, self.values, P=self.P, pattern_of=self, blocks3d=self.blocks3d, smoother=self.smoother)
 
     def __call__(self, r: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
         """The V-cycle applied to r from a zero initial guess (a new array, or written into ``out``)."""
@@ -306,17 +319,19 @@ class VCycle:
         return x
 
 
-def _block_level(lvl: int, level, values, old, blocks3d: bool = True):
+def _block_level(lvl: int, level, values, old, blocks3d: bool = True, smoother: str = "gauss_seidel"):
     """A level's storage in blocks where its kernels have them: on the finest level 2 x 2 node blocks with a
     2 x 3 prolongator (:class:`BlockLevel`) or 3 x 3 with 3 x 6 (:class:`admmkit.linalg.vcycle_blocks3d.FinestLevel3D`),
     below 3 x 3 or 6 x 6 blocks in A and P (:class:`BlockLevel3`, :class:`admmkit.linalg.vcycle_blocks3d.CoarseLevel6`);
     else None (CSR).  ``blocks3d=False``: not the 3-D ones.  ``old``: the level of a cycle on the same pattern,
-    refreshed with the new values."""
+    refreshed with the new values.  ``smoother``: the class of a 3-D finest level (:data:`SMOOTHERS`)."""
     if old is not None:
         return old.refreshed(level.A)
     kinds = (FINEST_LEVELS if lvl == 0 else ()) + COARSE_LEVELS
     if not blocks3d:
         kinds = tuple(k for k in kinds if k not in (FinestLevel3D, CoarseLevel6))
     kind = next((k for k in kinds if k.eligible(level.A, level.P)), None)
+    if kind is FinestLevel3D and lvl == 0:
+        kind = SMOOTHERS[smoother]
     block = kind(level.A, level.P, values) if kind is not None else None
     return block if block is not None and block.valid() else None

@@ -56,7 +56,7 @@ def test_a_rho_change_in_place_gives_the_values_of_a_full_refresh(block_ops, mon
         np.testing.assert_array_equal(levels[0].A.data, solver.pencil.at(rho).data)
         for level, pencil in zip(levels[1:], amg._pencils):
             np.testing.assert_array_equal(level.A.data, pencil.at(rho - amg._rho).data)
-        fresh = VCycle(amg.ml, values=cycle.values, blocks3d=True)  # laid out anew from the levels
+        fresh = VCycle(amg.ml, values=cycle.values, blocks3d=True, smoother=cycle.smoother)  # laid out anew
         for ours, theirs in zip(cycle.block, fresh.block):
             np.testing.assert_array_equal(ours.data, theirs.data)
         for ours, theirs in zip(cycle._inverse, fresh._inverse):
