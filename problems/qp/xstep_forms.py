@@ -12,6 +12,8 @@ from admmkit.loop.segments import AVAILABLE as NUMBA      # numba installed (ask
 
 from .csc import csc_of
 from .rows import FREE_ROW_PENALTY
+from .segment import kkt_x_step
+from .sparse_kernels import kkt_arrays
 
 XSTEPS = ("auto", "reduced", "kkt")
 #: "auto" uses the KKT form when A'A could have more entries than this (bound: nnz(P) + sum_i nnz(row_i of A)^2)
@@ -100,7 +102,6 @@ def x_step_solution(qp, xp, z, lam, rho: float) -> tuple[np.ndarray, np.ndarray 
     reduced: (P + sigma I + rho A'MA) x = sigma x^k - q + A'M(rho z - lam).
     """
     if qp.xstep == "kkt":
-        from .segment import kkt_x_step
         n = qp.n
         solved = kkt_x_step(qp, xp, z, lam, rho)
         if solved is not None:
@@ -132,7 +133,6 @@ def _kkt_pattern(qp, upper: bool):
     """
     n, m = qp.n, qp.m
     if NUMBA:
-        from .sparse_kernels import kkt_arrays
         P, A = qp.Ps, qp.As
         indptr, indices, data, slots = kkt_arrays(n, m, P.indptr, P.indices, P.data, qp.sigma,
                                                   A.indptr, A.indices, A.data, upper)

@@ -4,6 +4,7 @@ Each speed trick here has its library path (compiled code off), and the tests ch
 bits: ``ScaleCheck``'s arrays (one compiled pass, ``termination.scale_facts``), the shifted P of the convexity
 test (``convexity.shifted``), and whole solves with and without the compiled helpers.
 """
+import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -298,3 +299,30 @@ def test_read_only_bounds_take_the_numpy_checks(monkeypatch):
     with compiled_code(True):
         with pytest.raises(ValueError, match="row 1 has l = 2 > u = 1"):
             validate._check_bounds(l, u, 2, True)
+
+
+def test_solve_qp_checks_the_settings_qp_options_once_per_settings(monkeypatch):
+    """The QP options a settings object asks for are checked once (``solve.qp_options``), not again at each copy of a
+    QP: a second solve with the same settings runs ``check_options`` only in the QP's own construction; a bad
+    ``row_weights`` in the settings is still refused with the QP's message, every time."""
+    from admmkit.problems.qp import osqp_settings, problem, solve, validate
+    calls = []
+
+    def counted(**options):
+        calls.append(options)
+        return validate.check_options(**options)
+    monkeypatch.setattr(problem, "check_options", counted)
+    monkeypatch.setattr(solve, "check_options", counted, raising=False)
+    qp = random_qp(6, 8, seed=3)
+    settings = osqp_settings(eps_abs=1e-5, eps_rel=1e-5)
+    first = solve_qp(QP(qp.P, qp.q, qp.A, qp.l, qp.u), settings)
+    calls.clear()
+    again = solve_qp(QP(qp.P, qp.q, qp.A, qp.l, qp.u), settings)
+    assert len(calls) == 1                                   # the QP's construction, not the copy
+    assert np.array_equal(first.x, again.x) and first.iterations == again.iterations
+    copy = solve.qp_for(qp, settings)
+    assert copy.options == qp.with_options(**solve.qp_options(settings)).options
+    bad = dataclasses.replace(settings, row_weights="per-row")
+    for _ in range(2):
+        with pytest.raises(ValueError, match="row_weights must be one of uniform, osqp"):
+            solve_qp(qp, bad)
