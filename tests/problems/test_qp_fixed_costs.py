@@ -326,3 +326,36 @@ def test_solve_qp_checks_the_settings_qp_options_once_per_settings(monkeypatch):
     for _ in range(2):
         with pytest.raises(ValueError, match="row_weights must be one of uniform, osqp"):
             solve_qp(qp, bad)
+
+
+def test_a_tiny_p_is_factorised_in_one_kernel_call_with_lapacks_verdicts(monkeypatch):
+    """Up to COMPILED_CHOLESKY_MAX rows, where compiled code runs, the convexity test's Cholesky factorisation is one
+    kernel call on P's arrays (no dense copy, no LAPACK call), with LAPACK's verdicts on PD, singular PSD and
+    indefinite matrices; as Python (no numba) LAPACK still decides."""
+    pytest.importorskip("numba")
+    from admmkit.problems.qp import convexity
+    from admmkit.problems.qp.sparse_kernels import shifted_cholesky_holds
+    rng = np.random.default_rng(5)
+    cases = []
+    for n, rank, shift in ((1, 1, 0.0), (2, 1, 0.0), (7, 7, 0.0), (12, 5, 0.0), (30, 30, -1e-3), (64, 20, 0.0),
+                           (64, 64, -1e-6)):
+        G = rng.standard_normal((n, rank))
+        M = G @ G.T + shift * np.abs(G @ G.T).max() * np.eye(n)
+        cases.append(sp.csc_matrix(M))
+    lapack = []
+    for P in cases:
+        delta = convexity.SHIFT * np.abs(P.data).max()
+        try:
+            np.linalg.cholesky(P.toarray() + delta * np.eye(P.shape[0]))
+            lapack.append(True)
+        except np.linalg.LinAlgError:
+            lapack.append(False)
+        with compiled_code(True):
+            assert shifted_cholesky_holds(P.indptr, P.indices, P.data, delta) == lapack[-1]
+    assert True in lapack and False in lapack
+    verdicts = [_verdict(P) for P in cases]
+    monkeypatch.setattr(np.linalg, "cholesky", lambda *a, **k: pytest.fail("LAPACK called for a tiny P"))
+    with compiled_code(True):
+        assert [_verdict(P) for P in cases] == verdicts
+    with compiled_code(False), pytest.raises(pytest.fail.Exception):
+        _verdict(cases[2])
