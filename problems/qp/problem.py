@@ -120,13 +120,12 @@ class QP(Problem):
             self.ls, self.us = self.scaling.E * self.l, self.scaling.E * self.u
         else:
             self.Ps, self.qs, self.As, self.ls, self.us = self.P, self.q, self.A, self.l, self.u
-        self.w = rows.row_weights(self.ls, self.us, self.options["row_weights"])
-        self._ones = (np.ones(self.m), np.ones(self.n))         # unit weights and scalings for compiled kernels
-        self.begin_run()
-        w = np.ones(self.m) if self.w is None else self.w
         # free rows (both bounds infinite) under "osqp": the x-step's penalty is RHO_MIN whatever rho is, as OSQP's
         # rho_vec; their lam and residual are 0 from the first iteration on, so only the x-step sees it (Q5)
-        self._free = np.flatnonzero(np.isinf(self.ls) & np.isinf(self.us)) if self.w is not None else np.empty(0, int)
+        self.w, self._free = rows.weights_and_free_rows(self.ls, self.us, self.options["row_weights"])
+        self._ones = (np.ones(self.m), np.ones(self.n))         # unit weights and scalings for compiled kernels
+        self.begin_run()
+        w = self._ones[0] if self.w is None else self.w
         self._w_free_over_penalty = w[self._free] / FREE_ROW_PENALTY
 
     @functools.cached_property

@@ -359,3 +359,26 @@ def test_a_tiny_p_is_factorised_in_one_kernel_call_with_lapacks_verdicts(monkeyp
         assert [_verdict(P) for P in cases] == verdicts
     with compiled_code(False), pytest.raises(pytest.fail.Exception):
         _verdict(cases[2])
+
+
+def test_row_weights_and_free_rows_in_one_pass_are_numpys(monkeypatch):
+    """Where compiled code runs, OSQP's row weights and the free rows come from one kernel pass
+    (``rows.osqp_weights``), equal to the numpy steps (values and index dtype); "uniform" has no weights and no free
+    rows either way."""
+    pytest.importorskip("numba")
+    from admmkit.problems.qp import rows
+    l = np.array([0.0, -np.inf, 1.0, -np.inf, 2.0, -1.0])
+    u = np.array([1.0, np.inf, 1.0 + 1e-5, 3.0, np.inf, -1.0])
+    with compiled_code(False):
+        w_numpy, free_numpy = rows.weights_and_free_rows(l, u)
+    assert list(w_numpy) == [1.0, rows.FREE_ROW_WEIGHT, rows.EQ_ROW_WEIGHT, 1.0, 1.0, rows.EQ_ROW_WEIGHT]
+    monkeypatch.setattr(rows, "row_weights", lambda *a: pytest.fail("the numpy steps ran"))
+    with compiled_code(True):
+        w, free = rows.weights_and_free_rows(l, u)
+    assert np.array_equal(w, w_numpy) and np.array_equal(free, free_numpy) and free.dtype == free_numpy.dtype
+    assert list(free) == [1]
+    monkeypatch.undo()
+    for flag in (True, False):
+        with compiled_code(flag):
+            none, no_free = rows.weights_and_free_rows(l, u, "uniform")
+        assert none is None and no_free.size == 0
