@@ -72,7 +72,7 @@ def x_step_solver(qp, backend: str):
     K0, slots = _kkt_pattern(qp, upper=kkt_backend == "qdldl")
 
     def matrix(rho):            # K0 itself, its -R^-1 diagonal rewritten: every backend copies what it factorises
-        K0.data[slots] = -1.0 / qp.penalty(rho)
+        K0.data[slots] = -qp.inverse_penalty(rho)        # -(1 / R) is -1 / R bit for bit; R^-1 held for the x-steps
         return K0
     if kkt_backend == "qdldl" and NUMBA and compiled_now():
         from . import kkt_factor
