@@ -9,7 +9,9 @@ at every size (a dense eigenvalue solve cost more than the whole QP solve
 below n = 500).  A diagonal P (an LP, a separable QP) is read off directly;
 a small P (up to ``DENSE_ANY`` rows, or up to ``DENSE_MAX`` rows stored at least a quarter full) by a
 dense Cholesky factorisation of P + delta I (LAPACK's, 10-50x faster than
-SuperLU on such a matrix: DUAL2, n = 96, 600 us against 30 us), whose
+SuperLU on such a matrix: DUAL2, n = 96, 600 us against 30 us; up to
+``COMPILED_CHOLESKY_MAX`` rows, where compiled code runs, one kernel call on
+P's arrays instead of LAPACK's call and the dense copy), whose
 failure sends P to the eigenvalue test below, as a negative pivot does.
 The shift delta = 1e-9 max|P| keeps a singular PSD P (an LP part, a
 rank-deficient least-squares term) factorable.  For the message, the
@@ -25,6 +27,8 @@ import scipy.sparse.linalg as spla
 from admmkit.kernels import compiled_now
 from admmkit.loop.segments import AVAILABLE as NUMBA      # numba installed (asked once, without importing it)
 
+from .sparse_kernels import shifted_cholesky_holds
+
 #: relative shift of P + delta I, and the pivot below which P is indefinite
 SHIFT = 1e-9
 #: below this size the smallest eigenvalue is computed densely
@@ -32,6 +36,10 @@ DENSE_MAX = 500
 #: up to this size P goes to the dense Cholesky factorisation however sparse it is: SuperLU's call and its U
 #: cost more (CVXQP1_S, n = 100: 190 against 45 us; QAFIRO, n = 32: 150 against 20 us; one run, best of 300)
 DENSE_ANY = 128
+#: up to this size, where compiled code runs, the dense Cholesky factorisation is one kernel call on P's arrays
+#: (``sparse_kernels.shifted_cholesky_holds``): LAPACK's call and the dense copy cost 14-22 us whatever n is, the
+#: kernel 1-8 us up to n = 32 and about LAPACK's time at n = 64 (random dense P, best of 500, one run)
+COMPILED_CHOLESKY_MAX = 64
 
 
 def smallest_eigenvalue(P: sp.spmatrix) -> float:
@@ -76,6 +84,8 @@ def check_convex(P: sp.csc_matrix, *, scale: float | None = None, diagonal: bool
         diagonal = bool(np.all(P.indices == np.repeat(np.arange(n), np.diff(P.indptr))))
     if diagonal:                                                # diagonal: its entries are the eigenvalues
         indefinite = bool(np.any(P.data < -delta))
+    elif n <= COMPILED_CHOLESKY_MAX and NUMBA and compiled_now():        # tiny: one kernel call
+        indefinite = not shifted_cholesky_holds(P.indptr, P.indices, P.data, delta)
     elif n <= DENSE_MAX and (n <= DENSE_ANY or 4 * P.nnz >= n * n):     # small, or dense: LAPACK's Cholesky
         dense = P.toarray()
         dense[np.diag_indices(n)] += delta

@@ -47,6 +47,8 @@ import numpy as np
 from admmkit import Problem
 
 from . import products, rows
+from .scaling import ruiz
+from .segment import run_segment
 from .kkt import kkt_relative, kkt_residuals
 from .rows import FREE_ROW_PENALTY
 from .validate import _real, _validate, check_options
@@ -86,9 +88,10 @@ class QP(Problem):
         self._take_options(dict(sigma=sigma, backend=backend, xstep=xstep, scaling=scaling, row_weights=row_weights,
                                 x_relaxation=x_relaxation, allow_nonconvex=allow_nonconvex))
 
-    def _take_options(self, options: dict) -> None:
-        """The options, checked now (the constructor's messages); what they build waits for its first use."""
-        self.options = check_options(**options)
+    def _take_options(self, options: dict, checked: bool = False) -> None:
+        """The options, checked now (the constructor's messages) unless ``checked`` says they were; what they build
+        waits for its first use."""
+        self.options = options if checked else check_options(**options)
         self.n, self.m, self.c = self.P.shape[0], self.A.shape[0], 0.0
         self.sigma, self.x_relaxation = self.options["sigma"], self.options["x_relaxation"]
         self._xstep = self.options["xstep"]                 # "auto" is resolved at first use (xstep)
@@ -108,7 +111,6 @@ class QP(Problem):
 
     def _build(self) -> None:
         """The scaled copy (S1), the row weights and the free rows (Q5) of the options taken."""
-        from .scaling import ruiz
         self._built = True
         scaling = self.options["scaling"]
         self.scaling, Ps, qs, As = ruiz(self.P, self.q, self.A, scaling)                          # (S1)
@@ -118,13 +120,12 @@ class QP(Problem):
             self.ls, self.us = self.scaling.E * self.l, self.scaling.E * self.u
         else:
             self.Ps, self.qs, self.As, self.ls, self.us = self.P, self.q, self.A, self.l, self.u
-        self.w = rows.row_weights(self.ls, self.us, self.options["row_weights"])
-        self._ones = (np.ones(self.m), np.ones(self.n))         # unit weights and scalings for compiled kernels
-        self.begin_run()
-        w = np.ones(self.m) if self.w is None else self.w
         # free rows (both bounds infinite) under "osqp": the x-step's penalty is RHO_MIN whatever rho is, as OSQP's
         # rho_vec; their lam and residual are 0 from the first iteration on, so only the x-step sees it (Q5)
-        self._free = np.flatnonzero(np.isinf(self.ls) & np.isinf(self.us)) if self.w is not None else np.empty(0, int)
+        self.w, self._free = rows.weights_and_free_rows(self.ls, self.us, self.options["row_weights"])
+        self._ones = (np.ones(self.m), np.ones(self.n))         # unit weights and scalings for compiled kernels
+        self.begin_run()
+        w = self._ones[0] if self.w is None else self.w
         self._w_free_over_penalty = w[self._free] / FREE_ROW_PENALTY
 
     @functools.cached_property
@@ -214,9 +215,19 @@ class QP(Problem):
         merged = {**self.options, **options}
         if merged["allow_nonconvex"] != self.options["allow_nonconvex"]:     # the convexity verdict may change
             return QP(self.P, self.q, self.A, self.l, self.u, self.r, name=self.name, **merged)
+        return self._copy(merged, checked=False)
+
+    def with_checked_options(self, options: dict) -> "QP":
+        """:meth:`with_options` for options already checked (``validate.check_options``'s plain values, without
+        ``allow_nonconvex``): ``solve_qp``'s copy of a QP with the settings' options, which it checks once per
+        settings (``solve.qp_options``), not at every copy."""
+        return self._copy({**self.options, **options}, checked=True)
+
+    def _copy(self, options: dict, checked: bool) -> "QP":
+        """A QP of the same data (validated when this QP was built: not checked again) with ``options``."""
         qp = QP.__new__(QP)
         qp.P, qp.q, qp.A, qp.l, qp.u, qp.r, qp.name = self.P, self.q, self.A, self.l, self.u, self.r, self.name
-        qp._take_options(merged)
+        qp._take_options(options, checked)
         return qp
 
     # -- the splitting --------------------------------------------------------
@@ -265,7 +276,6 @@ class QP(Problem):
         if check is not None:
             from .segment_checks import checked_segment
             return checked_segment(self, x, z, lam, Ax, rho, alpha, order, count, read, accel, check)
-        from .segment import run_segment
         return run_segment(self, x, z, lam, Ax, rho, alpha, order, count, read, accel)
 
     def after_segment(self, x, x_prev, x_rel, x_rel_prev, done: int) -> None:

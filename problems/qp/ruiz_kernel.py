@@ -26,31 +26,46 @@ def _limit(v, low, high):
 def ruiz_steps(iterations, low, high, Pd, Pr, Pp, Ad, Ar, Ap, q, D, E):
     """``iterations`` Ruiz steps with cost scaling on the CSC arrays (data, rows, column pointers) of P and A and on
     q, D, E, in place, with OSQP's limits ``low``, ``high`` (MIN_SCALING, MAX_SCALING); returns the cost scaling c.
-    The entries are visited in their stored order, column by column."""
+    The entries are visited in their stored order, column by column.
+
+    Two passes over P per step: the first multiplies P by the last step's cost scaling (1 at the first step: no
+    change) and takes the column maxima of its upper triangle, the second scales P <- D P D and takes the column
+    maxima the cost scaling reads; the last step's cost scaling is applied after the loop (a product by 1 changes no
+    bit).  Each entry gets the same operations in the same order as in four passes (read, scale by D, read, scale
+    by c): the same bits."""
     n, m = D.shape[0], E.shape[0]
     d, e, cols = np.empty(n), np.empty(m), np.empty(n)
-    c = 1.0
+    c, c_step = 1.0, 1.0
     for _ in range(iterations):
-        d[:] = 0.0
-        e[:] = 0.0
         for j in range(n):                                 # KKT columns 1..n: triu(P), as OSQP stores it ...
+            dj = 0.0
             for p in range(Pp[j], Pp[j + 1]):
+                Pd[p] *= c_step                            # the last step's cost scaling, P <- c P (x 1: exact)
                 if Pr[p] <= j:
-                    d[j] = max(d[j], abs(Pd[p]))
+                    dj = max(dj, abs(Pd[p]))
+            d[j] = dj
+        e[:] = 0.0
         for j in range(n):                                 # ... and A
+            dj = d[j]
             for p in range(Ap[j], Ap[j + 1]):
-                d[j] = max(d[j], abs(Ad[p]))
+                dj = max(dj, abs(Ad[p]))
                 e[Ar[p]] = max(e[Ar[p]], abs(Ad[p]))       # KKT columns n+1..n+m: the rows of A
+            d[j] = dj
         for j in range(n):
             d[j] = 1.0 / np.sqrt(_limit(d[j], low, high))
         for i in range(m):
             e[i] = 1.0 / np.sqrt(_limit(e[i], low, high))
-        for j in range(n):                                 # P <- D P D
+        for j in range(n):                                 # P <- D P D, and the column maxima of its upper triangle
+            dj, colj = d[j], 0.0
             for p in range(Pp[j], Pp[j + 1]):
-                Pd[p] = (d[Pr[p]] * Pd[p]) * d[j]
+                Pd[p] = (d[Pr[p]] * Pd[p]) * dj
+                if Pr[p] <= j:
+                    colj = max(colj, abs(Pd[p]))
+            cols[j] = colj
         for j in range(n):                                 # A <- E A D
+            dj = d[j]
             for p in range(Ap[j], Ap[j + 1]):
-                Ad[p] = (e[Ar[p]] * Ad[p]) * d[j]
+                Ad[p] = (e[Ar[p]] * Ad[p]) * dj
         qmax = 0.0
         for j in range(n):
             q[j] = d[j] * q[j]
@@ -58,20 +73,15 @@ def ruiz_steps(iterations, low, high, Pd, Pr, Pp, Ad, Ar, Ap, q, D, E):
             qmax = max(qmax, abs(q[j]))
         for i in range(m):
             E[i] = E[i] * e[i]
-        cols[:] = 0.0
-        for j in range(n):
-            for p in range(Pp[j], Pp[j + 1]):
-                if Pr[p] <= j:
-                    cols[j] = max(cols[j], abs(Pd[p]))
         total = 0.0
         for j in range(n):
             total += cols[j]
         c_step = 1.0 / _limit(max(total / n, _limit(qmax, low, high)), low, high)
-        for p in range(Pd.shape[0]):
-            Pd[p] *= c_step
         for j in range(n):
             q[j] = c_step * q[j]
         c *= c_step
+    for p in range(Pd.shape[0]):                           # the last step's cost scaling
+        Pd[p] *= c_step
     return c
 
 

@@ -29,7 +29,7 @@ from admmkit.loop.fast_kernel import SKIP, fast_reads_state, fast_update
 # numba compiles the accelerators' kernels into this file's and caches them by this file's stamp only: a change of
 # theirs must touch this file too, or a warm cache runs their old code (fast ADMM's give_up, 29 November: new slots
 # of its integer state that the old code does not read)
-from admmkit.kernels import AVAILABLE, all_finite, compiled_now, kernel
+from admmkit.kernels import AVAILABLE, KERNELS, all_finite, compiled_now, kernel
 from admmkit.linalg.compiled import ldl_solve
 
 #: the size nnz(P) + nnz(A) + n + m from which a QP solve runs compiled code under ``compiled="auto"`` (the
@@ -47,10 +47,20 @@ def compiled_pays(n: int, m: int, nnz: int) -> bool:
 
 
 def kernels_loaded() -> bool:
-    """Whether this process has the QP's compiled segment (and with it numba and the other kernels) loaded."""
-    from admmkit.kernels import KERNELS      # the segment that tests in its kernel (segment_checks) calls _xz_kkt
-    tested = KERNELS.get(__name__.rsplit(".", 1)[0] + ".segment_checks", [])
-    return any(k._dispatcher is not None and bool(k._dispatcher.overloads) for k in (_xz_kkt, *tested))
+    """Whether this process has the QP's compiled segment (and with it numba and the other kernels) loaded: the
+    plain segment ``_xz_kkt`` asked first (the segment that tests in its kernel, segment_checks', calls it)."""
+    if _loaded(_xz_kkt):
+        return True
+    return any(_loaded(k) for k in KERNELS.get(_CHECKS_MODULE, ()))
+
+
+#: the module of the segment that tests in its kernel (its kernels are listed in ``admmkit.kernels.KERNELS``)
+_CHECKS_MODULE = __name__.rsplit(".", 1)[0] + ".segment_checks"
+
+
+def _loaded(k) -> bool:
+    """Whether kernel ``k`` has a compiled specialisation in this process."""
+    return k._dispatcher is not None and bool(k._dispatcher.overloads)
 
 
 def choose_compiled(setting, qp) -> tuple[bool, bool]:

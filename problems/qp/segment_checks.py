@@ -43,7 +43,8 @@ from admmkit.linalg.compiled import csc_matvec
 
 from .infeasibility_kernel import dual_candidate, dual_update_change, primal_candidate
 from .residual_kernel import _residuals
-from .segment import NO_ACCELERATION, _xz_kkt, accelerator_step
+from .segment import (NO_ACCELERATION, _xz_kkt, accelerator_arguments, accelerator_step, run_segment,
+                      segment_state)
 # (numba caches these kernels, which compile the segment's and the accelerators' in, by this file's stamp only:
 # see the note in segment.py)
 
@@ -232,7 +233,6 @@ def checked_segment(qp, x, z, lam, Ax, rho: float, alpha: float, order: str, cou
     restarted fast ADMM's), whose steps the kernel takes (:func:`segment_tested`).  Where the kernel does not apply
     (not order "xz" with the KKT form on qdldl, compiled code not chosen),
     :func:`admmkit.problems.qp.segment.run_segment` up to the next iteration the loop reads."""
-    from .segment import accelerator_arguments, run_segment, segment_state
     first = check.first
     factors = qp._solver.ldl(rho) if order == "xz" and qp.xstep == "kkt" and compiled_now() else None
     if factors is None or not read:

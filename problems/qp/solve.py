@@ -35,6 +35,7 @@ from admmkit.kernels import AVAILABLE, compiled_code
 from .polish import polish as polish_solution
 from .problem import QP
 from .segment import choose_compiled
+from .validate import check_options
 from .residuals import neutral_residuals
 from .settings import QPSettings, osqp_settings
 from .termination import (DUAL_INFEASIBLE, PRIMAL_INFEASIBLE, SOLVED, QPTermination, _iterate, osqp_relative_residuals,
@@ -92,12 +93,30 @@ def qp_for(qp: QP, settings: QPSettings) -> QP:
     """``qp`` itself if it is built with the settings' sigma, scaling, row weights, x relaxation and x-step form, else
     a copy that is (the copy keeps the QP's backend).  x is relaxed only in order "xz" (OSQP's order; in
     order "zx" the loop relaxes z and the x-step comes last)."""
-    want = {"sigma": float(settings.sigma), "scaling": settings.scaling, "row_weights": settings.row_weights,
-            "x_relaxation": float(settings.alpha) if settings.relax_x and settings.order == "xz" else 1.0,
-            "xstep": settings.xstep}
+    want = qp_options(settings)
     if all(qp.options.get(k) == v for k, v in want.items()):
         return qp
-    return qp.with_options(**want)
+    return qp.with_checked_options(want)
+
+
+#: (settings, their QP options checked) of the last settings :func:`qp_options` was asked about
+_held_options: tuple = (None, None)
+
+
+def qp_options(settings: QPSettings) -> dict:
+    """The QP options ``settings`` ask for (sigma, scaling, row_weights, x_relaxation, xstep), checked with the QP's
+    own messages (``validate.check_options``: a bad ``row_weights`` is refused here).  Settings are frozen, so the
+    check of the last settings object asked about is kept: a solve with the shared preset checks them once, not
+    at every copy of a QP."""
+    global _held_options
+    held, options = _held_options
+    if held is not settings:
+        x_relaxation = float(settings.alpha) if settings.relax_x and settings.order == "xz" else 1.0
+        checked = check_options(sigma=settings.sigma, backend="auto", xstep=settings.xstep, scaling=settings.scaling,
+                                row_weights=settings.row_weights, x_relaxation=x_relaxation, allow_nonconvex=False)
+        options = {k: checked[k] for k in ("sigma", "scaling", "row_weights", "x_relaxation", "xstep")}
+        _held_options = (settings, options)
+    return options
 
 
 #: the rules ``solve_qp`` names and runs as OSQP runs its own (OSQP 1.x's residuals of the scaled problem, rho clamped

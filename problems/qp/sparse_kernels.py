@@ -98,6 +98,35 @@ def p_checks(indptr, indices, data):
 
 
 @kernel(cache=True)
+def shifted_cholesky_holds(indptr, indices, data, delta):
+    """Whether P + delta I has a Cholesky factor (every pivot > 0), P given by the CSC arrays of a symmetric n x n
+    matrix: the lower triangle copied into a dense array, as LAPACK's ``potrf`` reads it (``np.linalg.cholesky``),
+    and factorised column by column (n^3 / 6 products: below n = 64 it costs less than LAPACK's call and the dense
+    copy, the convexity test's ``COMPILED_CHOLESKY_MAX``)."""
+    n = indptr.shape[0] - 1
+    L = np.zeros((n, n))
+    for j in range(n):
+        for p in range(indptr[j], indptr[j + 1]):
+            if indices[p] >= j:
+                L[indices[p], j] = data[p]
+        L[j, j] += delta
+    for j in range(n):
+        pivot = L[j, j]
+        for k in range(j):
+            pivot -= L[j, k] * L[j, k]
+        if not pivot > 0.0:                       # <= 0 or NaN: P + delta I is not positive definite
+            return False
+        d = np.sqrt(pivot)
+        L[j, j] = d
+        for i in range(j + 1, n):
+            s = L[i, j]
+            for k in range(j):
+                s -= L[i, k] * L[j, k]
+            L[i, j] = s / d
+    return True
+
+
+@kernel(cache=True)
 def kkt_arrays(n, m, Pp, Pi, Px, sigma, Ap, Ai, Ax, upper):
     """CSC arrays (indptr, indices, data) of K = [[P + sigma I, A'], [A, 1]] and the positions of K_{n+i, n+i}.
 

@@ -12,6 +12,8 @@ from admmkit.loop.segments import AVAILABLE as NUMBA      # numba installed (ask
 
 from .csc import csc_of
 from .rows import FREE_ROW_PENALTY
+from .segment import kkt_x_step
+from .sparse_kernels import kkt_arrays
 
 XSTEPS = ("auto", "reduced", "kkt")
 #: "auto" uses the KKT form when A'A could have more entries than this (bound: nnz(P) + sum_i nnz(row_i of A)^2)
@@ -70,7 +72,7 @@ def x_step_solver(qp, backend: str):
     K0, slots = _kkt_pattern(qp, upper=kkt_backend == "qdldl")
 
     def matrix(rho):            # K0 itself, its -R^-1 diagonal rewritten: every backend copies what it factorises
-        K0.data[slots] = -1.0 / qp.penalty(rho)
+        K0.data[slots] = -qp.inverse_penalty(rho)        # -(1 / R) is -1 / R bit for bit; R^-1 held for the x-steps
         return K0
     if kkt_backend == "qdldl" and NUMBA and compiled_now():
         from . import kkt_factor
@@ -100,7 +102,6 @@ def x_step_solution(qp, xp, z, lam, rho: float) -> tuple[np.ndarray, np.ndarray 
     reduced: (P + sigma I + rho A'MA) x = sigma x^k - q + A'M(rho z - lam).
     """
     if qp.xstep == "kkt":
-        from .segment import kkt_x_step
         n = qp.n
         solved = kkt_x_step(qp, xp, z, lam, rho)
         if solved is not None:
@@ -132,7 +133,6 @@ def _kkt_pattern(qp, upper: bool):
     """
     n, m = qp.n, qp.m
     if NUMBA:
-        from .sparse_kernels import kkt_arrays
         P, A = qp.Ps, qp.As
         indptr, indices, data, slots = kkt_arrays(n, m, P.indptr, P.indices, P.data, qp.sigma,
                                                   A.indptr, A.indices, A.data, upper)

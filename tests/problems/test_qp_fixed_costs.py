@@ -4,6 +4,7 @@ Each speed trick here has its library path (compiled code off), and the tests ch
 bits: ``ScaleCheck``'s arrays (one compiled pass, ``termination.scale_facts``), the shifted P of the convexity
 test (``convexity.shifted``), and whole solves with and without the compiled helpers.
 """
+import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -298,3 +299,86 @@ def test_read_only_bounds_take_the_numpy_checks(monkeypatch):
     with compiled_code(True):
         with pytest.raises(ValueError, match="row 1 has l = 2 > u = 1"):
             validate._check_bounds(l, u, 2, True)
+
+
+def test_solve_qp_checks_the_settings_qp_options_once_per_settings(monkeypatch):
+    """The QP options a settings object asks for are checked once (``solve.qp_options``), not again at each copy of a
+    QP: a second solve with the same settings runs ``check_options`` only in the QP's own construction; a bad
+    ``row_weights`` in the settings is still refused with the QP's message, every time."""
+    from admmkit.problems.qp import osqp_settings, problem, solve, validate
+    calls = []
+
+    def counted(**options):
+        calls.append(options)
+        return validate.check_options(**options)
+    monkeypatch.setattr(problem, "check_options", counted)
+    monkeypatch.setattr(solve, "check_options", counted, raising=False)
+    qp = random_qp(6, 8, seed=3)
+    settings = osqp_settings(eps_abs=1e-5, eps_rel=1e-5)
+    first = solve_qp(QP(qp.P, qp.q, qp.A, qp.l, qp.u), settings)
+    calls.clear()
+    again = solve_qp(QP(qp.P, qp.q, qp.A, qp.l, qp.u), settings)
+    assert len(calls) == 1                                   # the QP's construction, not the copy
+    assert np.array_equal(first.x, again.x) and first.iterations == again.iterations
+    copy = solve.qp_for(qp, settings)
+    assert copy.options == qp.with_options(**solve.qp_options(settings)).options
+    bad = dataclasses.replace(settings, row_weights="per-row")
+    for _ in range(2):
+        with pytest.raises(ValueError, match="row_weights must be one of uniform, osqp"):
+            solve_qp(qp, bad)
+
+
+def test_a_tiny_p_is_factorised_in_one_kernel_call_with_lapacks_verdicts(monkeypatch):
+    """Up to COMPILED_CHOLESKY_MAX rows, where compiled code runs, the convexity test's Cholesky factorisation is one
+    kernel call on P's arrays (no dense copy, no LAPACK call), with LAPACK's verdicts on PD, singular PSD and
+    indefinite matrices; as Python (no numba) LAPACK still decides."""
+    pytest.importorskip("numba")
+    from admmkit.problems.qp import convexity
+    from admmkit.problems.qp.sparse_kernels import shifted_cholesky_holds
+    rng = np.random.default_rng(5)
+    cases = []
+    for n, rank, shift in ((1, 1, 0.0), (2, 1, 0.0), (7, 7, 0.0), (12, 5, 0.0), (30, 30, -1e-3), (64, 20, 0.0),
+                           (64, 64, -1e-6)):
+        G = rng.standard_normal((n, rank))
+        M = G @ G.T + shift * np.abs(G @ G.T).max() * np.eye(n)
+        cases.append(sp.csc_matrix(M))
+    lapack = []
+    for P in cases:
+        delta = convexity.SHIFT * np.abs(P.data).max()
+        try:
+            np.linalg.cholesky(P.toarray() + delta * np.eye(P.shape[0]))
+            lapack.append(True)
+        except np.linalg.LinAlgError:
+            lapack.append(False)
+        with compiled_code(True):
+            assert shifted_cholesky_holds(P.indptr, P.indices, P.data, delta) == lapack[-1]
+    assert True in lapack and False in lapack
+    verdicts = [_verdict(P) for P in cases]
+    monkeypatch.setattr(np.linalg, "cholesky", lambda *a, **k: pytest.fail("LAPACK called for a tiny P"))
+    with compiled_code(True):
+        assert [_verdict(P) for P in cases] == verdicts
+    with compiled_code(False), pytest.raises(pytest.fail.Exception):
+        _verdict(cases[2])
+
+
+def test_row_weights_and_free_rows_in_one_pass_are_numpys(monkeypatch):
+    """Where compiled code runs, OSQP's row weights and the free rows come from one kernel pass
+    (``rows.osqp_weights``), equal to the numpy steps (values and index dtype); "uniform" has no weights and no free
+    rows either way."""
+    pytest.importorskip("numba")
+    from admmkit.problems.qp import rows
+    l = np.array([0.0, -np.inf, 1.0, -np.inf, 2.0, -1.0])
+    u = np.array([1.0, np.inf, 1.0 + 1e-5, 3.0, np.inf, -1.0])
+    with compiled_code(False):
+        w_numpy, free_numpy = rows.weights_and_free_rows(l, u)
+    assert list(w_numpy) == [1.0, rows.FREE_ROW_WEIGHT, rows.EQ_ROW_WEIGHT, 1.0, 1.0, rows.EQ_ROW_WEIGHT]
+    monkeypatch.setattr(rows, "row_weights", lambda *a: pytest.fail("the numpy steps ran"))
+    with compiled_code(True):
+        w, free = rows.weights_and_free_rows(l, u)
+    assert np.array_equal(w, w_numpy) and np.array_equal(free, free_numpy) and free.dtype == free_numpy.dtype
+    assert list(free) == [1]
+    monkeypatch.undo()
+    for flag in (True, False):
+        with compiled_code(flag):
+            none, no_free = rows.weights_and_free_rows(l, u, "uniform")
+        assert none is None and no_free.size == 0

@@ -58,6 +58,68 @@ def test_compiled_ruiz_is_the_numpy_one():
         assert np.allclose(q1, q2, rtol=1e-15, atol=0)
 
 
+def _ruiz_four_passes(iterations, low, high, Pd, Pr, Pp, Ad, Ar, Ap, q, D, E):
+    """Ruiz's steps as written before the kernel fused them: per step, read triu(P) and A, scale by D and E, read
+    triu(P) again, scale by c (the reference the two-pass kernel must equal bit for bit)."""
+    n, m = D.size, E.size
+    limit = lambda v: 1.0 if v < low else min(v, high)
+    c = 1.0
+    for _ in range(iterations):
+        d, e = np.zeros(n), np.zeros(m)
+        for j in range(n):
+            for p in range(Pp[j], Pp[j + 1]):
+                if Pr[p] <= j:
+                    d[j] = max(d[j], abs(Pd[p]))
+            for p in range(Ap[j], Ap[j + 1]):
+                d[j] = max(d[j], abs(Ad[p]))
+                e[Ar[p]] = max(e[Ar[p]], abs(Ad[p]))
+        d = np.array([1.0 / np.sqrt(limit(v)) for v in d])
+        e = np.array([1.0 / np.sqrt(limit(v)) for v in e])
+        for j in range(n):
+            for p in range(Pp[j], Pp[j + 1]):
+                Pd[p] = (d[Pr[p]] * Pd[p]) * d[j]
+            for p in range(Ap[j], Ap[j + 1]):
+                Ad[p] = (e[Ar[p]] * Ad[p]) * d[j]
+        q *= d
+        D *= d
+        E *= e
+        cols = np.zeros(n)
+        for j in range(n):
+            for p in range(Pp[j], Pp[j + 1]):
+                if Pr[p] <= j:
+                    cols[j] = max(cols[j], abs(Pd[p]))
+        total = 0.0
+        for v in cols:
+            total += v
+        c_step = 1.0 / limit(max(total / n, limit(float(np.max(np.abs(q))))))
+        Pd *= c_step
+        q *= c_step
+        c *= c_step
+    return c
+
+
+def test_two_pass_ruiz_kernel_is_the_four_pass_steps():
+    """The kernel reads and scales P in two passes per step (the cost scaling deferred to the next step's first
+    pass): the same bits as the four passes, compiled and as Python, on a QP with a dense P."""
+    from admmkit.kernels import AVAILABLE as NUMBA, compiled_code
+    from admmkit.problems.qp.ruiz_kernel import ruiz_steps
+    from admmkit.problems.qp.scaling import MAX_SCALING, MIN_SCALING
+    rng = np.random.default_rng(7)
+    G = rng.standard_normal((25, 25)) * np.logspace(-3, 3, 25)
+    P = sp.csc_matrix(G @ G.T)
+    A = sp.random(30, 25, density=0.3, random_state=8, format="csc") * 1e2
+    q = rng.standard_normal(25) * 1e-2
+    outs = []
+    for run, mode in ((_ruiz_four_passes, False), (ruiz_steps, False), (ruiz_steps, True)):
+        if mode and not NUMBA:
+            continue
+        Pd, Ad, qs, D, E = P.data.copy(), A.data.copy(), q.copy(), np.ones(25), np.ones(30)
+        with compiled_code(mode):
+            c = run(10, MIN_SCALING, MAX_SCALING, Pd, P.indices, P.indptr, Ad, A.indices, A.indptr, qs, D, E)
+        outs.append(b"".join(v.tobytes() for v in (Pd, Ad, qs, D, E, np.array(c))))
+    assert len(outs) >= 2 and len(set(outs)) == 1
+
+
 def test_row_weights_are_osqps():
     qp = random_qp(20, 40, kind="mixed", seed=2, row_weights="osqp")
     free = np.isinf(qp.l) & np.isinf(qp.u)
