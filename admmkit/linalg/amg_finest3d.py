@@ -5,11 +5,11 @@ pyamg's set-up of the finest level makes, in BSR: A.tobsr, the strength of
 connection (with theta = 0 the node graph of A), the aggregates, the
 tentative prolongator T (3 x 6 blocks, one per node), D^-1 A and its
 (omega / rho) multiple (two copies of A), their product with T, P = T - (that
-product), R = P' and the Galerkin product A_1 = (R A) P.  At 1.04e6 unknowns (the
-3-D block at h = 1/48) these took about 8 of the 12 s of CPU of the set-up,
-most of it scipy's generic BSR products and the temporaries they fill (R A
-alone holds 6 x 3 blocks for every pair (coarse node, fine node) two steps
-apart).
+product), R = P' and the Galerkin product A_1 = (R A) P.  On the 3-D block at
+h = 1/32 (3.1e5 unknowns) the finest level took 1.9 of the set-up's 2.7 s of
+CPU, most of it scipy's generic BSR products and the temporaries they fill
+(R A alone holds a 6 x 3 block for every pair (aggregate, fine node) two
+steps apart).
 
 :func:`finest_level` makes the same level from the CSR matrix itself:
 

@@ -45,9 +45,9 @@ P2_MIDPOINT_SHARE = 16 / 57
 #: the ways to assemble K, "compiled" (P1 by ``p1_stiffness`` of problems/contact/model/stiffness3d.py, P2 by
 #: NGSolve) or "ngsolve" (NGSolve's symbolic assembly for both)
 STIFFNESS = ("compiled", "ngsolve")
-#: the ways to build the structured P1 block: "arrays" (its mesh, free dofs, load and contact face from numpy
-#: arrays, :class:`BlockOperators3D`; netgen's mesh and NGSolve's space made only when something asks for them)
-#: or "ngsolve" (netgen's mesh and NGSolve's space first, the library path)
+#: the ways to build the structured P1 block, "arrays" (its mesh, free dofs, load and contact face from numpy
+#: arrays into a BlockOperators3D, whose netgen mesh and NGSolve space are made only when something asks for
+#: them) or "ngsolve" (netgen's mesh and NGSolve's space first, the library path)
 ROUTES = ("arrays", "ngsolve")
 
 
@@ -114,11 +114,11 @@ def assemble3d(scene, mesh=None, stiffness: str = "compiled", route: str = "arra
 def assemble_block_arrays(scene) -> "BlockOperators3D":
     """The operators of ``assemble3d(scene, route="ngsolve")`` for the structured P1 block, built from arrays.
 
-    The mesh is :func:`~admmkit.problems.contact.model.scene3d.block_arrays` (the vertices, tetrahedra and face
+    The mesh is scene3d's ``block_arrays`` (the vertices, tetrahedra and face
     triangles ``block_mesh`` gives netgen); the free dofs are those of NGSolve's VectorH1 with the scene's
     clamped faces (dof c n_v + v, component c of vertex v, not free on a clamped face or on a face that
     ``component_dirichlet`` fixes for c); K is the same compiled ``p1_stiffness``; f is the traction's exact
-    integral t |T| / 3 at each vertex of a loaded triangle T (NGSolve's quadrature of it, equal to round-off);
+    integral t area(T) / 3 at each vertex of a loaded triangle T (NGSolve's quadrature of it, equal to round-off);
     the contact nodes and their weights are ``face_nodes``' from the same triangles.  At h = 1/48 (1.04e6
     unknowns) netgen's mesh and NGSolve's space took 4-5 s of CPU before K.
     """
