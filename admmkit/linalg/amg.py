@@ -78,6 +78,9 @@ class AMGPreconditioner:
     (``"gauss_seidel"``, the sweeps of every other level) or damped block Jacobi (``"block_jacobi"``,
     :mod:`admmkit.linalg.vcycle_jacobi3d`).  Other problems (2-D, scalar) and pyamg's own cycle
     (:func:`admmkit.kernels.library_kernels`) keep pointwise Gauss-Seidel whatever it says.
+    ``finest3d``: for such a problem with ``spectral_steps`` set, the finest level's set-up in compiled
+    loops (:mod:`admmkit.linalg.amg_finest3d`, pyamg's arrays bit for bit, the levels below pyamg's);
+    False, or under :func:`admmkit.kernels.library_kernels`, pyamg's set-up of every level.
     """
 
     SMOOTHERS = (("gauss_seidel", {"sweep": "forward"}), ("gauss_seidel", {"sweep": "backward"}))
@@ -92,7 +95,7 @@ class AMGPreconditioner:
     def __init__(self, A: sp.spmatrix, near_null: np.ndarray | None, *, blocksize: int = 1, max_coarse: int = 500,
                  D: sp.spmatrix | None = None, rho: float | None = None, spectral_steps: int | None = None,
                  cycle_values: str = "float64", cycle_blocks3d: bool = True,
-                 cycle_smoother: str = "block_gauss_seidel"):
+                 cycle_smoother: str = "block_gauss_seidel", finest3d: bool = True):
         if cycle_smoother not in ("gauss_seidel", "block_gauss_seidel", "block_jacobi"):  # vcycle.SMOOTHERS
             raise ValueError(f"cycle_smoother must be gauss_seidel, block_gauss_seidel or block_jacobi, got "
                              f"{cycle_smoother!r}")
@@ -100,12 +103,16 @@ class AMGPreconditioner:
         from pyamg.relaxation.smoothing import change_smoothers
         start = time.perf_counter()
         A = sp.csr_matrix(A)
-        An = A.tobsr(blocksize=(blocksize, blocksize)) if blocksize > 1 else A
+        options = dict(symmetry="symmetric", max_coarse=max_coarse, presmoother=self.SMOOTHERS[0],
+                       postsmoother=self.SMOOTHERS[1], keep=False, coarse_solver=self.COARSE,
+                       improve_candidates=self.IMPROVE)
         with _seeded(), short_spectral_radius(spectral_steps):
-            self.ml = pyamg.smoothed_aggregation_solver(
-                An, B=near_null, symmetry="symmetric", max_coarse=max_coarse,
-                presmoother=self.SMOOTHERS[0], postsmoother=self.SMOOTHERS[1], keep=False,
-                coarse_solver=self.COARSE, improve_candidates=self.IMPROVE)
+            self.ml = None
+            if finest3d and blocksize == 3 and spectral_steps is not None and near_null is not None and hand_written():
+                self.ml = _compiled_finest(A, near_null, options)
+            if self.ml is None:
+                An = A.tobsr(blocksize=(blocksize, blocksize)) if blocksize > 1 else A
+                self.ml = pyamg.smoothed_aggregation_solver(An, B=near_null, **options)
             if blocksize > 1:         # the finest level is A itself, not a CSR copy of its BSR form
                 for level, M in zip(self.ml.levels, [A] + [level.A for level in self.ml.levels[1:]]):
                     level.A = _symmetric_csr(M)
@@ -225,6 +232,28 @@ class AMGPreconditioner:
             return z
         out[...] = z
         return out
+
+
+def _compiled_finest(A: sp.csr_matrix, near_null: np.ndarray, options: dict):
+    """pyamg's hierarchy of A with the finest level made by :func:`admmkit.linalg.amg_finest3d.finest_level` and
+    the levels below by pyamg from its Galerkin product; None where that does not apply."""
+    import pyamg
+    from pyamg.aggregation import smooth
+    from pyamg.multilevel import MultilevelSolver
+    from pyamg.relaxation.smoothing import change_smoothers
+    from .amg_finest3d import finest_level
+    made = finest_level(A, near_null, smooth.approximate_spectral_radius, options["max_coarse"])
+    if made is None:
+        return None
+    level, A1, B1 = made
+    below = pyamg.smoothed_aggregation_solver(A1, B=B1, max_levels=MAX_LEVELS - 1, **options)
+    ml = MultilevelSolver([level] + below.levels, coarse_solver=options["coarse_solver"])
+    change_smoothers(ml, options["presmoother"], options["postsmoother"])
+    return ml
+
+
+#: pyamg's default number of levels at most
+MAX_LEVELS = 10
 
 
 @contextmanager

@@ -24,13 +24,16 @@ VectorH1 numbers component c of scalar dof j as c n_scalar + j.
 """
 from __future__ import annotations
 
-import ngsolve as ng
+from typing import TYPE_CHECKING
+
 import numpy as np
 import scipy.sparse as sp
 
-from admmkit.problems.contact.model.assembly import ContactOperators, free_matrix, lame
-from admmkit.problems.contact.model.fastpaths import component_map
-from admmkit.problems.contact.model.scene3d import FACE_AXIS, block_mesh
+from admmkit.problems.contact.model.operators import ContactOperators
+from admmkit.problems.contact.model.scene3d import FACE_AXIS, block_arrays, block_mesh
+
+if TYPE_CHECKING:      # NGSolve is imported by the routes that use it: the arrays route (P1 block) runs without it
+    import ngsolve as ng
 from admmkit.problems.contact.solvers.friction import friction_of, tangent_frames
 
 #: the share of a P2 triangle's area at each of its vertices in the HRZ-lumped mass
@@ -42,18 +45,31 @@ P2_MIDPOINT_SHARE = 16 / 57
 #: the ways to assemble K, "compiled" (P1 by ``p1_stiffness`` of problems/contact/model/stiffness3d.py, P2 by
 #: NGSolve) or "ngsolve" (NGSolve's symbolic assembly for both)
 STIFFNESS = ("compiled", "ngsolve")
+#: the ways to build the structured P1 block, "arrays" (its mesh, free dofs, load and contact face from numpy
+#: arrays into a BlockOperators3D, whose netgen mesh and NGSolve space are made only when something asks for
+#: them) or "ngsolve" (netgen's mesh and NGSolve's space first, the library path)
+ROUTES = ("arrays", "ngsolve")
 
 
-def assemble3d(scene, mesh=None, stiffness: str = "compiled") -> ContactOperators:
+def assemble3d(scene, mesh=None, stiffness: str = "compiled", route: str = "arrays") -> ContactOperators:
     """K, f, B, mc, g on the free dofs of the 3D scene (a ``Scene3D``; n = (0, 0, -1) on the contact face), in the
     scene's order.
 
     ``mesh``: a tetrahedral mesh of the scene's block with its face names (e.g. an adaptively refined
     one); default the structured mesh of ``scene.h``.  ``stiffness``: one of STIFFNESS (the same K to
     round-off; "compiled" took 1.7 s of CPU against NGSolve's 11 s at h = 1/32, 3.1e5 unknowns).
+    ``route``: one of ROUTES; "arrays" applies to the structured mesh with P1 and the compiled K (otherwise
+    NGSolve's route is taken) and returns the same arrays, in the same numbering, as "ngsolve"
+    (:func:`assemble_block_arrays`).
     """
     if stiffness not in STIFFNESS:
         raise ValueError(f"stiffness = {stiffness!r}; accepted: {', '.join(STIFFNESS)}")
+    if route not in ROUTES:
+        raise ValueError(f"route = {route!r}; accepted: {', '.join(ROUTES)}")
+    if route == "arrays" and mesh is None and scene.order == 1 and stiffness == "compiled":
+        return assemble_block_arrays(scene)
+    import ngsolve as ng
+    from admmkit.problems.contact.model.fastpaths import component_map
     if mesh is None:
         mesh = block_mesh(scene.Lx, scene.Ly, scene.Lz, scene.h)
     else:
@@ -95,6 +111,127 @@ def assemble3d(scene, mesh=None, stiffness: str = "compiled") -> ContactOperator
                             friction=friction_of(scene, xc))
 
 
+def assemble_block_arrays(scene) -> "BlockOperators3D":
+    """The operators of ``assemble3d(scene, route="ngsolve")`` for the structured P1 block, built from arrays.
+
+    The mesh is scene3d's ``block_arrays`` (the vertices, tetrahedra and face
+    triangles ``block_mesh`` gives netgen); the free dofs are those of NGSolve's VectorH1 with the scene's
+    clamped faces (dof c n_v + v, component c of vertex v, not free on a clamped face or on a face that
+    ``component_dirichlet`` fixes for c); K is the same compiled ``p1_stiffness``; f is the traction's exact
+    integral t area(T) / 3 at each vertex of a loaded triangle T (NGSolve's quadrature of it, equal to round-off);
+    the contact nodes and their weights are ``face_nodes``' from the same triangles.  At h = 1/48 (1.04e6
+    unknowns) netgen's mesh and NGSolve's space took 4-5 s of CPU before K.
+    """
+    from admmkit.problems.contact.model.stiffness3d import p1_stiffness   # numba: loaded by a 3-D run only
+    points, tets, faces = block_arrays(scene.Lx, scene.Ly, scene.Lz, scene.h)
+    nv = points.shape[0]
+    free = block_free_dofs(scene, nv, faces)
+    K = p1_stiffness(points, tets, scene.E, scene.nu, free)
+    load = np.zeros((3, nv))
+    for label, t in scene.tractions.items():
+        tris = faces[label]
+        # NGSolve's element value |T| / 3 t as it computes it (2|T| (1/6) t); only the order in which its
+        # assembly sums a vertex's triangles differs (round-off, at a few vertices)
+        element = 2 * _areas(points, tris) * (1 / 6)
+        for c in range(3):
+            load[c] += np.bincount(tris.ravel(), weights=np.repeat(element * t[c], 3), minlength=nv)
+    f = load.ravel()[free]
+    clamped_tris = np.vstack([faces[label] for label in scene.dirichlet])
+    tris = faces[scene.contact]
+    vertex, xc, mc = _by_x(*_face_vertices(points, tris, clamped_tris, _areas(points, tris) / 3), scene.contact)
+    normals = np.tile([0.0, 0.0, -1.0], (len(xc), 1))
+    g = np.array([scene.gap_at(x, y) for x, y, _ in xc])
+    if not np.all(np.isfinite(g)):
+        raise ValueError(f"gap: not finite at the contact nodes {xc[~np.isfinite(g)].tolist()}")
+    B, T = _vertex_maps(vertex, nv, 3 * nv, free)
+    return BlockOperators3D(K=K, f=f, B=B, mc=mc, g=g, xc=xc, normals=normals, free=free, scene=scene, T=T,
+                            tangents=tangent_frames(normals), friction=friction_of(scene, xc),
+                            vertices=points, n_cells=tets.shape[0])
+
+
+def block_free_dofs(scene, nv: int, faces: dict[str, np.ndarray]) -> np.ndarray:
+    """The free dofs c n_v + v of VectorH1 on the block: not on a clamped face (``scene.dirichlet``) nor, for
+    component c, on a face of ``component_dirichlet(scene)``'s c (ascending, as NGSolve's FreeDofs)."""
+    clamped = np.zeros((3, nv), dtype=bool)
+    for label in scene.dirichlet:
+        clamped[:, faces[label].ravel()] = True
+    for key, labels in component_dirichlet(scene).items():
+        c = "xyz".index(key[-1])
+        for label in labels.split("|"):
+            clamped[c, faces[label].ravel()] = True
+    return np.flatnonzero(~clamped.ravel())
+
+
+class BlockOperators3D(ContactOperators):
+    """The operators of the structured P1 block built from arrays (:func:`assemble_block_arrays`).
+
+    The same fields as ``ContactOperators``; ``mesh`` and ``fes`` (netgen's ``block_mesh`` and NGSolve's
+    VectorH1) are made when something first asks for them (a VTU file, an estimator), and checked against the
+    arrays: a space whose dof count or free dofs differ raises RuntimeError, never a silent wrong map.
+    ``vertices`` (n_v, 3) are the mesh's points, which the iterative mode's rigid-body modes read without NGSolve.
+    """
+
+    def __init__(self, *, vertices: np.ndarray, n_cells: int, **fields):
+        for name, value in fields.items():
+            setattr(self, name, value)
+        self.vertices = vertices
+        self._n_cells = int(n_cells)
+        self._space = None
+
+    def __repr__(self) -> str:
+        return (f"BlockOperators3D({getattr(self.scene, 'name', '') or 'scene'}, n_free={self.n_free}, "
+                f"n_c={self.n_c}, from arrays)")
+
+    @property
+    def dim(self) -> int:
+        """3."""
+        return 3
+
+    @property
+    def n_cells(self) -> int:
+        """Number of tetrahedra."""
+        return self._n_cells
+
+    @property
+    def ndof(self) -> int:
+        """Number of dofs of VectorH1 (3 per vertex), free or not."""
+        return 3 * self.vertices.shape[0]
+
+    def full_vector(self, u_free: np.ndarray) -> np.ndarray:
+        """All dofs (zero on the clamped boundary) from the free ones, without NGSolve."""
+        u = np.zeros(self.ndof)
+        u[self.free] = u_free
+        return u
+
+    def dof_coordinates(self) -> np.ndarray:
+        """(n_free, 3): the vertex of each free dof."""
+        return np.tile(self.vertices, (3, 1))[self.free]
+
+    @property
+    def mesh(self):
+        """netgen's ``block_mesh`` as an NGSolve mesh, made on first use."""
+        return self._netgen()[0]
+
+    @property
+    def fes(self):
+        """NGSolve's VectorH1 with the scene's clamped faces, made on first use."""
+        return self._netgen()[1]
+
+    def _netgen(self):
+        """(mesh, fes), made once and checked against the arrays."""
+        if self._space is None:
+            import ngsolve as ng
+            scene = self.scene
+            mesh = block_mesh(scene.Lx, scene.Ly, scene.Lz, scene.h)
+            fes = ng.VectorH1(mesh, order=1, dirichlet="|".join(scene.dirichlet), **component_dirichlet(scene))
+            free = np.flatnonzero(np.array(fes.FreeDofs(), dtype=bool))
+            if fes.ndof != self.ndof or not np.array_equal(free, self.free) or mesh.ne != self._n_cells:
+                raise RuntimeError(f"NGSolve's space of the block has {fes.ndof} dofs ({free.size} free) where the "
+                                   f"arrays have {self.ndof} ({self.free.size} free)")
+            self._space = (mesh, fes)
+        return self._space
+
+
 def component_dirichlet(scene) -> dict:
     """VectorH1's per-component Dirichlet faces: u_x = u_y = 0 on the contact face for ``stick``, and u.n = 0 on
     every symmetry face (``FACE_AXIS``)."""
@@ -109,6 +246,8 @@ def component_dirichlet(scene) -> dict:
 
 def _ngsolve_stiffness(fes, E: float, nu: float, free: np.ndarray):
     """K on the free dofs by NGSolve's symbolic assembly of 2 mu eps(u):eps(v) + lam div u div v."""
+    import ngsolve as ng
+    from admmkit.problems.contact.model.assembly import free_matrix, lame
     u, v = fes.TnT()
     mu, lam = lame(E, nu)
     eps = lambda w: ng.Sym(ng.Grad(w))  # noqa: E731
@@ -140,6 +279,7 @@ def face_nodes(mesh: ng.Mesh, contact: str, dirichlet, order: int):
     """
     if order not in (1, 2):
         raise ValueError(f"order = {order!r}; accepted: 1 (P1 tetrahedra) or 2 (P2)")
+    import ngsolve as ng
     points = np.array(mesh.ngmesh.Coordinates())
     # the boundary triangles from netgen's arrays (vertices numbered from 1, faces by their descriptor's
     # number from 1): NGSolve's BND elements in the same order, without a Python loop over them
@@ -147,15 +287,9 @@ def face_nodes(mesh: ng.Mesh, contact: str, dirichlet, order: int):
     labels = np.array(mesh.GetBoundaries())[surface["index"] - 1]
     triangles = surface["nodes"][:, :3].astype(np.int64) - 1
     tris = triangles[labels == contact]
-    is_clamped = np.zeros(mesh.nv, dtype=bool)
-    is_clamped[triangles[np.isin(labels, list(dirichlet))].ravel()] = True
-    P = points[tris]
-    area = 0.5 * np.linalg.norm(np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0]), axis=1)
-    share = area / 3 if order == 1 else area * P2_VERTEX_SHARE
-    weight = np.bincount(tris.ravel(), weights=np.repeat(share, 3), minlength=mesh.nv)
-    nodes = np.unique(tris.ravel())
-    nodes = nodes[~is_clamped[nodes]]
-    vertex, xc, mc = nodes, points[nodes], weight[nodes]
+    area = _areas(points, tris)
+    vertex, xc, mc = _face_vertices(points, tris, triangles[np.isin(labels, list(dirichlet))],
+                                    area / 3 if order == 1 else area * P2_VERTEX_SHARE)
     if order == 2:
         bnd = list(mesh.Elements(ng.BND))
         face = [el for el in bnd if el.mat == contact]
@@ -165,9 +299,32 @@ def face_nodes(mesh: ng.Mesh, contact: str, dirichlet, order: int):
         mids = np.array(sorted(set(edges.ravel().tolist()) - clamped_edges), dtype=np.int64)
         ends = np.array([[vx.nr for vx in mesh[ng.NodeId(ng.EDGE, int(e))].vertices] for e in mids],
                         dtype=np.int64).reshape(-1, 2)
-        vertex = np.concatenate([nodes, np.full(len(mids), -1)])
+        vertex = np.concatenate([vertex, np.full(len(mids), -1)])
         xc = np.vstack([xc, 0.5 * (points[ends[:, 0]] + points[ends[:, 1]])])
         mc = np.concatenate([mc, edge_weight[mids]])
+    return _by_x(vertex, xc, mc, contact)
+
+
+def _areas(points: np.ndarray, tris: np.ndarray) -> np.ndarray:
+    """The areas of the triangles ``tris`` (vertex numbers of ``points``)."""
+    P = points[tris]
+    return 0.5 * np.linalg.norm(np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0]), axis=1)
+
+
+def _face_vertices(points: np.ndarray, tris: np.ndarray, clamped_tris: np.ndarray, share: np.ndarray):
+    """(vertex, xc, mc) of the vertices of the triangles ``tris`` that lie on no triangle of ``clamped_tris``,
+    ascending, mc the sum of ``share`` (one value per triangle) over each vertex's triangles."""
+    nv = points.shape[0]
+    is_clamped = np.zeros(nv, dtype=bool)
+    is_clamped[clamped_tris.ravel()] = True
+    weight = np.bincount(tris.ravel(), weights=np.repeat(share, 3), minlength=nv)
+    nodes = np.unique(tris.ravel())
+    nodes = nodes[~is_clamped[nodes]]
+    return nodes, points[nodes], weight[nodes]
+
+
+def _by_x(vertex: np.ndarray, xc: np.ndarray, mc: np.ndarray, contact: str):
+    """The contact nodes ordered by x then y; ValueError if there are none."""
     if len(xc) == 0:
         raise ValueError(f"contact: face {contact!r} has no unclamped node on this mesh")
     by_x = np.lexsort((xc[:, 1], xc[:, 0]))
@@ -182,6 +339,7 @@ def point_evaluation(mesh: ng.Mesh, scalar: ng.comp.FESpace, points: np.ndarray,
     dof v and every other basis function vanishes there).  Otherwise the point is located (``mesh(x, y, z)``)
     and its row is the element's shape functions there (the 3D analogue of the 2D ``_point_evaluation``).
     """
+    import ngsolve as ng
     rows, cols, vals = [], [], []
     for i, (x, y, z) in enumerate(np.asarray(points, dtype=float)):
         if vertex is not None and vertex[i] >= 0:
@@ -198,4 +356,4 @@ def point_evaluation(mesh: ng.Mesh, scalar: ng.comp.FESpace, points: np.ndarray,
     return sp.csr_matrix((vals, (rows, cols)), shape=(len(points), scalar.ndof))
 
 
-__all__ = ["assemble3d", "component_dirichlet", "STIFFNESS", "face_nodes", "point_evaluation", "P2_VERTEX_SHARE", "P2_MIDPOINT_SHARE"]
+__all__ = ["assemble3d", "assemble_block_arrays", "block_free_dofs", "BlockOperators3D", "ROUTES", "component_dirichlet", "STIFFNESS", "face_nodes", "point_evaluation", "P2_VERTEX_SHARE", "P2_MIDPOINT_SHARE"]

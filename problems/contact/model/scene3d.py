@@ -55,14 +55,14 @@ def block_counts(Lx: float, Ly: float, Lz: float, h: float) -> tuple[int, int, i
     return max(1, round(Lx / h)), max(1, round(Ly / h)), max(1, round(Lz / h))
 
 
-def block_mesh(Lx: float, Ly: float, Lz: float, h: float) -> ng.Mesh:
-    """Structured tetrahedral mesh of the block (0, Lx) x (0, Ly) x (0, Lz) (module docstring)."""
-    import ngsolve as ng
-    from netgen.meshing import FaceDescriptor, Mesh
+def block_arrays(Lx: float, Ly: float, Lz: float, h: float) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]:
+    """(points, tets, faces) of the structured tetrahedral mesh of the block (0, Lx) x (0, Ly) x (0, Lz) as arrays
+    (module docstring): points (nv, 3), tets (6 nx ny nz, 4) as 0-based int32 vertex numbers, and for each name of
+    FACES_3D its boundary triangles (int32, right-hand normal pointing out of the block), in the order
+    :func:`block_mesh` gives them to netgen.  No netgen, no NGSolve."""
     nx, ny, nz = block_counts(Lx, Ly, Lz, h)
-    mesh = Mesh(dim=3)
     I, J, Kk = np.meshgrid(np.arange(nx + 1), np.arange(ny + 1), np.arange(nz + 1), indexing="ij")
-    mesh.AddPoints(np.column_stack([(I / nx).ravel() * Lx, (J / ny).ravel() * Ly, (Kk / nz).ravel() * Lz]))
+    points = np.column_stack([(I / nx).ravel() * Lx, (J / ny).ravel() * Ly, (Kk / nz).ravel() * Lz])
     vid = lambda i, j, k: (i * (ny + 1) + j) * (nz + 1) + k  # noqa: E731
     i, j, k = (a.ravel() for a in np.meshgrid(np.arange(nx), np.arange(ny), np.arange(nz), indexing="ij"))
     corners = np.column_stack([vid(i, j, k), vid(i, j, k + 1), vid(i, j + 1, k + 1), vid(i, j + 1, k),
@@ -70,14 +70,10 @@ def block_mesh(Lx: float, Ly: float, Lz: float, h: float) -> ng.Mesh:
     tets = np.empty((corners.shape[0] * 6, 4), dtype=np.int32)
     for t, local in enumerate(KUHN):
         tets[t::6] = corners[:, local]
-    for bc, name in enumerate(FACES_3D, 1):
-        mesh.Add(FaceDescriptor(surfnr=bc, domin=1, domout=0, bc=bc))
-        mesh.SetBCName(bc - 1, name)
-    mesh.AddElements(dim=3, index=1, data=tets, base=0)
     # boundary squares (lowest corner a, corners a, b, c = opposite, d; u, v the face's two
     # increasing coordinates): triangles (a, b, c), (a, c, d) follow the cube diagonals through
     # corner 0 / 6, so they are faces of the tetrahedra
-    faces = {
+    squares = {
         "back": (lambda u, v: vid(0, u, v), ny, nz),
         "front": (lambda u, v: vid(nx, u, v), ny, nz),
         "left": (lambda u, v: vid(u, 0, v), nx, nz),
@@ -85,8 +81,9 @@ def block_mesh(Lx: float, Ly: float, Lz: float, h: float) -> ng.Mesh:
         "bottom": (lambda u, v: vid(u, v, 0), nx, ny),
         "top": (lambda u, v: vid(u, v, nz), nx, ny),
     }
-    for bc, name in enumerate(FACES_3D, 1):
-        fn, nu_, nv_ = faces[name]
+    faces = {}
+    for name in FACES_3D:
+        fn, nu_, nv_ = squares[name]
         u, v = (a.ravel() for a in np.meshgrid(np.arange(nu_), np.arange(nv_), indexing="ij"))
         a, b, c, d = fn(u, v), fn(u + 1, v), fn(u + 1, v + 1), fn(u, v + 1)
         # du x dv is +x (back/front), -y (left/right), +z (bottom/top): flip where that points
@@ -94,7 +91,24 @@ def block_mesh(Lx: float, Ly: float, Lz: float, h: float) -> ng.Mesh:
         tri = [np.column_stack([a, b, c]), np.column_stack([a, c, d])]
         if name in ("back", "right", "bottom"):
             tri = [t[:, ::-1] for t in tri]
-        mesh.AddElements(dim=2, index=bc, data=np.vstack(tri).astype(np.int32), base=0)
+        faces[name] = np.vstack(tri).astype(np.int32)
+    return points, tets, faces
+
+
+def block_mesh(Lx: float, Ly: float, Lz: float, h: float) -> ng.Mesh:
+    """Structured tetrahedral mesh of the block (0, Lx) x (0, Ly) x (0, Lz) (module docstring): the arrays of
+    :func:`block_arrays` given to netgen."""
+    import ngsolve as ng
+    from netgen.meshing import FaceDescriptor, Mesh
+    points, tets, faces = block_arrays(Lx, Ly, Lz, h)
+    mesh = Mesh(dim=3)
+    mesh.AddPoints(points)
+    for bc, name in enumerate(FACES_3D, 1):
+        mesh.Add(FaceDescriptor(surfnr=bc, domin=1, domout=0, bc=bc))
+        mesh.SetBCName(bc - 1, name)
+    mesh.AddElements(dim=3, index=1, data=tets, base=0)
+    for bc, name in enumerate(FACES_3D, 1):
+        mesh.AddElements(dim=2, index=bc, data=faces[name], base=0)
     return ng.Mesh(mesh)
 
 

@@ -136,10 +136,15 @@ def _free_rows(indptr, indices, blocks, nv, free_index, out_indptr, out_indices,
             out_indptr[_u(row)] = w
 
 
+def lame(E: float, nu: float) -> tuple[float, float]:
+    """Lame parameters (mu, lambda) of Young's modulus E and Poisson ratio nu (the formula of
+    ``admmkit.problems.contact.model.assembly.lame``, here without that module's NGSolve import)."""
+    return E / (2 * (1 + nu)), E * nu / ((1 + nu) * (1 - 2 * nu))
+
+
 def p1_stiffness(points: np.ndarray, tets: np.ndarray, E: float, nu: float, free: np.ndarray) -> sp.csr_matrix:
     """K of linear elasticity (Young's modulus E, Poisson ratio nu) with P1 tetrahedra ``tets`` (0-based vertex
     numbers of ``points``) on the dofs ``free`` (ascending, in the numbering c n_v + v), as sorted CSR."""
-    from admmkit.problems.contact.model.assembly import lame
     mu, lam = lame(E, nu)
     points = np.ascontiguousarray(points, dtype=float)
     tets = np.ascontiguousarray(tets, dtype=np.int64)
@@ -164,4 +169,4 @@ def p1_stiffness(points: np.ndarray, tets: np.ndarray, E: float, nu: float, free
     return K
 
 
-__all__ = ["p1_stiffness"]
+__all__ = ["lame", "p1_stiffness"]

@@ -51,18 +51,22 @@ def dof_geometry(ops: ContactOperators) -> tuple[np.ndarray, np.ndarray, np.ndar
     NGSolve's VectorH1 numbers all dofs of component 0, then of component 1
     (and 2); within a component the vertex dofs come first (dof = vertex
     number), then, for P2, the hierarchical edge bubbles, whose point is the
-    edge midpoint.
+    edge midpoint.  Operators that carry ``vertices`` and ``ndof`` (the 3D block
+    built from arrays) are read without NGSolve.
     """
-    mesh = ops.mesh
-    dim = mesh.dim
-    n_scalar = ops.fes.ndof // dim
+    known = getattr(ops, "vertices", None)        # operators built from arrays know their vertices: no NGSolve
+    if known is not None:
+        dim, vertices = ops.dim, known
+        nv, n_scalar = vertices.shape[0], ops.ndof // ops.dim
+    else:
+        mesh = ops.mesh
+        dim, nv, n_scalar = mesh.dim, mesh.nv, ops.fes.ndof // mesh.dim
+        vertices = np.array(mesh.ngmesh.Coordinates())[:, :dim]
     component, scalar = np.divmod(ops.free, n_scalar)
-    vertices = np.array(mesh.ngmesh.Coordinates())[:, :dim]
     points = np.empty((n_scalar, dim))
-    nv = mesh.nv
     points[:nv] = vertices[:nv]
     if n_scalar > nv:  # P2: one bubble per edge, numbered like the edges
-        edges = np.array([[v.nr for v in e.vertices] for e in mesh.edges])
+        edges = np.array([[v.nr for v in e.vertices] for e in ops.mesh.edges])
         points[nv:] = vertices[edges].mean(axis=1)[: n_scalar - nv]
     return scalar, component, points[scalar], scalar < nv
 
@@ -72,4 +76,4 @@ def near_null_space(ops: ContactOperators) -> tuple[np.ndarray, np.ndarray | Non
     node, component, points, is_vertex = dof_geometry(ops)
     modes = rigid_body_modes(points, component)
     modes[~is_vertex] = 0.0   # a rigid motion is linear: the vertex hats represent it exactly
-    return modes, node_blocks(node, component, ops.mesh.dim)
+    return modes, node_blocks(node, component, ops.dim)
