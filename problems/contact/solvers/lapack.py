@@ -119,6 +119,38 @@ def factor_csc_arrays(factor) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return factor.data, factor.indices, factor.indptr
 
 
+def upper_solve(diagonal: np.ndarray, data: np.ndarray, indices: np.ndarray, indptr: np.ndarray, b: np.ndarray,
+                trans: bool = False) -> np.ndarray:
+    """x with U x = b (U' x = b when ``trans``), U upper triangular: its diagonal ``diagonal`` and its entries
+    above the diagonal the CSC arrays (``data``, ``indices``, ``indptr``; an entry on the diagonal there must be
+    zero).  One substitution in C, SuperLU's ``gstrs`` (what ``scipy.sparse.linalg.spsolve_triangular`` calls)
+    given U as a factor with a unit L: no copy of U, where ``spsolve_triangular`` copies and rescales it.
+
+    SuperLU keeps the diagonal of U in L's supernodes, so L is passed as the diagonal alone (n supernodes of one
+    column, unit lower: L = I) and U as its part above the diagonal.  Where ``gstrs`` does not take these
+    arguments (a scipy that changed them), ``spsolve_triangular`` on U assembled."""
+    b1 = np.ascontiguousarray(b, dtype=np.float64)
+    d = np.ascontiguousarray(diagonal, dtype=np.float64)
+    n = d.shape[0]
+    if b1.shape != (n,):
+        raise ValueError(f"b must have shape ({n},), got {b1.shape}")
+    superlu = _extension("scipy.sparse.linalg._dsolve", "_superlu")
+    if superlu is None:
+        from scipy.sparse.linalg._dsolve import _superlu as superlu
+    unit = np.arange(n + 1, dtype=np.intc)      # L: column j holds its diagonal entry only
+    try:
+        x, info = superlu.gstrs("T" if trans else "N", n, n, d, unit[:n], unit, n, data.shape[0],
+                                np.ascontiguousarray(data, dtype=np.float64), indices.astype(np.intc, copy=False),
+                                indptr.astype(np.intc, copy=False), b1)
+    except (TypeError, AttributeError):         # a scipy whose gstrs takes other arguments
+        from scipy.sparse.linalg import spsolve_triangular
+        U = (sp.csc_matrix((data, indices, indptr), shape=(n, n)) + sp.diags(d, format="csc")).tocsr()
+        return spsolve_triangular(U.T.tocsr() if trans else U, b1, lower=bool(trans))
+    if info:
+        raise np.linalg.LinAlgError(f"SuperLU's triangular solve failed (info {info})")
+    return x
+
+
 def cho_factor(a: np.ndarray) -> tuple[np.ndarray, bool]:
     """``scipy.linalg.cho_factor(a)``: (c, False), c's upper triangle the Cholesky factor R of a = R'R.
 
