@@ -79,7 +79,7 @@ def _flapack():
     return _extension("scipy.linalg", "_flapack")
 
 
-def splu_natural(A: sp.csc_matrix, factor_arrays: bool = False):
+def splu_natural(A: sp.csc_matrix, factor_arrays: bool = False, panel_size: int | None = None):
     """``scipy.sparse.linalg.splu(A, permc_spec="NATURAL", diag_pivot_thresh=0.0,
     options=dict(SymmetricMode=True))``: LU in A's own order, without pivoting (A CSC, canonical, float64).
 
@@ -88,14 +88,16 @@ def splu_natural(A: sp.csc_matrix, factor_arrays: bool = False):
     for a caller that reads them itself (:func:`factor_csc_arrays` reads
     either): SuperLU copies both factors at each access, and scipy's format
     check of the copies doubled the cost (1.6 of 2.8 ms at Example 1,
-    h = 1/40).  A singular A raises RuntimeError, as splu does."""
+    h = 1/40).  ``panel_size``: SuperLU's panel size (splu's ``panel_size``; None: SuperLU's default).  A singular
+    A raises RuntimeError, as splu does."""
     superlu = _extension("scipy.sparse.linalg._dsolve", "_superlu")
     if (superlu is None or A.format != "csc" or A.dtype != np.float64 or A.shape[0] != A.shape[1]
             or max(A.nnz, A.shape[0]) >= np.iinfo(np.intc).max):
         import scipy.sparse.linalg as spla
-        return spla.splu(A, permc_spec="NATURAL", diag_pivot_thresh=0.0, options=dict(SymmetricMode=True))
+        return spla.splu(A, permc_spec="NATURAL", diag_pivot_thresh=0.0, panel_size=panel_size,
+                         options=dict(SymmetricMode=True))
     A.sum_duplicates()                                   # as splu does (a no-op on a canonical matrix)
-    options = dict(DiagPivotThresh=0.0, ColPerm="NATURAL", PanelSize=None, Relax=None, SymmetricMode=True)
+    options = dict(DiagPivotThresh=0.0, ColPerm="NATURAL", PanelSize=panel_size, Relax=None, SymmetricMode=True)
     try:
         return superlu.gstrf(A.shape[0], A.nnz, A.data, A.indices.astype(np.intc, copy=False),
                              A.indptr.astype(np.intc, copy=False),
@@ -103,7 +105,7 @@ def splu_natural(A: sp.csc_matrix, factor_arrays: bool = False):
                              options=options)
     except (TypeError, AttributeError):
         _library_from_now_on()
-        return splu_natural(A, factor_arrays)
+        return splu_natural(A, factor_arrays, panel_size)
 
 
 def _csc_arrays(arrays: tuple, shape=None) -> tuple:
