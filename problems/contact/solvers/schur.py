@@ -26,8 +26,8 @@ Three backends:
   n_c rows and columns of U, which scipy gives only as a copy of all of U.
   With that copy, K = U' D^{-1} U (D = diag U) gives the load's u0 = K^{-1} f
   and the final u each as one substitution, with U' and with U (SuperLU's
-  ``gstrs``, :func:`lapack.upper_solve`), where two whole solves ran (issue
-  #49: 2.1 + 2.4 ms against 0.6 + 1.5 ms at Example 1, h = 1/40, load 4); a K
+  ``gstrs``, ``lapack.upper_solve``), where two whole solves ran (issue #49:
+  2.1 + 2.4 ms against 0.6 + 1.5 ms at Example 1, h = 1/40, load 4); a K
   of at most ``SMALL_PANEL_MAX_DOFS`` rows is factorised with SuperLU's panel
   size ``SMALL_PANEL``.
 
@@ -82,11 +82,12 @@ LDL_MAX_COLUMN_LENGTH = 170.0
 #: it: the analysis costs 2-4 percent of a factorisation, 58-104 ms at h = 1/200, where the mean column length
 #: was 296-325 (2D: 172-188 at 4e4-6e4 dofs)
 LDL_MAX_DOFS = 50_000
-#: SuperLU's panel size for a K of at most SMALL_PANEL_MAX_DOFS rows (None: SuperLU's default, 20 in scipy's build).
-#: Factorisation in the contact-last order, CPU ms, best of 30-40 (one thread, load 3): Example 1, h = 1/40, 25.5
-#: (default) -> 22.6; Example 2, h = 1/40, 39.6 -> 37.1; Example 1, h = 1/60 and 1/90, 81 -> 76 and 200 -> 177; at
-#: h = 1/200 (160,800 rows) the small panels took 2.49 s against 1.88 s, so larger bodies keep the default
+#: the panel size of SuperLU's factorisation of a K with at most SMALL_PANEL_MAX_DOFS rows, where the default is 20.
+#: Factorisation in the contact-last order, CPU ms, best of 30-40 (one thread, load 3) with the default and with 4,
+#: Example 1 at h = 1/40 25.5 and 22.6, Example 2 at h = 1/40 39.6 and 37.1, Example 1 at h = 1/60 and 1/90 81 and
+#: 76, 200 and 177; at h = 1/200 (160,800 rows) 1.88 s and 2.49 s, so larger bodies keep the default
 SMALL_PANEL = 4
+#: the most rows of K that SuperLU factorises with SMALL_PANEL
 SMALL_PANEL_MAX_DOFS = 40_000
 
 
@@ -194,7 +195,7 @@ def _half_solves(lu, data: np.ndarray, indices: np.ndarray, indptr: np.ndarray, 
     SuperLU factorises Pr K Pc = L U; here Pr = Pc (no pivoting, symmetric mode), and scipy reports Pc as the
     identity in our orders; any other Pc that keeps the contact dofs last is undone by the solves.  ``data`` is
     SuperLU's copy of U, ours: its diagonal is set to zero in place (the substitution takes D apart,
-    :func:`lapack.upper_solve`)."""
+    ``lapack.upper_solve``)."""
     n = indptr.shape[0] - 1
     perm_c, perm_r = np.asarray(lu.perm_c), np.asarray(lu.perm_r)
     ends = indptr[1:] - 1
