@@ -1,7 +1,8 @@
 """scipy's SuperLU and three LAPACK routines, called without importing scipy.linalg or scipy.sparse.linalg.
 
 The condensed mode needs SuperLU (the factorisation of K in the contact-last
-order, :mod:`admmkit.problems.contact.solvers.schur`) and LAPACK's potrf,
+order, :mod:`admmkit.problems.contact.solvers.schur`, and its triangular
+solve with U, :func:`upper_solve`) and LAPACK's potrf,
 potrs and trtrs (the dense x-step, the compliance).  Importing
 ``scipy.sparse.linalg`` for them imports ``scipy.linalg`` too, whose import
 parses the docstrings of its functions: at load 4 on 2 cores ``import numpy,
