@@ -1,7 +1,8 @@
 """scipy's SuperLU and three LAPACK routines, called without importing scipy.linalg or scipy.sparse.linalg.
 
 The condensed mode needs SuperLU (the factorisation of K in the contact-last
-order, :mod:`admmkit.problems.contact.solvers.schur`) and LAPACK's potrf,
+order, :mod:`admmkit.problems.contact.solvers.schur`, and its triangular
+solve with U, :func:`upper_solve`) and LAPACK's potrf,
 potrs and trtrs (the dense x-step, the compliance).  Importing
 ``scipy.sparse.linalg`` for them imports ``scipy.linalg`` too, whose import
 parses the docstrings of its functions: at load 4 on 2 cores ``import numpy,
@@ -79,7 +80,7 @@ def _flapack():
     return _extension("scipy.linalg", "_flapack")
 
 
-def splu_natural(A: sp.csc_matrix, factor_arrays: bool = False):
+def splu_natural(A: sp.csc_matrix, factor_arrays: bool = False, panel_size: int | None = None):
     """``scipy.sparse.linalg.splu(A, permc_spec="NATURAL", diag_pivot_thresh=0.0,
     options=dict(SymmetricMode=True))``: LU in A's own order, without pivoting (A CSC, canonical, float64).
 
@@ -88,14 +89,16 @@ def splu_natural(A: sp.csc_matrix, factor_arrays: bool = False):
     for a caller that reads them itself (:func:`factor_csc_arrays` reads
     either): SuperLU copies both factors at each access, and scipy's format
     check of the copies doubled the cost (1.6 of 2.8 ms at Example 1,
-    h = 1/40).  A singular A raises RuntimeError, as splu does."""
+    h = 1/40).  ``panel_size``: SuperLU's panel size (splu's ``panel_size``; None: SuperLU's default).  A singular
+    A raises RuntimeError, as splu does."""
     superlu = _extension("scipy.sparse.linalg._dsolve", "_superlu")
     if (superlu is None or A.format != "csc" or A.dtype != np.float64 or A.shape[0] != A.shape[1]
             or max(A.nnz, A.shape[0]) >= np.iinfo(np.intc).max):
         import scipy.sparse.linalg as spla
-        return spla.splu(A, permc_spec="NATURAL", diag_pivot_thresh=0.0, options=dict(SymmetricMode=True))
+        return spla.splu(A, permc_spec="NATURAL", diag_pivot_thresh=0.0, panel_size=panel_size,
+                         options=dict(SymmetricMode=True))
     A.sum_duplicates()                                   # as splu does (a no-op on a canonical matrix)
-    options = dict(DiagPivotThresh=0.0, ColPerm="NATURAL", PanelSize=None, Relax=None, SymmetricMode=True)
+    options = dict(DiagPivotThresh=0.0, ColPerm="NATURAL", PanelSize=panel_size, Relax=None, SymmetricMode=True)
     try:
         return superlu.gstrf(A.shape[0], A.nnz, A.data, A.indices.astype(np.intc, copy=False),
                              A.indptr.astype(np.intc, copy=False),
@@ -103,7 +106,7 @@ def splu_natural(A: sp.csc_matrix, factor_arrays: bool = False):
                              options=options)
     except (TypeError, AttributeError):
         _library_from_now_on()
-        return splu_natural(A, factor_arrays)
+        return splu_natural(A, factor_arrays, panel_size)
 
 
 def _csc_arrays(arrays: tuple, shape=None) -> tuple:
@@ -117,6 +120,38 @@ def factor_csc_arrays(factor) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     if isinstance(factor, tuple):
         return factor
     return factor.data, factor.indices, factor.indptr
+
+
+def upper_solve(diagonal: np.ndarray, data: np.ndarray, indices: np.ndarray, indptr: np.ndarray, b: np.ndarray,
+                trans: bool = False) -> np.ndarray:
+    """x with U x = b (U' x = b when ``trans``), U upper triangular: its diagonal ``diagonal`` and its entries
+    above the diagonal the CSC arrays (``data``, ``indices``, ``indptr``; an entry on the diagonal there must be
+    zero).  One substitution in C, SuperLU's ``gstrs`` (what ``scipy.sparse.linalg.spsolve_triangular`` calls)
+    given U as a factor with a unit L: no copy of U, where ``spsolve_triangular`` copies and rescales it.
+
+    SuperLU keeps the diagonal of U in L's supernodes, so L is passed as the diagonal alone (n supernodes of one
+    column, unit lower: L = I) and U as its part above the diagonal.  Where ``gstrs`` does not take these
+    arguments (a scipy that changed them), ``spsolve_triangular`` on U assembled."""
+    b1 = np.ascontiguousarray(b, dtype=np.float64)
+    d = np.ascontiguousarray(diagonal, dtype=np.float64)
+    n = d.shape[0]
+    if b1.shape != (n,):
+        raise ValueError(f"b must have shape ({n},), got {b1.shape}")
+    superlu = _extension("scipy.sparse.linalg._dsolve", "_superlu")
+    if superlu is None:
+        from scipy.sparse.linalg._dsolve import _superlu as superlu
+    unit = np.arange(n + 1, dtype=np.intc)      # L: column j holds its diagonal entry only
+    try:
+        x, info = superlu.gstrs("T" if trans else "N", n, n, d, unit[:n], unit, n, data.shape[0],
+                                np.ascontiguousarray(data, dtype=np.float64), indices.astype(np.intc, copy=False),
+                                indptr.astype(np.intc, copy=False), b1)
+    except (TypeError, AttributeError):         # a scipy whose gstrs takes other arguments
+        from scipy.sparse.linalg import spsolve_triangular
+        U = (sp.csc_matrix((data, indices, indptr), shape=(n, n)) + sp.diags(d, format="csc")).tocsr()
+        return spsolve_triangular(U.T.tocsr() if trans else U, b1, lower=bool(trans))
+    if info:
+        raise np.linalg.LinAlgError(f"SuperLU's triangular solve failed (info {info})")
+    return x
 
 
 def cho_factor(a: np.ndarray) -> tuple[np.ndarray, bool]:

@@ -24,6 +24,12 @@ Three backends:
   touching the rest of the factor.  Not supernodal: fastest on small bodies.
 * ``"superlu"`` (scipy): LU in our order without pivoting; S from the last
   n_c rows and columns of U, which scipy gives only as a copy of all of U.
+  With that copy, K = U' D^{-1} U (D = diag U) gives the load's u0 = K^{-1} f
+  and the final u each as one substitution, with U' and with U (SuperLU's
+  ``gstrs``, ``lapack.upper_solve``), where two whole solves ran (issue #49:
+  2.1 + 2.4 ms against 0.6 + 1.5 ms at Example 1, h = 1/40, load 4); a K
+  of at most ``SMALL_PANEL_MAX_DOFS`` rows is factorised with SuperLU's panel
+  size ``SMALL_PANEL``.
 
 The order of the inner dofs (``ldl`` and ``superlu``): with the dofs'
 coordinates, geometric nested dissection
@@ -76,6 +82,13 @@ LDL_MAX_COLUMN_LENGTH = 170.0
 #: it: the analysis costs 2-4 percent of a factorisation, 58-104 ms at h = 1/200, where the mean column length
 #: was 296-325 (2D: 172-188 at 4e4-6e4 dofs)
 LDL_MAX_DOFS = 50_000
+#: the panel size of SuperLU's factorisation of a K with at most SMALL_PANEL_MAX_DOFS rows, where the default is 20.
+#: Factorisation in the contact-last order, CPU ms, best of 30-40 (one thread, load 3) with the default and with 4,
+#: Example 1 at h = 1/40 25.5 and 22.6, Example 2 at h = 1/40 39.6 and 37.1, Example 1 at h = 1/60 and 1/90 81 and
+#: 76, 200 and 177; at h = 1/200 (160,800 rows) 1.88 s and 2.49 s, so larger bodies keep the default
+SMALL_PANEL = 4
+#: the most rows of K that SuperLU factorises with SMALL_PANEL
+SMALL_PANEL_MAX_DOFS = 40_000
 
 
 @functools.lru_cache(maxsize=1)
@@ -122,20 +135,77 @@ class _SuperLUSchur:
         self.order = order
         Kp = permute_symmetric(K, order, compiled)
         try:
-            self._lu = lapack.splu_natural(Kp, factor_arrays=True)   # splu without scipy.sparse.linalg (lapack.py)
+            panel = SMALL_PANEL if Kp.shape[0] <= SMALL_PANEL_MAX_DOFS else None
+            self._lu = lapack.splu_natural(Kp, factor_arrays=True, panel_size=panel)   # without scipy.sparse.linalg
         except RuntimeError as err:
             raise np.linalg.LinAlgError(f"K is singular (is the body clamped?): {err}") from None
         t2 = time.perf_counter()
         # no pivoting and K symmetric: L = U' D^{-1} with D = diag(U), so S = L_cc U_cc = U_cc' D_c^{-1} U_cc
         # (reading U alone halves the copy of the factors, which scipy only gives whole)
-        U_cc = trailing_block(*lapack.factor_csc_arrays(self._lu.U), m)
+        data, indices, indptr = lapack.factor_csc_arrays(self._lu.U)
+        U_cc = trailing_block(data, indices, indptr, m)
         d = np.diag(U_cc)[:, None]
         self.S = U_cc.T @ (U_cc / d)
         self.R = U_cc / np.sqrt(d)                      # S = R'R, R upper triangular (D > 0: K is SPD)
+        self.U_cc = U_cc
+        self._halves = _half_solves(self._lu, data, indices, indptr, m)
         timings.update(factorisation=t2 - t1, schur=time.perf_counter() - t2)
 
     def solve_permuted(self, b: np.ndarray) -> np.ndarray:
         return self._lu.solve(b)
+
+    def load(self, fp: np.ndarray):
+        """For P f (None when the factor does not allow half solves, :func:`_half_solves`): t = U'^{-1} P f,
+        f'K^{-1}f = t'D t and the contact part of K^{-1} f = U^{-1} D t, which needs only the trailing block of
+        U: U_cc x_c = (D t)_c.  One substitution with U' instead of a whole solve (K = U' D^{-1} U)."""
+        if self._halves is None:
+            return None
+        d, U, position = self._halves
+        t = lapack.upper_solve(d, *U, _scatter(fp, position), trans=True)
+        dt = d * t
+        m = self.U_cc.shape[0]
+        x_c = lapack.solve_triangular(self.U_cc, dt[-m:], lower=False)
+        return float(t @ dt), x_c, t
+
+    def solve_load(self, t: np.ndarray, s: float, v: np.ndarray) -> np.ndarray:
+        """(P K P')^{-1} (s P f + [0; v]) from t = U'^{-1} P f: U'^{-1} [0; v] is U_cc'^{-1} v on the trailing
+        block alone, then one substitution with U."""
+        d, U, position = self._halves
+        m = v.shape[0]
+        w = s * t
+        w[-m:] += lapack.solve_triangular(self.U_cc, v, trans="T", lower=False)
+        x = lapack.upper_solve(d, *U, d * w)
+        return x if position is None else x[position]
+
+
+def _scatter(b: np.ndarray, position: np.ndarray | None) -> np.ndarray:
+    """b in SuperLU's numbering: out[position[k]] = b[k] (b itself when the numbering is the identity)."""
+    if position is None:
+        return b
+    out = np.empty_like(b)
+    out[position] = b
+    return out
+
+
+def _half_solves(lu, data: np.ndarray, indices: np.ndarray, indptr: np.ndarray, m: int):
+    """(D, U above its diagonal, SuperLU's column permutation or None) for :meth:`_SuperLUSchur.load`'s half
+    solves with U alone, or None where they do not apply: rows and columns renumbered differently, the last m
+    moved, or a column of U that does not end at its diagonal (then two whole solves, as before).
+
+    SuperLU factorises Pr K Pc = L U; here Pr = Pc (no pivoting, symmetric mode), and scipy reports Pc as the
+    identity in our orders; any other Pc that keeps the contact dofs last is undone by the solves.  ``data`` is
+    SuperLU's copy of U, ours: its diagonal is set to zero in place (the substitution takes D apart,
+    ``lapack.upper_solve``)."""
+    n = indptr.shape[0] - 1
+    perm_c, perm_r = np.asarray(lu.perm_c), np.asarray(lu.perm_r)
+    ends = indptr[1:] - 1
+    if (n == 0 or not np.array_equal(perm_c, perm_r) or not np.array_equal(perm_c[n - m:], np.arange(n - m, n))
+            or np.any(indptr[1:] == indptr[:-1]) or not np.array_equal(indices[ends], np.arange(n))):
+        return None
+    d = data[ends]
+    data[ends] = 0.0
+    position = None if np.array_equal(perm_c, np.arange(n)) else perm_c
+    return d, (data, indices, indptr), position
 
 
 def trailing_block(data: np.ndarray, indices: np.ndarray, indptr: np.ndarray, m: int) -> np.ndarray:
@@ -326,8 +396,9 @@ class BoundarySchur:
         ms at Example 2, h = 1/40).  The other backends solve with K here.
         """
         f = np.asarray(f, dtype=float)
-        if isinstance(self._impl, _LDLSchur):
-            e, x_c, y = self._impl.load(f[self.order])
+        half = self._impl.load(f[self.order]) if hasattr(self._impl, "load") else None
+        if half is not None:
+            e, x_c, y = half
             self._load = ("forward", y)
             return e, x_c
         u = self.solve(f)
