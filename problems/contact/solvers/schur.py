@@ -66,6 +66,7 @@ import time
 import numpy as np
 import scipy.sparse as sp
 
+from admmkit.linalg import sparse_backends
 from admmkit.loop.blas import limit_blas
 
 from admmkit.problems.contact.solvers import lapack
@@ -82,13 +83,9 @@ LDL_MAX_COLUMN_LENGTH = 170.0
 #: it: the analysis costs 2-4 percent of a factorisation, 58-104 ms at h = 1/200, where the mean column length
 #: was 296-325 (2D: 172-188 at 4e4-6e4 dofs)
 LDL_MAX_DOFS = 50_000
-#: the panel size of SuperLU's factorisation of a K with at most SMALL_PANEL_MAX_DOFS rows, where the default is 20.
-#: Factorisation in the contact-last order, CPU ms, best of 30-40 (one thread, load 3) with the default and with 4,
-#: Example 1 at h = 1/40 25.5 and 22.6, Example 2 at h = 1/40 39.6 and 37.1, Example 1 at h = 1/60 and 1/90 81 and
-#: 76, 200 and 177; at h = 1/200 (160,800 rows) 1.88 s and 2.49 s, so larger bodies keep the default
-SMALL_PANEL = 4
-#: the most rows of K that SuperLU factorises with SMALL_PANEL
-SMALL_PANEL_MAX_DOFS = 40_000
+#: SuperLU's panel size for a K of at most SMALL_PANEL_MAX_DOFS rows: the one the "superlu" backend uses
+#: (admmkit.linalg.sparse_backends, with the measurements)
+SMALL_PANEL, SMALL_PANEL_MAX_DOFS = sparse_backends.SMALL_PANEL, sparse_backends.SMALL_PANEL_MAX_DOFS
 
 
 @functools.lru_cache(maxsize=1)
