@@ -116,15 +116,26 @@ def time_sadmm(ops, mode, backend="auto", rho=1e3, repeats=3):
     return summary([sadmm_once(ops, mode, backend, rho) for _ in range(repeats)])
 
 
+#: a reference factorisation + solve shorter than SHORT_SECONDS is measured in at least SHORT_ROUNDS rounds: at
+#: h = 1/40 one round of 3 moved the ratio by 0.2-0.3 on the loaded machine (29 November), and 15 rounds cost 6-10 s
+SHORT_SECONDS, SHORT_ROUNDS = 0.1, 15
+
+
+def rounds_for(seconds: float, repeats: int) -> int:
+    """The rounds of a size whose reference took ``seconds`` once: ``repeats``, at least SHORT_ROUNDS if short."""
+    return max(repeats, SHORT_ROUNDS) if seconds < SHORT_SECONDS else repeats
+
+
 def interleaved(ops, modes, backend="auto", rho=1e3, repeats=3) -> tuple[tuple[float, float], dict[str, dict]]:
     """((wall, CPU) of factor + solve, {mode: SADMM summary}), measured round by round: each round one
     factor + solve, then one SADMM run per mode, after one untimed factor + solve (as before: the first
     factorisations in a process were up to 2x slower). A change of load on the shared machine then hits the
     reference and SADMM alike; measured one after the other, a ratio at h = 1/40 read 1.29 in one run and 2.07
-    in the next (CPU, Example 2, 28 November, load 5-7)."""
-    factor_solve_once(ops.K, ops.f, backend)
+    in the next (CPU, Example 2, 28 November, load 5-7).  ``repeats`` rounds, at least SHORT_ROUNDS where the
+    warm-up's factor + solve took under SHORT_SECONDS (:func:`rounds_for`)."""
+    warm, _ = factor_solve_once(ops.K, ops.f, backend)
     base, runs = [], {mode: [] for mode in modes}
-    for _ in range(repeats):
+    for _ in range(rounds_for(warm, repeats)):
         base.append(factor_solve_once(ops.K, ops.f, backend))
         for mode in modes:
             runs[mode].append(sadmm_once(ops, mode, backend, rho))
@@ -182,9 +193,9 @@ def write_markdown(path: Path, rows, repeats, rho, wall, command, blas_threads=1
     lines = ["# Contact speed: SADMM against one factorisation + solve of K", "",
              f"Produced by `{command}` on {datetime.date.today().isoformat()} (total {wall:.1f} s).", "",
              "`factor+solve`: `admmkit.linalg.linsolve.factorize(K, backend)` then one `solve(f)`, median of "
-             f"{repeats} after a warm-up. `SADMM`: contact-problem set-up + `admmkit.solve` with rho_0 = {rho:g}, "
+             f"{repeats} rounds ({SHORT_ROUNDS} where one takes under {SHORT_SECONDS:g} s) after a warm-up. `SADMM`: contact-problem set-up + `admmkit.solve` with rho_0 = {rho:g}, "
              "tau = 2, c_max = 100 and the paper's stop (||u^{k+1}-u^k||_K <= 1e-5 ||u^{k+1}||_K), median of "
-             f"{repeats}, a fresh contact problem each repeat. The two are measured in alternation, round by round, "
+             f"the same rounds, a fresh contact problem each repeat. The two are measured in alternation, round by round, "
              "so that a change of load hits both. `ratio` = SADMM / (factor+solve), both with the "
              "same backend: `cholmod` (scikit-sparse, needs SuiteSparse headers to install) and `superlu` "
              "(scipy, what a machine with only pip has). The condensed set-up factorises K once, contact dofs "

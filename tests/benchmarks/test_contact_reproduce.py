@@ -135,3 +135,21 @@ def test_bench_contact_measures_the_reference_and_sadmm_in_alternation(monkeypat
     (wall, cpu), runs = contact_speed.interleaved(SimpleNamespace(K=None, f=None), ("condensed", "full"), repeats=3)
     assert calls == ["ref"] + ["ref", "condensed", "full"] * 3
     assert (wall, cpu) == (2.0, 1.0) and runs["condensed"]["total"] == 4.0 and runs["full"]["cpu"] == 3.0
+
+
+def test_bench_contact_measures_a_short_reference_in_more_rounds(monkeypatch):
+    """A reference factor + solve under SHORT_SECONDS (h = 1/40: about 30 ms) is measured in SHORT_ROUNDS rounds
+    at least, a long one in --repeats rounds: one round of 3 moved the 1/40 ratio by 0.2-0.3 on a loaded machine."""
+    from types import SimpleNamespace
+
+    from admmkit.benchmarks.contact import contact_speed
+    for seconds, rounds in ((0.03, contact_speed.SHORT_ROUNDS), (2.0, 3)):
+        calls = []
+        monkeypatch.setattr(contact_speed, "factor_solve_once", lambda K, f, backend="auto": calls.append("ref")
+                            or (seconds, seconds))
+        result = SimpleNamespace(iterations=3, status=SimpleNamespace(value="converged"), factorizations=1,
+                                 rho_changes=0)
+        monkeypatch.setattr(contact_speed, "sadmm_once", lambda ops, mode, backend="auto", rho=1e3:
+                            {"total": 4.0, "cpu": 3.0, "setup": 1.0, "result": result})
+        contact_speed.interleaved(SimpleNamespace(K=None, f=None), ("condensed",), repeats=3)
+        assert calls.count("ref") == 1 + rounds
