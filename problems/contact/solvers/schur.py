@@ -23,7 +23,11 @@ Three backends:
   block, so S = L_cc D_c L_cc' and R = D_c^{1/2} L_cc' are read without
   touching the rest of the factor.  Not supernodal: fastest on small bodies.
 * ``"superlu"`` (scipy): LU in our order without pivoting; S from the last
-  n_c rows and columns of U, which scipy gives only as a copy of all of U.
+  n_c rows and columns of U, which scipy gives only as a copy of all of U
+  (made with a copy of all of L, at the first access to either: at Example 1,
+  h = 1/40, 7.7 MB into fresh memory, 1.1 ms warm and 6-7.5 ms in the set-up,
+  where 1,500-1,800 pages are first written; the rest of the "schur" phase,
+  U's trailing block, S, R and the half solves' checks, 0.8 ms).
   With that copy, K = U' D^{-1} U (D = diag U) gives the load's u0 = K^{-1} f
   and the final u each as one substitution, with U' and with U (SuperLU's
   ``gstrs``, ``lapack.upper_solve``), where two whole solves ran (issue #49:
@@ -83,9 +87,11 @@ LDL_MAX_COLUMN_LENGTH = 170.0
 #: it: the analysis costs 2-4 percent of a factorisation, 58-104 ms at h = 1/200, where the mean column length
 #: was 296-325 (2D: 172-188 at 4e4-6e4 dofs)
 LDL_MAX_DOFS = 50_000
-#: SuperLU's panel size for a K of at most SMALL_PANEL_MAX_DOFS rows: the one the "superlu" backend uses
+#: SuperLU's panel size for a K of at most ``SMALL_PANEL_MAX_DOFS`` rows: the one the "superlu" backend uses
 #: (admmkit.linalg.sparse_backends, with the measurements)
-SMALL_PANEL, SMALL_PANEL_MAX_DOFS = sparse_backends.SMALL_PANEL, sparse_backends.SMALL_PANEL_MAX_DOFS
+SMALL_PANEL = sparse_backends.SMALL_PANEL
+#: the most rows of a K that SuperLU factorises with the panel size ``SMALL_PANEL``
+SMALL_PANEL_MAX_DOFS = sparse_backends.SMALL_PANEL_MAX_DOFS
 
 
 @functools.lru_cache(maxsize=1)
@@ -138,7 +144,7 @@ class _SuperLUSchur:
             raise np.linalg.LinAlgError(f"K is singular (is the body clamped?): {err}") from None
         t2 = time.perf_counter()
         # no pivoting and K symmetric: L = U' D^{-1} with D = diag(U), so S = L_cc U_cc = U_cc' D_c^{-1} U_cc
-        # (reading U alone halves the copy of the factors, which scipy only gives whole)
+        # (scipy copies L and U both at the first access to either; only U is read here)
         data, indices, indptr = lapack.factor_csc_arrays(self._lu.U)
         U_cc = trailing_block(data, indices, indptr, m)
         d = np.diag(U_cc)[:, None]
