@@ -79,18 +79,23 @@ def _resolve(backend: str) -> str:
 SMALL_PANEL = 4
 #: the most rows of a matrix that SuperLU factorises with SMALL_PANEL
 SMALL_PANEL_MAX_DOFS = 40_000
+#: ... and the most stored entries per row (2-D P1 elasticity has 13.7 at Example 1; a 3-D P1 block has 37-39, and
+#: there the small panel was slower: 18,252 rows 2.86 s against 2.06 s, 5,832 rows 163 against 158 ms, best of 5).
+#: On a quiet core (load 1) Example 1's K at h = 1/40 took 25.0 against 24.6 ms: the gain above is seen under load
+SMALL_PANEL_MAX_ROW_ENTRIES = 20
 
 
-def superlu_panel_size(rows: int) -> int | None:
-    """SuperLU's panel size for a matrix of ``rows`` rows: SMALL_PANEL up to SMALL_PANEL_MAX_DOFS, else None
-    (SuperLU's default)."""
-    return SMALL_PANEL if rows <= SMALL_PANEL_MAX_DOFS else None
+def superlu_panel_size(rows: int, entries: int) -> int | None:
+    """SuperLU's panel size for a matrix of ``rows`` rows and ``entries`` stored entries: SMALL_PANEL up to
+    SMALL_PANEL_MAX_DOFS rows and SMALL_PANEL_MAX_ROW_ENTRIES entries a row, else None (SuperLU's default)."""
+    small = rows <= SMALL_PANEL_MAX_DOFS and entries <= SMALL_PANEL_MAX_ROW_ENTRIES * rows
+    return SMALL_PANEL if small else None
 
 
 def _factor_superlu(A):
     import scipy.sparse.linalg as spla      # here, not at the import: it imports scipy.linalg (about 0.1-0.25 s)
     lu = spla.splu(A, permc_spec="MMD_AT_PLUS_A", options=dict(SymmetricMode=True),
-                   panel_size=superlu_panel_size(A.shape[0]))
+                   panel_size=superlu_panel_size(A.shape[0], A.nnz))
     return lu.solve
 
 

@@ -131,3 +131,18 @@ def test_the_result_reads_A_transpose_made_once():
     stat = problem.ops.K @ u - problem.ops.f + problem.A.T @ (problem.w * lam)
     z = np.zeros(problem.A.shape[0])
     assert problem.kkt(u, z, lam)["stationarity"] == np.abs(stat).max() / np.abs(problem.ops.f).max()
+
+
+def test_a_3d_density_keeps_superlus_default_panel(ops, monkeypatch):
+    """A K with more than SMALL_PANEL_MAX_ROW_ENTRIES entries a row (a 3-D block: 37-39, where small panels
+    factorised slower) keeps SuperLU's default panel size."""
+    seen = []
+    real = lapack.splu_natural
+
+    def spy(A, factor_arrays=False, panel_size=None):
+        seen.append(panel_size)
+        return real(A, factor_arrays, panel_size)
+    monkeypatch.setattr(lapack, "splu_natural", spy)
+    monkeypatch.setattr(schur, "SMALL_PANEL_MAX_ROW_ENTRIES", ops.K.nnz / ops.K.shape[0] - 0.5)
+    BoundarySchur(ops.K, ops.B, backend="superlu")
+    assert seen == [None]

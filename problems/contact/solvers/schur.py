@@ -32,8 +32,8 @@ Three backends:
   and the final u each as one substitution, with U' and with U (SuperLU's
   ``gstrs``, ``lapack.upper_solve``), where two whole solves ran (issue #49:
   2.1 + 2.4 ms against 0.6 + 1.5 ms at Example 1, h = 1/40, load 4); a K
-  of at most ``SMALL_PANEL_MAX_DOFS`` rows is factorised with SuperLU's panel
-  size ``SMALL_PANEL``.
+  of at most ``SMALL_PANEL_MAX_DOFS`` rows and ``SMALL_PANEL_MAX_ROW_ENTRIES``
+  entries a row (2-D) is factorised with SuperLU's panel size ``SMALL_PANEL``.
 
 The order of the inner dofs (``ldl`` and ``superlu``): with the dofs'
 coordinates, geometric nested dissection
@@ -92,6 +92,8 @@ LDL_MAX_DOFS = 50_000
 SMALL_PANEL = sparse_backends.SMALL_PANEL
 #: the most rows of a K that SuperLU factorises with the panel size ``SMALL_PANEL``
 SMALL_PANEL_MAX_DOFS = sparse_backends.SMALL_PANEL_MAX_DOFS
+#: ... and of at most this many stored entries a row (2-D; a 3-D K factorised slower with small panels)
+SMALL_PANEL_MAX_ROW_ENTRIES = sparse_backends.SMALL_PANEL_MAX_ROW_ENTRIES
 
 
 @functools.lru_cache(maxsize=1)
@@ -138,7 +140,8 @@ class _SuperLUSchur:
         self.order = order
         Kp = permute_symmetric(K, order, compiled)
         try:
-            panel = SMALL_PANEL if Kp.shape[0] <= SMALL_PANEL_MAX_DOFS else None
+            small = Kp.shape[0] <= SMALL_PANEL_MAX_DOFS and Kp.nnz <= SMALL_PANEL_MAX_ROW_ENTRIES * Kp.shape[0]
+            panel = SMALL_PANEL if small else None
             self._lu = lapack.splu_natural(Kp, factor_arrays=True, panel_size=panel)   # without scipy.sparse.linalg
         except RuntimeError as err:
             raise np.linalg.LinAlgError(f"K is singular (is the body clamped?): {err}") from None
