@@ -70,32 +70,9 @@ def _resolve(backend: str) -> str:
 # Each _factor_<name>(A) takes a CSC float64 SPD matrix and returns solve(b)
 # for a 1-D right-hand side b.
 
-#: the panel size of SuperLU's factorisation of a matrix with at most SMALL_PANEL_MAX_DOFS rows, where SuperLU's
-#: default is 20 (issue #49).  CPU ms, best of 30-40 (one thread, load 3), default and 4: the contact-last order of
-#: Example 1 at h = 1/40 25.5 and 22.6, Example 2 at h = 1/40 39.6 and 37.1, Example 1 at h = 1/60 and 1/90 81 and
-#: 76, 200 and 177; at h = 1/200 (160,800 rows) 1.88 s and 2.49 s, so larger matrices keep the default.  The
-#: "superlu" backend's own order (MMD on A' + A), factorisation + solve, best / median of 15: Example 1 at
-#: h = 1/40 35.7 / 43.2 and 30.3 / 35.8, Example 2 67.7 / 78.4 and 57.7 / 63.0 (29 November, load 2)
-SMALL_PANEL = 4
-#: the most rows of a matrix that SuperLU factorises with SMALL_PANEL
-SMALL_PANEL_MAX_DOFS = 40_000
-#: ... and the most stored entries per row (2-D P1 elasticity has 13.7 at Example 1; a 3-D P1 block has 37-39, and
-#: there the small panel was slower: 18,252 rows 2.86 s against 2.06 s, 5,832 rows 163 against 158 ms, best of 5).
-#: On a quiet core (load 1) Example 1's K at h = 1/40 took 25.0 against 24.6 ms: the gain above is seen under load
-SMALL_PANEL_MAX_ROW_ENTRIES = 20
-
-
-def superlu_panel_size(rows: int, entries: int) -> int | None:
-    """SuperLU's panel size for a matrix of ``rows`` rows and ``entries`` stored entries: SMALL_PANEL up to
-    SMALL_PANEL_MAX_DOFS rows and SMALL_PANEL_MAX_ROW_ENTRIES entries a row, else None (SuperLU's default)."""
-    small = rows <= SMALL_PANEL_MAX_DOFS and entries <= SMALL_PANEL_MAX_ROW_ENTRIES * rows
-    return SMALL_PANEL if small else None
-
-
 def _factor_superlu(A):
     import scipy.sparse.linalg as spla      # here, not at the import: it imports scipy.linalg (about 0.1-0.25 s)
-    lu = spla.splu(A, permc_spec="MMD_AT_PLUS_A", options=dict(SymmetricMode=True),
-                   panel_size=superlu_panel_size(A.shape[0], A.nnz))
+    lu = spla.splu(A, permc_spec="MMD_AT_PLUS_A", options=dict(SymmetricMode=True))
     return lu.solve
 
 

@@ -177,25 +177,3 @@ def test_in_place_refactorisation_is_the_new_factor():
     solve = kept._cache[1.0]
     assert solve.refactor(sp.identity(b.size, format="csc")) is None     # another pattern: not in place
 
-
-def test_superlu_backend_takes_the_small_panel_up_to_its_size_and_solves(monkeypatch):
-    """The "superlu" backend factorises a matrix of at most SMALL_PANEL_MAX_DOFS rows and 2-D density with SuperLU's
-    panel size SMALL_PANEL, larger or denser ones (3-D) with SuperLU's default; both solve K u = f."""
-    import scipy.sparse as sp
-    import scipy.sparse.linalg as spla
-    from admmkit.linalg import sparse_backends
-    from admmkit.linalg.linsolve import factorize
-    assert sparse_backends.superlu_panel_size(10, 100) == sparse_backends.SMALL_PANEL == 4
-    assert sparse_backends.superlu_panel_size(sparse_backends.SMALL_PANEL_MAX_DOFS + 1, 10**6) is None
-    assert sparse_backends.superlu_panel_size(1000, 38_000) is None          # a 3-D matrix's density: the default
-    n = 400
-    K = sp.diags([-np.ones(n - 1), 2.5 * np.ones(n), -np.ones(n - 1)], [-1, 0, 1], format="csc")
-    f = np.linspace(-1.0, 1.0, n)
-    asked = []
-    real = spla.splu
-    monkeypatch.setattr(spla, "splu", lambda *a, **k: asked.append(k.get("panel_size")) or real(*a, **k))
-    for limit, panel in ((n, 4), (n - 1, None)):
-        monkeypatch.setattr(sparse_backends, "SMALL_PANEL_MAX_DOFS", limit)
-        u = factorize(K, "superlu")(f)
-        assert asked[-1] == panel
-        assert np.linalg.norm(K @ u - f) <= 1e-12 * np.linalg.norm(f)

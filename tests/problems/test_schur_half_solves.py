@@ -1,4 +1,4 @@
-"""The condensed mode's SuperLU path (issue #49): half solves with U alone, small panels for a small K, A' once."""
+"""The condensed mode's SuperLU path (issue #49): half solves with U alone, splu_natural's panel size, A' once."""
 import numpy as np
 import pytest
 import scipy.sparse as sp
@@ -97,21 +97,6 @@ def test_half_solves_in_any_inner_order(ops):
     assert np.allclose(s.S, s0.S, rtol=1e-10, atol=1e-10 * np.abs(s0.S).max())
 
 
-@pytest.mark.parametrize("rows, panel", [(100, schur.SMALL_PANEL), (schur.SMALL_PANEL_MAX_DOFS + 1, None)])
-def test_a_small_K_is_factorised_with_small_panels(ops, monkeypatch, rows, panel):
-    """Fails before: SuperLU's default panel size at every size."""
-    seen = []
-    real = lapack.splu_natural
-
-    def spy(A, factor_arrays=False, panel_size=None):
-        seen.append(panel_size)
-        return real(A, factor_arrays, panel_size)
-    monkeypatch.setattr(lapack, "splu_natural", spy)
-    monkeypatch.setattr(schur, "SMALL_PANEL_MAX_DOFS", ops.K.shape[0] if panel else ops.K.shape[0] - 1)
-    BoundarySchur(ops.K, ops.B, backend="superlu")
-    assert seen == [panel]
-
-
 def test_splu_natural_takes_the_panel_size_as_splu_does():
     import scipy.sparse.linalg as spla
     A = sp.csc_matrix(sp.random(60, 60, density=0.1, random_state=2) + 10 * sp.eye(60))
@@ -132,17 +117,3 @@ def test_the_result_reads_A_transpose_made_once():
     z = np.zeros(problem.A.shape[0])
     assert problem.kkt(u, z, lam)["stationarity"] == np.abs(stat).max() / np.abs(problem.ops.f).max()
 
-
-def test_a_3d_density_keeps_superlus_default_panel(ops, monkeypatch):
-    """A K with more than SMALL_PANEL_MAX_ROW_ENTRIES entries a row (a 3-D block: 37-39, where small panels
-    factorised slower) keeps SuperLU's default panel size."""
-    seen = []
-    real = lapack.splu_natural
-
-    def spy(A, factor_arrays=False, panel_size=None):
-        seen.append(panel_size)
-        return real(A, factor_arrays, panel_size)
-    monkeypatch.setattr(lapack, "splu_natural", spy)
-    monkeypatch.setattr(schur, "SMALL_PANEL_MAX_ROW_ENTRIES", ops.K.nnz / ops.K.shape[0] - 0.5)
-    BoundarySchur(ops.K, ops.B, backend="superlu")
-    assert seen == [None]

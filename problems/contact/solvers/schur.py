@@ -31,9 +31,7 @@ Three backends:
   With that copy, K = U' D^{-1} U (D = diag U) gives the load's u0 = K^{-1} f
   and the final u each as one substitution, with U' and with U (SuperLU's
   ``gstrs``, ``lapack.upper_solve``), where two whole solves ran (issue #49:
-  2.1 + 2.4 ms against 0.6 + 1.5 ms at Example 1, h = 1/40, load 4); a K
-  of at most ``SMALL_PANEL_MAX_DOFS`` rows and ``SMALL_PANEL_MAX_ROW_ENTRIES``
-  entries a row (2-D) is factorised with SuperLU's panel size ``SMALL_PANEL``.
+  2.1 + 2.4 ms against 0.6 + 1.5 ms at Example 1, h = 1/40, load 4).
 
 The order of the inner dofs (``ldl`` and ``superlu``): with the dofs'
 coordinates, geometric nested dissection
@@ -70,7 +68,6 @@ import time
 import numpy as np
 import scipy.sparse as sp
 
-from admmkit.linalg import sparse_backends
 from admmkit.loop.blas import limit_blas
 
 from admmkit.problems.contact.solvers import lapack
@@ -87,13 +84,6 @@ LDL_MAX_COLUMN_LENGTH = 170.0
 #: it: the analysis costs 2-4 percent of a factorisation, 58-104 ms at h = 1/200, where the mean column length
 #: was 296-325 (2D: 172-188 at 4e4-6e4 dofs)
 LDL_MAX_DOFS = 50_000
-#: SuperLU's panel size for a K of at most ``SMALL_PANEL_MAX_DOFS`` rows: the one the "superlu" backend uses
-#: (admmkit.linalg.sparse_backends, with the measurements)
-SMALL_PANEL = sparse_backends.SMALL_PANEL
-#: the most rows of a K that SuperLU factorises with the panel size ``SMALL_PANEL``
-SMALL_PANEL_MAX_DOFS = sparse_backends.SMALL_PANEL_MAX_DOFS
-#: ... and of at most this many stored entries a row (2-D; a 3-D K factorised slower with small panels)
-SMALL_PANEL_MAX_ROW_ENTRIES = sparse_backends.SMALL_PANEL_MAX_ROW_ENTRIES
 
 
 @functools.lru_cache(maxsize=1)
@@ -140,9 +130,7 @@ class _SuperLUSchur:
         self.order = order
         Kp = permute_symmetric(K, order, compiled)
         try:
-            small = Kp.shape[0] <= SMALL_PANEL_MAX_DOFS and Kp.nnz <= SMALL_PANEL_MAX_ROW_ENTRIES * Kp.shape[0]
-            panel = SMALL_PANEL if small else None
-            self._lu = lapack.splu_natural(Kp, factor_arrays=True, panel_size=panel)   # without scipy.sparse.linalg
+            self._lu = lapack.splu_natural(Kp, factor_arrays=True)   # without scipy.sparse.linalg
         except RuntimeError as err:
             raise np.linalg.LinAlgError(f"K is singular (is the body clamped?): {err}") from None
         t2 = time.perf_counter()
