@@ -26,16 +26,7 @@ import numpy as np
 
 from ..kernels import _u, njit
 from .vcycle_blocks3d import FinestLevel3D, _add_blocks_descending
-from .vcycle_jacobi3d import diagonal_block_inverses
-
-
-@njit(cache=True, inline="always")
-def _block_solve(block_inverse, I, r0, r1, r2):
-    """D_I^-1 r_I (the 3 x 3 inverse stored row by row)."""
-    q = 9 * I
-    return (block_inverse[_u(q)] * r0 + block_inverse[_u(q + 1)] * r1 + block_inverse[_u(q + 2)] * r2,
-            block_inverse[_u(q + 3)] * r0 + block_inverse[_u(q + 4)] * r1 + block_inverse[_u(q + 5)] * r2,
-            block_inverse[_u(q + 6)] * r0 + block_inverse[_u(q + 7)] * r1 + block_inverse[_u(q + 8)] * r2)
+from .vcycle_jacobi3d import block_times, diagonal_block_inverses
 
 
 @njit(cache=True)
@@ -63,7 +54,7 @@ def block_forward_restrict(indptr, indices, data, block_diagonal, block_inverse,
                 s1 += data[_u(a + 3)] * x0 + data[_u(a + 4)] * x1 + data[_u(a + 5)] * x2
                 s2 += data[_u(a + 6)] * x0 + data[_u(a + 7)] * x1 + data[_u(a + 8)] * x2
             i = 3 * I
-            y0, y1, y2 = _block_solve(block_inverse, I, b[_u(i)] - s0, b[_u(i + 1)] - s1, b[_u(i + 2)] - s2)
+            y0, y1, y2 = block_times(block_inverse, I, b[_u(i)] - s0, b[_u(i + 1)] - s1, b[_u(i + 2)] - s2)
             x[_u(i)], x[_u(i + 1)], x[_u(i + 2)] = y0, y1, y2
             slot = 3 * (I % W)                      # row I's residual: nothing of its own block row yet
             ring[slot], ring[slot + 1], ring[slot + 2] = 0.0, 0.0, 0.0
@@ -108,7 +99,7 @@ def block_prolong_backward(indptr, indices, data, block_diagonal, block_inverse,
             _add_blocks_descending(indices, data, x, kd + 1, indptr[_u(I + 1)] - 1, s, 3, 3, 9)
             _add_blocks_descending(indices, data, x, indptr[_u(I)], kd - 1, s, 3, 3, 9)
             i = 3 * I
-            x[_u(i)], x[_u(i + 1)], x[_u(i + 2)] = _block_solve(block_inverse, I, b[_u(i)] - s[0],
+            x[_u(i)], x[_u(i + 1)], x[_u(i + 2)] = block_times(block_inverse, I, b[_u(i)] - s[0],
                                                                 b[_u(i + 1)] - s[1], b[_u(i + 2)] - s[2])
 
 

@@ -56,12 +56,13 @@ def _block_product_row(indptr, indices, data, x, I):
 
 
 @njit(cache=True, inline="always")
-def _scaled_block(scaled_inverse, I, r0, r1, r2):
-    """omega D_I^-1 r_I (the 3 x 3 block stored row by row)."""
+def block_times(blocks, I, r0, r1, r2):
+    """The 3 x 3 block I of ``blocks`` (9 values a block, row by row) times (r0, r1, r2): here omega D_I^-1 r_I,
+    in :mod:`admmkit.linalg.vcycle_blockgs3d` D_I^-1 r_I."""
     q = 9 * I
-    return (scaled_inverse[_u(q)] * r0 + scaled_inverse[_u(q + 1)] * r1 + scaled_inverse[_u(q + 2)] * r2,
-            scaled_inverse[_u(q + 3)] * r0 + scaled_inverse[_u(q + 4)] * r1 + scaled_inverse[_u(q + 5)] * r2,
-            scaled_inverse[_u(q + 6)] * r0 + scaled_inverse[_u(q + 7)] * r1 + scaled_inverse[_u(q + 8)] * r2)
+    return (blocks[_u(q)] * r0 + blocks[_u(q + 1)] * r1 + blocks[_u(q + 2)] * r2,
+            blocks[_u(q + 3)] * r0 + blocks[_u(q + 4)] * r1 + blocks[_u(q + 5)] * r2,
+            blocks[_u(q + 6)] * r0 + blocks[_u(q + 7)] * r1 + blocks[_u(q + 8)] * r2)
 
 
 @njit(cache=True)
@@ -75,7 +76,7 @@ def jacobi_restrict(indptr, indices, data, scaled_inverse, b, x, P_indptr, P_ind
         I = step
         if I < nb:
             i = 3 * I
-            x[_u(i)], x[_u(i + 1)], x[_u(i + 2)] = _scaled_block(scaled_inverse, I, b[_u(i)], b[_u(i + 1)],
+            x[_u(i)], x[_u(i + 1)], x[_u(i + 2)] = block_times(scaled_inverse, I, b[_u(i)], b[_u(i + 1)],
                                                                  b[_u(i + 2)])
         M = step - lag
         if M >= 0:
@@ -113,7 +114,7 @@ def prolong_jacobi(indptr, indices, data, scaled_inverse, x, b, P_indptr, P_indi
         if M >= 0:
             s0, s1, s2 = _block_product_row(indptr, indices, data, y, M)
             m = 3 * M
-            d0, d1, d2 = _scaled_block(scaled_inverse, M, b[_u(m)] - s0, b[_u(m + 1)] - s1, b[_u(m + 2)] - s2)
+            d0, d1, d2 = block_times(scaled_inverse, M, b[_u(m)] - s0, b[_u(m + 1)] - s1, b[_u(m + 2)] - s2)
             x[_u(m)], x[_u(m + 1)], x[_u(m + 2)] = y[_u(m)] + d0, y[_u(m + 1)] + d1, y[_u(m + 2)] + d2
 
 
