@@ -11,12 +11,16 @@ line per group of kernels and the time it took:
   symmetry test, the KKT and neutral residuals of the result);
 - the building blocks' segment (:class:`admmkit.SplitProblem`, a LASSO);
 - the sparse LDL' factorisation (:mod:`admmkit.linalg.ldl`) and AMD's ordering
-  (:mod:`admmkit.linalg.amd`).
+  (:mod:`admmkit.linalg.amd`);
+- the finite element plug-ins' (small contact and obstacle runs that reach
+  them): the AMG V-cycles and their set-up, CG, the 3-D finest level, the
+  condensed set-up's ordering.
 
 The kernels are those every route uses: the QP's matrices have int32
-indices whatever route they come by (docs/qp.md, "First call").  Not
-warmed: the contact and obstacle plug-ins' AMG V-cycle and CG kernels
-(compiled at their first use; a finite element run takes longer anyway).
+indices whatever route they come by (docs/qp.md, "First call").  The finite element group
+imports NGSolve (the 2-D scenes are assembled with it) and compiles the
+kernels of the cycles at the sizes where they run: a V-cycle of three levels
+or more, 2x2 node blocks in 2-D, 3x3 and 6x6 blocks in 3-D.
 """
 from __future__ import annotations
 
@@ -77,10 +81,29 @@ def ldl_kernels() -> None:
     ldl_factor(A, amd_order(A.indptr, A.indices, 30)).solve(np.ones(30))
 
 
+def fe_kernels() -> None:
+    """The finite element plug-ins' kernels, through runs small enough to take seconds and large enough for a
+    V-cycle of three levels: contact Example 1 at h = 1/80 iterative (2-D AMG in 2x2 node blocks, CG) and
+    condensed (the nested dissection ordering), the 3-D block at h = 1/16 iterative (the compiled stiffness and
+    finest AMG level, the 3x3 block Gauss-Seidel and 6x6 coarse level) and the obstacle with the iterative
+    backend (the scalar V-cycle)."""
+    import admmkit
+    from admmkit.problems.contact.model.scene import SCENES_DIR
+    from admmkit.problems.contact.model.scene_file import load_scene
+    from admmkit.problems.contact.solvers.methods import solve_scene
+    from admmkit.problems.obstacle.discrete import make_problem
+    from admmkit.problems.obstacle.scene import radial
+    for name, h, modes in (("ex1", 1 / 80, ("iterative", "condensed")), ("block3d", 1 / 16, ("iterative",))):
+        for mode in modes:
+            solve_scene(load_scene(SCENES_DIR / f"{name}.toml", h=h), mode=mode, max_iter=200)
+    admmkit.solve(make_problem(radial(1 / 32), backend="iterative"), rho=1.0, max_iter=50)
+
+
 #: (name, what it runs), in the order they are warmed
 GROUPS = (("QP plug-in (solve_qp, the cvxpy and qpsolvers routes)", qp_kernels),
           ("building blocks (SplitProblem's compiled segment)", split_kernels),
-          ("sparse LDL' and AMD's ordering (admmkit.linalg.ldl, admmkit.linalg.amd)", ldl_kernels))
+          ("sparse LDL' and AMD's ordering (admmkit.linalg.ldl, admmkit.linalg.amd)", ldl_kernels),
+          ("finite elements (contact and obstacle: AMG V-cycles, CG, the 3-D finest level)", fe_kernels))
 
 
 def kernels_ready() -> int:
@@ -116,5 +139,7 @@ def register(subparsers) -> None:
         description="Compile the numba kernels now, with a line per group and the time it took: on a fresh "
                     "install the first solve that runs compiled code would compile them (about 20 s for the "
                     "QP's); afterwards every process loads them from numba's cache. Small problems never need "
-                    "them (docs/qp.md, \"First call\").\n\ntypical: 20-60 s after an install, about 2 s after.")
+                    "them (docs/qp.md, \"First call\"). The finite element group covers the contact and obstacle "
+                    "plug-ins (AMG V-cycles, CG, the 3-D set-up).\n\ntypical: 2-4 minutes after an install (half of "
+                    "it the QP's, most of the rest the finite element group), under 10 s after.")
     p.set_defaults(func=run)
