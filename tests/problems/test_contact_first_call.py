@@ -33,6 +33,26 @@ def test_solve_contact_imports_no_numba_for_a_small_body():
     assert out == {"code": 0, "loaded": [], "mode": True}
 
 
+def test_a_fresh_solve_contact_builds_one_blas_controller():
+    """threadpoolctl's controller lists every loaded library (10-25 ms in a fresh process): the condensed set-up
+    loads SuperLU and LAPACK before it pins BLAS, so the solve's pin reuses that controller."""
+    code = ("import contextlib, io, json, admmkit.cli, admmkit.loop.blas as blas\n"
+            "built, make = [], blas._current_controller\n"
+            "def counted():\n"
+            "    before = blas._controller\n"
+            "    c = make()\n"
+            "    built.extend([c] if c is not before else [])\n"
+            "    return c\n"
+            "blas._current_controller = counted\n"
+            "with contextlib.redirect_stdout(io.StringIO()):\n"
+            "    code = admmkit.cli.main(['solve', 'contact', '--scene', 'ex1', '--h', '1/10', '-q'])\n"
+            "print(json.dumps({'code': code, 'built': len(built)}))")
+    done = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=300,
+                          env={**os.environ, "OMP_NUM_THREADS": "1"})
+    assert done.returncode == 0, done.stderr
+    assert json.loads(done.stdout.strip().splitlines()[-1]) == {"code": 0, "built": 1}
+
+
 def run(problem):
     order, rule = policies.method("sadmm")
     return admmkit.solve(problem, rho=1e3, policy=rule, order=order, stop=RelativeChange(1e-5), max_iter=2000)

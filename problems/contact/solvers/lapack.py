@@ -214,3 +214,11 @@ def solve_triangular(a: np.ndarray, b: np.ndarray, trans: int | str = 0, lower: 
     if info < 0:
         raise ValueError(f"illegal value in {-info}-th argument of internal trtrs")
     return x
+
+
+def load_extensions() -> None:
+    """Load SuperLU's and LAPACK's compiled modules now (nothing if loaded or not ``DIRECT``): done before BLAS
+    threads are pinned (:func:`admmkit.loop.blas.limit_blas`), the controller then sees scipy's OpenBLAS at once and
+    is not built again at the solve's pin (10-25 ms in a fresh process)."""
+    _extension("scipy.sparse.linalg._dsolve", "_superlu")
+    _flapack()

@@ -357,6 +357,8 @@ class BoundarySchur:
         if order is not None and not _fits(order, K.shape[0], self.contact_dofs):
             order = None
         self.timings: dict[str, float] = {}
+        if backend != "cholmod":
+            lapack.load_extensions()        # before the pin below: one BLAS controller for the set-up and the solve
         try:
             with limit_blas(blas_threads):
                 if backend == "cholmod":
