@@ -36,7 +36,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from admmkit.kernels import kernel
+from admmkit.kernels import _u, kernel
 
 #: the relative distance from the edges of Summable's band [1/(1+tau), 1+tau] inside which the kernel keeps rho
 BAND_MARGIN = 1e-9
@@ -47,20 +47,23 @@ CEILING = 1e100
 
 
 @kernel(cache=True)
-def cholesky_solve(R, b, x):
-    """x with R'R x = b: R upper triangular (the upper triangle of LAPACK's potrf factor; the lower one is not
-    read), R'y = b by rows, then R x = y by columns (x holds y)."""
+def cholesky_solve(R, R_rows, b, x):
+    """x with R'R x = b, R upper triangular given twice: ``R`` by columns (Fortran order, LAPACK potrf's factor;
+    its lower triangle is not read) and ``R_rows`` by rows (C order).  R'y = b, then R x = y, each as a sequence of
+    axpys on contiguous memory (row j of R, then column j; x holds b, then y)."""
     n = b.shape[0]
     for i in range(n):
-        s = b[i]
-        for j in range(i):
-            s -= R[j, i] * x[j]
-        x[i] = s / R[i, i]
+        x[i] = b[i]
+    for j in range(n):
+        yj = x[j] / R_rows[j, j]
+        x[j] = yj
+        for i in range(_u(j + 1), _u(n)):       # unsigned: no negative-index test, the loop vectorises
+            x[i] -= R_rows[_u(j), i] * yj
     for j in range(n - 1, -1, -1):
         xj = x[j] / R[j, j]
         x[j] = xj
-        for i in range(j):
-            x[i] -= R[i, j] * xj
+        for i in range(_u(j)):
+            x[i] -= R[i, _u(j)] * xj
 
 
 @kernel(cache=True)
@@ -71,8 +74,8 @@ def symmetric_times(C, w, out):
         out[i] = 0.0
     for j in range(m):
         wj = w[j]
-        for i in range(m):
-            out[i] += C[j, i] * wj
+        for i in range(_u(m)):
+            out[i] += C[_u(j), i] * wj
 
 
 @kernel(cache=True)
@@ -84,14 +87,14 @@ def z_step(g, Ax, lam, rho, out):
 
 
 @kernel(cache=True)
-def x_step(rho, z, lam, d0, R, C, x, Cw, rhs):
-    """x = (1, w) with (M_c^{-1} + rho C) w = rho z - lam - rho d0 (R'R = M_c^{-1} + rho C), eq. (12), and
-    Cw = C w (``rhs`` is work space)."""
+def x_step(rho, z, lam, d0, R, R_rows, C, x, Cw, rhs):
+    """x = (1, w) with (M_c^{-1} + rho C) w = rho z - lam - rho d0 (R'R = M_c^{-1} + rho C, R by columns and by
+    rows), eq. (12), and Cw = C w (``rhs`` is work space)."""
     m = z.shape[0]
     for i in range(m):
         rhs[i] = rho * z[i] - lam[i] - rho * d0[i]
     w = x[1:]
-    cholesky_solve(R, rhs, w)
+    cholesky_solve(R, R_rows, rhs, w)
     x[0] = 1.0
     symmetric_times(C, w, Cw)
 
@@ -168,7 +171,7 @@ def go_on(k, every, knows_stop, tol, knows_rule, band_low, band_high, rho, mass,
 
 @kernel(cache=True)
 def segment_kernel(count, first, every, knows_stop, tol, knows_rule, band_low, band_high, decide,
-                   rho, g, d0, mass, e0, R, C, x, z, lam, Ax, Cw, x0, z0, lam0, Ax0, Cw0,
+                   rho, g, d0, mass, e0, R, R_rows, C, x, z, lam, Ax, Cw, x0, z0, lam0, Ax0, Cw0,
                    x1, z1, lam1, Ax1, Cw1, rhs, zeros):
     """Up to ``count`` iterations of order zx from iteration ``first`` on the state (x, z, lam, Ax, Cw), updated in
     place; (x0, ..., Cw0) end as the inputs of the last iteration run.  With ``decide``, the segment ends after an
@@ -179,7 +182,7 @@ def segment_kernel(count, first, every, knows_stop, tol, knows_rule, band_low, b
     done = 0
     while done < count:
         z_step(g, Ax, lam, rho, z1)                                        # (11)
-        x_step(rho, z1, lam, d0, R, C, x1, Cw1, rhs)                       # (12)
+        x_step(rho, z1, lam, d0, R, R_rows, C, x1, Cw1, rhs)                     # (12)
         apply_A(x1[0], d0, Cw1, Ax1)
         for i in range(m):                                                 # (13)
             lam1[i] = lam[i] + rho * (Ax1[i] - z1[i])
@@ -221,7 +224,8 @@ def known_rule(policy) -> tuple[float, float] | None:
 def run_segment(problem, factor, x, z, lam, Ax, Cw, rho: float, count: int, read: bool, check):
     """``CondensedContact.segment`` in order zx with alpha = 1: (x, z, lam, Ax, done) after ``done`` <= ``count``
     iterations, with ``read`` also ``last`` (the read iteration's inputs and None for the relaxed vector; None when
-    a non-finite step ended the segment early), and the C w of the last two iterates for the plug-in's norms.
+    a non-finite step ended the segment early), and the (x, C w) of the last two iterates for the plug-in's norms.
+    ``factor`` is (R by columns, R by rows) of M_c^{-1} + rho C.
 
     ``check`` (:class:`admmkit.loop.segments.SegmentChecks`): the kernel decides at every iteration (:func:`go_on`)
     where the rule is Summable and the stop RelativeChange; another rule ends the segment at the first record it
@@ -232,16 +236,22 @@ def run_segment(problem, factor, x, z, lam, Ax, Cw, rho: float, count: int, read
     band = known_rule(check.policy) if decide else None
     if decide and band is None:
         count = min(count, check.policy.unchanged_until(first) - first + 1)
-    m = z.shape[0]
-    state = [np.array(v, dtype=np.float64) for v in (x, z, lam, Ax, Cw)]
+    state = [np.array(v, dtype=np.float64) for v in (x, z, lam, Ax, Cw)]     # the loop's arrays are not written
     inputs = [np.empty_like(v) for v in state]
-    work = [np.empty_like(v) for v in state] + [np.empty(m), np.zeros(max(m, x.shape[0]))]
     done, kept = segment_kernel(int(count), int(first), int(every), tol is not None, 0.0 if tol is None else tol,
                                 band is not None, *(band or (0.0, np.inf)), decide, float(rho), problem.g,
-                                problem.d0, problem.w, float(problem.e0), factor, problem.C, *state, *inputs,
-                                *work)
+                                problem.d0, problem.w, float(problem.e0), *factor, problem.C, *state, *inputs,
+                                *work_space(problem, x.shape[0], z.shape[0]))
     x, z, lam, Ax, Cw = state
     last = None
     if read and kept and done and (decide or done == count):      # the last iteration run is the read one
         last = (inputs[0], inputs[1], inputs[2], inputs[3], None)
     return (x, z, lam, Ax, done, last), (inputs[0], inputs[4]), (x, Cw)
+
+
+def work_space(problem, n: int, m: int) -> tuple:
+    """The kernel's work arrays (x1, z1, lam1, Ax1, Cw1, rhs, zeros), made once per problem and size."""
+    held = problem.__dict__.get("_segment_work")
+    if held is None or held[0].shape[0] != n or held[1].shape[0] != m:
+        held = problem._segment_work = (np.empty(n), *(np.empty(m) for _ in range(5)), np.zeros(n))
+    return held
