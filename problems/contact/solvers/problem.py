@@ -79,7 +79,7 @@ class DenseCholesky:
 
     def upper_pair(self) -> tuple[np.ndarray, np.ndarray]:
         """(R by columns, R by rows): the upper triangular R with R'R = matrix in Fortran and in C order (the
-        compiled solve's, :func:`admmkit.problems.contact.solvers.condensed_segment.cholesky_solve`), made once."""
+        compiled solve's, ``condensed_segment.cholesky_solve``), made once."""
         if self._pair is None:
             R = self.factor.T if self.lower else self.factor
             self._pair = (np.asfortranarray(R), np.ascontiguousarray(R))
@@ -147,7 +147,7 @@ class CondensedContact(_ContactBase):
 
     A run's steps are numpy's and LAPACK's, or, when compiled code runs (numba imported, see
     :func:`admmkit.kernels.compiled_now`) and the contact is frictionless, the kernels of
-    :mod:`admmkit.problems.contact.solvers.condensed_segment`, which also run SADMM's iterations in one compiled
+    ``admmkit.problems.contact.solvers.condensed_segment``, which also run SADMM's iterations in one compiled
     call (:meth:`segment`): the same iterates bit for bit as these steps.  The two choices agree to round-off.
     """
 
@@ -192,7 +192,7 @@ class CondensedContact(_ContactBase):
         if not self.compiled_steps:
             return super().z_step(Ax, lam, rho, z)
         out = np.empty(Ax.shape[0])
-        kernels().z_step(self.g, Ax, lam, rho, out)
+        _kernels().z_step(self.g, Ax, lam, rho, out)
         return out
 
     def x_step(self, z, lam, rho, x):
@@ -200,7 +200,7 @@ class CondensedContact(_ContactBase):
         if self.compiled_steps:
             m = z.shape[0]
             x_new, Cw = np.empty(m + 1), np.empty(m)
-            kernels().x_step(rho, z, lam, self.d0, *self._cholesky(rho), self.C, x_new, Cw, np.empty(m))
+            _kernels().x_step(rho, z, lam, self.d0, *self._cholesky(rho), self.C, x_new, Cw, np.empty(m))
             self.factors.solves += 1
         else:
             w = self.factors.solve(rho, rho * z - lam - rho * self.d0)
@@ -212,7 +212,7 @@ class CondensedContact(_ContactBase):
     def segment(self, x, z, lam, Ax, rho, alpha, order, count, read=False, check=None):
         """``count`` iterations of order zx (alpha = 1) in one compiled call, SADMM's rule and the paper's stop
         decided in it where they go on (:mod:`admmkit.loop.segments`,
-        :mod:`admmkit.problems.contact.solvers.condensed_segment`); None where it does not apply (another order,
+        ``admmkit.problems.contact.solvers.condensed_segment``); None where it does not apply (another order,
         alpha != 1, friction, a run on numpy's steps)."""
         if not self.compiled_steps or order != "zx" or alpha != 1.0:
             return None
@@ -233,7 +233,7 @@ class CondensedContact(_ContactBase):
                 return Cw
         if self.compiled_steps:
             Cw = np.empty(self.C.shape[0])
-            kernels().symmetric_times(self.C, np.ascontiguousarray(x[1:], dtype=np.float64), Cw)
+            _kernels().symmetric_times(self.C, np.ascontiguousarray(x[1:], dtype=np.float64), Cw)
             return Cw
         return self.C @ x[1:]
 
@@ -242,7 +242,7 @@ class CondensedContact(_ContactBase):
         if not self.compiled_steps:
             return x[0] * self.d0 + self._Cw(x)
         out = np.empty(self.d0.shape[0])
-        kernels().apply_A(float(x[0]), self.d0, self._Cw(x), out)
+        _kernels().apply_A(float(x[0]), self.d0, self._Cw(x), out)
         return out
 
     def x_norm(self, x):
@@ -317,8 +317,8 @@ class IterativeContact(_ContactBase):
         return self.solver.counters()
 
 
-def kernels():
-    """:mod:`admmkit.problems.contact.solvers.condensed_segment` (imported at a compiled run's first step)."""
+def _kernels():
+    """``admmkit.problems.contact.solvers.condensed_segment`` (imported at a compiled run's first step)."""
     from admmkit.problems.contact.solvers import condensed_segment
     return condensed_segment
 
