@@ -70,20 +70,11 @@ class DenseCholesky:
     called without importing scipy.linalg (:mod:`admmkit.problems.contact.solvers.lapack`).
     """
 
-    __slots__ = ("factor", "lower", "_pair")
+    __slots__ = ("factor", "lower")
     ldl = refactor = None        # what admmkit.linalg.linsolve.CachedFactorization asks of a solve
 
     def __init__(self, matrix: np.ndarray):
         self.factor, self.lower = lapack.cho_factor(matrix)
-        self._pair = None
-
-    def upper_pair(self) -> tuple[np.ndarray, np.ndarray]:
-        """(R by columns, R by rows): the upper triangular R with R'R = matrix in Fortran and in C order (the
-        compiled solve's, ``condensed_segment.cholesky_solve``), made once."""
-        if self._pair is None:
-            R = self.factor.T if self.lower else self.factor
-            self._pair = (np.asfortranarray(R), np.ascontiguousarray(R))
-        return self._pair
 
     def __call__(self, rhs: np.ndarray) -> np.ndarray:
         """The solution of matrix @ x = rhs."""
@@ -182,10 +173,10 @@ class CondensedContact(_ContactBase):
         """A change of rho: M_c^{-1} + rho C factorised now (dense Cholesky, held per rho)."""
         self.factors.prepare(rho)
 
-    def _cholesky(self, rho) -> tuple[np.ndarray, np.ndarray]:
-        """R with R'R = M_c^{-1} + rho C by columns and by rows (DenseCholesky.upper_pair), of the held factor
-        (factorised now if not held)."""
-        return self.factors._factor(rho).upper_pair()     # the cache's own entry, as its solve takes it
+    def _cholesky(self, rho) -> np.ndarray:
+        """R with R'R = M_c^{-1} + rho C (its upper triangle), the held factor (factorised now if not held)."""
+        held = self.factors._factor(rho)           # the cache's own entry, as its solve takes it
+        return held.factor.T if held.lower else held.factor
 
     def z_step(self, Ax, lam, rho, z):
         """p = min(g, u_n + lam/rho), eq. (11) (with friction also the shrink (11t))."""
@@ -200,7 +191,7 @@ class CondensedContact(_ContactBase):
         if self.compiled_steps:
             m = z.shape[0]
             x_new, Cw = np.empty(m + 1), np.empty(m)
-            _kernels().x_step(rho, z, lam, self.d0, *self._cholesky(rho), self.C, x_new, Cw, np.empty(m))
+            _kernels().x_step(rho, z, lam, self.d0, self._cholesky(rho), self.C, x_new, Cw, np.empty(m))
             self.factors.solves += 1
         else:
             w = self.factors.solve(rho, rho * z - lam - rho * self.d0)
