@@ -63,7 +63,9 @@ def test_condensed_and_full_agree_to_round_off(ex2_ops, method):
     assert np.abs(u - cond.result.x).max() <= 1e-9 * np.abs(u).max()
     assert np.allclose(full.result.lam, cond.result.lam, rtol=1e-7, atol=1e-9 * np.abs(full.result.lam).max())
     rel = full.result.history["rel_change"], cond.result.history["rel_change"]
-    assert np.allclose(*rel, rtol=1e-6)
+    read = np.isfinite(rel[1])      # rows of a compiled segment's iterations are NaN (admmkit.loop.segments)
+    assert read[-1] and np.isfinite(rel[0]).all()
+    assert np.allclose(rel[0][read], rel[1][read], rtol=1e-6)
 
 
 def cvxpy_reference(ops):

@@ -42,6 +42,7 @@ from collections import deque
 import numpy as np
 import scipy.sparse as sp
 
+from admmkit.kernels import compiled_now
 from admmkit.linalg.linsolve import CachedFactorization
 from admmkit.problems.contact.model.operators import ContactOperators
 from admmkit.problems.contact.solvers import lapack
@@ -133,9 +134,17 @@ class FullContact(_ContactBase):
 
 
 class CondensedContact(_ContactBase):
-    """Boundary-condensed mode: x = (s, w), u = s u0 + K^{-1} B'w (see the module docstring)."""
+    """Boundary-condensed mode: x = (s, w), u = s u0 + K^{-1} B'w (see the module docstring).
+
+    A run's steps are numpy's and LAPACK's, or, when compiled code runs (numba imported, see
+    :func:`admmkit.kernels.compiled_now`) and the contact is frictionless, the kernels of
+    ``admmkit.problems.contact.solvers.condensed_segment``, which also run SADMM's iterations in one compiled
+    call (:meth:`segment`): the same iterates bit for bit as these steps.  The two choices agree to round-off.
+    """
 
     mode = "condensed"
+    #: the steps are the package's own (tests/problems/test_contact_segment.py): a segment may run the first iteration
+    trusted_steps = True
 
     def __init__(self, ops: ContactOperators, backend: str = "auto", compiled="auto"):
         super().__init__(ops)
@@ -153,28 +162,79 @@ class CondensedContact(_ContactBase):
         self.factors = CachedFactorization(lambda rho: np.diag(1.0 / self.w) + rho * self.C, factor=DenseCholesky,
                                            max_cached=dense_factors_held(self.C.shape[0]))
         self._recent_Cw: deque = deque(maxlen=2)  # (x, C w) of the last x-steps: one C-matvec per iteration
+        self.compiled_steps = False               # this run's steps are the compiled kernels (begin_run)
+
+    def begin_run(self):
+        """Start a run: its steps are the compiled kernels where compiled code runs now and the contact is
+        frictionless, else numpy's and LAPACK's (the run keeps the choice)."""
+        self.compiled_steps = self.friction is None and compiled_now()
 
     def update_rho(self, rho):
         """A change of rho: M_c^{-1} + rho C factorised now (dense Cholesky, held per rho)."""
         self.factors.prepare(rho)
 
+    def _cholesky(self, rho) -> np.ndarray:
+        """R with R'R = M_c^{-1} + rho C (its upper triangle), the held factor (factorised now if not held)."""
+        held = self.factors._factor(rho)           # the cache's own entry, as its solve takes it
+        return held.factor.T if held.lower else held.factor
+
+    def z_step(self, Ax, lam, rho, z):
+        """p = min(g, u_n + lam/rho), eq. (11) (with friction also the shrink (11t))."""
+        if not self.compiled_steps:
+            return super().z_step(Ax, lam, rho, z)
+        out = np.empty(Ax.shape[0])
+        _kernels().z_step(self.g, Ax, lam, rho, out)
+        return out
+
     def x_step(self, z, lam, rho, x):
         """(M_c^{-1} + rho C) w = rho p - lam - rho d0, s = 1: eq. (12) on Gamma_C."""
-        w = self.factors.solve(rho, rho * z - lam - rho * self.d0)
-        x_new = np.concatenate(([1.0], w))
-        self._recent_Cw.append((x_new, self.C @ w))
+        if self.compiled_steps:
+            m = z.shape[0]
+            x_new, Cw = np.empty(m + 1), np.empty(m)
+            _kernels().x_step(rho, z, lam, self.d0, self._cholesky(rho), self.C, x_new, Cw, np.empty(m))
+            self.factors.solves += 1
+        else:
+            w = self.factors.solve(rho, rho * z - lam - rho * self.d0)
+            x_new = np.concatenate(([1.0], w))
+            Cw = self.C @ w
+        self._recent_Cw.append((x_new, Cw))
         return x_new
+
+    def segment(self, x, z, lam, Ax, rho, alpha, order, count, read=False, check=None):
+        """``count`` iterations of order zx (alpha = 1) in one compiled call, SADMM's rule and the paper's stop
+        decided in it where they go on (:mod:`admmkit.loop.segments`,
+        ``admmkit.problems.contact.solvers.condensed_segment``); None where it does not apply (another order,
+        alpha != 1, friction, a run on numpy's steps)."""
+        if not self.compiled_steps or order != "zx" or alpha != 1.0:
+            return None
+        from admmkit.problems.contact.solvers.condensed_segment import run_segment
+        out, before, after = run_segment(self, self._cholesky(rho), x, z, lam, Ax, self._Cw(x), rho, count, read,
+                                         check)
+        done = out[4]
+        self.factors.solves += done
+        if done:
+            self._recent_Cw.append(before)
+            self._recent_Cw.append(after)
+        return out if read else out[:5]
 
     def _Cw(self, x):
         """C w for x = (s, w), reused when x is one of the last x-step results."""
         for x_seen, Cw in self._recent_Cw:
             if x_seen is x:
                 return Cw
+        if self.compiled_steps:
+            Cw = np.empty(self.C.shape[0])
+            _kernels().symmetric_times(self.C, np.ascontiguousarray(x[1:], dtype=np.float64), Cw)
+            return Cw
         return self.C @ x[1:]
 
     def apply_A(self, x):
         """u_n = s d0 + C w."""
-        return x[0] * self.d0 + self._Cw(x)
+        if not self.compiled_steps:
+            return x[0] * self.d0 + self._Cw(x)
+        out = np.empty(self.d0.shape[0])
+        _kernels().apply_A(float(x[0]), self.d0, self._Cw(x), out)
+        return out
 
     def x_norm(self, x):
         """||u||_K with u'Ku = s^2 e0 + 2 s d0'w + w'Cw."""
@@ -246,6 +306,12 @@ class IterativeContact(_ContactBase):
     def counters(self):
         """AMG setups and Galerkin refreshes, solves and CG iterations."""
         return self.solver.counters()
+
+
+def _kernels():
+    """``admmkit.problems.contact.solvers.condensed_segment`` (imported at a compiled run's first step)."""
+    from admmkit.problems.contact.solvers import condensed_segment
+    return condensed_segment
 
 
 def _coordinates(ops) -> np.ndarray | None:
