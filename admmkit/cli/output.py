@@ -51,6 +51,9 @@ class Progress:
     #: the bar needs no record of every iteration (it reads k and rho of those it is given): the loop may run the
     #: iterations between its tests in a compiled segment (``admmkit.loop.segments``), and the bar sees the tested ones
     every_record = False
+    #: nor of every tested iteration: a segment that makes the loop's decisions itself (SADMM's rule and the paper's
+    #: stop in the condensed contact mode, OSQP's test and rule in the QP's) runs on past them, the bar sees the rest
+    every_tested = False
 
     def __init__(self, total: int, *, enabled: bool = True, lines=None, delay: float | None = None,
                  interval: float | None = None, file=None, log_interval: float | None = None) -> None:

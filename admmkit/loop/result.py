@@ -51,7 +51,8 @@ class Result:
     the :class:`admmkit.IterationRecord` of the last iteration, every norm
     computed (None if no iteration ran).  Iterations that ran in a compiled
     segment (:mod:`admmkit.loop.segments`) are counted in
-    ``counters["compiled_iterations"]`` and timed in ``timings["segments"]``.
+    ``counters["compiled_iterations"]`` (in ``counters["segments"]`` calls) and timed in
+    ``timings["segments"]``.
     """
 
     x: np.ndarray

@@ -194,6 +194,7 @@ def solve(
     if fast.segments:       # the iterations run in compiled segments, and their seconds (in no step's time)
         result.timings["segments"] = fast.seconds
         result.counters["compiled_iterations"] = fast.iterations
+        result.counters["segments"] = fast.segments
     result.acceleration = None if accel is None else accel.summary()
     result.last_record = rec
     return result

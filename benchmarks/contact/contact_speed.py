@@ -21,8 +21,10 @@ set-up is split with :attr:`admmkit.problems.contact.solvers.schur.BoundarySchur
 A warm process is measured: numba's kernels are loaded before the first timing
 (:func:`load_kernels`), so the condensed set-up orders by the compiled nested
 dissection (``compiled="auto"`` takes the kernels once numba is imported; the
-same order as its numpy twin, which a fresh process of a small body runs).  A
-fresh process's start-up is ``admmkit bench first-call``'s.
+same order as its numpy twin, which a fresh process of a small body runs) and
+the iterations run the compiled steps and segments
+(``problems/contact/solvers/condensed_segment.py``).  A fresh process's
+start-up is ``admmkit bench first-call``'s.
 """
 from __future__ import annotations
 
@@ -61,10 +63,12 @@ def backend_worlds() -> list[str]:
 
 
 def load_kernels(ops) -> None:
-    """Import numba and load the condensed set-up's ordering kernels once (nothing if numba is not installed)."""
+    """Import numba and load the condensed mode's kernels once (nothing if numba is not installed): the set-up's
+    ordering, and the iterations' steps and segment (one SADMM run, untimed)."""
     from admmkit.problems.contact.solvers.dissection import use_kernels
     if use_kernels(ops.n_free, True):
         contact_problem(ops, mode="condensed", backend="superlu", compiled=True)
+        sadmm_once(ops, "condensed", "superlu")
 
 
 def factor_solve_once(K, f, backend="auto") -> tuple[float, float]:

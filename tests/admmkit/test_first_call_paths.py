@@ -191,9 +191,9 @@ def test_warm_up_compiles_the_groups(capsys):
     # the finite element group reaches a kernel of every V-cycle level kind and of the set-ups that precede them
     from admmkit.linalg import (amg_finest3d, cg, vcycle, vcycle_blockgs3d, vcycle_blocks, vcycle_blocks3)
     from admmkit.problems.contact.model import stiffness3d
-    from admmkit.problems.contact.solvers import dissection
+    from admmkit.problems.contact.solvers import condensed_segment, dissection
     reached = {f"{k.__module__}.{k.__name__}": bool(getattr(k, "_dispatcher", k).signatures) for k in (
         vcycle._gauss_seidel_backward, vcycle_blocks.forward_restrict, vcycle_blocks3.forward_restrict,
         vcycle_blockgs3d.block_forward_restrict, amg_finest3d.galerkin_product, cg._step_kernel,
-        dissection._dissect, stiffness3d._element_blocks)}
+        dissection._dissect, stiffness3d._element_blocks, condensed_segment.segment_kernel)}
     assert all(reached.values()), reached

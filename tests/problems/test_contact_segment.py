@@ -122,3 +122,20 @@ def test_the_kernel_goes_on_only_where_the_loop_certainly_would():
     assert not go_on_at(1.0, 1e-5 * (1 + 1e-9))           # within STOP_MARGIN of firing: Python's call
     assert go_on_at(1.0, 1e-6, tested=False)              # an untested iteration: only the rule
     assert not go_on_at(1.0, np.inf)                      # a norm out of range: the loop's divergence test
+
+
+def test_the_progress_bar_leaves_the_segments_their_decisions(ops):
+    """The command line's bar reads k and rho of the records it is given (``every_tested = False``): a condensed
+    SADMM run with it runs most iterations in segments, with the iterates of the run without it."""
+    from admmkit.cli.output import Progress
+    _, plain = run(ops, True)
+    with Progress(2000, delay=1e9) as bar:
+        problem = contact_problem(ops, mode="condensed", backend="superlu")
+        order, rule = policies.method("sadmm")
+        with compiled_code(True):
+            shown = admmkit.solve(problem, rho=1e3, policy=rule, order=order, stop=RelativeChange(1e-5),
+                                  max_iter=2000, callback=bar)
+    assert shown.counters.get("compiled_iterations", 0) > shown.iterations // 2
+    assert shown.counters["segments"] == plain.counters["segments"] < shown.iterations // 2    # not one per test
+    np.testing.assert_array_equal(shown.x, plain.x)
+    assert (shown.iterations, shown.status, shown.rho) == (plain.iterations, plain.status, plain.rho)
