@@ -127,8 +127,10 @@ class AMGPreconditioner:
                 Dl = sp.csr_matrix(fine.R @ Dl @ fine.P)
                 pencils.append(PencilMatrix(coarse.A, Dl))
                 # the same values on the pencil's pattern, which every refresh keeps (the V-cycle then reuses
-                # what it found on it)
-                coarse.A = _symmetric_csr(pencils[-1].K_matrix())
+                # what it found on it), in an array of the level's own: the first change of rho then rewrites
+                # D_l's entries in place too, where a level holding its pencil's K forced a full refresh
+                # (the cycle's blocks laid out again: 2 s at 1e6 unknowns in 3D)
+                coarse.A = _symmetric_csr(_own_values(pencils[-1].K_matrix()))
             self._pencils = pencils
         self._cycle = None        # the compiled V-cycle (admmkit.linalg.vcycle), built at the first application
         self.cycle_values = np.dtype(cycle_values)
@@ -305,6 +307,13 @@ def _same_values(A, B) -> bool:
     """A and B hold their values in the same memory (scipy's constructors make views of the arrays they
     are given, not the arrays themselves)."""
     return A.data.shape == B.data.shape and np.may_share_memory(A.data, B.data)
+
+
+def _own_values(M: sp.csr_matrix) -> sp.csr_matrix:
+    """M's matrix with a copy of its values on the same pattern (the index arrays shared, kept sorted)."""
+    copy = sp.csr_matrix((M.data.copy(), M.indices, M.indptr), shape=M.shape)
+    copy.has_sorted_indices = M.has_sorted_indices
+    return copy
 
 
 def _symmetric_csr(A) -> sp.csr_matrix:
