@@ -124,7 +124,7 @@ class AMGPreconditioner:
         if D is not None and rho is not None:
             pencils, Dl = [], sp.csr_matrix(D)
             for fine, coarse in zip(self.ml.levels[:-1], self.ml.levels[1:]):
-                Dl = sp.csr_matrix(fine.R @ Dl @ fine.P)
+                Dl = galerkin_on_support(Dl, fine.P)       # R D_l P with R = P' (the hierarchy is symmetric)
                 pencils.append(PencilMatrix(coarse.A, Dl))
                 # the same values on the pencil's pattern, which every refresh keeps (the V-cycle then reuses
                 # what it found on it), in an array of the level's own: the first change of rho then rewrites
@@ -307,6 +307,30 @@ def _same_values(A, B) -> bool:
     """A and B hold their values in the same memory (scipy's constructors make views of the arrays they
     are given, not the arrays themselves)."""
     return A.data.shape == B.data.shape and np.may_share_memory(A.data, B.data)
+
+
+def galerkin_on_support(D: sp.spmatrix, P) -> sp.csr_matrix:
+    """P' D P from the rows of P (CSR, or BSR: whole block rows) that D's nonzero rows touch.
+
+    The sums are scipy's ``P.T @ D @ P`` term by term in the same order (a row of P that meets no nonzero
+    row of D adds nothing there), so the values are the same bit for bit; but P' is not transposed and
+    converted whole.  For contact, D lives on the contact dofs: at h = 1/32 in 3D (3.1e5 unknowns) the
+    finest level's product took 0.018 s against 0.17 s.
+    """
+    D = sp.csr_matrix(D)
+    rows = np.flatnonzero(np.diff(D.indptr))
+    size = P.blocksize[0] if P.format == "bsr" else 1
+    blocks = np.unique(rows // size)
+    if P.format == "bsr":
+        starts, counts = P.indptr[blocks], P.indptr[blocks + 1] - P.indptr[blocks]
+        indptr = np.concatenate(([0], np.cumsum(counts)))
+        take = np.repeat(starts - indptr[:-1], counts) + np.arange(indptr[-1])
+        rows_of_P = sp.bsr_matrix((P.data[take], P.indices[take], indptr), shape=(blocks.size * size, P.shape[1]),
+                                  blocksize=P.blocksize)
+    else:
+        rows_of_P = sp.csr_matrix(P)[blocks]
+    dofs = (blocks[:, None] * size + np.arange(size)).ravel()
+    return sp.csr_matrix(rows_of_P.T @ D[dofs][:, dofs] @ rows_of_P)
 
 
 def _own_values(M: sp.csr_matrix) -> sp.csr_matrix:

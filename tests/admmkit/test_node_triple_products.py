@@ -1,5 +1,6 @@
-"""CG's product with K + rho D for a 3-D vector problem in 3 x 3 node blocks (admmkit.linalg.symmetric.NodeTriplePattern):
-the values of the upper-triangle CSR product, bit for bit."""
+"""The 3-D x-step's products: CG's product with K + rho D in 3 x 3 node blocks
+(admmkit.linalg.symmetric.NodeTriplePattern), the values of the upper-triangle CSR product bit for bit, and the
+AMG set-up's coarse D_l = P' D P from D's support (admmkit.linalg.amg.galerkin_on_support), scipy's bit for bit."""
 import numpy as np
 import pytest
 import scipy.sparse as sp
@@ -59,3 +60,21 @@ def test_node_triple_pencil_products_follow_rho_in_place():
 def test_node_triple_pattern_needs_whole_nodes():
     with pytest.raises(ValueError, match="divisible by 3"):
         NodeTriplePattern(sp.csr_matrix(sp.eye(4)))
+
+
+@pytest.mark.parametrize("blocks", [True, False])
+def test_galerkin_on_support_is_scipys_product_bit_for_bit(blocks):
+    from admmkit.linalg.amg import AMGPreconditioner, galerkin_on_support
+    A, B = _elasticity3d(6)
+    A = sp.csr_matrix(-A)
+    P = AMGPreconditioner(A, B, blocksize=3, max_coarse=50).ml.levels[0].P
+    P = P if blocks else sp.csr_matrix(P)
+    rows = np.arange(1, A.shape[0], 11)            # a D on a few scattered dofs, coupled to their neighbours
+    D = sp.csr_matrix((np.linspace(1, 2, rows.size), (rows, rows)), shape=A.shape)
+    D = sp.csr_matrix(D + sp.csr_matrix((np.full(rows.size - 1, 0.5), (rows[:-1], rows[1:])), shape=A.shape)
+                      + sp.csr_matrix((np.full(rows.size - 1, 0.5), (rows[1:], rows[:-1])), shape=A.shape))
+    ours, scipys = galerkin_on_support(D, P), sp.csr_matrix(P.T @ D @ P)
+    ours.sort_indices()
+    scipys.sort_indices()
+    assert np.array_equal(ours.indptr, scipys.indptr) and np.array_equal(ours.indices, scipys.indices)
+    assert np.array_equal(ours.data, scipys.data)
