@@ -124,11 +124,13 @@ class AMGPreconditioner:
         if D is not None and rho is not None:
             pencils, Dl = [], sp.csr_matrix(D)
             for fine, coarse in zip(self.ml.levels[:-1], self.ml.levels[1:]):
-                Dl = sp.csr_matrix(fine.R @ Dl @ fine.P)
+                Dl = galerkin_on_support(Dl, fine.P)       # R D_l P with R = P' (the hierarchy is symmetric)
                 pencils.append(PencilMatrix(coarse.A, Dl))
                 # the same values on the pencil's pattern, which every refresh keeps (the V-cycle then reuses
-                # what it found on it)
-                coarse.A = _symmetric_csr(pencils[-1].K_matrix())
+                # what it found on it), in an array of the level's own: the first change of rho then rewrites
+                # D_l's entries in place too, where a level holding its pencil's K forced a full refresh
+                # (the cycle's blocks laid out again: 2 s at 1e6 unknowns in 3D)
+                coarse.A = _symmetric_csr(_own_values(pencils[-1].K_matrix()))
             self._pencils = pencils
         self._cycle = None        # the compiled V-cycle (admmkit.linalg.vcycle), built at the first application
         self.cycle_values = np.dtype(cycle_values)
@@ -305,6 +307,37 @@ def _same_values(A, B) -> bool:
     """A and B hold their values in the same memory (scipy's constructors make views of the arrays they
     are given, not the arrays themselves)."""
     return A.data.shape == B.data.shape and np.may_share_memory(A.data, B.data)
+
+
+def galerkin_on_support(D: sp.spmatrix, P) -> sp.csr_matrix:
+    """P' D P from the rows of P (CSR, or BSR: whole block rows) that D's nonzero rows touch.
+
+    The sums are scipy's ``P.T @ D @ P`` term by term in the same order (a row of P that meets no nonzero
+    row of D adds nothing there), so the values are the same bit for bit; but P' is not transposed and
+    converted whole.  For contact, D lives on the contact dofs: at h = 1/32 in 3D (3.1e5 unknowns) the
+    finest level's product took 0.018 s against 0.17 s.
+    """
+    D = sp.csr_matrix(D)
+    rows = np.flatnonzero(np.diff(D.indptr))
+    size = P.blocksize[0] if P.format == "bsr" else 1
+    blocks = np.unique(rows // size)
+    if P.format == "bsr":
+        starts, counts = P.indptr[blocks], P.indptr[blocks + 1] - P.indptr[blocks]
+        indptr = np.concatenate(([0], np.cumsum(counts)))
+        take = np.repeat(starts - indptr[:-1], counts) + np.arange(indptr[-1])
+        rows_of_P = sp.bsr_matrix((P.data[take], P.indices[take], indptr), shape=(blocks.size * size, P.shape[1]),
+                                  blocksize=P.blocksize)
+    else:
+        rows_of_P = sp.csr_matrix(P)[blocks]
+    dofs = (blocks[:, None] * size + np.arange(size)).ravel()
+    return sp.csr_matrix(rows_of_P.T @ D[dofs][:, dofs] @ rows_of_P)
+
+
+def _own_values(M: sp.csr_matrix) -> sp.csr_matrix:
+    """M's matrix with a copy of its values on the same pattern (the index arrays shared, kept sorted)."""
+    copy = sp.csr_matrix((M.data.copy(), M.indices, M.indptr), shape=M.shape)
+    copy.has_sorted_indices = M.has_sorted_indices
+    return copy
 
 
 def _symmetric_csr(A) -> sp.csr_matrix:

@@ -25,7 +25,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..kernels import _u, njit
-from .vcycle_blocks3d import FinestLevel3D, _add_blocks_descending
+from .vcycle_blocks3d import FinestLevel3D
 from .vcycle_jacobi3d import block_times, diagonal_block_inverses
 
 
@@ -76,31 +76,74 @@ def block_forward_restrict(indptr, indices, data, block_diagonal, block_inverse,
                                             + P_data[_u(at + 12 + c)] * r2)
 
 
+@njit(cache=True, inline="always")
+def _add_row(data, a, x0, x1, x2, t):
+    """t + a_0 x0 + a_1 x1 + a_2 x2 added one by one (one row of a 3 x 3 block, its entries at data[a:a + 3])."""
+    t += data[_u(a)] * x0
+    t += data[_u(a + 1)] * x1
+    t += data[_u(a + 2)] * x2
+    return t
+
+
+@njit(cache=True, inline="always")
+def _add_blocks_descending3(indices, data, x, k_first, k_last, s0, s1, s2):
+    """(s0, s1, s2) + the 3 x 3 blocks k_last, k_last - 1, ..., k_first times x: the sums of
+    :func:`admmkit.linalg.vcycle_blocks3d._add_blocks_descending` in its order, the block's x_J read once
+    into scalars and the sums kept in scalars (there, each store of a sum into its array made the compiled
+    code read x_J again for every row)."""
+    for kk in range(k_last - k_first + 1):
+        k = k_last - kk
+        j = 3 * indices[_u(k)]
+        x0, x1, x2 = x[_u(j)], x[_u(j + 1)], x[_u(j + 2)]
+        a = 9 * k
+        s0 = _add_row(data, a, x0, x1, x2, s0)
+        s1 = _add_row(data, a + 3, x0, x1, x2, s1)
+        s2 = _add_row(data, a + 6, x0, x1, x2, s2)
+    return s0, s1, s2
+
+
+@njit(cache=True, inline="always")
+def _add_row6(P_data, a, c, t):
+    """t + sum_q p_q c_q added one by one (one row of a 3 x 6 block of P, its entries at P_data[a:a + 6])."""
+    for q in range(6):
+        t += P_data[_u(a + q)] * c[q]
+    return t
+
+
 @njit(cache=True)
 def block_prolong_backward(indptr, indices, data, block_diagonal, block_inverse, x, b, P_indptr, P_indices, P_data,
                            coarse_x, lag):
     """The ascent: x += P coarse_x and a backward block Gauss-Seidel sweep in one pass, the correction ``lag``
-    block rows ahead; every block row's blocks read from the last (the pass streams memory downwards)."""
+    block rows ahead; every block row's blocks read from the last (the pass streams memory downwards).  The
+    sums of :func:`admmkit.linalg.vcycle_blocks3d._add_blocks_descending` in its order (the same bits), held in
+    scalars: 11 % less time than with its array of sums (h = 1/32: 15.1 against 17.0 ms)."""
     nb = indptr.shape[0] - 1
     lag = min(lag, nb)
-    s = np.empty(3)
     for step in range(nb + lag):
         I = nb - 1 - step
         if I >= 0:                                  # x += P coarse_x on block row I
-            s[0], s[1], s[2] = 0.0, 0.0, 0.0
-            _add_blocks_descending(P_indices, P_data, coarse_x, P_indptr[_u(I)], P_indptr[_u(I + 1)] - 1, s, 3, 6,
-                                   18)
-            for r in range(3):
-                x[_u(3 * I + r)] = x[_u(3 * I + r)] + s[r]
+            s0, s1, s2 = 0.0, 0.0, 0.0
+            for kk in range(P_indptr[_u(I + 1)] - P_indptr[_u(I)]):
+                k = P_indptr[_u(I + 1)] - 1 - kk
+                j = 6 * P_indices[_u(k)]
+                c = (coarse_x[_u(j)], coarse_x[_u(j + 1)], coarse_x[_u(j + 2)], coarse_x[_u(j + 3)],
+                     coarse_x[_u(j + 4)], coarse_x[_u(j + 5)])
+                a = 18 * k
+                s0 = _add_row6(P_data, a, c, s0)
+                s1 = _add_row6(P_data, a + 6, c, s1)
+                s2 = _add_row6(P_data, a + 12, c, s2)
+            i = 3 * I
+            x[_u(i)] = x[_u(i)] + s0
+            x[_u(i + 1)] = x[_u(i + 1)] + s1
+            x[_u(i + 2)] = x[_u(i + 2)] + s2
         I = nb - 1 - step + lag
         if I < nb:                                  # block row I of the backward sweep
             kd = block_diagonal[_u(I)]
-            s[0], s[1], s[2] = 0.0, 0.0, 0.0
-            _add_blocks_descending(indices, data, x, kd + 1, indptr[_u(I + 1)] - 1, s, 3, 3, 9)
-            _add_blocks_descending(indices, data, x, indptr[_u(I)], kd - 1, s, 3, 3, 9)
+            s0, s1, s2 = _add_blocks_descending3(indices, data, x, kd + 1, indptr[_u(I + 1)] - 1, 0.0, 0.0, 0.0)
+            s0, s1, s2 = _add_blocks_descending3(indices, data, x, indptr[_u(I)], kd - 1, s0, s1, s2)
             i = 3 * I
-            x[_u(i)], x[_u(i + 1)], x[_u(i + 2)] = block_times(block_inverse, I, b[_u(i)] - s[0],
-                                                                b[_u(i + 1)] - s[1], b[_u(i + 2)] - s[2])
+            x[_u(i)], x[_u(i + 1)], x[_u(i + 2)] = block_times(block_inverse, I, b[_u(i)] - s0,
+                                                                b[_u(i + 1)] - s1, b[_u(i + 2)] - s2)
 
 
 class FinestLevel3DBlockGS(FinestLevel3D):

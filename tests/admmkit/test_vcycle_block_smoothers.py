@@ -159,3 +159,41 @@ def test_smoother_names():
         assert type(pre._cycle.block[0]) is kind
     z = AMGPreconditioner(A2, B2, blocksize=2, max_coarse=50)(r)         # 2-D: the pointwise sweeps, as before
     assert np.array_equal(z, VCycle(amg2.ml)(r))
+
+
+def _ascent_with_array_sums(level, x, b, coarse_x, lag):
+    """The block Gauss-Seidel ascent written with the generic kernels' array of sums
+    (vcycle_blocks3d._add_blocks_descending), as it was before its sums were held in scalars."""
+    from admmkit.linalg.vcycle_blocks3d import _add_blocks_descending
+    from admmkit.linalg.vcycle_jacobi3d import block_times
+    nb = level.indptr.size - 1
+    for step in range(nb + lag):
+        I = nb - 1 - step
+        if I >= 0:
+            s = np.zeros(3)
+            _add_blocks_descending.py_func(level.P_indices, level.P_data, coarse_x, level.P_indptr[I],
+                                           level.P_indptr[I + 1] - 1, s, 3, 6, 18)
+            x[3 * I:3 * I + 3] = x[3 * I:3 * I + 3] + s
+        I = nb - 1 - step + lag
+        if I < nb:
+            kd, s = level.block_diagonal[I], np.zeros(3)
+            _add_blocks_descending.py_func(level.indices, level.data, x, kd + 1, level.indptr[I + 1] - 1, s, 3, 3, 9)
+            _add_blocks_descending.py_func(level.indices, level.data, x, level.indptr[I], kd - 1, s, 3, 3, 9)
+            x[3 * I:3 * I + 3] = block_times.py_func(level.block_inverse, I, *(b[3 * I:3 * I + 3] - s))
+    return x
+
+
+@pytest.mark.parametrize("values", ["float64", "float32"])
+def test_block_gauss_seidel_ascent_keeps_the_array_sums_bits(values):
+    from admmkit.linalg.vcycle_blockgs3d import block_prolong_backward
+    A, amg = _hierarchy(values)
+    cycle = VCycle(amg.ml, values=np.dtype(values), smoother="block_gauss_seidel")
+    level = cycle.block[0]
+    rng = np.random.default_rng(7)
+    x0, b, coarse_x = rng.standard_normal(A.shape[0]), rng.standard_normal(A.shape[0]), rng.standard_normal(
+        level.P_shape[1])
+    lag = (cycle._bandwidth[0] + 2) // 3
+    ours = x0.copy()
+    block_prolong_backward(level.indptr, level.indices, level.data, level.block_diagonal, level.block_inverse, ours,
+                           b, level.P_indptr, level.P_indices, level.P_data, coarse_x, lag)
+    np.testing.assert_array_equal(ours, _ascent_with_array_sums(level, x0.copy(), b, coarse_x, lag))
