@@ -60,7 +60,7 @@ INT_SLOTS = 10
 #: division (none can be zero: rho > 0, a Cholesky pivot is the root of a positive number).  Neither changes a bit;
 #: ``fastmath`` stays off.
 OPTIONS = dict(cache=True, _nrt=False, error_model="numpy")
-#: the doubles of a vector register (AVX2): the Gram pass runs over the memory's columns padded to a multiple of it
+#: doubles in an AVX2 vector register; the Gram pass runs over the memory's columns padded to a multiple of it
 VECTOR = 4
 
 
