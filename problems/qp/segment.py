@@ -117,10 +117,11 @@ def _xz_kkt(count, rho, alpha, a, sigma, Lp, Li, Lx, Dinv, perm, Rinv, q, lo, up
     """``count`` iterations on the state arrays (x, x_prev, x_rel, x_rel_prev, z, lam, Ax), in place;
     returns the number done (fewer if a step would meet a non-finite number).  With ``keep_last``, the
     last iteration's z, lam, A x in (its x is then x_prev) and its relaxed vector (``hat``) are kept.
-    With ``accelerate`` (a mode: ANDERSON, FAST; NO_ACCELERATION 0), the accelerator's step
-    (:func:`accelerator_step`) follows every iteration but a kept last one (the loop takes that one's), on the state
-    (z, lam), the one it started from kept in ``s_z``, ``s_lam`` where the step reads it; between the steps of
-    Anderson's interval, and in fast ADMM's back-off, it only counts the iteration."""
+    With ``accelerate`` (a mode: ANDERSON, FAST; NO_ACCELERATION 0), the accelerator's step (that of
+    :func:`accelerator_step`, its kernel called directly) follows every iteration but a kept last one (the loop
+    takes that one's), on the state (z, lam), the one it started from kept in ``s_z``, ``s_lam`` where the step
+    reads it; between the steps of Anderson's interval, and in fast ADMM's back-off, it only counts the
+    iteration."""
     n, m = x.shape[0], z.shape[0]
     relax_x, relax = a != 1.0, alpha != 1.0
     for it in range(count):
