@@ -77,7 +77,7 @@ def choose_compiled(setting, qp) -> tuple[bool, bool]:
 NO_ACCELERATION, ANDERSON, FAST = 0, anderson_kernel.MODE, fast_kernel.MODE
 
 
-@kernel(cache=True)
+@kernel(**anderson_kernel.OPTIONS)
 def reads_state(mode, ist):
     """Whether the accelerator ``mode``'s next step reads the state the iteration starts from (fast ADMM's but in a
     back-off, :func:`admmkit.loop.fast_kernel.fast_reads_state`; Anderson's when
@@ -85,7 +85,7 @@ def reads_state(mode, ist):
     return (mode == FAST and fast_reads_state(ist)) or (mode == ANDERSON and anderson_reads_state(ist))
 
 
-@kernel(cache=True)
+@kernel(**anderson_kernel.OPTIONS)
 def plain_step(mode, ist):
     """The count of an accelerator's step that does not read the state (the iterate itself goes on): Anderson's
     clock between its steps, fast ADMM's plain steps left in a back-off."""
@@ -95,7 +95,7 @@ def plain_step(mode, ist):
         ist[CLOCK] += 1
 
 
-@kernel(cache=True)
+@kernel(**anderson_kernel.OPTIONS)
 def accelerator_step(mode, rho, w, safeguard, regularization, s_z, s_lam, z, lam, ist, before, F_prev, G_prev, plain,
                      dF, dG, gram, g, acc, a_rhs, chol, gamma):
     """The accelerator's step on (z, lam), in place, from the state (``s_z``, ``s_lam``) the iteration started from:
@@ -117,10 +117,11 @@ def _xz_kkt(count, rho, alpha, a, sigma, Lp, Li, Lx, Dinv, perm, Rinv, q, lo, up
     """``count`` iterations on the state arrays (x, x_prev, x_rel, x_rel_prev, z, lam, Ax), in place;
     returns the number done (fewer if a step would meet a non-finite number).  With ``keep_last``, the
     last iteration's z, lam, A x in (its x is then x_prev) and its relaxed vector (``hat``) are kept.
-    With ``accelerate`` (a mode: ANDERSON, FAST; NO_ACCELERATION 0), the accelerator's step
-    (:func:`accelerator_step`) follows every iteration but a kept last one (the loop takes that one's), on the state
-    (z, lam), the one it started from kept in ``s_z``, ``s_lam`` where the step reads it; between the steps of
-    Anderson's interval, and in fast ADMM's back-off, it only counts the iteration."""
+    With ``accelerate`` (a mode: ANDERSON, FAST; NO_ACCELERATION 0), the accelerator's step (that of
+    :func:`accelerator_step`, its kernel called directly) follows every iteration but a kept last one (the loop
+    takes that one's), on the state (z, lam), the one it started from kept in ``s_z``, ``s_lam`` where the step
+    reads it; between the steps of Anderson's interval, and in fast ADMM's back-off, it only counts the
+    iteration."""
     n, m = x.shape[0], z.shape[0]
     relax_x, relax = a != 1.0, alpha != 1.0
     for it in range(count):
@@ -168,9 +169,9 @@ def _xz_kkt(count, rho, alpha, a, sigma, Lp, Li, Lx, Dinv, perm, Rinv, q, lo, up
             z[i] = v
         if reads and accelerate == FAST:                                        # (A4)-(A6), its own arrays only
             fast_update(rho, w, safeguard, s_z, s_lam, z, lam, z, lam, ist, before, F_prev)
-        elif reads:                                                             # (A2)-(A3)
-            accelerator_step(accelerate, rho, w, safeguard, regularization, s_z, s_lam, z, lam, ist, before, F_prev,
-                             G_prev, plain, dF, dG, gram, g, acc, a_rhs, chol, gamma)
+        elif reads:                                                 # (A2)-(A3), the kernel itself (no dispatch)
+            anderson_update(rho, w, safeguard, regularization, s_z, s_lam, z, lam, z, lam, ist, before, F_prev,
+                            G_prev, plain, dF, dG, gram, g, acc, a_rhs, chol, gamma)
         elif step:                                      # Anderson between steps, fast ADMM backing off: plain
             plain_step(accelerate, ist)
     return count

@@ -46,7 +46,8 @@ from .residual_kernel import _residuals
 from .segment import (NO_ACCELERATION, _xz_kkt, accelerator_arguments, accelerator_step, run_segment,
                       segment_state)
 # (numba caches these kernels, which compile the segment's and the accelerators' in, by this file's stamp only:
-# see the note in segment.py)
+# see the note in segment.py; 29 November: Anderson's kernels without reference counts, its Gram pass over padded
+# columns)
 
 #: ``False``: the segment makes no test and no rule update in its kernel (it ends at every iteration the loop reads,
 #: as before this module): the switch the tests compare the two with
