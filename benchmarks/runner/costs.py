@@ -74,8 +74,8 @@ COSTS = {
     "bench qp-agreement": Cost(f"about 11 min (658 s), {UNRECORDED}, on 2 cores (docs/results/qp_agreement)"),
     "bench qp-speed": Cost(f"tens of minutes (77 problems, two accuracies, best of 3), {UNRECORDED}, on 2 cores "
                            "(docs/results/qp_speed)"),
-    "bench anderson-cost": Cost(f"about 50 s (seven problems, best of 5, 10,000 fixed-work iterations), {UNRECORDED}, on 2 cores "
-                                "(docs/results/anderson_cost)"),
+    "bench anderson-cost": Cost(f"about 50 s (seven problems, best of 5, 10,000 fixed-work iterations), "
+                                f"{UNRECORDED}, on 2 cores (docs/results/anderson_cost)"),
 }
 
 
