@@ -130,7 +130,7 @@ class Kernel:
         """numba's dispatcher of this kernel (numba imported now if it was not)."""
         if self._dispatcher is None:
             import numba
-            self._dispatcher = numba.njit(**self.options)(self.py_func)
+            self._dispatcher = numba.njit(**known_options(self.options))(self.py_func)
         return self._dispatcher
 
     @property
@@ -156,6 +156,19 @@ class Kernel:
 
     def __repr__(self) -> str:
         return f"<admmkit kernel {self.__module__}.{self.__qualname__}>"
+
+
+def known_options(options: dict) -> dict:
+    """``options`` without the private ones (a leading underscore, e.g. ``_nrt``) that this numba does not know: a
+    numba that dropped one compiles the kernel without it (the same values; only the speed it bought is lost)."""
+    private = [k for k in options if k.startswith("_")]
+    if not private:
+        return options
+    try:
+        from numba.core.cpu import CPUTargetOptions
+    except ImportError:                                  # numba moved its options: keep none of the private ones
+        return {k: v for k, v in options.items() if not k.startswith("_")}
+    return {k: v for k, v in options.items() if not k.startswith("_") or hasattr(CPUTargetOptions, k)}
 
 
 def _make(switchable: bool, args, options):

@@ -6,6 +6,7 @@ import math
 import numpy as np
 import pytest
 
+from admmkit import kernels
 from admmkit.kernels import AVAILABLE, compiled_code
 from admmkit.loop.anderson_kernel import VECTOR, AndersonArrays, _gram_row_and_rhs, _solve_gram
 
@@ -95,3 +96,17 @@ def test_the_padded_gram_pass_adds_each_sum_in_order(compiled, m):
                 assert gram[p, q] == gram[q, p] == inner(arrays.dG[:, p], arrays.dG[:, q])
             assert (rhs[q] == inner(arrays.dG[:, q], g)) if extrapolate else np.isnan(rhs[q])
         assert np.isnan(rhs[count:]).all() and np.isnan(gram[:, count:]).all()
+
+
+@pytest.mark.skipif(not kernels.AVAILABLE, reason="numba is not installed")
+def test_a_private_option_numba_does_not_know_is_dropped():
+    """Anderson's kernels ask for numba's private ``_nrt=False``; a numba without that option compiles them without
+    it instead of failing (admmkit.kernels.known_options)."""
+    assert kernels.known_options({"cache": True, "_nrt": False}) == {"cache": True, "_nrt": False}
+    assert kernels.known_options({"cache": False, "_no_such_option": 1}) == {"cache": False}
+
+    @kernels.kernel(cache=False, _no_such_option=1)
+    def twice(x):
+        return 2.0 * x
+    with kernels.compiled_code(True):
+        assert twice(1.5) == 3.0 and twice._dispatcher is not None
