@@ -24,7 +24,7 @@ from numba import njit, prange
 
 from ..kernels import _u
 from .kernel_threads import kernel_threads
-from .symmetric import diagonal_positions
+from .symmetric import diagonal_positions, row_of
 
 
 # ---------------------------------------------------------------- rows of a 2 x 2 block row
@@ -175,17 +175,9 @@ def _block_values(indptr, indices, data, block_indptr, block_indices, out, full)
 def _block_positions(indptr, indices, block_indptr, block_indices, R, positions, out):
     """out[q]: where the entry at ``positions[q]`` of a CSR matrix sits in the values of its R x R blocks
     (-1 if its block is not stored)."""
-    n = indptr.shape[0] - 1
     for q in range(positions.shape[0]):
         p = positions[_u(q)]
-        lo, hi = 0, n                   # the row of p: indptr[lo] <= p < indptr[hi]
-        while hi - lo > 1:
-            mid = (lo + hi) // 2
-            if indptr[_u(mid)] <= p:
-                lo = mid
-            else:
-                hi = mid
-        i, j = lo, indices[_u(p)]
+        i, j = row_of(indptr, p), indices[_u(p)]
         I, J = i // R, j // R
         out[_u(q)] = -1
         for k in range(block_indptr[_u(I)], block_indptr[_u(I + 1)]):
