@@ -19,6 +19,15 @@ ROOT = Path(__file__).resolve().parents[2]
 UNNEEDED = ("numba", "pyamg", "matplotlib", "pandas", "admmkit.blocks.iterative", "admmkit.linalg.amg")
 
 
+def fresh(code: str, timeout: float = 300, env: dict | None = None):
+    """``code`` run by a fresh Python process from the repository root, with ``env`` (default: this process's,
+    BLAS on one thread); it must exit 0."""
+    done = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=timeout,
+                          env={**os.environ, "OMP_NUM_THREADS": "1"} if env is None else env)
+    assert done.returncode == 0, done.stderr
+    return done
+
+
 def test_solve_contact_imports_no_numba_for_a_small_body():
     code = ("import contextlib, io, sys, json, admmkit.cli\n"
             "out = io.StringIO()\n"
@@ -26,9 +35,7 @@ def test_solve_contact_imports_no_numba_for_a_small_body():
             "    code = admmkit.cli.main(['solve', 'contact', '--scene', 'ex1', '--h', '1/10', '-q'])\n"
             f"print(json.dumps({{'code': code, 'loaded': [m for m in {list(UNNEEDED)!r} if m in sys.modules],\n"
             "                  'mode': 'mode condensed' in out.getvalue()}))")
-    done = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=300,
-                          env={**os.environ, "OMP_NUM_THREADS": "1"})
-    assert done.returncode == 0, done.stderr
+    done = fresh(code)
     out = json.loads(done.stdout.strip().splitlines()[-1])
     assert out == {"code": 0, "loaded": [], "mode": True}
 
@@ -47,9 +54,7 @@ def test_a_fresh_solve_contact_builds_one_blas_controller():
             "with contextlib.redirect_stdout(io.StringIO()):\n"
             "    code = admmkit.cli.main(['solve', 'contact', '--scene', 'ex1', '--h', '1/10', '-q'])\n"
             "print(json.dumps({'code': code, 'built': len(built)}))")
-    done = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=300,
-                          env={**os.environ, "OMP_NUM_THREADS": "1"})
-    assert done.returncode == 0, done.stderr
+    done = fresh(code)
     assert json.loads(done.stdout.strip().splitlines()[-1]) == {"code": 0, "built": 1}
 
 
@@ -115,9 +120,7 @@ def test_a_warm_process_imports_no_scipy_linalg(tmp_path):
     env.pop("ADMMKIT_NO_CACHE", None)
     runs = []
     for _ in range(2):                                   # the first assembles and stores, the second reads back
-        done = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=300,
-                              env=env)
-        assert done.returncode == 0, done.stderr
+        done = fresh(code, env=env)
         runs.append(json.loads(done.stdout.strip().splitlines()[-1]))
     assert runs[0]["code"] == 0 and "ngsolve" in runs[0]["loaded"]
     assert runs[1] == {"code": 0, "loaded": []}
@@ -196,9 +199,7 @@ def test_a_process_that_loads_the_modules_directly_can_import_scipy_linalg_after
             "import scipy.linalg as sla, scipy.sparse.linalg as spla\n"
             "y = spla.splu(A, permc_spec='NATURAL', diag_pivot_thresh=0.0, options=dict(SymmetricMode=True)).solve(b)\n"
             "print(direct, np.array_equal(x, y), np.array_equal(np.triu(c), np.triu(sla.cho_factor(M)[0])))")
-    done = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=120,
-                          env={**os.environ, "OMP_NUM_THREADS": "1"})
-    assert done.returncode == 0, done.stderr
+    done = fresh(code, timeout=120)
     assert done.stdout.split() == ["True", "True", "True"]
 
 
