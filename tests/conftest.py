@@ -60,3 +60,15 @@ def vector_problem():
     rng = np.random.default_rng(3)
     n = 12
     return Obstacle1D(rng.uniform(1, 3, n), rng.uniform(-2, 4, n), rng.uniform(0.2, 1.0, n), rng.uniform(0.5, 2, n))
+
+
+def anderson_inner(w, rho, a, b) -> float:
+    """(a, b)_W of :mod:`admmkit.loop.anderson_kernel`'s docstring, one sum at a time (the oracle of its Gram pass):
+    rho sum_{i<m} w_i a_i b_i + (sum_{i<m} w_i a_{m+i} b_{m+i}) / rho."""
+    m = len(w)
+    su = sl = 0.0
+    for i in range(m):
+        su += w[i] * a[i] * b[i]
+    for i in range(m):
+        sl += w[i] * a[m + i] * b[m + i]
+    return rho * su + sl / rho

@@ -6,6 +6,7 @@ import pytest
 
 import admmkit
 from admmkit.loop.acceleration import Anderson, FastADMM, make_accelerator, w_inner
+from tests.conftest import anderson_inner
 
 
 def lasso(seed=0, m=40, n=90):
@@ -163,13 +164,8 @@ def test_the_fused_gram_pass_is_the_weighted_inner_product_bit_for_bit(compiled)
     m, mem, rho = 37, 6, 0.37
     w, dG, g = rng.uniform(0.1, 3, m), rng.standard_normal((2 * m, mem)), rng.standard_normal(2 * m)
 
-    def inner(a, b):                       # (a, b)_W of the module docstring, one sum at a time
-        su = sl = 0.0
-        for i in range(m):
-            su += w[i] * a[i] * b[i]
-        for i in range(m):
-            sl += w[i] * a[m + i] * b[m + i]
-        return rho * su + sl / rho
+    def inner(a, b):
+        return anderson_inner(w, rho, a, b)
 
     for p, count, extrapolate in ((2, 5, True), (0, 1, True), (4, 6, False), (-1, 3, True)):
         gram, rhs, acc = np.full((mem, mem), np.nan), np.full(mem, np.nan), np.zeros((4, mem))

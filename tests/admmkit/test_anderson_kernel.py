@@ -9,6 +9,7 @@ import pytest
 from admmkit import kernels
 from admmkit.kernels import AVAILABLE, compiled_code
 from admmkit.loop.anderson_kernel import VECTOR, AndersonArrays, _gram_row_and_rhs, _solve_gram
+from tests.conftest import anderson_inner
 
 WAYS = [False, pytest.param(True, marks=pytest.mark.skipif(not AVAILABLE, reason="numba not installed"))]
 
@@ -79,13 +80,8 @@ def test_the_padded_gram_pass_adds_each_sum_in_order(compiled, m):
     w, g = rng.uniform(0.1, 3, m), rng.standard_normal(2 * m)
     arrays.dG[:, :mem] = rng.standard_normal((2 * m, mem))
 
-    def inner(a, b):                                # (a, b)_W of the module docstring, one sum at a time
-        su = sl = 0.0
-        for i in range(m):
-            su += w[i] * a[i] * b[i]
-        for i in range(m):
-            sl += w[i] * a[m + i] * b[m + i]
-        return rho * su + sl / rho
+    def inner(a, b):
+        return anderson_inner(w, rho, a, b)
 
     for p, count, extrapolate in ((3, 10, True), (6, 7, True), (0, 1, False), (-1, 5, True), (8, 9, False)):
         gram, rhs = np.full((mem, mem), np.nan), np.full(mem, np.nan)
