@@ -28,9 +28,21 @@ def _elasticity3d(n=10):
          vid(i + 1, j, k + 1), vid(i + 1, j + 1, k + 1), vid(i + 1, j + 1, k)]
     tets = np.vstack([np.column_stack([c[a] for a in t]) for t in
                       ((0, 4, 5, 6), (0, 6, 7, 4), (0, 3, 7, 6), (0, 1, 6, 5), (0, 1, 2, 6), (0, 3, 6, 2))])
+    # positively oriented tetrahedra: pyamg's element matrix carries det(J)'s sign, so a negatively oriented
+    # one adds a negative definite block (with these six every K was negative definite)
+    edges = vertices[tets[:, 1:]] - vertices[tets[:, :1]]
+    flip = np.linalg.det(edges) < 0
+    tets[flip, 2:4] = tets[flip, 3:1:-1]
     A, B = linear_elasticity_p1(vertices, tets, E=5000.0, nu=0.49, format="csr")
     free = np.flatnonzero(np.repeat(vertices[:, 0] > 0, 3))
     return sp.csr_matrix(A)[free][:, free], np.ascontiguousarray(B[free])
+
+
+def test_elasticity3d_fixture_is_spd():
+    """The 3-D fixture is the stiffness of positively oriented tetrahedra: symmetric positive definite."""
+    A, _ = _elasticity3d(3)
+    assert abs(A - A.T).max() <= 1e-9 * abs(A).max()
+    assert np.linalg.eigvalsh(A.toarray()).min() > 0
 
 
 def _pyamg_cycle(ml, r):

@@ -16,7 +16,7 @@ from tests.test_vcycle import _elasticity3d  # noqa: E402
 def _stiffness():
     """A 3-D P1 stiffness numbered node by node (sorted CSR), shifted to be safely nonsingular."""
     A, _ = _elasticity3d(5)
-    A = sp.csr_matrix(-A + 10.0 * sp.eye(A.shape[0]))
+    A = sp.csr_matrix(A + 10.0 * sp.eye(A.shape[0]))
     A.sort_indices()
     return A
 
@@ -66,7 +66,7 @@ def test_node_triple_pattern_needs_whole_nodes():
 def test_galerkin_on_support_is_scipys_product_bit_for_bit(blocks):
     from admmkit.linalg.amg import AMGPreconditioner, galerkin_on_support
     A, B = _elasticity3d(6)
-    A = sp.csr_matrix(-A)
+    A = sp.csr_matrix(A)
     P = AMGPreconditioner(A, B, blocksize=3, max_coarse=50).ml.levels[0].P
     P = P if blocks else sp.csr_matrix(P)
     rows = np.arange(1, A.shape[0], 11)            # a D on a few scattered dofs, coupled to their neighbours

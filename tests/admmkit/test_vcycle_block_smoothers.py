@@ -16,9 +16,8 @@ from tests.test_vcycle import _elasticity, _elasticity3d  # noqa: E402
 
 
 def _hierarchy(values="float64"):
-    """3-D elasticity (its tetrahedra are numbered with negative volumes: -A is the SPD stiffness) and its AMG."""
+    """3-D elasticity (the SPD stiffness of positively oriented tetrahedra) and its AMG."""
     A, B = _elasticity3d(8)
-    A = -A
     return A, AMGPreconditioner(A, B, blocksize=3, max_coarse=50, cycle_values=values)
 
 
@@ -154,7 +153,7 @@ def test_smoother_names():
     for smoother, kind in (("block_jacobi", FinestLevel3DJacobi), ("gauss_seidel", FinestLevel3D),
                            (None, FinestLevel3DBlockGS)):               # block Gauss-Seidel: the 3-D default
         options = {} if smoother is None else {"cycle_smoother": smoother}
-        pre = AMGPreconditioner(-A3, B3, blocksize=3, max_coarse=50, **options)
+        pre = AMGPreconditioner(A3, B3, blocksize=3, max_coarse=50, **options)
         pre(r3)
         assert type(pre._cycle.block[0]) is kind
     z = AMGPreconditioner(A2, B2, blocksize=2, max_coarse=50)(r)         # 2-D: the pointwise sweeps, as before
