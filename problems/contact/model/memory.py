@@ -148,15 +148,23 @@ def dofs3d(nx: int, ny: int, nz: int, order: int = 1) -> float:
 PROCESS_BASELINE_3D = 300_000_000
 
 
+#: bytes a 3D iterative run holds per stored nonzero of K (P1: 45 a row, so about 3,960 bytes per unknown);
+#: fitted on P1 runs, taken the same per nonzero for P2 (not measured)
+ITERATIVE_BYTES_PER_NNZ_3D = 88.0
+
+
 def estimate_memory3d(nx: int, ny: int, nz: int, solver: str = "direct", order: int = 1) -> int:
     """Rough bytes of a 3D contact run on nx x ny x nz cubes, P1 or P2 (``order``).
 
     n = :func:`dofs3d` dofs, NNZ_ROW_3D nonzeros per row, 12 bytes each.  With
-    ``solver="iterative"``: one copy of the system (the compiled assembly
-    holds K once; its element blocks are freed before the AMG set-up, where the
-    peak is) and :func:`iterative_solver_bytes`: with the process baseline
-    (:func:`memory_need3d`) 2.05 GB at 3.1e5 unknowns (measured 1.95 GB) and
-    6.4 GB at 1.04e6 (measured 5.72 GB; docs/results/scale/contact3d_growth.md).  Otherwise three copies and a
+    ``solver="iterative"``: ITERATIVE_BYTES_PER_NNZ_3D bytes per stored nonzero of K, the whole run's
+    arrays (K once: the compiled assembly frees its element blocks before the AMG set-up, where the peak
+    is; the hierarchy, CG's product and V-cycle layouts, the projection basis).  Fitted to the peaks of
+    ``admmkit bench contact3d --growth-only`` (docs/results/scale/contact3d_growth.md) and of the target
+    command (``admmkit solve contact --scene block3d --mode iterative``): with the process baseline
+    (:func:`memory_need3d`) 1.54 GB at 3.1e5 unknowns (measured 1.36 GB in the bench, 1.37 GB from the
+    command) and 4.41 GB at 1.04e6 (measured 3.95 and 4.24 GB).  The model of 2D's AMG-CG
+    (:func:`iterative_solver_bytes`) gave 6.4 GB there, 50 % above.  Otherwise three copies and a
     sparse Cholesky factor of ~ 20 n^(4/3) nonzeros for P1 (CHOLMOD, nested
     dissection: 11.8, 13.5 and 14.4 n^(4/3) measured at 5.8e3, 1.8e4 and 4.2e4
     unknowns; SuperLU's MMD ordering filled 44, 30 and 70 n^(4/3), so without
@@ -166,7 +174,7 @@ def estimate_memory3d(nx: int, ny: int, nz: int, solver: str = "direct", order: 
     n = dofs3d(nx, ny, nz, order)
     nnz_row = NNZ_ROW_3D[order]
     if solver == "iterative":
-        return int(12 * nnz_row * n + iterative_solver_bytes(n, nnz_row * n, blocksize=3))
+        return int(ITERATIVE_BYTES_PER_NNZ_3D * nnz_row * n)
     system = 3 * 12 * nnz_row * n
     return int(system + 12 * 20.0 * (nnz_row / NNZ_ROW_3D[1]) * n ** (4 / 3))
 
