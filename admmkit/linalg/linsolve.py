@@ -142,8 +142,10 @@ class CachedFactorization:
         """Whether a factorisation for this rho is currently held."""
         return float(rho) in self._cache
 
-    def _factor(self, rho: float):
-        """The cached solve for ``rho``, factorising matrix(rho) first if it is not cached."""
+    def held(self, rho: float):
+        """The cached solve for ``rho`` (the factorisation object itself, called as ``solve(rhs)``),
+        factorising matrix(rho) first if it is not cached; a plug-in that reads the factor (a compiled
+        step) takes it from here."""
         key = float(rho)
         if not (math.isfinite(key) and key > 0):
             raise ValueError(f"rho must be a finite number > 0, got {rho!r}")
@@ -172,7 +174,7 @@ class CachedFactorization:
 
     def prepare(self, rho: float) -> None:
         """Factorise matrix(rho) now unless it is held (the event of a change of rho: :meth:`admmkit.Problem.update_rho`)."""
-        self._factor(rho)
+        self.held(rho)
 
     def refresh(self, rho: float) -> None:
         """matrix(rho) changed for the same rho (a new weighting of the rows): factorise it now (numerically in
@@ -191,7 +193,7 @@ class CachedFactorization:
 
     def solve(self, rho: float, rhs: np.ndarray) -> np.ndarray:
         """Solve ``matrix(rho) @ x = rhs``, factorising matrix(rho) if not cached."""
-        solve = self._factor(rho)
+        solve = self.held(rho)
         start = time.perf_counter()
         x = solve(rhs)
         self.solve_time += time.perf_counter() - start
@@ -202,7 +204,7 @@ class CachedFactorization:
         """The LDL' factors of matrix(rho) as arrays (Lp, Li, Lx, Dinv, perm), factorising if not cached;
         None unless the backend is qdldl.  ``admmkit.linalg.compiled.ldl_solve`` solves with them as qdldl does
         (the same operations, so the same bits); they are read from the factor once per rho."""
-        solve = self._factor(rho)
+        solve = self.held(rho)
         if solve.ldl is None:
             return None
         if not hasattr(solve, "ldl_arrays"):

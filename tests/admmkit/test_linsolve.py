@@ -62,6 +62,18 @@ def test_cache_one_factorization_per_rho(backend):
     assert cache.factor_time > 0 and cache.solve_time > 0
 
 
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_held_is_the_solve_the_cache_uses(backend):
+    cache = CachedFactorization(penalized, backend=backend)
+    held = cache.held(10.0)                         # factorised now
+    assert cache.factorizations == 1 and 10.0 in cache
+    assert cache.held(10) is held and cache.factorizations == 1
+    b = np.ones(144)
+    assert np.array_equal(held(b), cache.solve(10.0, b))
+    with pytest.raises(ValueError, match="rho must be a finite number > 0"):
+        cache.held(0.0)
+
+
 def test_cache_keys_on_float_value():
     cache = CachedFactorization(penalized)
     b = np.ones(144)

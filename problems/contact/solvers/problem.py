@@ -175,7 +175,7 @@ class CondensedContact(_ContactBase):
 
     def _cholesky(self, rho) -> np.ndarray:
         """R with R'R = M_c^{-1} + rho C (its upper triangle), the held factor (factorised now if not held)."""
-        held = self.factors._factor(rho)           # the cache's own entry, as its solve takes it
+        held = self.factors.held(rho)              # the cache's own entry, as its solve takes it
         return held.factor.T if held.lower else held.factor
 
     def z_step(self, Ax, lam, rho, z):
