@@ -72,3 +72,21 @@ def anderson_inner(w, rho, a, b) -> float:
     for i in range(m):
         sl += w[i] * a[m + i] * b[m + i]
     return rho * su + sl / rho
+
+
+def assert_block_product_is_symmetric_patterns(pattern, A, x, every: int) -> None:
+    """A node-block product layout (``pattern``: :class:`admmkit.linalg.symmetric.NodePairPattern` or
+    ``NodeTriplePattern``) gives y = A x with :class:`~admmkit.linalg.symmetric.SymmetricPattern`'s values bit
+    for bit, on A and on A with holes inside its node blocks (every ``every``-th stored entry dropped, then the
+    pattern made symmetric again), and A x to round-off."""
+    import scipy.sparse as sp
+    from admmkit.linalg.symmetric import SymmetricPattern
+    holes = sp.csr_matrix(A, copy=True)     # its own arrays: A is checked below too
+    holes.data[::every] = 0.0
+    holes.eliminate_zeros()
+    holes = sp.csr_matrix(holes + holes.T)
+    holes.sort_indices()
+    for M in (A, holes):
+        y = pattern(M).product(M)(x)
+        assert np.array_equal(y, SymmetricPattern(M).product(M)(x))
+        assert np.linalg.norm(y - M @ x) <= 1e-13 * np.linalg.norm(M @ x)

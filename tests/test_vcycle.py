@@ -8,6 +8,7 @@ pyamg = pytest.importorskip("pyamg")
 
 from admmkit.linalg.amg import AMGPreconditioner, short_spectral_radius  # noqa: E402
 from admmkit.linalg.vcycle import THREADS_VARIABLE, VCycle, csr_product  # noqa: E402
+from tests.conftest import assert_block_product_is_symmetric_patterns  # noqa: E402
 
 
 def _elasticity():
@@ -220,20 +221,12 @@ def test_refreshed_cycle_reuses_kept_patterns_and_equals_a_new_one():
 
 
 def test_node_pair_products_equal_the_upper_triangle_products():
-    from admmkit.linalg.symmetric import NodePairPattern, SymmetricPattern
+    from admmkit.linalg.symmetric import NodePairPattern
     A, _ = _elasticity()
     A = sp.csr_matrix(A + 2 * sp.eye(A.shape[0]))
     A.sort_indices()
     x = np.random.default_rng(9).standard_normal(A.shape[0])
-    assert np.array_equal(NodePairPattern(A).product(A)(x), SymmetricPattern(A).product(A)(x))
-    sparse = sp.csr_matrix(A)                   # a pattern with holes inside its 2 x 2 blocks
-    sparse.data[::5] = 0.0
-    sparse.eliminate_zeros()
-    sparse = sp.csr_matrix(sparse + sparse.T)
-    sparse.sort_indices()
-    y = NodePairPattern(sparse).product(sparse)(x)
-    assert np.array_equal(y, SymmetricPattern(sparse).product(sparse)(x))
-    assert np.linalg.norm(y - sparse @ x) <= 1e-13 * np.linalg.norm(sparse @ x)
+    assert_block_product_is_symmetric_patterns(NodePairPattern, A, x, every=5)   # and with holes in 2 x 2 blocks
     with pytest.raises(ValueError, match="even order"):
         NodePairPattern(sp.csr_matrix(sp.eye(3)))
 
