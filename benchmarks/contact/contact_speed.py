@@ -64,10 +64,11 @@ def backend_worlds() -> list[str]:
 
 def load_kernels(ops) -> None:
     """Import numba and load the condensed mode's kernels once (nothing if numba is not installed): the set-up's
-    ordering, and the iterations' steps and segment (one SADMM run, untimed)."""
+    ordering, and the iterations' steps and segment (one SADMM run, untimed; with numba imported its set-up's
+    ``compiled="auto"`` takes the kernels)."""
     from admmkit.problems.contact.solvers.dissection import use_kernels
     if use_kernels(ops.n_free, True):
-        contact_problem(ops, mode="condensed", backend="superlu", compiled=True)
+        import numba  # noqa: F401  (admmkit.kernels.compiled_now: "auto" runs compiled once numba is imported)
         sadmm_once(ops, "condensed", "superlu")
 
 

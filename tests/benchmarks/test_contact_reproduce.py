@@ -153,3 +153,20 @@ def test_bench_contact_measures_a_short_reference_in_more_rounds(monkeypatch):
                             {"total": 4.0, "cpu": 3.0, "setup": 1.0, "result": result})
         contact_speed.interleaved(SimpleNamespace(K=None, f=None), ("condensed",), repeats=3)
         assert calls.count("ref") == 1 + rounds
+
+
+def test_bench_contact_warm_up_imports_numba_and_runs_the_condensed_kernels():
+    """load_kernels: after it, a fresh process's condensed set-up ("auto") takes the compiled kernels."""
+    import subprocess
+    import sys
+    pytest.importorskip("numba")
+    code = ("import sys\n"
+            "from admmkit.benchmarks.contact.contact_speed import load_kernels\n"
+            "from admmkit.problems.contact import assemble, example1\n"
+            "from admmkit.problems.contact.solvers.dissection import use_kernels\n"
+            "ops = assemble(example1(1 / 10))\n"
+            "assert 'numba' not in sys.modules and not use_kernels(ops.n_free)\n"
+            "load_kernels(ops)\n"
+            "assert 'numba' in sys.modules and use_kernels(ops.n_free)\n")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr[-2000:]
