@@ -84,14 +84,25 @@ def test_documented_command_ends_as_documented(where, command, comment, tmp_path
     assert done.returncode == expected_exit(comment), (
         f"{where}: `{command}` exited {done.returncode}, the docs promise {expected_exit(comment)}\n"
         f"{done.stdout[-2000:]}\n{done.stderr[-2000:]}")
-    for figure in promised_counts(comment):        # "# ... 22,904 unknowns": the run prints that count
-        assert re.search(rf"\b{figure}\b", done.stdout), (
-            f"{where}: the docs say {figure:,} unknowns for `{command}`; the run printed\n{done.stdout[-1500:]}")
+    for figures in promised_counts(comment):       # "# ... 22,904 unknowns": the run prints that count
+        assert any(re.search(rf"\b{figure}\b", done.stdout) for figure in figures), (
+            f"{where}: the docs say {' or '.join(f'{f:,}' for f in figures)} unknowns for `{command}`; the run "
+            f"printed\n{done.stdout[-1500:]}")
 
 
-def promised_counts(comment: str) -> list[int]:
-    """The unknown counts a command's comment promises (``18,689 unknowns`` -> 18689)."""
-    return [int(m.replace(",", "")) for m in re.findall(r"(\d[\d,]*) unknowns", comment)]
+def promised_counts(comment: str) -> list[tuple[int, ...]]:
+    """The unknown counts a command's comment promises (``18,689 unknowns`` -> (18689,)), each with the
+    alternative the docs name for other processors (``18,689 unknowns (or 18,485 ...)`` -> (18689, 18485)): an
+    adaptive run's meshes follow the round-off of its stopping tests, which OpenBLAS's kernels set (AVX-512 and
+    AVX2 give different counts, docs/obstacle.md)."""
+    return [tuple(int(m.replace(",", "")) for m in pair if m)
+            for pair in re.findall(r"(\d[\d,]*) unknowns(?: \(or (\d[\d,]*))?", comment)]
+
+
+def test_promised_counts_reads_a_count_and_its_alternative():
+    assert promised_counts("# P2 meshes: 22,904 unknowns, a few seconds") == [(22904,)]
+    assert promised_counts("# to 0.1 %: 18,689 unknowns (or 18,485 with AVX2), 2 s") == [(18689, 18485)]
+    assert promised_counts("# exits 1: on purpose") == []
 
 
 class _nothing:
