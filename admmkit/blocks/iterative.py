@@ -58,7 +58,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..linalg.amg import AMGPreconditioner, PencilMatrix, node_blocks  # noqa: F401  (node_blocks: re-exported)
-from ..linalg.cg import CGWork, SolutionSpace, pcg  # noqa: F401  (re-exported)
+from ..linalg.cg import SolutionSpace, pcg  # noqa: F401  (re-exported)
 from ..linalg.submatrix import principal_submatrix
 from ..linalg.symmetric import pencil_products
 
@@ -143,7 +143,6 @@ class IterativeXSolver:
         self.maxiter, self.max_coarse = maxiter, max_coarse
         self.amg_options = dict(amg_options or {})
         self.space = SolutionSpace(K, D, projection)
-        self._cg_work = CGWork(n)  # CG's work vectors, the same four in every solve (no first touch per x-step)
         self._rho_A = None        # rho of the current matrix A
         self._A = None
         self._amg = None
@@ -265,8 +264,7 @@ class IterativeXSolver:
         guess = self.space.guess(rho, b)
         if guess is None:
             guess = np.zeros(self.n) if x0 is None else np.asarray(x0, dtype=float)[self.perm if self.perm is not None else slice(None)]
-        x, its, ratio, start_ratio, r = pcg(self._product, b, guess, self._amg, tol=tol, maxiter=self.maxiter,
-                                            work=self._cg_work)
+        x, its, ratio, start_ratio, r = pcg(self._product, b, guess, self._amg, tol=tol, maxiter=self.maxiter)
         elapsed = time.perf_counter() - start
         if ratio > tol:
             if ratio > 0.5:

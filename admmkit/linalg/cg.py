@@ -44,58 +44,30 @@ def cg_direction(p, z, beta: float) -> None:
 
 
 # ---------------------------------------------------------------- preconditioned CG
-class CGWork:
-    """CG's four work vectors of length n (the residual r, A p, z = P r and the direction p), kept from one
-    solve to the next by a caller that solves many systems of one size.
-
-    Four new 8 MB vectors per x-step cost page faults, their first touch: about 0.6 s of a SADMM run at
-    1e6 unknowns (the 3D block, 58 x-steps).  Used by :func:`pcg` where the product and the preconditioner
-    write into a given array (``writes_into``); the values are those of fresh arrays.
-    """
-
-    __slots__ = ("r", "Ap", "z", "p")
-
-    def __init__(self, n: int):
-        self.r, self.Ap, self.z, self.p = (np.empty(n) for _ in range(4))
-
-
-def pcg(matvec, b: np.ndarray, x0: np.ndarray, precond, *, tol: float, maxiter: int, work: CGWork | None = None):
+def pcg(matvec, b: np.ndarray, x0: np.ndarray, precond, *, tol: float, maxiter: int):
     """Preconditioned conjugate gradients from ``x0``.
 
     Stops when sqrt(r'Pr) <= tol * sqrt(|x'b|): with P a good preconditioner
     sqrt(r'Pr) is within mesh-independent constants of the energy norm of the
     error ||x - x*||_A, and x'b -> ||x*||_A^2, so the test is a relative energy
     error.  A ``matvec`` or ``precond`` with the attribute ``writes_into`` is
-    called as ``f(v, out=buffer)`` and must fill the buffer (one per solve, or ``work``'s, a
-    :class:`CGWork` of b's length kept by the caller from solve to solve, where both write into a buffer).
-    Returns (x, iterations, achieved ratio, starting ratio, r) where the
+    called as ``f(v, out=buffer)`` and must fill the buffer (one per solve).  Returns (x, iterations, achieved ratio, starting ratio, r) where the
     ratios are sqrt(r'Pr)/sqrt(|x'b|) at the end and the start and r = b - A x
-    is CG's (recursively updated) residual: ``work.r`` when ``work`` is used, overwritten by the next solve.
+    is CG's (recursively updated) residual.
     """
     x = np.array(x0, dtype=float)
+    r = b - matvec(x) if np.any(x) else np.array(b, dtype=float)
     # products and preconditioners that write into a given array (``writes_into``) get one buffer each for
     # the whole solve: a new 8 MB array per iteration cost page faults (1e6 unknowns, 3D block: 20 % of CG)
     into_A, into_P = getattr(matvec, "writes_into", False), getattr(precond, "writes_into", False)
-    if work is not None and not (into_A and into_P and work.r.shape == b.shape):
-        work = None
-    if work is None:
-        r = b - matvec(x) if np.any(x) else np.array(b, dtype=float)
-        Ap = np.empty_like(r) if into_A else None
-        z = precond(r, out=np.empty_like(r)) if into_P else precond(r)
-        p = z.copy()
-    else:                                   # the same values, in the caller's vectors
-        r, Ap, z, p = work.r, work.Ap, work.z, work.p
-        if np.any(x):
-            np.subtract(b, matvec(x, out=r), out=r)
-        else:
-            r[...] = b
-        z = precond(r, out=z)
-        p[...] = z
+    Ap = np.empty_like(r) if into_A else None
+    z = precond(r, out=np.empty_like(r)) if into_P else precond(r)
     rz = float(r @ z)
     scale = lambda: math.sqrt(max(abs(float(x @ b)), 1e-300))  # noqa: E731
     start_ratio = math.sqrt(max(rz, 0.0)) / scale() if np.any(x) else 1.0
     ratio = start_ratio
     its = 0
+    p = z.copy()
     while its < maxiter:
         ratio = math.sqrt(max(rz, 0.0)) / scale() if np.any(x) else math.inf
         if ratio <= tol or rz <= 0.0:
