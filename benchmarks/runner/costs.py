@@ -43,8 +43,9 @@ COSTS = {
     "bench amg-crossover": Cost("tens of minutes and 6.4 GB peak (the full mode at 1e6 unknowns) on 2 cores "
                                 "(docs/scale.md); --quick a minute"),
     "bench contact3d": Cost("several minutes and 6.2 GB peak (SADMM in the full mode at 1.35e5 unknowns; the run "
-                            "at h = 1/32 alone ~80 s and 1.9 GB) on 2 cores (docs/scale.md, "
-                            "docs/results/scale/contact3d.md); --quick a minute"),
+                            "at h = 1/32 alone ~15 s and 1.4 GB) on 2 cores (docs/scale.md, "
+                            "docs/results/scale/contact3d.md); --growth-only about 80 s and 4 GB peak "
+                            "(docs/results/scale/contact3d_growth.md); --quick a minute"),
     "bench friction": Cost(f"about 90 s (92 s), {UNRECORDED}, on 2 cores (docs/results/friction)"),
     "bench linsolve": Cost(f"minutes to tens of minutes up to 1e6 unknowns (--max-n for less), {UNRECORDED}"),
     # benchmarks/framework
