@@ -32,10 +32,10 @@ makes a kernel that is always compiled (the kernels of the large problems).
 The first compile in a process whose numba cache is cold prints one line on
 stderr saying so and that ``admmkit warm-up`` does it ahead.
 
-For contributors: numba's on-disk cache of a kernel is keyed on its own
-file, not on the kernels it calls; after editing this module in a source
-checkout, delete the ``*.nbi``/``*.nbc`` files under ``__pycache__`` (an
-install writes every file anew, which invalidates them).
+numba's on-disk cache of a kernel is keyed on its own file, not on the
+kernels it calls; :mod:`admmkit.kernel_cache` adds the source of every
+file that holds kernels to each kernel's key, so that an edited kernel
+reaches the kernels that call it.
 """
 from __future__ import annotations
 
@@ -129,8 +129,8 @@ class Kernel:
     def dispatcher(self):
         """numba's dispatcher of this kernel (numba imported now if it was not)."""
         if self._dispatcher is None:
-            import numba
-            self._dispatcher = numba.njit(**known_options(self.options))(self.py_func)
+            from .kernel_cache import numba_stamped      # its cache stamped with every kernel file's source
+            self._dispatcher = numba_stamped().njit(**known_options(self.options))(self.py_func)
         return self._dispatcher
 
     @property

@@ -11,9 +11,9 @@ floating-point operation is the one the Python path does, in the same order:
 - :func:`csc_matvec`: y = A x for a CSC matrix, as scipy's ``csc_matvec``
   (y = 0, then columns in order); :func:`csc_rmatvec`: A' y.
 
-For contributors: numba's on-disk cache of a kernel is keyed on its own
-file, not on the kernels it calls; after editing this module in a source
-checkout, delete the ``*.nbi``/``*.nbc`` files under ``__pycache__``.
+The kernels that call these are compiled anew when this module changes:
+:mod:`admmkit.kernel_cache` stamps every cached kernel with the source of
+every file that holds kernels.
 """
 from __future__ import annotations
 

@@ -32,15 +32,15 @@ cycle up to round-off (1e-15 relative with double-precision values):
 :func:`csr_product` gives y = A x for CG in the same way.  The Gauss-Seidel
 sweeps stay sequential (a multithreaded sweep would be another smoother).
 Threads: :func:`kernel_threads` (one unless ``$ADMMKIT_KERNEL_THREADS`` asks for more).
-After editing a kernel here, delete the ``*.nbi``/``*.nbc`` caches (see
-:mod:`admmkit.linalg.compiled`).
+numba is imported through :func:`admmkit.kernel_cache.numba_stamped`, so an edited kernel file
+recompiles the cached kernels (their stamps hold every kernel file's source).
 """
 from __future__ import annotations
 
 import numpy as np
 import scipy.sparse as sp
-from numba import njit, prange
 
+from ..kernel_cache import numba_stamped
 from .kernel_threads import THREADS_VARIABLE, kernel_threads  # noqa: F401  (THREADS_VARIABLE: re-exported)
 from ..kernels import _u
 from .vcycle_blocks import BlockLevel
@@ -48,6 +48,8 @@ from .vcycle_blocks3 import BlockLevel3
 from .vcycle_blocks3d import CoarseLevel6, FinestLevel3D
 from .vcycle_blockgs3d import FinestLevel3DBlockGS
 from .vcycle_jacobi3d import FinestLevel3DJacobi
+
+njit, prange = numba_stamped().njit, numba_stamped().prange  # numba with admmkit's cache stamps
 
 #: the block storages of a level: the finest (2-D: 2 x 2 blocks, P 2 x 3; 3-D: 3 x 3, P 3 x 6), then the coarse
 #: ones (3 x 3 and 6 x 6 blocks: three and six near-null vectors); ``blocks3d=False`` leaves out the 3-D ones

@@ -20,11 +20,13 @@ from __future__ import annotations
 
 import numpy as np
 import scipy.sparse as sp
-from numba import njit, prange
 
+from ..kernel_cache import numba_stamped
 from ..kernels import _u
 from .kernel_threads import kernel_threads
 from .symmetric import diagonal_positions, row_of
+
+njit, prange = numba_stamped().njit, numba_stamped().prange  # numba with admmkit's cache stamps
 
 
 # ---------------------------------------------------------------- rows of a 2 x 2 block row

@@ -13,10 +13,11 @@ level has 1.7e5 rows and 5.5e6 entries.
 """
 from __future__ import annotations
 
-from numba import njit
-
+from ..kernel_cache import numba_stamped
 from ..kernels import _u
 from .vcycle_blocks import BlockLevel
+
+njit = numba_stamped().njit  # numba with admmkit's cache stamps
 
 
 @njit(cache=True, inline="always")

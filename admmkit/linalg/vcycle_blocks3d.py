@@ -35,10 +35,12 @@ numba compiles the sizes as constants (and caches each pair on disk).
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
+from ..kernel_cache import numba_stamped
 from ..kernels import _u
 from .vcycle_blocks import BlockLevel
+
+njit = numba_stamped().njit  # numba with admmkit's cache stamps
 
 
 @njit(cache=True, inline="always")

@@ -19,9 +19,11 @@ from __future__ import annotations
 
 import numpy as np
 import scipy.sparse as sp
-from numba import njit
 
+from admmkit.kernel_cache import numba_stamped
 from admmkit.kernels import _u
+
+njit = numba_stamped().njit  # numba with admmkit's cache stamps
 
 
 @njit(cache=True)
