@@ -73,3 +73,11 @@ def test_a_kernel_is_compiled_anew_when_the_kernel_it_calls_changes(tmp_path, st
         assert _run(tmp_path, stamped) == (30, 0)             # compiled anew with the new g
     else:
         assert _run(tmp_path, stamped) == (20, 1)             # numba alone: f's stale copy of g, silently
+
+
+def test_a_numba_whose_caching_looks_otherwise_keeps_its_own_stamps(monkeypatch):
+    class Unexpected:
+        _locator_classes = [object]                    # not numba's locators: nothing is installed
+    monkeypatch.setattr(kernel_cache, "_installed", False)
+    monkeypatch.setattr(kernel_cache, "cache_impl", lambda: Unexpected)
+    assert kernel_cache.install() is False and Unexpected._locator_classes == [object]
