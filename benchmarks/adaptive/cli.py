@@ -21,8 +21,28 @@ def adaptive(targets) -> None:
                    help="the scenes to run (default all; the report holds only these)")
 
 
+#: what the full run's Hertz scenes hold at their reference's finest level (P2 to 1e-4: 690,046 unknowns in the
+#: condensed mode, then the study's exact solve of that level): on the machine of 29 November (23.5 GiB) the
+#: level's own solve peaked at 17-21 GB and the study was killed for memory at 24.3 GB (docs/contact.md)
+HERTZ_REFERENCE_BYTES = 25e9
+
+
+def check_memory(quick: bool, scenes, available: float) -> None:
+    """Refuse, before any work, a full run with the Hertz scenes where less than HERTZ_REFERENCE_BYTES is
+    available (a ValueError: one line, exit 2), naming what runs instead."""
+    if quick or "hertz" not in scenes or available >= HERTZ_REFERENCE_BYTES:
+        return
+    others = " ".join(s for s in scenes if s != "hertz")
+    instead = f"run --scenes {others}" if others else "run it on a larger machine"
+    raise ValueError(f"bench adaptive: the Hertz scenes need more than {HERTZ_REFERENCE_BYTES / 1e9:g} GB "
+                     f"(their reference's finest level, 690,046 P2 unknowns, was killed for memory at 24.3 GB), "
+                     f"only {available / 1e9:.1f} GB available; {instead}, or --quick")
+
+
 def _adaptive(args) -> int:
     from admmkit.benchmarks.adaptive.study import run
+    from admmkit.problems.contact.model.memory import available_memory
+    check_memory(args.quick, args.scenes, available_memory())
     print_files(run(Path(args.out), args.command_line, quick=args.quick, scenes=args.scenes))   # command as typed
     return 0
 

@@ -66,7 +66,9 @@ COSTS = {
     "bench rules": Cost(f"about 13 min (757 s), {UNRECORDED}, on 2 cores (docs/results/rules_full); --quick ~90 s "
                         "(docs/results/rules_quick)"),
     "bench estimators": Cost(f"minutes, {UNRECORDED}; --quick less"),
-    "bench adaptive": Cost(f"tens of minutes, {UNRECORDED}; --quick minutes"),
+    "bench adaptive": Cost("tens of minutes and more than 24 GB peak with the Hertz scenes (killed for memory at "
+                           "24.3 GB on 29 November; refused where less than 25 GB is available: --scenes without "
+                           "hertz for less); --quick minutes"),
     # benchmarks/qp
     "bench qp": Cost(f"hours for the whole Maros-Meszaros set (5440 cases; resumable with --resume), less with "
                      f"--problems, {UNRECORDED}"),
