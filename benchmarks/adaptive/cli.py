@@ -34,9 +34,10 @@ def check_memory(quick: bool, scenes, available: float) -> None:
         return
     others = " ".join(s for s in scenes if s != "hertz")
     instead = f"run --scenes {others}" if others else "run it on a larger machine"
-    raise ValueError(f"bench adaptive: the Hertz scenes need more than {HERTZ_REFERENCE_BYTES / 1e9:g} GB "
-                     f"(their reference's finest level, 690,046 P2 unknowns, was killed for memory at 24.3 GB), "
-                     f"only {available / 1e9:.1f} GB available; {instead}, or --quick")
+    raise ValueError(f"bench adaptive: the Hertz scenes' reference (690,046 P2 unknowns on its finest level) was "
+                     f"killed for memory at 24.3 GB resident where 24.7 GB were available; this check asks for "
+                     f"{HERTZ_REFERENCE_BYTES / 1e9:g} GB, {available / 1e9:.1f} GB available here; {instead}, "
+                     f"or --quick")
 
 
 def _adaptive(args) -> int:

@@ -5,8 +5,8 @@ import pytest
 def test_bench_adaptive_refuses_the_hertz_scenes_where_memory_is_short():
     from admmkit.benchmarks.adaptive.cli import HERTZ_REFERENCE_BYTES, check_memory
     scenes = ("obstacle", "ex1", "ex2", "hertz")
-    with pytest.raises(ValueError, match=r"Hertz scenes need more than 25 GB .* only 20.0 GB available; run "
-                                         r"--scenes obstacle ex1 ex2, or --quick"):
+    with pytest.raises(ValueError, match=r"Hertz scenes' reference .* killed for memory .* this check asks for 25 "
+                                         r"GB, 20.0 GB available here; run --scenes obstacle ex1 ex2, or --quick"):
         check_memory(False, scenes, 20e9)
     with pytest.raises(ValueError, match="run it on a larger machine, or --quick"):
         check_memory(False, ("hertz",), 20e9)
@@ -23,5 +23,5 @@ def test_the_refusal_is_one_line_and_exit_2_before_any_work(tmp_path, monkeypatc
     monkeypatch.setattr("admmkit.problems.contact.model.memory.available_memory", lambda: 20e9)
     assert main(["bench", "adaptive", "--out", str(tmp_path / "out")]) == 2
     err = capsys.readouterr().err.splitlines()
-    assert calls == [] and err[-1].startswith("admmkit: error: bench adaptive: the Hertz scenes need more than")
+    assert calls == [] and err[-1].startswith("admmkit: error: bench adaptive: the Hertz scenes' reference")
     assert main(["bench", "adaptive", "--scenes", "ex1", "--out", str(tmp_path / "out")]) == 0 and len(calls) == 1
