@@ -21,6 +21,8 @@ import hashlib
 import importlib.util
 import os
 
+from ._layout import SUBPACKAGES
+
 #: every file that holds kernels, by the package whose folder it lies in (tests/test_kernel_cache.py checks the
 #: list against the sources: a kernel in a file left out here would again be stamped by its own file only)
 KERNEL_FILES: dict[str, tuple[str, ...]] = {
@@ -36,14 +38,18 @@ KERNEL_FILES: dict[str, tuple[str, ...]] = {
         "qp/segment_checks.py", "qp/sparse_kernels.py", "qp/termination.py", "qp/validate_kernel.py"),
 }
 
+#: admmkit and its subpackages (``admmkit._layout.SUBPACKAGES``): a file in one of their folders is admmkit's
+PACKAGES = ("admmkit",) + tuple(f"admmkit.{name}" for name in SUBPACKAGES)
+
 _installed = False
 _stamp: bytes | None = None
 
 
 def package_folders() -> dict[str, str]:
-    """The folder of each package of :data:`KERNEL_FILES` (found without importing the subpackages)."""
+    """The folder of admmkit and of each subpackage (found without importing the subpackages; a source checkout
+    keeps them beside ``admmkit/``, an install inside it)."""
     folders = {}
-    for package in KERNEL_FILES:
+    for package in PACKAGES:
         spec = importlib.util.find_spec(package)
         folders[package] = os.path.realpath(list(spec.submodule_search_locations)[0])
     return folders
@@ -69,7 +75,7 @@ def sources_stamp() -> bytes:
 
 
 def make_locator(default_classes: list):
-    """The locator class: numba's own choice among ``default_classes`` for a file of admmkit's packages, with
+    """The locator class: numba's own choice among ``default_classes`` for a file of admmkit's folders, with
     :func:`sources_stamp` added to its stamp; None (numba's choice stands) for any other file."""
     from numba.core.caching import _CacheLocator
 

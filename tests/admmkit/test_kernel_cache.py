@@ -16,6 +16,8 @@ KERNEL_LINE = re.compile(r"^@(njit|kernel)\b|^@numba\.njit\b|^\w+ = (njit|kernel
 
 
 def test_every_file_with_kernels_is_stamped():
+    assert set(kernel_cache.package_folders()) == {"admmkit", "admmkit.problems", "admmkit.policies",
+                                                   "admmkit.benchmarks"}        # kernels anywhere in admmkit
     found = set()
     for package, folder in kernel_cache.package_folders().items():
         for root, _, files in os.walk(folder):
@@ -48,7 +50,7 @@ def _run(tmp_path, stamped: bool) -> tuple[int, int]:
         sys.path.insert(0, {str(tmp_path)!r})
         if {stamped}:
             from admmkit import kernel_cache
-            kernel_cache.KERNEL_FILES = {{"pkgx": ("caller.py", "callee.py")}}
+            kernel_cache.PACKAGES, kernel_cache.KERNEL_FILES = ("pkgx",), {{"pkgx": ("caller.py", "callee.py")}}
             assert kernel_cache.install()
         from pkgx.caller import f
         print(f(1), f.stats.cache_hits.get(f.signatures[0], 0) if f.signatures else 0)
